@@ -1,0 +1,159 @@
+/* btf.h - core of the BTF codec library (libbtfcodec.a).
+ *
+ * Usage:
+ *     btf_dirset d = btf_dirset_ubo2003();
+ *     btf *m = NULL;
+ *     btf_error err = {0};
+ *     if (btf_create(64, 64, &d, &d, BTF_U8, &m, &err) != BTF_OK)
+ *         fprintf(stderr, "%s\n", err.msg);
+ *     float r = btf_get(m, view, light, x, y, 0);
+ *     btf_free(m);
+ *
+ * A BTF is W x H texels, a light direction set and a view direction set, RGB.
+ * Samples are stored either as bytes (as measured images store them) or as
+ * float32; either way btf_get() returns byte/255 scale floats (0..1 for
+ * in-range data; values are in the images' own, sRGB-encoded, scale: no
+ * gamma conversion happens anywhere in the library).
+ * Memory layout: [view][light][y][x][c], c fastest, contiguous.
+ *
+ * Limitations: at most BTF_MAX_RINGS rings and BTF_MAX_DIRS directions per set.
+ * The library never prints, exits or aborts on bad input: every fallible call
+ * returns a btf_result and, when given a btf_error, a message naming the cause.
+ */
+#ifndef BTF_H
+#define BTF_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum btf_result {
+    BTF_OK = 0,
+    BTF_ERR_ARG,         /* invalid argument from the caller */
+    BTF_ERR_IO,          /* a file could not be opened, read or written */
+    BTF_ERR_FORMAT,      /* input is not in the expected format */
+    BTF_ERR_RANGE,       /* a size, count or value is outside what is allowed */
+    BTF_ERR_NOMEM,       /* an allocation failed */
+    BTF_ERR_UNSUPPORTED, /* a valid input the library does not implement */
+    BTF_ERR_NUMERIC,     /* NaN/Inf in input or a numerical failure */
+    BTF_ERR_MISSING      /* an expected file or entry is absent */
+} btf_result;
+
+/* Short constant description of a result code. */
+const char *btf_result_string(btf_result r);
+
+/* Caller-owned message buffer filled by failing calls; lives as long as the caller wants. */
+typedef struct btf_error {
+    char msg[512];
+} btf_error;
+
+/* Formats into err (if non-NULL) and returns code: for use by library modules. */
+btf_result btf_fail(btf_error *err, btf_result code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* ---------------------------------------------------------------- directions */
+
+#define BTF_MAX_RINGS 32
+#define BTF_MAX_DIRS 2048
+
+/* One ring of directions at fixed theta; value type, owned by its btf_dirset. */
+typedef struct btf_ring {
+    float theta_deg;      /* polar angle from the normal, degrees, 0..90 */
+    int count;            /* directions on the ring, >= 1 */
+    float phi_offset_deg; /* phi of the first direction; then phi += 360/count */
+} btf_ring;
+
+/* A direction set as rings in ascending theta; plain value, no heap, copy freely.
+ * Canonical order: ring by ring (ascending theta), then ascending phi index.
+ * ring_start[r] is the canonical index of ring r's first direction. */
+typedef struct btf_dirset {
+    int n_rings;
+    int n_dirs;
+    btf_ring rings[BTF_MAX_RINGS];
+    int ring_start[BTF_MAX_RINGS];
+} btf_dirset;
+
+/* Builds a set from a ring table; checks ascending theta, counts, limits. */
+btf_result btf_dirset_make(const btf_ring *rings, int n_rings, btf_dirset *out, btf_error *err);
+/* UBO2003: theta 0..75 step 15, counts 1,6,12,18,20,24, offsets 0 (81 dirs). */
+btf_dirset btf_dirset_ubo2003(void);
+/* UBO2014 dome: 151 directions on 10 rings (formats.md section 2.8). */
+btf_dirset btf_dirset_dome151(void);
+/* Reads {"rings":[{"theta":deg,"count":n,"phi_offset":deg},...]} (cJSON). */
+btf_result btf_dirset_load_json(const char *path, btf_dirset *out, btf_error *err);
+/* theta/phi in degrees of canonical direction i (0 <= i < n_dirs). */
+void btf_dirset_angles(const btf_dirset *d, int i, float *theta_deg, float *phi_deg);
+/* Unit vector (x, y, z) of direction i: x = sin t cos p, y = sin t sin p, z = cos t. */
+void btf_dirset_vector(const btf_dirset *d, int i, float v[3]);
+/* Canonical index of the direction at (theta, phi) within tol degrees, or -1. */
+int btf_dirset_find(const btf_dirset *d, float theta_deg, float phi_deg, float tol_deg);
+/* 1 if both sets have the same rings. */
+int btf_dirset_equal(const btf_dirset *a, const btf_dirset *b);
+
+/* Angular interpolation result: up to 3 measured directions and weights summing to 1.
+ * Unused slots have weight 0 and repeat a valid index. Value type. */
+typedef struct btf_interp {
+    int idx[3];
+    float w[3];
+} btf_interp;
+
+/* The 3 measured directions around (theta, phi) in degrees and their
+ * barycentric weights; the CPU reference the shaders match. Never NaN. */
+btf_interp btf_dirset_interp(const btf_dirset *d, float theta_deg, float phi_deg);
+/* Same for a direction vector in the local frame (z = normal); need not be unit. */
+btf_interp btf_dirset_interp_vec(const btf_dirset *d, const float v[3]);
+
+/* ---------------------------------------------------------------- the BTF */
+
+typedef enum btf_storage { BTF_U8 = 1, BTF_F32 = 2 } btf_storage;
+
+/* An in-memory BTF. Created by btf_create or a loader, owned by the caller,
+ * released with btf_free. data holds n_views*n_lights*height*width*3 samples. */
+typedef struct btf {
+    int width, height;
+    btf_dirset lights, views;
+    btf_storage storage;
+    void *data;   /* malloc'd: uint8_t* for BTF_U8, float* for BTF_F32 */
+    size_t count; /* number of samples (not bytes) */
+} btf;
+
+/* Largest accepted sample count (guards allocations from file headers): 2^34. */
+#define BTF_MAX_SAMPLES ((size_t)1 << 34)
+#define BTF_MAX_SIDE 16384
+
+/* Allocates a zero-filled BTF. */
+btf_result btf_create(int width, int height, const btf_dirset *lights, const btf_dirset *views,
+                      btf_storage storage, btf **out, btf_error *err);
+void btf_free(btf *b);
+
+/* Index of sample (view, light, x, y, c) in data. */
+static inline size_t btf_index(const btf *b, int view, int light, int x, int y, int c)
+{
+    return ((((size_t)view * (size_t)b->lights.n_dirs + (size_t)light) * (size_t)b->height + (size_t)y) *
+                (size_t)b->width + (size_t)x) * 3u + (size_t)c;
+}
+/* Samples per (view, light) image: width*height*3. */
+static inline size_t btf_image_samples(const btf *b) { return (size_t)b->width * (size_t)b->height * 3u; }
+
+/* Sample on the byte/255 scale. */
+float btf_get(const btf *b, int view, int light, int x, int y, int c);
+/* Stores v (byte/255 scale); BTF_U8 rounds and clamps to 0..255. */
+void btf_set(btf *b, int view, int light, int x, int y, int c, float v);
+/* Copies one (view, light) image into dst (width*height*3 floats, byte/255 scale). */
+void btf_get_image(const btf *b, int view, int light, float *dst);
+
+/* Spatial box downsampling by an integer factor (width and height must divide). */
+btf_result btf_downsample(const btf *src, int factor, btf **out, btf_error *err);
+/* Checks every sample is finite (BTF_F32); BTF_ERR_NUMERIC names the first bad one. */
+btf_result btf_check_finite(const btf *b, btf_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

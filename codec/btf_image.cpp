@@ -1,0 +1,91 @@
+// btf_image.cpp - the one C++ file: OpenImageIO behind the C API of btf_image.h.
+#include "btf_image.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <unistd.h>
+
+using namespace OIIO;
+
+static const int kMaxSide = 1 << 15;
+
+extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
+{
+    ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = ImageInput::open(path, &config);
+    if (!in)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, OIIO::geterror().c_str());
+    const ImageSpec &s = in->spec();
+    *w = s.width;
+    *h = s.height;
+    *channels = s.nchannels;
+    in->close();
+    return BTF_OK;
+}
+
+extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels,
+                                        btf_error *err)
+{
+    *pixels = nullptr;
+    ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = ImageInput::open(path, &config);
+    if (!in)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, OIIO::geterror().c_str());
+    const ImageSpec &s = in->spec();
+    if (s.width < 1 || s.height < 1 || s.width > kMaxSide || s.height > kMaxSide || s.nchannels < 1 ||
+        s.nchannels > 4 || s.depth != 1)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d)", path, s.width, s.height,
+                        s.nchannels, s.depth);
+    size_t n = (size_t)s.width * (size_t)s.height * (size_t)s.nchannels;
+    uint8_t *buf = (uint8_t *)malloc(n);
+    if (!buf)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, n);
+    if (!in->read_image(0, 0, 0, s.nchannels, TypeDesc::UINT8, buf)) {
+        std::string e = in->geterror();
+        free(buf);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode image (%s)", path, e.c_str());
+    }
+    in->close();
+    *w = s.width;
+    *h = s.height;
+    *channels = s.nchannels;
+    *pixels = buf;
+    return BTF_OK;
+}
+
+extern "C" btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
+                                      btf_error *err)
+{
+    if (w < 1 || h < 1 || w > kMaxSide || h > kMaxSide || channels < 1 || channels > 4 || (bits != 8 && bits != 16))
+        return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%dx%d/%d", path, w, h, channels, bits);
+    std::string final_path(path);
+    std::string ext = final_path.substr(final_path.find_last_of('.') == std::string::npos ? final_path.size()
+                                                                                          : final_path.find_last_of('.'));
+    // keep the extension last so OpenImageIO picks the format from the temp name
+    std::string tmp = final_path + ".tmp-" + std::to_string((long)getpid()) + ext;
+    auto out = ImageOutput::create(final_path);
+    if (!out)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: no writer for this extension", path);
+    ImageSpec spec(w, h, channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    if (!out->open(tmp, spec))
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp.c_str(), out->geterror().c_str());
+    bool ok = out->write_image(bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16, pixels);
+    ok = out->close() && ok;
+    if (!ok) {
+        std::string e = out->geterror();
+        std::remove(tmp.c_str());
+        return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
+    }
+    if (std::rename(tmp.c_str(), path) != 0) {
+        std::remove(tmp.c_str());
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot rename temporary file", path);
+    }
+    return BTF_OK;
+}

@@ -1,0 +1,33 @@
+/* btf_image.h - image files through OpenImageIO (the only C++ in the codec).
+ *
+ *     uint8_t *px; int w, h, ch;
+ *     if (btf_image_read_u8("a.png", &w, &h, &ch, &px, &err) == BTF_OK) { ...; free(px); }
+ *
+ * Reads any format OpenImageIO reads (PNG, JPEG, ...) as 8-bit, interleaved,
+ * row 0 first, with alpha left unassociated (never premultiplied).
+ * Writes go to "<path>.tmp-<pid>" and are renamed into place on success.
+ */
+#ifndef BTF_IMAGE_H
+#define BTF_IMAGE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "btf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Reads an image; *pixels is malloc'd (w*h*ch bytes), caller frees. */
+btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels, btf_error *err);
+/* Reads only the header: size and channel count. */
+btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err);
+/* Writes w*h*channels samples, bits 8 (uint8_t) or 16 (uint16_t), format from the extension. */
+btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
+                           btf_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

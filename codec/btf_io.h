@@ -1,0 +1,52 @@
+/* btf_io.h - loaders and writers for BTF files and directories.
+ *
+ *     btf_load_options o = {0};        // zero means defaults
+ *     o.downsample = 4;                // 256x256 images -> 64x64 BTF
+ *     btf *m; btf_error err;
+ *     if (btf_load_ubo2003_dir("wool/", &o, &m, &err) != BTF_OK) puts(err.msg);
+ *
+ * Every loader checks sizes and counts before allocating and returns an error
+ * naming the offending file on bad input; none prints or aborts.
+ */
+#ifndef BTF_IO_H
+#define BTF_IO_H
+
+#include "btf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Options for loaders; zero means default. Plain value. */
+typedef struct btf_load_options {
+    int downsample;     /* integer box-filter factor on load, 0/1 = none */
+    int width, height;  /* requested output size where a loader can resample (thesis import); 0 = native */
+    btf_storage storage;/* 0 = loader's natural storage */
+    const btf_dirset *sampling; /* expected direction set; NULL = UBO2003 */
+} btf_load_options;
+
+/* UBO2003 image directory (formats.md section 1): files named ..._tlTTT_plPPP_tvTTT_pvPPP.{jpg,png}
+ * or "tvTTT_pvPPP/NNNNN tlTTT plPPP tvTTT pvPPP.jpg"; every (light, view) image exactly once. */
+btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, btf **out, btf_error *err);
+/* Writes one PNG (or .jpg, by ext) per (light, view) pair, flat layout, name prefix given. */
+btf_result btf_save_ubo2003_dir(const btf *b, const char *dir, const char *prefix, const char *ext,
+                                btf_error *err);
+
+/* The thesis's published package (formats.md section 3): full reconstruction.
+ * opt->width/height choose the output size (box/nearest resampling from 256). */
+btf_result btf_import_thesis(const char *dir, const btf_load_options *opt, btf **out, btf_error *err);
+
+/* UBO2014 DFMF08FC `.btf` file (formats.md section 2): decoded to float RGB. */
+btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **out, btf_error *err);
+/* Writes b as a DFMF08FC file with `components` factors per channel (RGB colour model,
+ * float32 scalars); components = 0 means full rank (exact up to float rounding). */
+btf_result btf_save_dfmf(const btf *b, const char *path, int components, btf_error *err);
+
+/* Loads anything the loaders read: a directory (UBO2003 images or thesis package,
+ * told apart by meta.json) or a `.btf` file. */
+btf_result btf_load_any(const char *path, const btf_load_options *opt, btf **out, btf_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

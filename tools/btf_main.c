@@ -1,0 +1,39 @@
+/* btf_main.c - the `btf` command: dispatches to one tools/cmd_*.c per subcommand. */
+#include "btf_cli.h"
+
+#include <stdio.h>
+#include <string.h>
+
+/* One row per subcommand; static table, lives for the program. */
+typedef struct btf_command {
+    const char *name;
+    int (*run)(int argc, char **argv);
+    const char *help;
+} btf_command;
+
+static const btf_command commands[] = {
+    /* BTF_COMMANDS: one line per subcommand, keep sorted */
+    {NULL, NULL, NULL},
+};
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: btf COMMAND [ARGS...]\n\ncommands:\n");
+    for (const btf_command *c = commands; c->name; c++)
+        fprintf(f, "  %-14s %s\n", c->name, c->help);
+    fprintf(f, "\n`btf COMMAND --help` describes one command.\n");
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+        usage(argc < 2 ? stderr : stdout);
+        return argc < 2 ? 2 : 0;
+    }
+    for (const btf_command *c = commands; c->name; c++)
+        if (!strcmp(c->name, argv[1]))
+            return c->run(argc - 1, argv + 1);
+    fprintf(stderr, "btf: unknown command '%s'\n", argv[1]);
+    usage(stderr);
+    return 2;
+}
