@@ -1,0 +1,96 @@
+/* btf_decode.c - CPU reference decoder of a (possibly partial) package at any texel
+ * and any (light, view) direction: doc/package-format.md section 6, the arithmetic
+ * the GLSL decoder reproduces. */
+#include <math.h>
+
+#include "btf_package.h"
+
+/* Up to 4 texels and their filter weights; value type. */
+typedef struct btf__taps {
+    int n;
+    size_t idx[4]; /* y*W + x inside a tile */
+    float w[4];
+} btf__taps;
+
+static int btf__wrap_or_clamp(int i, int n, int wrap)
+{
+    if (wrap) {
+        i %= n;
+        return i < 0 ? i + n : i;
+    }
+    return i < 0 ? 0 : i >= n ? n - 1 : i;
+}
+
+/* Coordinates far outside any tile are clamped before the float->int conversion. */
+static float btf__sane(float t)
+{
+    if (!isfinite(t))
+        return 0.0f;
+    return t < -1e6f ? -1e6f : t > 1e6f ? 1e6f : t;
+}
+
+static btf__taps btf__texel_taps(const btf_package *p, float u, float v, const btf_decode_options *o)
+{
+    btf__taps t = {0};
+    int W = p->width, H = p->height;
+    float fx = btf__sane(u) * (float)W, fy = btf__sane(v) * (float)H;
+    if (o->filter != BTF_FILTER_BILINEAR) {
+        int x = btf__wrap_or_clamp((int)floorf(fx), W, o->wrap), y = btf__wrap_or_clamp((int)floorf(fy), H, o->wrap);
+        t.n = 1;
+        t.idx[0] = (size_t)y * W + x;
+        t.w[0] = 1.0f;
+        return t;
+    }
+    fx -= 0.5f;
+    fy -= 0.5f;
+    float x0f = floorf(fx), y0f = floorf(fy), ax = fx - x0f, ay = fy - y0f;
+    int x0 = (int)x0f, y0 = (int)y0f;
+    int xs[2] = {btf__wrap_or_clamp(x0, W, o->wrap), btf__wrap_or_clamp(x0 + 1, W, o->wrap)};
+    int ys[2] = {btf__wrap_or_clamp(y0, H, o->wrap), btf__wrap_or_clamp(y0 + 1, H, o->wrap)};
+    t.n = 4;
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 2; i++) {
+            t.idx[j * 2 + i] = (size_t)ys[j] * W + xs[i];
+            t.w[j * 2 + i] = (i ? ax : 1.0f - ax) * (j ? ay : 1.0f - ay);
+        }
+    return t;
+}
+
+/* Filtered texture value of chunk j in block b. */
+static float btf__tex(const btf_package *p, int j, int b, const btf__taps *t)
+{
+    const float *tile = p->tex[j] + (size_t)b * p->width * p->height;
+    float s = 0.0f;
+    for (int i = 0; i < t->n; i++)
+        s += t->w[i] * tile[t->idx[i]];
+    return s;
+}
+
+void btf_decode(const btf_package *p, float u, float v, const float light[3], const float view[3],
+                const btf_decode_options *opt, float rgb[3])
+{
+    btf_decode_options o = {0};
+    if (opt)
+        o = *opt;
+    int n = o.n_chunks <= 0 || o.n_chunks > p->n_loaded ? p->n_loaded : o.n_chunks;
+    btf__taps taps = btf__texel_taps(p, u, v, &o);
+    btf_interp il = btf_dirset_interp_vec(&p->lights, light);
+    btf_interp iv = btf_dirset_interp_vec(&p->views, view);
+    int L = p->lights.n_dirs;
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    for (int a = 0; a < 3; a++) {
+        if (iv.w[a] == 0.0f)
+            continue;
+        int vi = iv.idx[a], b = p->blocks->block_of_view[vi];
+        for (int j = 0; j < n; j++) {
+            float t = btf__tex(p, j, b, &taps);
+            for (int c = 0; c < 3; c++) {
+                float s = 0.0f; /* sum over the 3 lights of wl * Wt_j[vi][li][c] */
+                for (int e = 0; e < 3; e++)
+                    if (il.w[e] != 0.0f)
+                        s += il.w[e] * p->wt[j][((size_t)vi * L + il.idx[e]) * 3 + c];
+                rgb[c] += iv.w[a] * t * s;
+            }
+        }
+    }
+}

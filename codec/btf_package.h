@@ -1,0 +1,119 @@
+/* btf_package.h - the streamable package (doc/package-format.md): writer, reader,
+ * CPU reference decoder.
+ *
+ *     btf_pca_options po = {0};  po.k = 3; po.components = 8;
+ *     btf_package_options ko = {0};  ko.bits = 8;
+ *     if (btf_package_compress(src, &po, &ko, "lib/wool", NULL, &err) != BTF_OK) ...
+ *
+ *     btf_package *p;
+ *     btf_package_read("lib/wool", 2, &p, &err);        // first 2 chunks only
+ *     btf_decode_options d = {0};  d.filter = BTF_FILTER_BILINEAR;
+ *     float rgb[3];
+ *     btf_decode(p, u, v, light_dir, view_dir, &d, rgb); // any direction
+ *     btf_package_free(p);
+ *
+ * The writer builds the package in "OUT.tmp-<pid>" and renames it to OUT only
+ * when every file and the manifest are written; on failure nothing named OUT
+ * appears (an existing package OUT is left untouched).
+ * Not done here: spatial levels (a later version), thesis-format export.
+ */
+#ifndef BTF_PACKAGE_H
+#define BTF_PACKAGE_H
+
+#include <stdint.h>
+
+#include "btf.h"
+#include "btf_pca.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BTF_PACKAGE_MAX_CHUNKS 1024
+#define BTF_PACKAGE_MAX_FILES 8   /* files per chunk */
+#define BTF_PACKAGE_NAME_MAX 64   /* file and material name length, including NUL */
+
+/* Writer options; zero means default. Plain value. */
+typedef struct btf_package_options {
+    int bits;            /* texture bits per value: 8 (default) or 16 */
+    const char *name;    /* material name in the manifest; NULL = last path element of OUT */
+    int lab_max_texels;  /* texels in the Lab error subsample; 0 = 256 */
+    /* Test hook: called before the writer creates package file number i (0-based);
+     * a nonzero return makes that write fail like a full disk. NULL = none. */
+    int (*write_hook)(void *ctx, int i, const char *file);
+    void *hook_ctx;
+} btf_package_options;
+
+/* One chunk of a package (manifest entry); owned by its btf_package. */
+typedef struct btf_chunk_info {
+    int component;
+    int n_files;
+    char files[BTF_PACKAGE_MAX_FILES][BTF_PACKAGE_NAME_MAX];
+    long long bytes;
+    double rmse, lab, psnr, delta_e76, rmse_float; /* after chunks 0..id have arrived */
+    float *tex_range; /* n_blocks x {lo, step} (malloc'd) */
+    float *wt_range;  /* n_blocks x {lo, step} (malloc'd) */
+} btf_chunk_info;
+
+/* A package read from disk (or just written); owned by the caller, btf_package_free. */
+typedef struct btf_package {
+    char name[BTF_PACKAGE_NAME_MAX];
+    int width, height;
+    btf_dirset lights, views;
+    btf_blocks *blocks;
+    int k, n_comp, bits;
+    btf_center center;
+    btf_grouping grouping;
+    int atlas_cols, atlas_rows;
+    int lab_stride;
+    int n_chunks;           /* chunks listed in the manifest */
+    btf_chunk_info *chunk;  /* n_chunks, importance order */
+    int n_loaded;           /* chunks 0..n_loaded-1 have their data below */
+    float **tex;            /* per loaded chunk: n_blocks * width * height dequantised texels, block-major */
+    float **wt;             /* per loaded chunk: views * lights * 3 dequantised weights */
+} btf_package;
+
+/* Summary of a compression run (optional output of btf_package_compress). */
+typedef struct btf_compress_stats {
+    double seconds_pca;     /* block matrices + PCA + quantisation + error sums */
+    double seconds_write;   /* files, ordering, Lab estimate, manifest */
+    long long bytes;        /* all chunk files */
+    int n_chunks;
+    double rmse, lab, rmse_float; /* of the complete package */
+} btf_compress_stats;
+
+/* PCA + quantisation + ordering + files. src is not modified. */
+btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                                const char *out_dir, btf_compress_stats *stats, btf_error *err);
+
+/* Reads the manifest and the data of the first n chunks: n = 0 all (every file must
+ * exist), n > 0 exactly the first n, n < 0 as many leading chunks as have their
+ * files present (a partially received package). */
+btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error *err);
+void btf_package_free(btf_package *p);
+
+/* Direct reconstruction at a measured (view, light) pair and texel from the first n
+ * loaded chunks (n <= 0 or n > n_loaded means all loaded). */
+void btf_package_value(const btf_package *p, int view, int light, int x, int y, int n, float rgb[3]);
+/* Whole-BTF reconstruction (BTF_F32) from the first n loaded chunks. */
+btf_result btf_package_reconstruct(const btf_package *p, int n, btf **out, btf_error *err);
+
+typedef enum btf_filter { BTF_FILTER_NEAREST = 0, BTF_FILTER_BILINEAR } btf_filter;
+
+/* Decoder options; zero means default. Plain value. */
+typedef struct btf_decode_options {
+    btf_filter filter;
+    int wrap;     /* 1: texel indices modulo the size (tiling); 0: clamp to the edge */
+    int n_chunks; /* use the first n loaded chunks; 0 = all loaded */
+} btf_decode_options;
+
+/* CPU reference decoder (doc/package-format.md section 6): texture coordinate (u, v)
+ * in [0,1], light and view directions in the local frame (z = normal, need not be
+ * unit). rgb is on the byte/255 scale, not clamped. Never NaN for finite input. */
+void btf_decode(const btf_package *p, float u, float v, const float light[3], const float view[3],
+                const btf_decode_options *opt, float rgb[3]);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

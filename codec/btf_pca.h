@@ -1,0 +1,127 @@
+/* btf_pca.h - k-view block PCA of a BTF (thesis, seed 003, chapter 4).
+ *
+ *     btf_pca_options o = {0};   // zero = defaults: k 3, C 8, auto method, no centring
+ *     o.k = 3; o.components = 8;
+ *     btf_pca_model *m;
+ *     if (btf_pca_compress(src, &o, &m, &err) == BTF_OK) {
+ *         float r = btf_pca_model_value(m, view, light, x, y, 0, m->n_comp);
+ *         btf_pca_model_free(m);
+ *     }
+ *
+ * Views are grouped into blocks of k (btf_group_views); per block the data matrix
+ * A (texels x 3*lights*views-in-block, column-major, byte/255 scale) is built on
+ * the fly from the BTF and approximated by C components: A ~= T W^T with T
+ * (texels x C, unit columns = left singular vectors) and W (cols x C, V*sigma).
+ * C counts component 0 (the row mean when centring, like the thesis).
+ * All linear algebra is LAPACKE/OpenBLAS; rank-deficient blocks give zero
+ * components, never NaN. See doc/package-format.md for the model.
+ *
+ * Not done here: quantisation, files, ordering (btf_package.h).
+ */
+#ifndef BTF_PCA_H
+#define BTF_PCA_H
+
+#include "btf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum btf_grouping {
+    BTF_GROUP_DEFAULT = 0,  /* = BTF_GROUP_CONSECUTIVE (measured, doc/package-format.md) */
+    BTF_GROUP_CONSECUTIVE,  /* thesis: k consecutive views in canonical order */
+    BTF_GROUP_SPATIAL       /* greedy: seed view + its k-1 nearest unassigned views */
+} btf_grouping;
+
+typedef enum btf_pca_method {
+    BTF_PCA_AUTO = 0,       /* Gram when a block has <= 2048 columns, else randomized */
+    BTF_PCA_GRAM,           /* cblas_ssyrk + LAPACKE_ssyevr for the top C */
+    BTF_PCA_RANDOMIZED,     /* randomized range finder: sgemm + sgeqrf/sorgqr + small sgesdd */
+    BTF_PCA_SVD             /* full LAPACKE_sgesdd: the slow baseline */
+} btf_pca_method;
+
+typedef enum btf_center {
+    BTF_CENTER_DEFAULT = 0, /* = BTF_CENTER_NONE */
+    BTF_CENTER_NONE,        /* best rank-C approximation of the block */
+    BTF_CENTER_ROW          /* thesis: component 0 = texel mean over the block, weight 1 */
+} btf_center;
+
+/* Options; zero means default. Plain value. */
+typedef struct btf_pca_options {
+    int k;                  /* views per block, 1..n_views; 0 = 3 */
+    int components;         /* C including component 0; 0 = 8 */
+    btf_grouping grouping;
+    btf_pca_method method;
+    btf_center center;
+} btf_pca_options;
+
+/* View blocks; heap struct owned by whoever made it (btf_blocks_free). */
+typedef struct btf_blocks {
+    int n_views, n_blocks, k;
+    int *start;         /* n_blocks+1: block b owns views[start[b] .. start[b+1]-1] */
+    int *views;         /* n_views view indices, block by block */
+    int *block_of_view; /* n_views */
+    int *pos_in_block;  /* n_views: position of the view inside its block */
+} btf_blocks;
+
+btf_result btf_group_views(const btf_dirset *views, int k, btf_grouping g, btf_blocks **out, btf_error *err);
+/* Builds blocks from an explicit list (lists[b] has sizes[b] views); checks it is a partition. */
+btf_result btf_blocks_from_lists(int n_views, int n_blocks, const int *sizes, const int *const *lists,
+                                 btf_blocks **out, btf_error *err);
+void btf_blocks_free(btf_blocks *b);
+/* Mean angular distance (degrees) between views of the same block: a compactness measure. */
+double btf_blocks_spread(const btf_blocks *b, const btf_dirset *views);
+
+/* Columns of block b's data matrix: 3 * n_lights * views in block. */
+int btf_block_cols(const btf *src, const btf_blocks *bl, int b);
+/* Fills A (width*height rows x btf_block_cols columns, column-major, ld = rows). */
+btf_result btf_block_matrix(const btf *src, const btf_blocks *bl, int b, float *A, btf_error *err);
+
+/* PCA of one block; malloc'd arrays owned by the model that holds it. */
+typedef struct btf_pca_block {
+    int rows, cols, n_comp;
+    float *t;       /* rows x n_comp, column-major: the textures (unit columns, or the mean) */
+    float *w;       /* cols x n_comp, column-major: the weights (V * sigma, or 1 for the mean) */
+    float *sigma;   /* n_comp: singular values (1 for the mean) */
+    double energy;  /* |A|_F^2 in double */
+} btf_pca_block;
+
+/* Top C components of A (rows x cols, column-major, ld = rows; not modified).
+ * C must be <= min(rows, cols). out's arrays are malloc'd (btf_pca_block_clear). */
+btf_result btf_pca_block_compute(const float *A, int rows, int cols, int C, btf_pca_method method,
+                                 btf_center center, btf_pca_block *out, btf_error *err);
+void btf_pca_block_clear(btf_pca_block *blk);
+
+/* Called once per block while its data matrix is alive (used by the package writer
+ * to quantise and to accumulate exact error sums without rebuilding A). */
+typedef btf_result (*btf_pca_block_fn)(void *ctx, int block, const float *A, const btf_pca_block *res,
+                                       btf_error *err);
+
+/* Whole-BTF float model; owned by the caller, btf_pca_model_free. */
+typedef struct btf_pca_model {
+    int width, height;
+    btf_dirset lights, views;
+    btf_blocks *blocks;
+    int k, n_comp;
+    btf_center center;
+    btf_grouping grouping;
+    btf_pca_block *block; /* n_blocks */
+} btf_pca_model;
+
+/* Checks options against the source (k, C in range, finite data). */
+btf_result btf_pca_check(const btf *src, const btf_pca_options *opt, btf_error *err);
+btf_result btf_pca_compress(const btf *src, const btf_pca_options *opt, btf_pca_block_fn fn, void *ctx,
+                            btf_pca_model **out, btf_error *err);
+void btf_pca_model_free(btf_pca_model *m);
+/* Float reconstruction of one sample from the first n components (n <= n_comp). */
+float btf_pca_model_value(const btf_pca_model *m, int view, int light, int x, int y, int c, int n);
+
+/* Resolved defaults (what zero means). */
+btf_pca_options btf_pca_resolve(const btf_pca_options *opt);
+const char *btf_grouping_name(btf_grouping g);
+const char *btf_center_name(btf_center c);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

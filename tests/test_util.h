@@ -1,0 +1,25 @@
+/* test_util.h - small helpers shared by the Criterion tests (header only). */
+#ifndef BTF_TEST_UTIL_H
+#define BTF_TEST_UTIL_H
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+
+/* Path under ../shared (BTF_SHARED, exported by the Makefile) into buf; 1 if it exists. */
+static inline int test_shared_path(char *buf, size_t n, const char *rel)
+{
+    const char *root = getenv("BTF_SHARED");
+    snprintf(buf, n, "%s/%s", root ? root : "../shared", rel);
+    struct stat st;
+    return stat(buf, &st) == 0;
+}
+
+/* Fresh empty temporary directory (mkdtemp) into buf; 1 on success. */
+static inline int test_tmpdir(char *buf, size_t n)
+{
+    snprintf(buf, n, "/tmp/btftest-XXXXXX");
+    return mkdtemp(buf) != NULL;
+}
+
+#endif

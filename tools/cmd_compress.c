@@ -1,0 +1,183 @@
+/* cmd_compress.c - `btf compress IN OUT`: k-view block PCA into a package directory
+ * (doc/package-format.md).
+ *
+ *     btf compress wool/ lib/wool --k 3 --components 8
+ *     btf compress knit.btf lib/knit --k 9 --components 16 --bits 16 --grouping spatial
+ */
+#include "btf_cli.h"
+#include "btf_io.h"
+#include "btf_package.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+/* Parsed command line; stack value of cmd_compress, strings point into argv. */
+typedef struct compress_opts {
+    const char *in, *out, *name;
+    btf_pca_options pca;
+    btf_package_options pkg;
+    int downsample, quiet;
+} compress_opts;
+
+static void compress_usage(FILE *f)
+{
+    fprintf(f,
+            "usage: btf compress IN OUT [--k K] [--components C] [--bits 8|16]\n"
+            "                           [--grouping consecutive|spatial] [--center none|row]\n"
+            "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
+            "                           [--name NAME] [--quiet]\n"
+            "\n"
+            "Compresses a BTF (UBO2003 image directory, thesis package, .btf file) by PCA over\n"
+            "blocks of K neighbouring views into the package directory OUT (written as\n"
+            "OUT.tmp-PID, renamed when complete). Prints the error after each chunk.\n"
+            "  --k K            views per block, 1..views (default 3; 1 = PCA-RF, all = PCA-BTF)\n"
+            "  --components C   components per block, component 0 included (default 8)\n"
+            "  --bits B         texture quantisation, 8 or 16 bits (default 8; weights are 16)\n"
+            "  --grouping G     consecutive: K consecutive views in canonical order (default);\n"
+            "                   spatial: a view and its K-1 nearest unassigned views\n"
+            "  --center M       none: best rank-C blocks (default); row: thesis, component 0 = mean\n"
+            "  --method M       PCA route (default auto: Gram up to 2048 columns, else randomized)\n"
+            "  --downsample F   box-filter the input by F on load\n"
+            "  --name NAME      material name in the manifest (default: last element of OUT)\n");
+}
+
+static int compress_int(const char *s, long lo, long hi, int *v)
+{
+    char *end;
+    errno = 0;
+    long x = strtol(s, &end, 10);
+    if (errno || end == s || *end || x < lo || x > hi)
+        return 0;
+    *v = (int)x;
+    return 1;
+}
+
+static int compress_enum(const char *s, const char *const *names, int n, int *v)
+{
+    for (int i = 0; i < n; i++)
+        if (!strcmp(s, names[i])) {
+            *v = i;
+            return 1;
+        }
+    return 0;
+}
+
+/* 0 ok, 2 usage error (message printed), -1 help printed. */
+static int compress_parse(int argc, char **argv, compress_opts *o)
+{
+    static const char *const groupings[] = {"default", "consecutive", "spatial"};
+    static const char *const centers[] = {"default", "none", "row"};
+    static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
+    memset(o, 0, sizeof *o);
+    o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8;
+    int npos = 0, e = 0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
+        int ok = 1, used = 1;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            compress_usage(stdout);
+            return -1;
+        } else if (!strcmp(a, "--quiet")) {
+            o->quiet = 1, used = 0;
+        } else if (a[0] == '-' && a[1] == '-' && !val) {
+            ok = 0;
+        } else if (!strcmp(a, "--k")) {
+            ok = compress_int(val, 1, BTF_MAX_DIRS, &o->pca.k);
+        } else if (!strcmp(a, "--components")) {
+            ok = compress_int(val, 1, BTF_PACKAGE_MAX_CHUNKS, &o->pca.components);
+        } else if (!strcmp(a, "--bits")) {
+            ok = compress_int(val, 8, 16, &o->pkg.bits) && (o->pkg.bits == 8 || o->pkg.bits == 16);
+        } else if (!strcmp(a, "--grouping")) {
+            ok = compress_enum(val, groupings + 1, 2, &e), o->pca.grouping = (btf_grouping)(e + 1);
+        } else if (!strcmp(a, "--center")) {
+            ok = compress_enum(val, centers + 1, 2, &e), o->pca.center = (btf_center)(e + 1);
+        } else if (!strcmp(a, "--method")) {
+            ok = compress_enum(val, methods, 4, &e), o->pca.method = (btf_pca_method)e;
+        } else if (!strcmp(a, "--downsample")) {
+            ok = compress_int(val, 1, 256, &o->downsample);
+        } else if (!strcmp(a, "--name")) {
+            o->name = val;
+        } else if (a[0] == '-' && a[1] == '-') {
+            fprintf(stderr, "btf compress: unknown option '%s'\n", a);
+            return 2;
+        } else {
+            used = 0;
+            if (npos == 0)
+                o->in = a;
+            else if (npos == 1)
+                o->out = a;
+            npos++;
+        }
+        if (!ok) {
+            fprintf(stderr, "btf compress: bad or missing value for %s%s%s\n", a, val ? ": " : "", val ? val : "");
+            return 2;
+        }
+        i += used;
+    }
+    if (npos != 2) {
+        compress_usage(stderr);
+        return 2;
+    }
+    o->pkg.name = o->name;
+    return 0;
+}
+
+static double compress_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void compress_report(const char *out)
+{
+    btf_package *p = NULL;
+    btf_error err = {0};
+    if (btf_package_read(out, 1, &p, &err) != BTF_OK) {
+        fprintf(stderr, "btf compress: cannot re-read %s: %s\n", out, err.msg);
+        return;
+    }
+    long long total = 0;
+    printf("chunk component      bytes   cumulative    rmse  rmse_float    lab\n");
+    for (int i = 0; i < p->n_chunks; i++) {
+        const btf_chunk_info *c = &p->chunk[i];
+        total += c->bytes;
+        printf("%5d %9d %10lld %12lld %7.3f %11.3f %6.3f\n", i, c->component, c->bytes, total, c->rmse,
+               c->rmse_float, c->lab);
+    }
+    btf_package_free(p);
+}
+
+int cmd_compress(int argc, char **argv)
+{
+    compress_opts o;
+    int rc = compress_parse(argc, argv, &o);
+    if (rc)
+        return rc < 0 ? 0 : rc;
+    btf_error err = {0};
+    btf_load_options lo = {0};
+    lo.downsample = o.downsample;
+    btf *src = NULL;
+    double t0 = compress_now();
+    if (btf_load_any(o.in, &lo, &src, &err) != BTF_OK) {
+        fprintf(stderr, "btf compress: %s\n", err.msg);
+        return 1;
+    }
+    double t1 = compress_now();
+    btf_compress_stats st = {0};
+    btf_result r = btf_package_compress(src, &o.pca, &o.pkg, o.out, &st, &err);
+    btf_free(src);
+    if (r != BTF_OK) {
+        fprintf(stderr, "btf compress: %s\n", err.msg);
+        return 1;
+    }
+    if (!o.quiet) {
+        printf("%s: %d chunks, %lld bytes; load %.2f s, PCA %.2f s, write %.2f s\n", o.out, st.n_chunks, st.bytes,
+               t1 - t0, st.seconds_pca, st.seconds_write);
+        compress_report(o.out);
+    }
+    return 0;
+}
