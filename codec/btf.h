@@ -87,6 +87,8 @@ btf_dirset btf_dirset_ubo2003(void);
 btf_dirset btf_dirset_dome151(void);
 /* Reads {"rings":[{"theta":deg,"count":n,"phi_offset":deg},...]} (cJSON). */
 btf_result btf_dirset_load_json(const char *path, btf_dirset *out, btf_error *err);
+/* Same from JSON text of len bytes; name labels error messages (e.g. the file name). */
+btf_result btf_dirset_parse_json(const char *text, size_t len, const char *name, btf_dirset *out, btf_error *err);
 /* theta/phi in degrees of canonical direction i (0 <= i < n_dirs). */
 void btf_dirset_angles(const btf_dirset *d, int i, float *theta_deg, float *phi_deg);
 /* Unit vector (x, y, z) of direction i: x = sin t cos p, y = sin t sin p, z = cos t. */
