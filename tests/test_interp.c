@@ -15,8 +15,6 @@
 #include "btf.h"
 #include "test_util.h"
 
-/* declared in codec/btf_dirset_json.c (not yet in btf.h) */
-
 #define D2R 0.017453292519943295
 
 /* ------------------------------------------------------------------ helpers */

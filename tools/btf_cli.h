@@ -5,5 +5,10 @@
 #define BTF_CLI_H
 
 /* BTF_CLI_DECLS: one line per subcommand */
+int cmd_compress(int argc, char **argv);
+int cmd_eval(int argc, char **argv);
+int cmd_export_thesis(int argc, char **argv);
+int cmd_gen(int argc, char **argv);
+int cmd_import_thesis(int argc, char **argv);
 
 #endif

@@ -13,6 +13,11 @@ typedef struct btf_command {
 
 static const btf_command commands[] = {
     /* BTF_COMMANDS: one line per subcommand, keep sorted */
+    {"compress", cmd_compress, "k-view PCA of a BTF into a streamable package directory"},
+    {"eval", cmd_eval, "error metrics (RGB MAE/RMSE, PSNR, CIELab) of TEST against REF"},
+    {"export-thesis", cmd_export_thesis, "k-view PCA written in the thesis's package format (baseline)"},
+    {"gen", cmd_gen, "synthetic material (knit, tiles, stone) with known ground truth"},
+    {"import-thesis", cmd_import_thesis, "reconstruct a thesis package into images or a .btf file"},
     {NULL, NULL, NULL},
 };
 
