@@ -37,7 +37,7 @@ TEST_OBJ  := $(TEST_C:%.c=$(BUILD)/%.o)
 TEST_BIN  := $(BUILD)/run_tests
 
 INC       := -Icodec -Itools
-LINK_LIBS  = $(PKG_LIBS) -lstdc++ -lm -lpthread
+LINK_LIBS  = $(PKG_LIBS) -lgsl -lstdc++ -lm -lpthread
 
 .PHONY: all setup build test check asan bench demo clean lib
 all: build
