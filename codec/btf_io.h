@@ -33,7 +33,7 @@ btf_result btf_save_ubo2003_dir(const btf *b, const char *dir, const char *prefi
                                 btf_error *err);
 
 /* The thesis's published package (formats.md section 3): full reconstruction.
- * opt->width/height choose the output size (box/nearest resampling from 256). */
+ * opt->width/height choose the output size (box filter for divisors of 256, area-weighted otherwise). */
 btf_result btf_import_thesis(const char *dir, const btf_load_options *opt, btf **out, btf_error *err);
 
 /* UBO2014 DFMF08FC `.btf` file (formats.md section 2): decoded to float RGB. */
