@@ -6,6 +6,7 @@
  */
 #include "btf_cli.h"
 #include "btf_io.h"
+#include "btf_source.h"
 #include "btf_package.h"
 
 #include <errno.h>
@@ -30,7 +31,8 @@ static void compress_usage(FILE *f)
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--quiet]\n"
             "\n"
-            "Compresses a BTF (UBO2003 image directory, thesis package, .btf file) by PCA over\n"
+            "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
+            "for a generated material) by PCA over\n"
             "blocks of K neighbouring views into the package directory OUT (written as\n"
             "OUT.tmp-PID, renamed when complete). Prints the error after each chunk.\n"
             "  --k K            views per block, 1..views (default 3; 1 = PCA-RF, all = PCA-BTF)\n"
@@ -162,7 +164,7 @@ int cmd_compress(int argc, char **argv)
     lo.downsample = o.downsample;
     btf *src = NULL;
     double t0 = compress_now();
-    if (btf_load_any(o.in, &lo, &src, &err) != BTF_OK) {
+    if (btf_source_load(o.in, &lo, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;
     }

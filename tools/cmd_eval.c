@@ -10,7 +10,11 @@
  */
 #include "btf_cli.h"
 #include "btf_io.h"
+#include "btf_source.h"
 #include "btf_metrics.h"
+#include "btf_package.h"
+
+#include <sys/stat.h>
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -127,7 +131,7 @@ static int eval_load(const char *path, const eval_opts *o, btf **out)
     btf_load_options lo = {0};
     lo.downsample = o->downsample;
     btf_error err = {0};
-    btf_result r = btf_load_any(path, &lo, out, &err);
+    btf_result r = btf_source_load(path, &lo, out, &err);
     if (r == BTF_OK)
         r = btf_check_finite(*out, &err);
     if (r != BTF_OK) {
@@ -188,6 +192,66 @@ static int eval_btf(const eval_opts *o, const eval_pairs *pl, const btf *ref)
     return rc;
 }
 
+/* 1 if path is a package directory (doc/package-format.md: it has manifest.json). */
+static int eval_is_package(const char *path)
+{
+    char buf[4200];
+    struct stat st;
+    int n = snprintf(buf, sizeof buf, "%s/manifest.json", path);
+    return n > 0 && (size_t)n < sizeof buf && stat(buf, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/* Decode of the first n chunks of p (box-filtered like REF with --downsample) vs ref. */
+static btf_result eval_package_prefix(const eval_opts *o, const eval_pairs *pl, const btf *ref,
+                                      const btf_package *p, int n, btf_metrics *m, btf_error *err)
+{
+    btf *rec = NULL, *small = NULL;
+    btf_result r = btf_package_reconstruct(p, n, &rec, err);
+    if (r == BTF_OK && o->downsample > 1) {
+        r = btf_downsample(rec, o->downsample, &small, err);
+        btf_free(rec);
+        rec = small;
+    }
+    btf_pair_subset sub = {pl->views, pl->lights, pl->n};
+    if (r == BTF_OK)
+        r = btf_compare(ref, rec, pl->n ? &sub : NULL, m, err);
+    btf_free(rec);
+    return r;
+}
+
+/* TEST is a package: metrics of the whole package, then the error curve versus
+ * bytes received, one line per chunk (each prefix decoded at the measured pairs). */
+static int eval_package(const eval_opts *o, const eval_pairs *pl, const btf *ref)
+{
+    btf_package *p = NULL;
+    btf_error err = {0};
+    btf_metrics m, last = {0};
+    btf_result r = btf_package_read(o->test_path, 0, &p, &err);
+    int total = ref->views.n_dirs * ref->lights.n_dirs;
+    if (r == BTF_OK && o->csv)
+        printf("chunk,component,cumulative_bytes,rgb_rmse,lab_mae,delta_e76\n");
+    else if (r == BTF_OK)
+        printf("chunk component cumulative_bytes  rgb_rmse  lab_mae  delta_e76\n");
+    long long bytes = 0;
+    for (int n = 1; r == BTF_OK && n <= p->n_chunks; n++) {
+        r = eval_package_prefix(o, pl, ref, p, n, &m, &err);
+        if (r != BTF_OK)
+            break;
+        bytes += p->chunk[n - 1].bytes;
+        printf(o->csv ? "%d,%d,%lld,%.6f,%.6f,%.6f\n" : "%5d %9d %16lld %9.4f %8.4f %10.4f\n", n - 1,
+               p->chunk[n - 1].component, bytes, m.rmse, m.lab_thesis, m.delta_e76);
+        last = m;
+    }
+    if (r == BTF_OK) {
+        printf(o->csv ? "\n" : "\npackage    %d chunks, %lld bytes\n", p->n_chunks, bytes);
+        eval_print(o, &last, pl->n ? pl->n : total, total);
+    } else {
+        fprintf(stderr, "btf eval: %s vs %s: %s\n", o->ref_path, o->test_path, err.msg);
+    }
+    btf_package_free(p);
+    return r == BTF_OK ? 0 : 1;
+}
+
 int cmd_eval(int argc, char **argv)
 {
     eval_opts o;
@@ -200,14 +264,10 @@ int cmd_eval(int argc, char **argv)
     btf *ref = NULL;
     if (rc == 0)
         rc = eval_load(o.ref_path, &o, &ref);
-    /* ---- PACKAGE EVALUATION HOOK (issue 3, not implemented yet) ----
-     * If TEST is a package directory (it contains manifest.json), a later change
-     * adds exactly one branch here, before the BTF branch:
-     *     if (rc == 0 && eval_is_package(o.test_path))
-     *         rc = eval_package(&o, &pl, ref);   // metrics over --pairs + error per chunk
-     *     else
-     * It reuses eval_opts, eval_pairs, eval_print and eval_load above. */
-    if (rc == 0)
+    /* ---- PACKAGE EVALUATION (issue 3): TEST is a package directory ---- */
+    if (rc == 0 && eval_is_package(o.test_path))
+        rc = eval_package(&o, &pl, ref);
+    else if (rc == 0)
         rc = eval_btf(&o, &pl, ref);
     btf_free(ref);
     free(pl.views);
