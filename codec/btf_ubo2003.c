@@ -1,0 +1,644 @@
+/* btf_ubo2003.c - UBO2003 image directories (formats.md section 1): loader, writer, btf_load_any.
+ *
+ * Loader: scans DIR (flat files and one level of "tvTTT_pvPPP" folders), takes the
+ * angles from the last 23 characters of each image stem ("tlTTT_plPPP_tvTTT_pvPPP",
+ * separators '_', ' ' or '-'), maps them to the expected sampling within 0.5 degree,
+ * checks that every (light, view) pair is present exactly once, then decodes the
+ * images on BTF__THREADS threads straight into the final buffer, box-filtering each
+ * image as it is decoded when a downsampling factor is asked for.
+ * Files whose names carry no angles (including a writer's "*.tmp-PID.png") are ignored.
+ *
+ * Writer: "<prefix>_<NNNNN>_tlTTT_plPPP_tvTTT_pvPPP.<ext>" with NNNNN = light * n_views + view,
+ * the numbering of the published UBO2003 files (formats.md: "..._00084_tl015_pl000_tv015_pv120"
+ * is light 1, view 3); the loader never relies on the number.
+ */
+#include "btf_image.h"
+#include "btf_io.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+
+#define BTF__THREADS 2
+/* File angles are whole degrees: half a degree of rounding plus float slack. */
+#define BTF__ANGLE_TOL (0.5f + 1e-3f)
+#define BTF__ANGLE_CHARS 23 /* strlen("tl000_pl000_tv000_pv000") */
+
+/* ------------------------------------------------------------------ names */
+
+static int btf__is_image_ext(const char *ext)
+{
+    return !strcasecmp(ext, "png") || !strcasecmp(ext, "jpg") || !strcasecmp(ext, "jpeg");
+}
+
+static int btf__is_sep(char c) { return c == '_' || c == ' ' || c == '-'; }
+
+/* Parses "<t0><t1>DDD" at s into *v; 1 on success. */
+static int btf__tag3(const char *s, char t0, char t1, int *v)
+{
+    if ((s[0] | 0x20) != t0 || (s[1] | 0x20) != t1)
+        return 0;
+    for (int i = 2; i < 5; i++)
+        if (s[i] < '0' || s[i] > '9')
+            return 0;
+    *v = (s[2] - '0') * 100 + (s[3] - '0') * 10 + (s[4] - '0');
+    return 1;
+}
+
+/* Angles tl, pl, tv, pv of an image file name (basename); 1 if it is a
+ * .png/.jpg/.jpeg whose stem ends in the angle pattern, 0 otherwise. */
+static int btf__parse_name(const char *name, int a[4])
+{
+    const char *dot = strrchr(name, '.');
+    if (!dot || !btf__is_image_ext(dot + 1))
+        return 0;
+    size_t len = (size_t)(dot - name);
+    if (len < BTF__ANGLE_CHARS)
+        return 0;
+    const char *s = dot - BTF__ANGLE_CHARS;
+    return btf__tag3(s, 't', 'l', &a[0]) && btf__is_sep(s[5]) && btf__tag3(s + 6, 'p', 'l', &a[1]) &&
+           btf__is_sep(s[11]) && btf__tag3(s + 12, 't', 'v', &a[2]) && btf__is_sep(s[17]) &&
+           btf__tag3(s + 18, 'p', 'v', &a[3]);
+}
+
+/* A per-view folder name "tvTTT_pvPPP"; 1 if it matches. */
+static int btf__parse_folder(const char *name, int *tv, int *pv)
+{
+    return strlen(name) == 11 && btf__tag3(name, 't', 'v', tv) && btf__is_sep(name[5]) &&
+           btf__tag3(name + 6, 'p', 'v', pv);
+}
+
+/* ------------------------------------------------------------------ scan */
+
+/* One image file found by the scan; path malloc'd, owned by the btf__scan. */
+typedef struct btf__file {
+    char *path;
+} btf__file;
+
+/* Everything the scan found; lives for one load call, freed by btf__scan_free.
+ * slot[view * n_lights + light] is an index into files or -1. */
+typedef struct btf__scan {
+    const char *dir;
+    const btf_dirset *set;
+    btf__file *files; /* malloc'd */
+    int n_files, cap;
+    int *slot; /* malloc'd, n_slots entries */
+    int n_slots;
+} btf__scan;
+
+static void btf__scan_free(btf__scan *s)
+{
+    for (int i = 0; i < s->n_files; i++)
+        free(s->files[i].path);
+    free(s->files);
+    free(s->slot);
+}
+
+static char *btf__join(const char *a, const char *b)
+{
+    size_t la = strlen(a), lb = strlen(b);
+    char *p = malloc(la + lb + 2);
+    if (!p)
+        return NULL;
+    memcpy(p, a, la);
+    size_t k = la;
+    if (la && a[la - 1] != '/')
+        p[k++] = '/';
+    memcpy(p + k, b, lb + 1);
+    return p;
+}
+
+/* 1 = directory, 0 = regular file, -1 = other or unreadable. */
+static int btf__kind(const char *dirpath, const struct dirent *e)
+{
+    if (e->d_type == DT_DIR)
+        return 1;
+    if (e->d_type == DT_REG)
+        return 0;
+    char *p = btf__join(dirpath, e->d_name);
+    struct stat st;
+    int k = -1;
+    if (p && stat(p, &st) == 0)
+        k = S_ISDIR(st.st_mode) ? 1 : S_ISREG(st.st_mode) ? 0 : -1;
+    free(p);
+    return k;
+}
+
+/* Registers one image file with parsed angles a; folder_tv/pv >= 0 when inside a view folder. */
+static btf_result btf__scan_add(btf__scan *s, const char *dirpath, const char *name, const int a[4], int folder_tv,
+                                int folder_pv, btf_error *err)
+{
+    char *path = btf__join(dirpath, name);
+    if (!path)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dirpath);
+    btf_result r = BTF_OK;
+    int light = btf_dirset_find(s->set, (float)a[0], (float)a[1], BTF__ANGLE_TOL);
+    int view = btf_dirset_find(s->set, (float)a[2], (float)a[3], BTF__ANGLE_TOL);
+    if (folder_tv >= 0 && (folder_tv != a[2] || folder_pv != a[3]))
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: view angles tv%03d pv%03d differ from its folder tv%03d_pv%03d", path,
+                     a[2], a[3], folder_tv, folder_pv);
+    else if (light < 0 || view < 0)
+        r = btf_fail(err, BTF_ERR_RANGE, "%s: %s direction (theta %d, phi %d) is not in the expected sampling (%d directions)",
+                     path, light < 0 ? "light" : "view", light < 0 ? a[0] : a[2], light < 0 ? a[1] : a[3],
+                     s->set->n_dirs);
+    else if (s->slot[view * s->set->n_dirs + light] >= 0)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: duplicate angles (light %d, view %d) also in %s", path, light, view,
+                     s->files[s->slot[view * s->set->n_dirs + light]].path);
+    else if (s->n_files == s->cap) {
+        int cap = s->cap ? s->cap * 2 : 256;
+        btf__file *f = realloc(s->files, (size_t)cap * sizeof *f);
+        if (!f)
+            r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+        else {
+            s->files = f;
+            s->cap = cap;
+        }
+    }
+    if (r != BTF_OK) {
+        free(path);
+        return r;
+    }
+    s->slot[view * s->set->n_dirs + light] = s->n_files;
+    s->files[s->n_files++].path = path;
+    return BTF_OK;
+}
+
+/* Scans one directory level; recurses once into "tvTTT_pvPPP" folders when top is set. */
+static btf_result btf__scan_dir(btf__scan *s, const char *dirpath, int top, int ftv, int fpv, btf_error *err)
+{
+    DIR *d = opendir(dirpath);
+    if (!d)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot open directory (%s)", dirpath, strerror(errno));
+    btf_result r = BTF_OK;
+    struct dirent *e;
+    while (r == BTF_OK && (e = readdir(d)) != NULL) {
+        int a[4], tv, pv;
+        if (e->d_name[0] == '.')
+            continue;
+        int kind = btf__kind(dirpath, e);
+        if (kind == 0 && btf__parse_name(e->d_name, a))
+            r = btf__scan_add(s, dirpath, e->d_name, a, ftv, fpv, err);
+        else if (kind == 1 && top && btf__parse_folder(e->d_name, &tv, &pv)) {
+            char *sub = btf__join(dirpath, e->d_name);
+            r = sub ? btf__scan_dir(s, sub, 0, tv, pv, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dirpath);
+            free(sub);
+        }
+    }
+    closedir(d);
+    return r;
+}
+
+/* Whole-degree file angles of direction i of d, as the writer names them. */
+static void btf__round_angles(const btf_dirset *d, int i, int *theta, int *phi)
+{
+    float t, p;
+    btf_dirset_angles(d, i, &t, &p);
+    *theta = (int)lroundf(t);
+    *phi = (int)(lroundf(p) % 360);
+}
+
+/* Every (light, view) pair must have exactly one file. */
+static btf_result btf__scan_check_complete(const btf__scan *s, btf_error *err)
+{
+    int n = s->set->n_dirs, missing = 0, first = -1;
+    for (int i = 0; i < s->n_slots; i++)
+        if (s->slot[i] < 0 && missing++ == 0)
+            first = i;
+    if (s->n_files == 0)
+        return btf_fail(err, BTF_ERR_MISSING,
+                        "%s: no UBO2003 images found (names ending in tlTTT_plPPP_tvTTT_pvPPP.jpg or .png)", s->dir);
+    if (!missing)
+        return BTF_OK;
+    int tl, pl, tv, pv;
+    btf__round_angles(s->set, first % n, &tl, &pl);
+    btf__round_angles(s->set, first / n, &tv, &pv);
+    return btf_fail(err, BTF_ERR_MISSING,
+                    "%s: missing image for light %d x view %d (no file ending in tl%03d_pl%03d_tv%03d_pv%03d); "
+                    "%d of %d images absent",
+                    s->dir, first % n, first / n, tl, pl, tv, pv, missing, s->n_slots);
+}
+
+static btf_result btf__scan_run(btf__scan *s, const char *dir, const btf_dirset *set, btf_error *err)
+{
+    memset(s, 0, sizeof *s);
+    s->dir = dir;
+    s->set = set;
+    s->n_slots = set->n_dirs * set->n_dirs;
+    s->slot = malloc((size_t)s->n_slots * sizeof *s->slot);
+    if (!s->slot)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
+    for (int i = 0; i < s->n_slots; i++)
+        s->slot[i] = -1;
+    btf_result r = btf__scan_dir(s, dir, 1, -1, -1, err);
+    return r != BTF_OK ? r : btf__scan_check_complete(s, err);
+}
+
+/* ------------------------------------------------------------------ decode */
+
+/* Shared state of the decoding threads; lives on the loader's stack for one call. */
+typedef struct btf__decode {
+    const btf__scan *scan;
+    btf *b;
+    int factor;
+    int w0, h0; /* full-resolution size of every image */
+    pthread_mutex_t mu;
+    int next;      /* next slot to decode (under mu) */
+    btf_result rc; /* first failure (under mu) */
+    btf_error err;
+} btf__decode;
+
+/* floor(x / d) for d >= 1 without a hardware divide: a double estimate, then corrected. */
+static inline unsigned long long btf__div(unsigned long long x, unsigned long long d, double inv_d)
+{
+    unsigned long long q = (unsigned long long)((double)x * inv_d);
+    while (q > 0 && q * d > x)
+        q--;
+    while ((q + 1) * d <= x)
+        q++;
+    return q;
+}
+
+/* Stores one output row from col, the column sums of f input rows (w*f*ch values). */
+static void btf__store_row(btf *b, size_t o, const uint32_t *col, int ch, int f)
+{
+    unsigned long long n = (unsigned long long)f * (unsigned long long)f;
+    double inv_2n = 1.0 / (2.0 * (double)n);
+    for (int x = 0; x < b->width; x++)
+        for (int c = 0; c < 3; c++) {
+            const uint32_t *q = col + (size_t)x * (size_t)f * (size_t)ch + (ch < 3 ? 0 : c); /* grey replicates */
+            unsigned long long sum = 0;
+            for (int dx = 0; dx < f; dx++)
+                sum += q[(size_t)dx * (size_t)ch];
+            size_t i = o + (size_t)x * 3u + (size_t)c;
+            if (b->storage == BTF_U8)
+                ((uint8_t *)b->data)[i] = (uint8_t)btf__div(2u * sum + n, 2u * n, inv_2n); /* round half up */
+            else
+                ((float *)b->data)[i] = (float)sum / ((float)n * 255.0f);
+        }
+}
+
+/* col[i] += p[i]; fixed-size blocks so that -O2 vectorizes the bulk. */
+static void btf__add_row(uint32_t *restrict col, const uint8_t *restrict p, size_t n)
+{
+    size_t i = 0;
+    for (; i + 16 <= n; i += 16)
+        for (int k = 0; k < 16; k++)
+            col[i + (size_t)k] += p[i + (size_t)k];
+    for (; i < n; i++)
+        col[i] += p[i];
+}
+
+/* Box-filters a decoded (width*f) x (height*f) x ch image into the BTF's image img;
+ * RGBA -> RGB, grey (and grey+alpha) -> replicated. col: scratch of width*f*ch sums. */
+static void btf__put_image(btf *b, size_t img, const uint8_t *px, int ch, int f, uint32_t *col)
+{
+    size_t base = img * btf_image_samples(b), w = (size_t)b->width, row = w * (size_t)f * (size_t)ch;
+    if (f == 1 && ch == 3 && b->storage == BTF_U8) {
+        memcpy((uint8_t *)b->data + base, px, btf_image_samples(b));
+        return;
+    }
+    for (int y = 0; y < b->height; y++) {
+        memset(col, 0, row * sizeof *col);
+        for (int dy = 0; dy < f; dy++) { /* vertical sums first: contiguous, vectorizes */
+            btf__add_row(col, px + ((size_t)y * (size_t)f + (size_t)dy) * row, row);
+        }
+        btf__store_row(b, base + (size_t)y * w * 3u, col, ch, f);
+    }
+}
+
+static btf_result btf__decode_one(btf__decode *d, int slot, uint32_t *acc, btf_error *err)
+{
+    const char *path = d->scan->files[d->scan->slot[slot]].path;
+    uint8_t *px = NULL;
+    int w, h, ch;
+    btf_result r = btf_image_read_u8(path, &w, &h, &ch, &px, err);
+    if (r != BTF_OK)
+        return r;
+    if (w != d->w0 || h != d->h0)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: image is %dx%d, expected %dx%d like %s", path, w, h, d->w0, d->h0,
+                     d->scan->files[d->scan->slot[0]].path);
+    else
+        btf__put_image(d->b, (size_t)slot, px, ch, d->factor, acc);
+    free(px);
+    return r;
+}
+
+static void *btf__decode_worker(void *arg)
+{
+    btf__decode *d = arg;
+    btf_error err = {{0}};
+    uint32_t *acc = malloc((size_t)d->w0 * 4u * sizeof *acc); /* a row of up to 4 channels */
+    while (acc) {
+        pthread_mutex_lock(&d->mu);
+        int i = d->rc == BTF_OK && d->next < d->scan->n_slots ? d->next++ : -1;
+        pthread_mutex_unlock(&d->mu);
+        if (i < 0)
+            break;
+        btf_result r = btf__decode_one(d, i, acc, &err);
+        if (r != BTF_OK) {
+            pthread_mutex_lock(&d->mu);
+            if (d->rc == BTF_OK) {
+                d->rc = r;
+                d->err = err;
+            }
+            pthread_mutex_unlock(&d->mu);
+            break;
+        }
+    }
+    if (!acc) {
+        pthread_mutex_lock(&d->mu);
+        if (d->rc == BTF_OK)
+            d->rc = btf_fail(&d->err, BTF_ERR_NOMEM, "%s: out of memory", d->scan->dir);
+        pthread_mutex_unlock(&d->mu);
+    }
+    free(acc);
+    return NULL;
+}
+
+/* Runs the worker on the calling thread plus BTF__THREADS-1 more. */
+static btf_result btf__decode_all(btf__decode *d, btf_error *err)
+{
+    pthread_t th[BTF__THREADS];
+    int started = 0;
+    if (pthread_mutex_init(&d->mu, NULL) != 0)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot create a mutex", d->scan->dir);
+    for (int t = 1; t < BTF__THREADS; t++)
+        if (pthread_create(&th[started], NULL, btf__decode_worker, d) == 0)
+            started++;
+    btf__decode_worker(d);
+    for (int t = 0; t < started; t++)
+        pthread_join(th[t], NULL);
+    pthread_mutex_destroy(&d->mu);
+    if (d->rc != BTF_OK && err)
+        *err = d->err;
+    return d->rc;
+}
+
+/* Spatial factor from opt (downsample, or width/height when they divide the image size). */
+static btf_result btf__pick_factor(const btf_load_options *opt, const char *first, int w0, int h0, int *factor,
+                                   btf_error *err)
+{
+    int f = opt && opt->downsample > 1 ? opt->downsample : 1;
+    if (opt && (opt->width > BTF_MAX_SIDE || opt->height > BTF_MAX_SIDE))
+        return btf_fail(err, BTF_ERR_RANGE, "%s: requested size %dx%d exceeds %d", first, opt->width, opt->height,
+                        BTF_MAX_SIDE);
+    if (f == 1 && opt && (opt->width > 0 || opt->height > 0)) {
+        int ww = opt->width > 0 ? opt->width : opt->height * w0 / h0;
+        f = ww > 0 && w0 % ww == 0 ? w0 / ww : 0;
+        if (f < 1 || h0 % f || (opt->height > 0 && h0 / f != opt->height))
+            return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: cannot reach %dx%d from %dx%d by an integer box filter",
+                            first, opt->width, opt->height, w0, h0);
+    }
+    if (w0 % f || h0 % f)
+        return btf_fail(err, BTF_ERR_ARG, "%s: image size %dx%d is not divisible by the downsample factor %d", first,
+                        w0, h0, f);
+    *factor = f;
+    return BTF_OK;
+}
+
+/* Checks the directory argument itself. */
+static btf_result btf__check_dir(const char *dir, btf_error *err)
+{
+    struct stat st;
+    if (stat(dir, &st) != 0)
+        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: %s", dir, strerror(errno));
+    if (!S_ISDIR(st.st_mode))
+        return btf_fail(err, BTF_ERR_ARG, "%s: not a directory", dir);
+    return BTF_OK;
+}
+
+btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, btf **out, btf_error *err)
+{
+    if (!dir || !out)
+        return btf_fail(err, BTF_ERR_ARG, "btf_load_ubo2003_dir: NULL argument");
+    *out = NULL;
+    btf_dirset ubo = btf_dirset_ubo2003();
+    const btf_dirset *set = opt && opt->sampling ? opt->sampling : &ubo;
+    btf_storage storage = opt && opt->storage ? opt->storage : BTF_U8;
+    if (storage != BTF_U8 && storage != BTF_F32)
+        return btf_fail(err, BTF_ERR_ARG, "%s: unknown storage %d", dir, (int)storage);
+    if (opt && opt->downsample < 0)
+        return btf_fail(err, BTF_ERR_ARG, "%s: downsample factor %d is negative", dir, opt->downsample);
+    if (set->n_dirs < 1 || set->n_dirs > BTF_MAX_DIRS)
+        return btf_fail(err, BTF_ERR_ARG, "%s: sampling has %d directions", dir, set->n_dirs);
+    btf_result r = btf__check_dir(dir, err);
+    if (r != BTF_OK)
+        return r;
+    btf__scan scan;
+    r = btf__scan_run(&scan, dir, set, err);
+    btf__decode d;
+    memset(&d, 0, sizeof d);
+    d.scan = &scan;
+    const char *first = r == BTF_OK ? scan.files[scan.slot[0]].path : NULL;
+    int ch;
+    if (r == BTF_OK)
+        r = btf_image_info(first, &d.w0, &d.h0, &ch, err);
+    if (r == BTF_OK)
+        r = btf__pick_factor(opt, first, d.w0, d.h0, &d.factor, err);
+    if (r == BTF_OK)
+        r = btf_create(d.w0 / d.factor, d.h0 / d.factor, set, set, storage, &d.b, err);
+    if (r == BTF_OK)
+        r = btf__decode_all(&d, err);
+    btf__scan_free(&scan);
+    if (r != BTF_OK) {
+        btf_free(d.b);
+        return r;
+    }
+    *out = d.b;
+    return BTF_OK;
+}
+
+/* ------------------------------------------------------------------ writer */
+
+/* mkdir -p; existing directories are fine. */
+static btf_result btf__mkdirs(const char *dir, btf_error *err)
+{
+    size_t n = strlen(dir);
+    char *p = malloc(n + 1);
+    if (!p)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
+    memcpy(p, dir, n + 1);
+    btf_result r = BTF_OK;
+    for (size_t i = 1; i <= n && r == BTF_OK; i++) {
+        if (p[i] != '/' && p[i] != '\0')
+            continue;
+        char keep = p[i];
+        p[i] = '\0';
+        struct stat st;
+        if (mkdir(p, 0777) != 0 && errno != EEXIST)
+            r = btf_fail(err, BTF_ERR_IO, "%s: cannot create directory (%s)", p, strerror(errno));
+        else if (stat(p, &st) != 0 || !S_ISDIR(st.st_mode))
+            r = btf_fail(err, BTF_ERR_IO, "%s: exists and is not a directory", p);
+        p[i] = keep;
+    }
+    free(p);
+    return r;
+}
+
+/* Refuses sets whose whole-degree names would not map back to the same direction. */
+static btf_result btf__check_roundable(const btf_dirset *d, const char *what, btf_error *err)
+{
+    for (int i = 0; i < d->n_dirs; i++) {
+        int t, p;
+        btf__round_angles(d, i, &t, &p);
+        int j = btf_dirset_find(d, (float)t, (float)p, BTF__ANGLE_TOL);
+        if (j != i)
+            return btf_fail(err, BTF_ERR_RANGE,
+                            "%s direction %d rounds to theta %d phi %d, which names direction %d too: "
+                            "the set cannot be written with whole-degree names",
+                            what, i, t, p, j);
+    }
+    return BTF_OK;
+}
+
+/* Shared state of the writing threads; lives on the writer's stack for one call. */
+typedef struct btf__writer {
+    const btf *b;
+    const char *dir, *prefix, *ext;
+    pthread_mutex_t mu;
+    int next, total; /* under mu */
+    btf_result rc;   /* first failure (under mu) */
+    btf_error err;
+} btf__writer;
+
+static btf_result btf__write_one(btf__writer *w, int img, uint8_t *tmp, btf_error *err)
+{
+    const btf *b = w->b;
+    int nl = b->lights.n_dirs, nv = b->views.n_dirs, light = img % nl, view = img / nl, tl, pl, tv, pv;
+    btf__round_angles(&b->lights, light, &tl, &pl);
+    btf__round_angles(&b->views, view, &tv, &pv);
+    size_t n = strlen(w->dir) + strlen(w->prefix) + strlen(w->ext) + 64;
+    char *path = malloc(n);
+    if (!path)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", w->dir);
+    snprintf(path, n, "%s/%s_%05d_tl%03d_pl%03d_tv%03d_pv%03d.%s", w->dir, w->prefix, light * nv + view, tl, pl, tv, pv, w->ext);
+    size_t ns = btf_image_samples(b), base = (size_t)img * ns;
+    const uint8_t *px = (const uint8_t *)b->data + base;
+    if (b->storage == BTF_F32) {
+        const float *f = (const float *)b->data + base;
+        for (size_t i = 0; i < ns; i++) {
+            float q = f[i] * 255.0f + 0.5f;
+            tmp[i] = !(q > 0.0f) ? 0 : q > 255.0f ? 255 : (uint8_t)q;
+        }
+        px = tmp;
+    }
+    btf_result r = btf_image_write(path, b->width, b->height, 3, 8, px, err);
+    free(path);
+    return r;
+}
+
+static void *btf__write_worker(void *arg)
+{
+    btf__writer *w = arg;
+    btf_error err = {{0}};
+    uint8_t *tmp = w->b->storage == BTF_F32 ? malloc(btf_image_samples(w->b)) : NULL;
+    btf_result r = w->b->storage == BTF_F32 && !tmp ? btf_fail(&err, BTF_ERR_NOMEM, "%s: out of memory", w->dir)
+                                                     : BTF_OK;
+    while (r == BTF_OK) {
+        pthread_mutex_lock(&w->mu);
+        int i = w->rc == BTF_OK && w->next < w->total ? w->next++ : -1;
+        pthread_mutex_unlock(&w->mu);
+        if (i < 0)
+            break;
+        r = btf__write_one(w, i, tmp, &err);
+    }
+    if (r != BTF_OK) {
+        pthread_mutex_lock(&w->mu);
+        if (w->rc == BTF_OK) {
+            w->rc = r;
+            w->err = err;
+        }
+        pthread_mutex_unlock(&w->mu);
+    }
+    free(tmp);
+    return NULL;
+}
+
+static btf_result btf__write_all(btf__writer *w, btf_error *err)
+{
+    pthread_t th[BTF__THREADS];
+    int started = 0;
+    if (pthread_mutex_init(&w->mu, NULL) != 0)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot create a mutex", w->dir);
+    for (int t = 1; t < BTF__THREADS; t++)
+        if (pthread_create(&th[started], NULL, btf__write_worker, w) == 0)
+            started++;
+    btf__write_worker(w);
+    for (int t = 0; t < started; t++)
+        pthread_join(th[t], NULL);
+    pthread_mutex_destroy(&w->mu);
+    if (w->rc != BTF_OK && err)
+        *err = w->err;
+    return w->rc;
+}
+
+btf_result btf_save_ubo2003_dir(const btf *b, const char *dir, const char *prefix, const char *ext, btf_error *err)
+{
+    if (!b || !dir || !b->data)
+        return btf_fail(err, BTF_ERR_ARG, "btf_save_ubo2003_dir: NULL argument");
+    prefix = prefix && *prefix ? prefix : "btf";
+    ext = ext && *ext ? ext : "png";
+    if (*ext == '.')
+        ext++;
+    if (!btf__is_image_ext(ext))
+        return btf_fail(err, BTF_ERR_ARG, "%s: extension \"%s\" is not png, jpg or jpeg", dir, ext);
+    if (strchr(prefix, '/'))
+        return btf_fail(err, BTF_ERR_ARG, "%s: prefix \"%s\" contains '/'", dir, prefix);
+    if (b->storage != BTF_U8 && b->storage != BTF_F32)
+        return btf_fail(err, BTF_ERR_ARG, "%s: unknown storage %d", dir, (int)b->storage);
+    btf_result r = btf__check_roundable(&b->lights, "light", err);
+    if (r == BTF_OK)
+        r = btf__check_roundable(&b->views, "view", err);
+    if (r == BTF_OK)
+        r = btf__mkdirs(dir, err);
+    if (r != BTF_OK)
+        return r;
+    btf__writer w;
+    memset(&w, 0, sizeof w);
+    w.b = b;
+    w.dir = dir;
+    w.prefix = prefix;
+    w.ext = ext;
+    w.total = b->lights.n_dirs * b->views.n_dirs;
+    return btf__write_all(&w, err);
+}
+
+/* ------------------------------------------------------------------ any */
+
+static int btf__has_file(const char *dir, const char *name)
+{
+    char *p = btf__join(dir, name);
+    struct stat st;
+    int ok = p && stat(p, &st) == 0 && S_ISREG(st.st_mode);
+    free(p);
+    return ok;
+}
+
+btf_result btf_load_any(const char *path, const btf_load_options *opt, btf **out, btf_error *err)
+{
+    if (!path || !out)
+        return btf_fail(err, BTF_ERR_ARG, "btf_load_any: NULL argument");
+    *out = NULL;
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: %s", path, strerror(errno));
+    if (S_ISREG(st.st_mode)) {
+        size_t n = strlen(path);
+        if (n >= 4 && !strcasecmp(path + n - 4, ".btf"))
+            return btf_load_dfmf(path, opt, out, err);
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unknown input (expected a .btf file or a directory)", path);
+    }
+    if (!S_ISDIR(st.st_mode))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: neither a file nor a directory", path);
+    if (btf__has_file(path, "meta.json"))
+        return btf_import_thesis(path, opt, out, err);
+    if (btf__has_file(path, "manifest.json"))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: package: use the package API", path);
+    return btf_load_ubo2003_dir(path, opt, out, err);
+}
