@@ -21,7 +21,7 @@ LDFLAGS  += $(SAN)
 PKGS     := OpenImageIO libcjson lapacke openblas osmesa egl glesv2
 PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
-TEST_LIBS  = $(shell pkg-config --libs criterion 2>/dev/null)
+TEST_LIBS  = $(shell pkg-config --libs criterion libwebsockets 2>/dev/null)
 
 CODEC_C   := $(wildcard codec/*.c)
 CODEC_CXX := $(wildcard codec/*.cpp)
@@ -93,3 +93,4 @@ clean:
 	rm -rf build build-asan codec/libbtfcodec.a
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)
+include server/build.mk

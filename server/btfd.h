@@ -1,0 +1,55 @@
+/* btfd.h - pieces of the btfd server shared by its main and its protocol callback.
+ *
+ * btfd_main.c parses the command line, fills a btfd_server and runs the lws
+ * event loop; btfd_protocol.c holds the two callbacks (HTTP for /materials,
+ * WebSocket for btf-stream.v1). Everything runs on the one lws service thread.
+ */
+#ifndef BTFD_H
+#define BTFD_H
+
+#include <libwebsockets.h>
+#include <stdint.h>
+
+#include "btfd_library.h"
+#include "btfd_request.h"
+
+#define BTFD_SUBPROTOCOL "btf-stream.v1"
+#define BTFD_HEADER_BYTES 20        /* binary piece header: 5 x u32 little-endian */
+#define BTFD_MAX_SUBS 32            /* subscriptions per connection */
+#define BTFD_MAX_QUEUED_TEXT 64     /* queued text replies per connection before it is closed */
+#define BTFD_RATE_BURST 256.0       /* messages a client may send at once ... */
+#define BTFD_RATE_PER_S 128.0       /* ... and per second after that */
+
+/* Command-line settings; zero fields mean the defaults of btfd_main.c. Value type. */
+typedef struct btfd_options {
+    const char *library_dir;
+    const char *client_dir;  /* mounted at / */
+    const char *shaders_dir; /* mounted at /shaders/ */
+    const char *bind;        /* interface address, 127.0.0.1 by default */
+    int port;                /* 0 picks a free port (printed on stdout) */
+    size_t fragment;         /* payload bytes per binary piece */
+    int stall_timeout_s;     /* a client with pending data and no progress this long is dropped */
+    int rescan_ms;           /* periodic library rescan; 0 disables */
+    int verbose;
+} btfd_options;
+
+/* The server: one per process, owned by main, lives for the whole event loop. */
+typedef struct btfd_server {
+    btfd_options opt;
+    btfd_library *lib;
+    struct lws_context *ctx;
+    uint8_t *scratch;          /* LWS_PRE + header + fragment: shared send buffer (malloc'd) */
+    size_t scratch_len;
+    lws_usec_t last_scan_us;   /* rate limit of on-demand rescans */
+    lws_sorted_usec_list_t sul_rescan;
+    uint64_t connections;      /* WebSocket connections so far */
+    uint64_t bytes_sent;       /* payload bytes of binary pieces */
+} btfd_server;
+
+/* http, btf-stream.v1, terminator; main sets the stream's tx_packet_size before use. */
+extern struct lws_protocols btfd_protocols[];
+
+/* Rescans the library unless one ran in the last 200 ms (force: always). */
+void btfd_server_rescan(btfd_server *srv, int force);
+
+#endif

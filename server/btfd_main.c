@@ -1,0 +1,212 @@
+/* btfd_main.c - command line and event loop of the btfd streaming server.
+ *
+ *     btfd --library DIR [--port N] [--bind ADDR] [--client DIR] [--shaders DIR]
+ *
+ * Serves the client page (HTTP file mount on /, shaders on /shaders/), the
+ * library list (GET /materials) and the btf-stream.v1 WebSocket. The protocol
+ * logic lives in btfd_protocol.c; see server/README.md and doc/protocol.md.
+ */
+#include <getopt.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+
+#include "btfd.h"
+
+static volatile sig_atomic_t interrupted;
+static struct lws_context *g_ctx; /* only for the signal handler */
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    interrupted = 1;
+    if (g_ctx)
+        lws_cancel_service(g_ctx);
+}
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: btfd --library DIR [options]\n"
+            "  --library DIR        directory of packages (read-only)\n"
+            "  --port N             TCP port (default 8080; 0 picks a free one)\n"
+            "  --bind ADDR          interface address (default 127.0.0.1)\n"
+            "  --client DIR         client files served at / (default client)\n"
+            "  --shaders DIR        shader files served at /shaders/ (default shaders)\n"
+            "  --fragment BYTES     payload bytes per binary piece (4096..1048576, default 131072)\n"
+            "  --stall-timeout S    drop a client that takes no data for S seconds (default 20)\n"
+            "  --rescan-ms MS       rescan the library every MS ms (default 2000, 0 = only on request)\n"
+            "  --no-csp             do not add the security headers (CSP) to HTTP replies\n"
+            "  -v, --verbose        log library changes and lws warnings\n");
+}
+
+/* Integer option value in [lo, hi]; exits 2 when it is not one. */
+static long int_arg(const char *opt, const char *s, long lo, long hi)
+{
+    char *end;
+    long v = strtol(s, &end, 10);
+    if (*s == 0 || *end || v < lo || v > hi) {
+        fprintf(stderr, "btfd: %s wants an integer in %ld..%ld, got \"%s\"\n", opt, lo, hi, s);
+        exit(2);
+    }
+    return v;
+}
+
+static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
+{
+    static const struct option longs[] = {
+        {"library", 1, 0, 'l'},  {"port", 1, 0, 'p'},      {"bind", 1, 0, 'b'},
+        {"client", 1, 0, 'c'},   {"shaders", 1, 0, 's'},   {"fragment", 1, 0, 'f'},
+        {"stall-timeout", 1, 0, 't'}, {"rescan-ms", 1, 0, 'r'}, {"no-csp", 0, 0, 'n'},
+        {"verbose", 0, 0, 'v'},  {"help", 0, 0, 'h'},      {0, 0, 0, 0},
+    };
+    int ch;
+    while ((ch = getopt_long(argc, argv, "vh", longs, NULL)) != -1) {
+        switch (ch) {
+        case 'l': o->library_dir = optarg; break;
+        case 'p': o->port = (int)int_arg("--port", optarg, 0, 65535); break;
+        case 'b': o->bind = optarg; break;
+        case 'c': o->client_dir = optarg; break;
+        case 's': o->shaders_dir = optarg; break;
+        case 'f': o->fragment = (size_t)int_arg("--fragment", optarg, 4096, 1 << 20); break;
+        case 't': o->stall_timeout_s = (int)int_arg("--stall-timeout", optarg, 1, 3600); break;
+        case 'r': o->rescan_ms = (int)int_arg("--rescan-ms", optarg, 0, 3600000); break;
+        case 'n': *csp = 0; break;
+        case 'v': o->verbose = 1; break;
+        case 'h': usage(stdout); exit(0);
+        default: usage(stderr); exit(2);
+        }
+    }
+    if (optind < argc || !o->library_dir) {
+        fprintf(stderr, optind < argc ? "btfd: unexpected argument \"%s\"\n" : "btfd: --library is required%s\n",
+                optind < argc ? argv[optind] : "");
+        usage(stderr);
+        exit(2);
+    }
+}
+
+/* More file descriptors for thousands of connections (soft limit up to the hard one). */
+static void raise_fd_limit(void)
+{
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur < rl.rlim_max) {
+        rl.rlim_cur = rl.rlim_max > 65536 ? 65536 : rl.rlim_max;
+        setrlimit(RLIMIT_NOFILE, &rl);
+    }
+}
+
+static void rescan_timer(lws_sorted_usec_list_t *sul)
+{
+    btfd_server *srv = lws_container_of(sul, btfd_server, sul_rescan);
+    btfd_server_rescan(srv, 1);
+    lws_sul_schedule(srv->ctx, 0, &srv->sul_rescan, rescan_timer, (lws_usec_t)srv->opt.rescan_ms * 1000);
+}
+
+static const struct lws_protocol_vhost_options mime_extra[] = {
+    {&mime_extra[1], NULL, ".glsl", "text/plain"},
+    {&mime_extra[2], NULL, ".vert", "text/plain"},
+    {&mime_extra[3], NULL, ".frag", "text/plain"},
+    {&mime_extra[4], NULL, ".mjs", "text/javascript"},
+    {&mime_extra[5], NULL, ".json", "application/json"},
+    {&mime_extra[6], NULL, ".svg", "image/svg+xml"},
+    {&mime_extra[7], NULL, ".webp", "image/webp"},
+    {NULL, NULL, ".wasm", "application/wasm"},
+};
+
+/* Mounts: /materials (callback), /shaders/ and / (files). */
+static void make_mounts(const btfd_options *o, struct lws_http_mount m[3])
+{
+    memset(m, 0, 3 * sizeof *m);
+    m[0].mountpoint = "/materials";
+    m[0].mountpoint_len = 10;
+    m[0].protocol = "http";
+    m[0].origin_protocol = LWSMPRO_CALLBACK;
+    m[0].mount_next = &m[1];
+    m[1].mountpoint = "/shaders";
+    m[1].mountpoint_len = 8;
+    m[1].origin = o->shaders_dir;
+    m[1].origin_protocol = LWSMPRO_FILE;
+    m[1].extra_mimetypes = mime_extra;
+    m[1].mount_next = &m[2];
+    m[2].mountpoint = "/";
+    m[2].mountpoint_len = 1;
+    m[2].origin = o->client_dir;
+    m[2].def = "index.html";
+    m[2].origin_protocol = LWSMPRO_FILE;
+    m[2].extra_mimetypes = mime_extra;
+}
+
+static struct lws_context *make_context(btfd_server *srv, const struct lws_http_mount *mounts, int csp)
+{
+    struct lws_context_creation_info info;
+    memset(&info, 0, sizeof info);
+    info.port = srv->opt.port;
+    info.iface = srv->opt.bind;
+    info.protocols = btfd_protocols;
+    info.mounts = mounts;
+    info.user = srv;
+    info.options = LWS_SERVER_OPTION_VALIDATE_UTF8 | LWS_SERVER_OPTION_DISABLE_IPV6;
+    if (csp)
+        info.options |= LWS_SERVER_OPTION_HTTP_HEADERS_SECURITY_BEST_PRACTICES_ENFORCE;
+    info.timeout_secs = 30;
+    return lws_create_context(&info);
+}
+
+int main(int argc, char **argv)
+{
+    btfd_server srv;
+    memset(&srv, 0, sizeof srv);
+    btfd_options *o = &srv.opt;
+    o->port = 8080;
+    o->bind = "127.0.0.1";
+    o->client_dir = "client";
+    o->shaders_dir = "shaders";
+    o->fragment = 131072;
+    o->stall_timeout_s = 20;
+    o->rescan_ms = 2000;
+    int csp = 1;
+    parse_args(argc, argv, o, &csp);
+    lws_set_log_level(o->verbose ? LLL_ERR | LLL_WARN : LLL_ERR, NULL);
+    raise_fd_limit();
+
+    btf_error err = {0};
+    if (btfd_library_open(o->library_dir, &srv.lib, &err) != BTF_OK) {
+        fprintf(stderr, "btfd: %s\n", err.msg);
+        return 1;
+    }
+    btfd_server_rescan(&srv, 1);
+    srv.scratch_len = LWS_PRE + BTFD_HEADER_BYTES + o->fragment;
+    srv.scratch = malloc(srv.scratch_len);
+    btfd_protocols[1].tx_packet_size = BTFD_HEADER_BYTES + o->fragment + 16;
+    struct lws_http_mount mounts[3];
+    make_mounts(o, mounts);
+    if (srv.scratch)
+        srv.ctx = make_context(&srv, mounts, csp);
+    if (!srv.ctx) {
+        fprintf(stderr, "btfd: cannot listen on %s:%d\n", o->bind, o->port);
+        free(srv.scratch);
+        btfd_library_free(srv.lib);
+        return 1;
+    }
+    g_ctx = srv.ctx;
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    int port = lws_get_vhost_listen_port(lws_get_vhost_by_name(srv.ctx, "default"));
+    printf("btfd: listening on http://%s:%d/ (%d materials from %s)\n", o->bind, port, srv.lib->n,
+           o->library_dir);
+    fflush(stdout);
+    if (o->rescan_ms > 0)
+        lws_sul_schedule(srv.ctx, 0, &srv.sul_rescan, rescan_timer, (lws_usec_t)o->rescan_ms * 1000);
+
+    while (!interrupted && lws_service(srv.ctx, 0) >= 0)
+        ;
+
+    lws_context_destroy(srv.ctx);
+    fprintf(stderr, "btfd: stopped after %llu connections, %llu payload bytes sent\n",
+            (unsigned long long)srv.connections, (unsigned long long)srv.bytes_sent);
+    btfd_library_free(srv.lib);
+    free(srv.scratch);
+    return 0;
+}

@@ -1,0 +1,50 @@
+# server/build.mk - builds the btfd streaming server and the request-parser fuzzers.
+# Included from the top Makefile (after its variables): `include server/build.mk`.
+# Before that, standalone:  make BUILD=build-x -f Makefile -f server/build.mk build-x/btfd
+#
+# Targets:
+#   $(BUILD)/btfd                 the server (server/*.c + $(CODEC_LIB), libwebsockets, cJSON)
+#   $(BUILD)/fuzz_request_replay  replays fuzz/corpus/request/* through the parser (cc)
+#   fuzz-replay                   runs that replay binary on the saved corpus
+#   fuzz                          libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
+# `build` gains btfd and the replay binary, so `make test` runs the server tests
+# (tests/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
+
+SERVER_C     := $(wildcard server/*.c)
+SERVER_OBJ   := $(SERVER_C:%.c=$(BUILD)/%.o)
+BTFD_BIN     := $(BUILD)/btfd
+SERVER_CFLAGS = $(shell pkg-config --cflags libwebsockets libcjson 2>/dev/null)
+SERVER_LIBS   = $(shell pkg-config --libs libwebsockets libcjson 2>/dev/null)
+FUZZ_LIBS     = $(shell pkg-config --libs libcjson 2>/dev/null)
+
+FUZZ_REPLAY  := $(BUILD)/fuzz_request_replay
+FUZZ_BIN     := $(BUILD)/fuzz_request
+FUZZ_SECONDS ?= 60
+FUZZ_SRC     := fuzz/fuzz_request.c server/btfd_request.c
+
+export BTF_BUILD := $(abspath $(BUILD))
+
+.PHONY: server fuzz fuzz-replay
+server: $(BTFD_BIN)
+build: $(BTFD_BIN) $(FUZZ_REPLAY)
+
+$(SERVER_OBJ): INC += -Iserver
+$(SERVER_OBJ): PKG_CFLAGS += $(SERVER_CFLAGS)
+
+$(BTFD_BIN): $(SERVER_OBJ) $(CODEC_LIB)
+	$(CC) $(LDFLAGS) -o $@ $^ $(SERVER_LIBS) -lm
+
+$(FUZZ_REPLAY): $(FUZZ_SRC) fuzz/replay_main.c server/btfd_request.h
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -MF /dev/null -Iserver $(SERVER_CFLAGS) -o $@ $(FUZZ_SRC) fuzz/replay_main.c \
+	    $(LDFLAGS) $(FUZZ_LIBS) -lm
+
+fuzz-replay: $(FUZZ_REPLAY)
+	$(FUZZ_REPLAY) fuzz/corpus/request
+
+# libFuzzer + ASan/UBSan; new interesting inputs land in fuzz/corpus/request.
+fuzz:
+	@mkdir -p $(BUILD)
+	clang -std=c11 -g -O1 -D_DEFAULT_SOURCE -fsanitize=fuzzer,address,undefined -Iserver \
+	    $(SERVER_CFLAGS) -o $(FUZZ_BIN) $(FUZZ_SRC) $(FUZZ_LIBS) -lm
+	$(FUZZ_BIN) -max_total_time=$(FUZZ_SECONDS) -max_len=20000 fuzz/corpus/request
