@@ -39,7 +39,7 @@ TEST_BIN  := $(BUILD)/run_tests
 INC       := -Icodec -Itools
 LINK_LIBS  = $(PKG_LIBS) -lgsl -lstdc++ -lm -lpthread
 
-.PHONY: all setup build test check asan bench demo clean lib
+.PHONY: all setup build test e2e check asan bench demo clean lib
 all: build
 build: $(CODEC_LIB) $(BTF_BIN) $(TEST_BIN)
 lib: $(CODEC_LIB)
@@ -72,6 +72,11 @@ $(TEST_BIN): $(TEST_OBJ) $(TOOLS_OBJ) $(CODEC_LIB)
 test: setup
 	$(MAKE) build
 	$(TEST_BIN) --jobs 2
+	$(MAKE) e2e
+
+# Browser tests: playwright-core driving Debian's chromium against a real btfd.
+e2e:
+	node --test --test-concurrency=1 tests/e2e/
 
 # Quick subset: skips suites whose name starts with "slow".
 check: build

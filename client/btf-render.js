@@ -1,0 +1,78 @@
+// btf-render.js - draws a package on a surface with the program "render" of
+// shaders/manifest.json (btf_render.vert, btf_dirs.glsl, btf_decode.glsl,
+// btf_render.frag): the very program `btf render` draws with in the headless C
+// harness, with the same mesh, camera and uniforms (scene.js ports tools/btf_render.c).
+
+import {buildProgram} from './btf-gl.js';
+import {buildMesh, cameraMake} from './scene.js';
+
+// MeshRenderer uses the program "render" (btf_render.vert, btf_dirs.glsl,
+// btf_decode.glsl, btf_render.frag), the one `btf render` draws with: a triangle
+// mesh of the surface (scene.js buildMesh) and the decoder per fragment.
+export class MeshRenderer {
+  constructor(gl, shaders) {
+    this.gl = gl;
+    this.prog = buildProgram(gl, shaders, 'render');
+    this.meshes = new Map(); // geometry -> {vao, count, buffers}
+  }
+
+  mesh(geometry) {
+    if (this.meshes.has(geometry)) return this.meshes.get(geometry);
+    const gl = this.gl, m = buildMesh(geometry);
+    const vao = gl.createVertexArray();
+    gl.bindVertexArray(vao);
+    const vb = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, vb);
+    gl.bufferData(gl.ARRAY_BUFFER, m.vertices, gl.STATIC_DRAW);
+    [[3, 0], [3, 3], [4, 6], [2, 10]].forEach(([size, off], loc) => {
+      gl.enableVertexAttribArray(loc);
+      gl.vertexAttribPointer(loc, size, gl.FLOAT, false, 48, off * 4);
+    });
+    const ib = gl.createBuffer();
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, m.indices, gl.STATIC_DRAW);
+    gl.bindVertexArray(null);
+    const r = {vao, count: m.indices.length, buffers: [vb, ib]};
+    this.meshes.set(geometry, r);
+    return r;
+  }
+
+  // Clears to the background and draws pkg (a GpuPackage) for the scene `view`
+  // ({geometry, camera/light angles, fov, repeat, background, chunks, horizonFade}),
+  // as btf_renderer_draw does.
+  draw(pkg, view, w, h) {
+    const gl = this.gl;
+    gl.viewport(0, 0, w, h);
+    gl.clearColor(...view.background, 1);
+    gl.clearDepth(1);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    if (!pkg || !pkg.uploaded || !view.chunks) return;
+    const cam = cameraMake(view, w / h);
+    const p = this.prog;
+    gl.useProgram(p.program);
+    pkg.bind(p, 0, {chunks: view.chunks, filter: 1, wrap: cam.wrap});
+    gl.uniformMatrix4fv(p.loc('u_model'), false, new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
+    gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
+    gl.uniform3fv(p.loc('u_camera'), cam.eye);
+    gl.uniform4f(p.loc('u_light'), cam.light[0], cam.light[1], cam.light[2], 0);
+    gl.uniform2f(p.loc('u_uv_scale'), cam.uvScale[0], cam.uvScale[1]);
+    gl.uniform1i(p.loc('u_horizon_fade'), view.horizonFade === false ? 0 : 1);
+    gl.enable(gl.DEPTH_TEST);
+    const m = this.mesh(view.geometry);
+    gl.bindVertexArray(m.vao);
+    gl.drawElements(gl.TRIANGLES, m.count, gl.UNSIGNED_INT, 0);
+    gl.bindVertexArray(null);
+    gl.disable(gl.DEPTH_TEST);
+  }
+
+  free() {
+    const gl = this.gl;
+    gl.deleteProgram(this.prog.program);
+    for (const m of this.meshes.values()) {
+      gl.deleteVertexArray(m.vao);
+      m.buffers.forEach((b) => gl.deleteBuffer(b));
+    }
+    this.meshes.clear();
+  }
+}
+

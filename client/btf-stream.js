@@ -1,0 +1,293 @@
+// btf-stream.js - one WebSocket (subprotocol btf-stream.v1, doc/protocol.md) per
+// server, shared by every viewer of the page. The server picks the next chunk
+// across all subscriptions of the connection by error reduction per byte: that is
+// the scene-wide priority. Several viewers of one material share one subscription;
+// its budget is the largest any of them asks for.
+//
+// Binary frames: 20-byte header of little-endian u32 (subscription id, chunk,
+// file index in the chunk's "files", offset, file size), then payload bytes.
+
+export const SUBPROTOCOL = 'btf-stream.v1';
+const HEADER = 20;
+
+const streams = new Map(); // url -> BtfStream
+
+// Budget {chunks, bytes, error} with -1 (or absent) meaning "no limit" -> wire form.
+function wireBudget(b) {
+  const o = {};
+  if (b.chunks >= 0) o.chunks = Math.floor(b.chunks);
+  if (b.bytes >= 0) o.bytes = Math.floor(b.bytes);
+  if (b.error >= 0) o.error = b.error;
+  return o;
+}
+
+// The largest of several budgets (a limit only when every listener has one).
+export function mergeBudgets(list) {
+  const out = {chunks: -1, bytes: -1, error: -1};
+  for (const key of ['chunks', 'bytes']) {
+    let v = 0;
+    for (const b of list) {
+      if (!(b[key] >= 0)) { v = -1; break; }
+      v = Math.max(v, b[key]);
+    }
+    out[key] = list.length ? v : 0;
+  }
+  let e = Infinity;
+  for (const b of list) {
+    if (!(b.error >= 0)) { e = -1; break; }
+    e = Math.min(e, b.error);
+  }
+  out.error = list.length && e !== Infinity ? e : -1;
+  return out;
+}
+
+// One material on one connection; lives while a listener holds it.
+class Subscription {
+  constructor(stream, material) {
+    this.stream = stream;
+    this.material = material;
+    this.listeners = new Set();
+    this.mid = 0;
+    this.etag = null;
+    this.manifest = null;   // raw manifest JSON object
+    this.limit = 0;         // chunks the server says the budget allows
+    this.chunks = [];       // chunk index -> array of Uint8Array (its files), when complete
+    this.partial = new Map(); // chunk index -> {files: [Uint8Array|undefined], done: Set}
+    this.received = 0;      // complete chunks
+    this.bytes = 0;         // payload bytes received (header excluded)
+    this.complete = false;
+    this.sentBudget = null;
+    this.error = null;
+  }
+
+  have() {
+    const h = [];
+    this.chunks.forEach((c, i) => c && h.push(i));
+    return h;
+  }
+
+  budget() {
+    return mergeBudgets([...this.listeners].map((l) => l.budget()));
+  }
+
+  emit(ev, ...args) {
+    for (const l of this.listeners) if (l[ev]) l[ev](this, ...args);
+  }
+}
+
+export class BtfStream {
+  // The shared stream of a server URL (ws:// or wss://).
+  static for(url) {
+    const key = new URL(url).href;
+    if (!streams.has(key)) streams.set(key, new BtfStream(key));
+    return streams.get(key);
+  }
+
+  static all() {
+    return [...streams.values()];
+  }
+
+  constructor(url) {
+    this.url = url;
+    this.subs = new Map(); // material -> Subscription
+    this.byMid = new Map();
+    this.ws = null;
+    this.open = false;
+    this.seq = 0;
+    this.retry = 0;
+    this.bytes = 0;        // all bytes received (headers and text included)
+    this.frames = 0;
+    this.connects = 0;
+    this.hello = null;
+    this.lastError = null;
+    this.connect();
+  }
+
+  connect() {
+    let ws;
+    try {
+      ws = new WebSocket(this.url, SUBPROTOCOL);
+    } catch (e) {
+      this.lastError = String(e.message || e);
+      this.broadcast('onStreamError', this.lastError);
+      return;
+    }
+    ws.binaryType = 'arraybuffer';
+    this.ws = ws;
+    ws.onopen = () => {
+      this.open = true;
+      this.retry = 0;
+      this.connects++;
+      for (const sub of this.subs.values()) this.sendSubscribe(sub);
+    };
+    ws.onmessage = (ev) => this.onMessage(ev.data);
+    ws.onclose = (ev) => {
+      if (this.ws !== ws) return;
+      this.open = false;
+      this.ws = null;
+      this.byMid.clear();
+      this.lastError = `connection closed (${ev.code}${ev.reason ? ': ' + ev.reason : ''})`;
+      for (const sub of this.subs.values()) {
+        sub.mid = 0;
+        sub.partial.clear();
+      }
+      if (this.subs.size) {
+        this.broadcast('onStreamError', this.lastError + ', reconnecting');
+        const delay = Math.min(8000, 250 * 2 ** this.retry++);
+        setTimeout(() => this.connect(), delay);
+      }
+    };
+    ws.onerror = () => {}; // onclose follows with the code
+  }
+
+  broadcast(ev, ...args) {
+    for (const sub of this.subs.values()) sub.emit(ev, ...args);
+  }
+
+  send(obj) {
+    if (!this.open) return false;
+    this.ws.send(JSON.stringify(obj));
+    return true;
+  }
+
+  // listener: {budget() -> {chunks, bytes, error}, onManifest(sub), onChunk(sub, j),
+  //            onComplete(sub, msg), onError(sub, msg), onStreamError(sub, text)}
+  // Returns the subscription; chunks already here are replayed to the listener.
+  subscribe(material, listener) {
+    let sub = this.subs.get(material);
+    const fresh = !sub;
+    if (fresh) {
+      sub = new Subscription(this, material);
+      this.subs.set(material, sub);
+    }
+    sub.listeners.add(listener);
+    if (fresh) {
+      this.sendSubscribe(sub);
+    } else {
+      if (sub.manifest && listener.onManifest) listener.onManifest(sub);
+      sub.chunks.forEach((c, j) => c && listener.onChunk && listener.onChunk(sub, j));
+      if (sub.complete && listener.onComplete) listener.onComplete(sub, {});
+      this.updateBudget(sub);
+    }
+    return sub;
+  }
+
+  unsubscribe(sub, listener) {
+    sub.listeners.delete(listener);
+    if (sub.listeners.size) return this.updateBudget(sub);
+    this.subs.delete(sub.material);
+    if (sub.mid) {
+      this.byMid.delete(sub.mid);
+      this.send({type: 'unsubscribe', material: sub.material});
+    }
+  }
+
+  sendSubscribe(sub) {
+    const budget = sub.budget();
+    const msg = {type: 'subscribe', material: sub.material, seq: ++this.seq, budget: wireBudget(budget)};
+    const have = sub.have();
+    if (have.length && sub.etag) {
+      msg.have = have;
+      msg.etag = sub.etag;
+    }
+    if (this.send(msg)) sub.sentBudget = JSON.stringify(msg.budget);
+  }
+
+  // Sends the subscription's merged budget when it changed (e.g. a viewer resized).
+  updateBudget(sub) {
+    const wire = JSON.stringify(wireBudget(sub.budget()));
+    if (!sub.mid || wire === sub.sentBudget) return;
+    sub.sentBudget = wire;
+    sub.complete = false;
+    this.send({type: 'budget', material: sub.material, seq: ++this.seq, budget: JSON.parse(wire)});
+  }
+
+  onMessage(data) {
+    this.frames++;
+    if (typeof data === 'string') {
+      this.bytes += data.length;
+      let msg;
+      try {
+        msg = JSON.parse(data);
+      } catch (e) {
+        this.lastError = 'server sent invalid JSON';
+        return;
+      }
+      return this.onText(msg);
+    }
+    this.bytes += data.byteLength;
+    if (data.byteLength < HEADER) return;
+    const h = new DataView(data, 0, HEADER);
+    const [mid, chunk, file, off, total] = [0, 4, 8, 12, 16].map((o) => h.getUint32(o, true));
+    const sub = this.byMid.get(mid);
+    if (!sub || !sub.manifest) return;
+    const entry = sub.manifest.chunks[chunk];
+    if (!entry || file >= entry.files.length || sub.chunks[chunk]) return;
+    let p = sub.partial.get(chunk);
+    if (!p) sub.partial.set(chunk, p = {files: [], done: new Set()});
+    if (!p.files[file]) p.files[file] = new Uint8Array(total);
+    const n = data.byteLength - HEADER;
+    if (off + n > total || p.files[file].length !== total) return;
+    p.files[file].set(new Uint8Array(data, HEADER, n), off);
+    sub.bytes += n;
+    if (off + n === total) p.done.add(file);
+    if (p.done.size === entry.files.length) {
+      sub.partial.delete(chunk);
+      sub.chunks[chunk] = p.files;
+      sub.received++;
+      sub.emit('onChunk', chunk);
+    }
+  }
+
+  onText(msg) {
+    const sub = msg.material ? this.subs.get(msg.material) : null;
+    switch (msg.type) {
+    case 'hello':
+      this.hello = msg;
+      break;
+    case 'manifest':
+      if (!sub) return;
+      if (sub.etag && sub.etag !== msg.etag) { // the package changed on the server
+        sub.chunks = [];
+        sub.received = 0;
+      }
+      sub.mid = msg.mid;
+      sub.etag = msg.etag;
+      sub.limit = msg.limit;
+      this.byMid.set(msg.mid, sub);
+      if (!sub.manifest || !msg.resumed) {
+        sub.manifest = msg.manifest;
+        sub.emit('onManifest');
+      }
+      this.updateBudget(sub);
+      break;
+    case 'budget':
+      if (sub) sub.limit = msg.limit;
+      break;
+    case 'complete':
+      if (!sub) return;
+      sub.complete = true;
+      sub.limit = msg.limit;
+      sub.emit('onComplete', msg);
+      break;
+    case 'error':
+      this.lastError = `${msg.code}: ${msg.message}`;
+      if (sub) {
+        sub.error = msg;
+        sub.emit('onError', msg);
+      } else {
+        this.broadcast('onStreamError', this.lastError);
+      }
+      break;
+    default:
+      break;
+    }
+  }
+
+  stats() {
+    return {url: this.url, open: this.open, bytes: this.bytes, frames: this.frames, connects: this.connects,
+            subscriptions: [...this.subs.values()].map((s) => ({material: s.material, received: s.received,
+              bytes: s.bytes, limit: s.limit, complete: s.complete, listeners: s.listeners.size,
+              budget: s.budget()}))};
+  }
+}

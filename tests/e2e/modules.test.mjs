@@ -1,0 +1,155 @@
+// modules.test.mjs - the client's browser-free modules in node: manifest validation
+// and weight dequantisation (client/btf-package.js), shader assembly and compiler-log
+// mapping (client/btf-gl.js), budget merging (client/btf-stream.js), ray casts and
+// meshes (client/scene.js). No server, no browser.
+import assert from 'node:assert/strict';
+import fs from 'node:fs';
+import path from 'node:path';
+import {describe, it} from 'node:test';
+import {ROOT} from './util.mjs';
+
+const pkgMod = await import('../../client/btf-package.js');
+globalThis.WebSocket ??= class {}; // btf-stream.js only needs it when connecting
+const streamMod = await import('../../client/btf-stream.js');
+const glMod = await import('../../client/btf-gl.js');
+const scene = await import('../../client/scene.js');
+
+const UBO = {rings: [{theta: 0, count: 1, phi_offset: 0}, {theta: 15, count: 6, phi_offset: 0},
+  {theta: 30, count: 12, phi_offset: 0}, {theta: 45, count: 18, phi_offset: 0}, {theta: 60, count: 20, phi_offset: 0},
+  {theta: 75, count: 24, phi_offset: 0}]};
+
+// A valid manifest of 81 x 81 directions, k = 3 (27 blocks), 2 chunks.
+function manifest() {
+  const blocks = Array.from({length: 27}, (_, b) => [3 * b, 3 * b + 1, 3 * b + 2]);
+  const ranges = (lo, st) => blocks.map((_, b) => [lo + b, st * (b + 1)]);
+  return {format: 'btf-package', version: 1, name: 'm', width: 4, height: 4, lights: structuredClone(UBO),
+    views: structuredClone(UBO), bits: 8,
+    blocks, atlas: {cols: 6, rows: 5, tile_width: 4, tile_height: 4, width: 24, height: 20, channels: 1},
+    chunks: [0, 1].map((j) => ({id: j, component: j, files: [`tex-0${j}.png`, `wt-0${j}.bin`], bytes: 1000 + j,
+      rmse: 10 - j, lab: 3 - j, tex_range: ranges(0, 0.01), wt_range: ranges(-2.5, 1e-4)}))};
+}
+
+describe('btf-package.js', () => {
+  it('parses a valid manifest: ring starts, view blocks, ranges', () => {
+    const p = pkgMod.parseManifest(manifest());
+    assert.equal(p.lights.dirs, 81);
+    assert.deepEqual([...p.lights.rings.subarray(0, 24)].filter((_, i) => i % 4 === 3), [0, 1, 7, 19, 37, 57]);
+    assert.equal(p.viewBlock[80], 26);
+    assert.equal(p.nBlocks, 27);
+    assert.equal(p.totalBytes, 2001);
+    assert.equal(pkgMod.chunksWithinBytes(p, 1000), 1);
+    assert.equal(pkgMod.chunksWithinBytes(p, 999), 0);
+    assert.equal(pkgMod.chunksWithinBytes(p, -1), 2);
+    assert.equal(pkgMod.promisedError(p, 2).lab, 2);
+  });
+
+  it('refuses manifests outside the format', () => {
+    const bad = [
+      (m) => { m.version = 2; }, (m) => { m.format = 'x'; }, (m) => { m.width = 0; },
+      (m) => { m.bits = 12; }, (m) => { m.blocks[0] = [0, 1]; }, (m) => { m.blocks[1][0] = 0; },
+      (m) => { m.atlas.cols = 2; }, (m) => { m.chunks = []; }, (m) => { m.chunks[0].files = ['../x.png', 'wt-00.bin']; },
+      (m) => { m.chunks[1].wt_range.pop(); }, (m) => { m.chunks[0].tex_range[3] = [0, -1]; },
+      (m) => { m.lights.rings = [{theta: 30, count: 4, phi_offset: 0}, {theta: 15, count: 4, phi_offset: 0}]; },
+      (m) => { m.views.rings = Array.from({length: 40}, (_, i) => ({theta: i, count: 1, phi_offset: 0})); },
+    ];
+    bad.forEach((f, i) => {
+      const m = manifest();
+      f(m);
+      assert.throws(() => pkgMod.parseManifest(m), /package m:/, `case ${i}`);
+    });
+  });
+
+  it('dequantises weights as lo + step * q in float32 and checks the size', () => {
+    const p = pkgMod.parseManifest(manifest());
+    const n = 81 * 81 * 3, q = new Uint16Array(n);
+    for (let i = 0; i < n; i++) q[i] = (i * 7919) % 65536;
+    const buf = Buffer.from(q.buffer);
+    const w = pkgMod.dequantWeights(p, p.chunks[1], buf);
+    for (const i of [0, 1, 242, 243, 5000, n - 1]) {
+      const v = Math.floor(i / (81 * 3)), b = Math.floor(v / 3);
+      const lo = Math.fround(-2.5 + b), step = Math.fround(1e-4 * (b + 1));
+      const want = lo + step * q[i]; // double: float32 result within its rounding
+      assert.ok(Math.abs(w[i] - want) <= 2 * Math.abs(want) * 2 ** -23 + 1e-7, `weight ${i}: ${w[i]} vs ${want}`);
+    }
+    assert.throws(() => pkgMod.dequantWeights(p, p.chunks[0], buf.subarray(0, n)), /wt-00\.bin has/);
+  });
+});
+
+describe('btf-gl.js shader assembly', () => {
+  const files = new Map([['a.vert', 'void a() {}\n'], ['b.glsl', 'int b;\nint c;'], ['c.frag', 'void main() {}\n']]);
+  const shaders = {manifest: {prefix: ['#version 300 es', 'precision highp float;'],
+    programs: {p: {vertex: ['a.vert'], fragment: ['b.glsl', 'c.frag']}}}, files};
+
+  it('assembles prefix, defines, then "// ---- FILE" + text, as shaders/README.md specifies', () => {
+    const s = glMod.assemble(shaders, 'p', 'fragment', [['N', 4], ['FLAG', '']]);
+    assert.equal(s.text, '#version 300 es\nprecision highp float;\n#define N 4\n#define FLAG\n' +
+      '// ---- b.glsl\nint b;\nint c;\n// ---- c.frag\nvoid main() {}\n');
+    assert.deepEqual(s.pieces, [{file: 'b.glsl', firstLine: 6, nLines: 2}, {file: 'c.frag', firstLine: 9, nLines: 1}]);
+    assert.deepEqual(glMod.sourceLine(s, 7), ['b.glsl', 2]);
+    assert.deepEqual(glMod.sourceLine(s, 3), [null, 3]);
+    assert.throws(() => glMod.assemble(shaders, 'q', 'vertex'), /program 'q'/);
+    assert.throws(() => glMod.assemble(shaders, 'p', 'vertex', [['1x', 1]]), /invalid define/);
+  });
+
+  it('maps ANGLE, Mesa and NVIDIA log lines and annotates the numbered source', () => {
+    assert.equal(glMod.logLine("ERROR: 0:7: 'c' : redefinition"), 7);
+    assert.equal(glMod.logLine('0:12(3): error: x'), 12);
+    assert.equal(glMod.logLine('0(9) : error C0000: y'), 9);
+    assert.equal(glMod.logLine('link failed'), 0);
+    const s = glMod.assemble(shaders, 'p', 'fragment');
+    const rep = glMod.annotate(s, "ERROR: 0:5: 'c' : redefinition\n");
+    assert.match(rep, / {3}5: int c;\n {6}\^\^\^ ERROR: 0:5: 'c' : redefinition/);
+  });
+
+  it('the real shaders/manifest.json names existing plain files', () => {
+    const m = JSON.parse(fs.readFileSync(path.join(ROOT, 'shaders/manifest.json'), 'utf8'));
+    assert.ok(m.programs.render || m.programs.decode_probe, 'a program the client can draw with');
+    for (const prog of Object.values(m.programs))
+      for (const f of [...prog.vertex, ...prog.fragment]) assert.ok(fs.existsSync(path.join(ROOT, 'shaders', f)), f);
+  });
+});
+
+describe('btf-stream.js budgets', () => {
+  it('merges viewer budgets into the largest, unlimited when any is', () => {
+    const m = streamMod.mergeBudgets;
+    assert.deepEqual(m([{chunks: 2, bytes: -1}, {chunks: 5, bytes: -1}]), {chunks: 5, bytes: -1, error: -1});
+    assert.deepEqual(m([{chunks: 2, bytes: 100}, {chunks: -1, bytes: 300}]), {chunks: -1, bytes: 300, error: -1});
+    assert.deepEqual(m([{chunks: 1, bytes: 10, error: 2}, {chunks: 1, bytes: 10, error: 1}]),
+      {chunks: 1, bytes: 10, error: 1});
+  });
+});
+
+describe('scene.js (port of tools/btf_render.c conventions)', () => {
+  const apply = (m, p) => [0, 1, 2, 3].map((r) => m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r]);
+  it('the camera looks at the origin from dist * dir(theta, phi), +z up on screen', () => {
+    const s = {...scene.sceneDefaults('plane'), geometry: 'plane', cameraTheta: 35, cameraPhi: -90, cameraDist: 3};
+    const c = scene.cameraMake(s, 4 / 3);
+    const d = scene.dir(35, -90);
+    [0, 1, 2].forEach((i) => assert.ok(Math.abs(c.eye[i] - 3 * d[i]) < 1e-6));
+    const o = apply(c.viewProj, [0, 0, 0]);
+    assert.ok(Math.abs(o[0] / o[3]) < 1e-6 && Math.abs(o[1] / o[3]) < 1e-6, 'origin at the centre');
+    const top = apply(c.viewProj, [0, 0, 0.5]);
+    assert.ok(top[1] / top[3] > 0, '+z is up on screen');
+    const far = apply(c.viewProj, [0, 1, 0]); // +y (image row 0 of the plane) is further away: higher up
+    assert.ok(far[1] / far[3] > 0);
+    assert.deepEqual(c.uvScale, [1, 1]);
+    assert.equal(c.wrap, 0);
+    assert.equal(scene.cameraMake({...s, geometry: 'sphere'}, 1).wrap, 1);
+  });
+
+  it('meshes: unit normals, tangents orthogonal to them, uv as documented', () => {
+    for (const g of scene.GEOMETRIES) {
+      const {vertices: v, indices} = scene.buildMesh(g, 16);
+      assert.equal(indices.length % 3, 0);
+      for (let i = 0; i < v.length; i += 12) {
+        const n = v.subarray(i + 3, i + 6), t = v.subarray(i + 6, i + 9);
+        assert.ok(Math.abs(Math.hypot(...n) - 1) < 1e-5, `${g}: unit normal`);
+        assert.ok(Math.abs(n[0] * t[0] + n[1] * t[1] + n[2] * t[2]) < 1e-5, `${g}: tangent in the surface`);
+        if (g === 'plane') {
+          assert.ok(Math.abs((v[i] + 1) / 2 - v[i + 10]) < 1e-6 && Math.abs((1 - v[i + 1]) / 2 - v[i + 11]) < 1e-6);
+        }
+        if (g === 'sphere') assert.ok(Math.abs(Math.hypot(v[i], v[i + 1], v[i + 2]) - 1) < 1e-5);
+      }
+    }
+  });
+});

@@ -1,0 +1,241 @@
+// util.mjs - helpers of the browser tests: the built tools, a small material library
+// made by them, btfd on a free loopback port, Chromium (playwright-core, Debian's
+// /usr/bin/chromium with the flags of shared/docs/platform-notes.md, a fresh
+// profile), page error collection, PNG read/write (node:zlib) and image differences.
+import {spawn, spawnSync} from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import zlib from 'node:zlib';
+import {fileURLToPath} from 'node:url';
+
+export const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
+export const BUILD = path.resolve(ROOT, process.env.BTF_BUILD || 'build');
+export const BTF = path.join(BUILD, 'btf');
+export const BTFD = path.join(BUILD, 'btfd');
+export const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
+
+export const CHROMIUM_ARGS = ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+  '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update',
+  '--disable-sync', '--no-proxy-server'];
+
+function run(cmd, args) {
+  const r = spawnSync(cmd, args, {encoding: 'utf8', cwd: ROOT});
+  if (r.status !== 0)
+    throw new Error(`${path.basename(cmd)} ${args.join(' ')} failed (${r.status}): ${r.stderr || r.error}`);
+  return r.stdout;
+}
+
+export function requireBuild() {
+  for (const f of [BTF, BTFD])
+    if (!fs.existsSync(f)) throw new Error(`${f} is missing: run \`make build\` first (or set BTF_BUILD)`);
+}
+
+// true when build/btf has the `render` subcommand (tools/cmd_render.c).
+export function hasRender() {
+  const r = spawnSync(BTF, ['render', '--help'], {encoding: 'utf8'});
+  const text = `${r.stdout}${r.stderr}`;
+  return !r.error && /render/.test(text) && !/unknown (sub)?command/i.test(text);
+}
+
+// Library of small packages in a temp dir: name -> [generator kind, components].
+export function makeLibrary(materials) {
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-e2e-'));
+  const lib = path.join(dir, 'lib');
+  fs.mkdirSync(lib);
+  for (const [name, [kind, comps]] of Object.entries(materials)) {
+    const src = path.join(dir, `${name}.btf`);
+    run(BTF, ['gen', kind, src, '--size', '32', '--format', 'btf', '--components', '16']);
+    run(BTF, ['compress', src, path.join(lib, name), '--k', '3', '--components', String(comps), '--quiet']);
+    fs.rmSync(src);
+  }
+  return {dir, lib, remove: () => fs.rmSync(dir, {recursive: true, force: true})};
+}
+
+// Starts btfd on a free loopback port; resolves {port, url, ws, stop()}.
+export function startServer(lib) {
+  return new Promise((resolve, reject) => {
+    const p = spawn(BTFD, ['--library', lib, '--port', '0', '--client', path.join(ROOT, 'client'),
+      '--shaders', path.join(ROOT, 'shaders')], {cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe']});
+    let out = '', err = '';
+    const timer = setTimeout(() => {
+      p.kill();
+      reject(new Error(`btfd did not start: ${out} ${err}`));
+    }, 10000);
+    p.stderr.on('data', (d) => { err += d; });
+    p.stdout.on('data', (d) => {
+      out += d;
+      const m = /listening on http:\/\/[\d.]+:(\d+)\//.exec(out);
+      if (m) {
+        clearTimeout(timer);
+        const port = +m[1];
+        resolve({port, url: `http://127.0.0.1:${port}/`, ws: `ws://127.0.0.1:${port}/stream`, proc: p,
+          stop: () => new Promise((res) => {
+            if (p.exitCode !== null) return res();
+            p.once('exit', res);
+            p.kill('SIGTERM');
+          })});
+      }
+    });
+    p.once('exit', (code) => reject(new Error(`btfd exited (${code}): ${err}`)));
+  });
+}
+
+// A fresh browser context (own profile dir) with page errors and console errors
+// collected in ctx.problems. Options as playwright's launchPersistentContext.
+export async function launch(options = {}) {
+  const {chromium} = await import('playwright-core');
+  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-chromium-'));
+  const ctx = await chromium.launchPersistentContext(profile, {
+    executablePath: CHROMIUM, headless: true, args: CHROMIUM_ARGS, viewport: {width: 1000, height: 700},
+    ...options,
+  });
+  ctx.problems = [];
+  const watch = (page) => {
+    page.on('pageerror', (e) => ctx.problems.push(`page error: ${e.message}`));
+    page.on('console', (m) => {
+      if (m.type() === 'error') ctx.problems.push(`console error: ${m.text()}`);
+    });
+  };
+  ctx.pages().forEach(watch);
+  ctx.on('page', watch);
+  const close = ctx.close.bind(ctx);
+  ctx.close = async () => {
+    await close();
+    fs.rmSync(profile, {recursive: true, force: true});
+  };
+  return ctx;
+}
+
+export async function newPage(ctx) {
+  return ctx.pages()[0] || ctx.newPage();
+}
+
+// Polls fn (evaluated in the page) until it returns a truthy value.
+export async function waitFor(page, fn, arg, what, timeout = 60000) {
+  const t0 = Date.now();
+  for (;;) {
+    const v = await page.evaluate(fn, arg);
+    if (v) return v;
+    if (Date.now() - t0 > timeout) {
+      const st = await page.evaluate(() => window.__btf && window.__btf.viewers()).catch(() => null);
+      throw new Error(`timed out waiting for ${what}; viewers: ${JSON.stringify(st)}`);
+    }
+    await new Promise((r) => setTimeout(r, 100));
+  }
+}
+
+export const viewers = (page) => page.evaluate(() => window.__btf.viewers());
+
+// Canvas pixels of viewer i: {width, height, data: Uint8Array RGBA top-down}.
+export async function capture(page, i = 0) {
+  const c = await page.evaluate((k) => window.__btf.capture(k), i);
+  return {width: c.width, height: c.height, chunks: c.chunks, data: new Uint8Array(Buffer.from(c.rgba, 'base64'))};
+}
+
+// Mean absolute difference over RGB, 0..255.
+export function meanAbsDiff(a, b) {
+  if (a.width !== b.width || a.height !== b.height) throw new Error('image sizes differ');
+  let s = 0;
+  for (let i = 0; i < a.data.length; i += 4)
+    s += Math.abs(a.data[i] - b.data[i]) + Math.abs(a.data[i + 1] - b.data[i + 1]) + Math.abs(a.data[i + 2] - b.data[i + 2]);
+  return s / (3 * a.width * a.height);
+}
+
+// ------------------------------------------------------------------ PNG
+
+const CRC = new Int32Array(256).map((_, n) => {
+  let c = n;
+  for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+  return c;
+});
+
+function crc32(buf) {
+  let c = -1;
+  for (const b of buf) c = CRC[(c ^ b) & 255] ^ (c >>> 8);
+  return (c ^ -1) >>> 0;
+}
+
+function chunk(type, data) {
+  const len = Buffer.alloc(4);
+  len.writeUInt32BE(data.length);
+  const td = Buffer.concat([Buffer.from(type, 'ascii'), data]);
+  const crc = Buffer.alloc(4);
+  crc.writeUInt32BE(crc32(td));
+  return Buffer.concat([len, td, crc]);
+}
+
+// Writes RGBA8 pixels (top-down) as an RGB PNG through a temp name + rename.
+export function writePng(file, img) {
+  const {width, height, data} = img;
+  const raw = Buffer.alloc((3 * width + 1) * height);
+  for (let y = 0; y < height; y++) {
+    raw[y * (3 * width + 1)] = 0;
+    for (let x = 0; x < width; x++)
+      for (let c = 0; c < 3; c++) raw[y * (3 * width + 1) + 1 + 3 * x + c] = data[4 * (y * width + x) + c];
+  }
+  const ihdr = Buffer.alloc(13);
+  ihdr.writeUInt32BE(width, 0);
+  ihdr.writeUInt32BE(height, 4);
+  ihdr.set([8, 2, 0, 0, 0], 8);
+  const png = Buffer.concat([Buffer.from([137, 80, 78, 71, 13, 10, 26, 10]), chunk('IHDR', ihdr),
+    chunk('IDAT', zlib.deflateSync(raw, {level: 9})), chunk('IEND', Buffer.alloc(0))]);
+  const tmp = `${file}.tmp-${process.pid}`;
+  fs.writeFileSync(tmp, png);
+  fs.renameSync(tmp, file);
+}
+
+// Reads an 8-bit non-interlaced PNG (grey, grey+alpha, RGB, RGBA) into RGBA8.
+export function readPng(file) {
+  const buf = fs.readFileSync(file);
+  let off = 8, width = 0, height = 0, depth = 0, type = 0, interlace = 0;
+  const idat = [];
+  while (off < buf.length) {
+    const len = buf.readUInt32BE(off), t = buf.toString('ascii', off + 4, off + 8);
+    const d = buf.subarray(off + 8, off + 8 + len);
+    if (t === 'IHDR') [width, height, depth, type, interlace] = [d.readUInt32BE(0), d.readUInt32BE(4), d[8], d[9], d[12]];
+    if (t === 'IDAT') idat.push(d);
+    off += 12 + len;
+  }
+  const ch = {0: 1, 4: 2, 2: 3, 6: 4}[type];
+  if (depth !== 8 || !ch || interlace) throw new Error(`${file}: unsupported PNG (depth ${depth}, type ${type})`);
+  const raw = zlib.inflateSync(Buffer.concat(idat));
+  const stride = width * ch, px = new Uint8Array(stride * height);
+  for (let y = 0; y < height; y++) {
+    const f = raw[y * (stride + 1)], line = raw.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1));
+    for (let x = 0; x < stride; x++) {
+      const a = x >= ch ? px[y * stride + x - ch] : 0, b = y ? px[(y - 1) * stride + x] : 0;
+      const c = x >= ch && y ? px[(y - 1) * stride + x - ch] : 0;
+      let p = line[x];
+      if (f === 1) p += a;
+      else if (f === 2) p += b;
+      else if (f === 3) p += (a + b) >> 1;
+      else if (f === 4) {
+        const q = a + b - c, pa = Math.abs(q - a), pb = Math.abs(q - b), pc = Math.abs(q - c);
+        p += pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+      }
+      px[y * stride + x] = p & 255;
+    }
+  }
+  const data = new Uint8Array(4 * width * height);
+  for (let i = 0; i < width * height; i++) {
+    const s = px.subarray(i * ch, i * ch + ch);
+    data.set(ch < 3 ? [s[0], s[0], s[0]] : [s[0], s[1], s[2]], 4 * i);
+    data[4 * i + 3] = ch === 2 || ch === 4 ? s[ch - 1] : 255;
+  }
+  return {width, height, data};
+}
+
+// Side-by-side image of several captures (same height), 8-pixel dark gaps.
+export function sideBySide(images) {
+  const gap = 8, h = Math.max(...images.map((i) => i.height));
+  const w = images.reduce((s, i) => s + i.width, 0) + gap * (images.length - 1);
+  const data = new Uint8Array(4 * w * h).fill(24);
+  let x0 = 0;
+  for (const img of images) {
+    for (let y = 0; y < img.height; y++)
+      data.set(img.data.subarray(4 * y * img.width, 4 * (y + 1) * img.width), 4 * (y * w + x0));
+    x0 += img.width + gap;
+  }
+  return {width: w, height: h, data};
+}
