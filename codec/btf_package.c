@@ -102,6 +102,7 @@ typedef struct btf__writer {
     const btf *src;
     const btf_blocks *blocks;
     int C, bits, qmax, ch, W, H, L, V, rows;
+    float noise;          /* target RMS noise per component (byte/255 scale); <= 0 = full range */
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
     uint16_t **qwt;       /* C arrays V*L*3 */
@@ -181,6 +182,11 @@ static void btf__quant_textures(btf__writer *w, int b, const btf_pca_block *res)
         const float *t = res->t + (size_t)j * w->rows;
         float *rg = w->tex_range[j] + 2 * b;
         btf__range(t, (size_t)w->rows, 1, (unsigned)w->qmax, rg);
+        float wn = cblas_snrm2(res->cols, res->w + (size_t)j * res->cols, 1);
+        if (w->noise > 0.0f && wn > 0.0f) { /* equal RMS noise per component */
+            float step = w->noise * sqrtf(12.0f * (float)res->cols) / wn;
+            rg[1] = step > rg[1] ? step : rg[1];
+        }
         for (int y = 0; y < w->H; y++)
             for (int x = 0; x < w->W; x++) {
                 size_t r = (size_t)y * w->W + x;
@@ -637,6 +643,8 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
         return r;
     btf__writer w;
     r = btf__writer_init(&w, src, bl, po.components, o.bits, err);
+    w.noise = o.bits != 8 || o.tex_noise < 0.0f ? 0.0f
+              : (o.tex_noise > 0.0f ? o.tex_noise : BTF_PACKAGE_TEX_NOISE) / 255.0f;
     char tmp[4200];
     snprintf(tmp, sizeof tmp, "%s.tmp-%ld", out_dir, (long)getpid());
     btf__remove_dir(tmp); /* stale leftover of this pid */

@@ -32,12 +32,19 @@ extern "C" {
 #define BTF_PACKAGE_MAX_CHUNKS 1024
 #define BTF_PACKAGE_MAX_FILES 8   /* files per chunk */
 #define BTF_PACKAGE_NAME_MAX 64   /* file and material name length, including NUL */
+#define BTF_PACKAGE_TEX_NOISE 0.5f /* default tex_noise (doc/package-format.md section 4) */
 
 /* Writer options; zero means default. Plain value. */
 typedef struct btf_package_options {
     int bits;            /* texture bits per value: 8 (default) or 16 */
     const char *name;    /* material name in the manifest; NULL = last path element of OUT */
     int lab_max_texels;  /* texels in the Lab error subsample; 0 = 256 */
+    /* 8-bit textures: quantisation step of component j in block b at least
+     * tex_noise/255 * sqrt(12 * cols) / sigma_j, i.e. an RMS quantisation noise of
+     * tex_noise (0..255 scale) per component in the decoded samples (equal noise per
+     * component; minor components get fewer levels and compress better).
+     * 0 = BTF_PACKAGE_TEX_NOISE; negative = always the full 8-bit range. */
+    float tex_noise;
     /* Test hook: called before the writer creates package file number i (0-based);
      * a nonzero return makes that write fail like a full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);

@@ -5,10 +5,12 @@
 #define BTF_CLI_H
 
 /* BTF_CLI_DECLS: one line per subcommand */
+int cmd_chart(int argc, char **argv);
 int cmd_compress(int argc, char **argv);
 int cmd_eval(int argc, char **argv);
 int cmd_export_thesis(int argc, char **argv);
 int cmd_gen(int argc, char **argv);
 int cmd_import_thesis(int argc, char **argv);
+int cmd_render(int argc, char **argv);
 
 #endif

@@ -13,11 +13,13 @@ typedef struct btf_command {
 
 static const btf_command commands[] = {
     /* BTF_COMMANDS: one line per subcommand, keep sorted */
+    {"chart", cmd_chart, "every method on MATERIALs: speed/accuracy/streaming CSVs and charts"},
     {"compress", cmd_compress, "k-view PCA of a BTF into a streamable package directory"},
     {"eval", cmd_eval, "error metrics (RGB MAE/RMSE, PSNR, CIELab) of TEST against REF"},
     {"export-thesis", cmd_export_thesis, "k-view PCA written in the thesis's package format (baseline)"},
     {"gen", cmd_gen, "synthetic material (knit, tiles, stone) with known ground truth"},
     {"import-thesis", cmd_import_thesis, "reconstruct a thesis package into images or a .btf file"},
+    {"render", cmd_render, "render a package on a plane, sphere or cylinder to PNG (headless GL)"},
     {NULL, NULL, NULL},
 };
 

@@ -1,0 +1,170 @@
+/* cmd_export_thesis.c - `btf export-thesis IN OUT`: the project's k-view PCA written
+ * in the thesis's package format (formats.md section 3; codec/btf_export.h), the
+ * baseline for comparisons at equal bytes.
+ *
+ *     btf export-thesis knit/ out/knit-thesis --k 3 --components 8
+ *     btf eval knit/ out/knit-thesis        # thesis packages load like any BTF
+ */
+#include "btf_cli.h"
+#include "btf_export.h"
+#include "btf_io.h"
+#include "btf_metrics.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Parsed command line; stack value of cmd_export_thesis, strings point into argv. */
+typedef struct export_opts {
+    const char *in, *out;
+    btf_export_options ex;
+    int downsample, quiet, eval;
+} export_opts;
+
+static void export_usage(FILE *f)
+{
+    fprintf(f,
+            "usage: btf export-thesis IN OUT [--k K] [--components C] [--scale thesis|fit]\n"
+            "                                [--method auto|gram|randomized|svd] [--downsample F]\n"
+            "                                [--eval] [--quiet]\n"
+            "\n"
+            "Writes IN (anything the loaders read) as a thesis package OUT (meta.json, J.png,\n"
+            "R.png; formats.md section 3): K consecutive views per block, component 0 = the\n"
+            "texel mean, components 1..C-1 = row-centred PCA, 8-bit U and V, sigma in 0.1 steps.\n"
+            "Needs the same light and view directions and a square texture of even side.\n"
+            "  --k K            views per block, 1..views (default 3)\n"
+            "  --components C   components including the mean, 1..%d (default 8)\n"
+            "  --scale thesis   U scaled by 10, V as is: the published files' quantisation (default)\n"
+            "  --scale fit      per block and component scales minimising the quantisation error\n"
+            "  --method M       PCA route (default auto)\n"
+            "  --downsample F   box-filter the input by F on load\n"
+            "  --eval           read OUT back and print its error against IN\n",
+            BTF_THESIS_MAX_C);
+}
+
+static int export_int(const char *s, long lo, long hi, int *v)
+{
+    char *end;
+    errno = 0;
+    long x = s ? strtol(s, &end, 10) : 0;
+    if (!s || errno || end == s || *end || x < lo || x > hi)
+        return 0;
+    *v = (int)x;
+    return 1;
+}
+
+/* Value of an enumerated option (index into names), or 0 if unknown. */
+static int export_enum(const char *s, const char *const *names, int n, int *v)
+{
+    for (int i = 0; s && i < n; i++)
+        if (!strcmp(s, names[i])) {
+            *v = i;
+            return 1;
+        }
+    return 0;
+}
+
+/* 0 ok, 2 usage error (message printed), -1 help printed. */
+static int export_parse(int argc, char **argv, export_opts *o)
+{
+    static const char *const scales[] = {"thesis", "fit"};
+    static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
+    memset(o, 0, sizeof *o);
+    o->ex.k = 3, o->ex.components = 8;
+    int npos = 0, e = 0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
+        int ok = 1, used = 1;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            export_usage(stdout);
+            return -1;
+        } else if (!strcmp(a, "--quiet") || !strcmp(a, "--eval")) {
+            *(a[2] == 'q' ? &o->quiet : &o->eval) = 1, used = 0;
+        } else if (!strcmp(a, "--k")) {
+            ok = export_int(val, 1, BTF_MAX_DIRS, &o->ex.k);
+        } else if (!strcmp(a, "--components")) {
+            ok = export_int(val, 1, BTF_THESIS_MAX_C, &o->ex.components);
+        } else if (!strcmp(a, "--scale")) {
+            ok = export_enum(val, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
+        } else if (!strcmp(a, "--method")) {
+            ok = export_enum(val, methods, 4, &e), o->ex.method = (btf_pca_method)e;
+        } else if (!strcmp(a, "--downsample")) {
+            ok = export_int(val, 1, 256, &o->downsample);
+        } else if (a[0] == '-' && a[1] == '-') {
+            fprintf(stderr, "btf export-thesis: unknown option '%s'\n", a);
+            return 2;
+        } else {
+            used = 0;
+            if (npos == 0)
+                o->in = a;
+            else if (npos == 1)
+                o->out = a;
+            npos++;
+        }
+        if (!ok) {
+            fprintf(stderr, "btf export-thesis: bad or missing value for %s%s%s\n", a, val ? ": " : "",
+                    val ? val : "");
+            return 2;
+        }
+        i += used;
+    }
+    if (npos != 2) {
+        export_usage(stderr);
+        return 2;
+    }
+    return 0;
+}
+
+/* Reads OUT back (unclamped float decode) and prints its error against src; 0 ok, 1 failure. */
+static int export_eval(const char *out, const btf *src)
+{
+    btf_thesis_pkg p;
+    btf_error err = {0};
+    btf *dec = NULL;
+    btf_metrics m;
+    btf_result r = btf_thesis_read(out, &p, &err);
+    if (r == BTF_OK) {
+        r = btf_thesis_reconstruct(&p, &src->views, src->width, src->height, BTF_F32, &dec, &err);
+        btf_thesis_free(&p);
+    }
+    if (r == BTF_OK)
+        r = btf_compare(src, dec, NULL, &m, &err);
+    btf_free(dec);
+    if (r != BTF_OK) {
+        fprintf(stderr, "btf export-thesis: evaluating %s: %s\n", out, err.msg);
+        return 1;
+    }
+    printf("error vs source: rgb_rmse %.4f, psnr %.2f dB, lab_mae %.4f, delta_e76 %.4f\n", m.rmse, m.psnr,
+           m.lab_thesis, m.delta_e76);
+    return 0;
+}
+
+int cmd_export_thesis(int argc, char **argv)
+{
+    export_opts o;
+    int rc = export_parse(argc, argv, &o);
+    if (rc)
+        return rc < 0 ? 0 : rc;
+    btf_error err = {0};
+    btf_load_options lo = {0};
+    lo.downsample = o.downsample;
+    btf *src = NULL;
+    if (btf_load_any(o.in, &lo, &src, &err) != BTF_OK) {
+        fprintf(stderr, "btf export-thesis: %s\n", err.msg);
+        return 1;
+    }
+    btf_export_stats st = {0};
+    if (btf_export_thesis(src, &o.ex, o.out, &st, &err) != BTF_OK) {
+        fprintf(stderr, "btf export-thesis: %s\n", err.msg);
+        btf_free(src);
+        return 1;
+    }
+    if (!o.quiet)
+        printf("%s: thesis package, k %d, C %d, scale %s, %lld bytes; PCA %.2f s, write %.2f s\n", o.out, o.ex.k,
+               o.ex.components, btf_thesis_scale_name(o.ex.scale), st.bytes, st.seconds_pca, st.seconds_write);
+    if (o.eval)
+        rc = export_eval(o.out, src);
+    btf_free(src);
+    return rc;
+}
