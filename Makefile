@@ -87,7 +87,13 @@ asan: setup
 	    SAN='-fsanitize=address,undefined -fno-sanitize-recover=undefined' build
 	ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 build-asan/run_tests --jobs 2
 
-bench: setup build
+BENCH_C   := $(wildcard bench/*.c)
+BENCH_BIN := $(BENCH_C:bench/%.c=$(BUILD)/bench/%)
+$(BUILD)/bench/%: $(BUILD)/bench/%.o $(TOOLS_OBJ) $(CODEC_LIB)
+	$(CXX) $(LDFLAGS) -o $@ $^ $(LINK_LIBS)
+
+bench: setup
+	$(MAKE) build $(BENCH_BIN)
 	@mkdir -p bench/results
 	bash bench/run.sh
 

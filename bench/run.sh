@@ -1,44 +1,19 @@
 #!/usr/bin/env bash
-# bench/run.sh - builds every bench/bench_NAME.c against the built library and
-# runs it; its stdout (`name value unit` lines) goes to bench/results/NAME.txt.
+# bench/run.sh - runs every bench/bench_NAME.c program (built by `make bench`)
+# and writes its stdout (`name value unit` lines) to bench/results/NAME.txt.
 #
 #   make bench                      # builds into build/, then runs this script
-#   bash bench/run.sh [NAME...]     # only bench/bench_NAME.c (after `make build`)
+#   bash bench/run.sh [NAME...]     # only bench/bench_NAME.c (after `make bench`)
 #   BUILD=build-x bash bench/run.sh # use another build directory
 #
-# Compile flags and libraries mirror the Makefile's; progress goes to stderr.
+# Progress goes to stderr.
 # A results file is replaced only when its benchmark succeeds (temp + rename).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 BUILD=${BUILD:-build}
-CC=${CC:-cc}
-CXX=${CXX:-g++}
 export BTF_SHARED=${BTF_SHARED:-$(cd .. && pwd)/shared}
 export BTF_ROOT=${BTF_ROOT:-$(pwd)}
-
-lib=$BUILD/codec/libbtfcodec.a
-if [[ ! -f $lib ]]; then
-    echo "bench: $lib is missing: run 'make build' (or make BUILD=$BUILD build) first" >&2
-    exit 1
-fi
-
-PKGS="OpenImageIO libcjson lapacke openblas osmesa egl glesv2"
-CFLAGS="-std=c11 -Wall -Wextra -Werror -O2 -g -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L"
-read -r -a pkg_cflags <<<"$(pkg-config --cflags $PKGS 2>/dev/null || true)"
-read -r -a pkg_libs <<<"$(pkg-config --libs $PKGS 2>/dev/null || true)"
-
-# The tool objects (generator, GL harness, ...) as the Makefile links them, minus main.
-tools_obj=()
-for f in tools/*.c; do
-    [[ $f == tools/btf_main.c ]] && continue
-    o=$BUILD/${f%.c}.o
-    if [[ ! -f $o ]]; then
-        echo "bench: $o is missing: run 'make build' first" >&2
-        exit 1
-    fi
-    tools_obj+=("$o")
-done
 
 if (($#)); then
     srcs=()
@@ -54,9 +29,11 @@ for src in "${srcs[@]}"; do
     base=$(basename "$src" .c)
     name=${base#bench_}
     exe=$BUILD/bench/$base
-    echo "bench: building $exe" >&2
-    $CC $CFLAGS -Icodec -Itools "${pkg_cflags[@]}" -c "$src" -o "$exe.o"
-    $CXX -o "$exe" "$exe.o" "${tools_obj[@]}" "$lib" "${pkg_libs[@]}" -lstdc++ -lm -lpthread
+    if [[ ! -x $exe ]]; then
+        echo "bench: $exe is missing: run 'make bench' (it builds bench/*.c)" >&2
+        failed=1
+        continue
+    fi
     out=bench/results/$name.txt
     echo "bench: running $base -> $out" >&2
     {

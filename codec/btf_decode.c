@@ -4,6 +4,7 @@
 #include <math.h>
 
 #include "btf_package.h"
+#include "btf_lod.h"
 
 /* Up to 4 texels and their filter weights; value type. */
 typedef struct btf__taps {
@@ -29,10 +30,10 @@ static float btf__sane(float t)
     return t < -1e6f ? -1e6f : t > 1e6f ? 1e6f : t;
 }
 
-static btf__taps btf__texel_taps(const btf_package *p, float u, float v, const btf_decode_options *o)
+static btf__taps btf__texel_taps(const btf_package *p, float u, float v, const btf_decode_options *o, int level)
 {
     btf__taps t = {0};
-    int W = p->width, H = p->height;
+    int W = p->width >> level, H = p->height >> level;
     float fx = btf__sane(u) * (float)W, fy = btf__sane(v) * (float)H;
     if (o->filter != BTF_FILTER_BILINEAR) {
         int x = btf__wrap_or_clamp((int)floorf(fx), W, o->wrap), y = btf__wrap_or_clamp((int)floorf(fy), H, o->wrap);
@@ -56,14 +57,64 @@ static btf__taps btf__texel_taps(const btf_package *p, float u, float v, const b
     return t;
 }
 
-/* Filtered texture value of chunk j in block b. */
+/* Filtered texture value of chunk j in block b (taps of the chunk's level). */
 static float btf__tex(const btf_package *p, int j, int b, const btf__taps *t)
 {
-    const float *tile = p->tex[j] + (size_t)b * p->width * p->height;
+    const float *tile = p->tex[j] + (size_t)b * (p->width >> p->chunk[j].level) * (p->height >> p->chunk[j].level);
     float s = 0.0f;
     for (int i = 0; i < t->n; i++)
         s += t->w[i] * tile[t->idx[i]];
     return s;
+}
+
+/* Level range [fine, coarse] loaded for component c among the first n chunks. */
+static void btf__loaded_levels(const btf_package *p, int n, int c, int *fine, int *coarse)
+{
+    *fine = p->n_levels, *coarse = -1;
+    for (int i = 0; i < n; i++)
+        if (p->chunk[i].component == c) {
+            *fine = p->chunk[i].level < *fine ? p->chunk[i].level : *fine;
+            *coarse = p->chunk[i].level > *coarse ? p->chunk[i].level : *coarse;
+        }
+}
+
+/* Version 2 (doc/package-format.md section 10): per component, lod clamped to its
+ * loaded levels [fine, coarse], trilinear between floor(lod) and the next level. */
+static void btf__decode_levels(const btf_package *p, float u, float v, const float light[3], const float view[3],
+                               const btf_decode_options *o, int n, float rgb[3])
+{
+    btf_interp il = btf_dirset_interp_vec(&p->lights, light);
+    btf_interp iv = btf_dirset_interp_vec(&p->views, view);
+    int L = p->lights.n_dirs;
+    float lod = isfinite(o->lod) ? o->lod : 0.0f;
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    for (int j = 0; j < n; j++) {
+        int c = p->chunk[j].component, fine, coarse, first = 1;
+        for (int e = 0; e < j && first; e++)
+            first = p->chunk[e].component != c;
+        if (!first)
+            continue; /* each component once, at its first chunk */
+        btf__loaded_levels(p, n, c, &fine, &coarse);
+        float lc = lod < (float)fine ? (float)fine : lod > (float)coarse ? (float)coarse : lod;
+        int l0 = (int)floorf(lc), l1 = l0 + 1 > coarse ? coarse : l0 + 1;
+        float f = lc - (float)l0;
+        int j0 = btf_lod_chunk_at(p, n, c, l0), j1 = btf_lod_chunk_at(p, n, c, l1);
+        btf__taps t0 = btf__texel_taps(p, u, v, o, p->chunk[j0].level);
+        btf__taps t1 = btf__texel_taps(p, u, v, o, p->chunk[j1].level);
+        for (int a = 0; a < 3; a++) {
+            if (iv.w[a] == 0.0f)
+                continue;
+            int vi = iv.idx[a], b = p->blocks->block_of_view[vi];
+            float t = (1.0f - f) * btf__tex(p, j0, b, &t0) + f * btf__tex(p, j1, b, &t1);
+            for (int ch = 0; ch < 3; ch++) {
+                float s = 0.0f;
+                for (int e = 0; e < 3; e++)
+                    if (il.w[e] != 0.0f)
+                        s += il.w[e] * p->wt[j][((size_t)vi * L + il.idx[e]) * 3 + ch];
+                rgb[ch] += iv.w[a] * t * s;
+            }
+        }
+    }
 }
 
 void btf_decode(const btf_package *p, float u, float v, const float light[3], const float view[3],
@@ -73,7 +124,11 @@ void btf_decode(const btf_package *p, float u, float v, const float light[3], co
     if (opt)
         o = *opt;
     int n = o.n_chunks <= 0 || o.n_chunks > p->n_loaded ? p->n_loaded : o.n_chunks;
-    btf__taps taps = btf__texel_taps(p, u, v, &o);
+    if (p->n_levels > 1) {
+        btf__decode_levels(p, u, v, light, view, &o, n, rgb);
+        return;
+    }
+    btf__taps taps = btf__texel_taps(p, u, v, &o, 0);
     btf_interp il = btf_dirset_interp_vec(&p->lights, light);
     btf_interp iv = btf_dirset_interp_vec(&p->views, view);
     int L = p->lights.n_dirs;

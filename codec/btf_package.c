@@ -1,6 +1,7 @@
 /* btf_package.c - package writer (quantisation, importance order, errors, files) and
  * reader. Format: doc/package-format.md. Decoder: btf_decode.c. */
 #include "btf_package.h"
+#include "btf_lod.h"
 
 #include <cblas.h>
 #include <cjson/cJSON.h>
@@ -804,7 +805,12 @@ static btf_result btf__parse_chunk(const cJSON *c, btf_package *p, int id, const
             return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: file %d has an invalid name", path, id, i);
         snprintf(ci->files[i], BTF_PACKAGE_NAME_MAX, "%s", s->valuestring);
     }
+    ci->level = 0;
+    if (p->version >= 2 && !btf__get_int(c, "level", 0, p->n_levels - 1, &ci->level))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: missing or wrong \"level\"", path, id);
     const cJSON *v;
+    if ((v = cJSON_GetObjectItemCaseSensitive(c, "contrib")) && cJSON_IsNumber(v) && isfinite(v->valuedouble))
+        ci->contrib = v->valuedouble;
     if ((v = cJSON_GetObjectItemCaseSensitive(c, "bytes")) && cJSON_IsNumber(v))
         ci->bytes = (long long)v->valuedouble;
     struct { const char *k; double *d; } nums[] = {{"rmse", &ci->rmse}, {"lab", &ci->lab}, {"psnr", &ci->psnr},
@@ -824,8 +830,10 @@ static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *
     int version;
     if (!cJSON_IsString(fmt) || strcmp(fmt->valuestring, "btf-package") != 0)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: \"format\" is not \"btf-package\"", path);
-    if (!btf__get_int(m, "version", 1, 1, &version))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unsupported \"version\" (this reader knows 1)", path);
+    if (!btf__get_int(m, "version", 1, 2, &version))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unsupported \"version\" (this reader knows 1 and 2)", path);
+    p->version = version;
+    p->n_levels = 1;
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(m, "name");
     snprintf(p->name, sizeof p->name, "%s", cJSON_IsString(name) ? name->valuestring : "");
     if (!btf__get_int(m, "width", 1, BTF_MAX_SIDE, &p->width) || !btf__get_int(m, "height", 1, BTF_MAX_SIDE, &p->height))
@@ -857,6 +865,10 @@ static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *
         !btf__get_int(at, "height", p->atlas_rows * th, p->atlas_rows * th, &ah) ||
         (long)p->atlas_cols * p->atlas_rows < p->blocks->n_blocks)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: \"atlas\" is inconsistent with the size and block count", path);
+    if (version == 2 && (!btf__get_int(m, "levels", 1, 15, &p->n_levels) ||
+                         p->width % (1 << (p->n_levels - 1)) || p->height % (1 << (p->n_levels - 1))))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: \"levels\" missing, outside 1..15 or not dividing %dx%d", path,
+                        p->width, p->height);
     return BTF_OK;
 }
 
@@ -899,15 +911,58 @@ static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext)
     return NULL;
 }
 
-/* Loads chunk i's texture and weights (dequantised). */
+/* Weights of chunk i (dequantised) from its .bin file into wt (V*L*3 floats). */
+static btf_result btf__load_weights(const btf_package *p, const char *dir, int i, const char *wf, float *wt,
+                                    btf_error *err)
+{
+    const btf_chunk_info *ci = &p->chunk[i];
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    size_t nwt = (size_t)V * L * 3;
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s", dir, wf);
+    uint8_t *raw = malloc(2 * nwt);
+    if (!raw)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
+    long long sz = btf__file_size(path);
+    FILE *f = sz == (long long)(2 * nwt) ? fopen(path, "rb") : NULL;
+    if (!f || fread(raw, 1, 2 * nwt, f) != 2 * nwt) {
+        if (f)
+            fclose(f);
+        free(raw);
+        if (sz < 0)
+            return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected %zu", path, sz, 2 * nwt);
+    }
+    fclose(f);
+    for (size_t k = 0; k < nwt; k++) {
+        int v = (int)(k / (3 * (size_t)L));
+        wt[k] = btf__deq(ci->wt_range + 2 * p->blocks->block_of_view[v], (unsigned)raw[2 * k] | ((unsigned)raw[2 * k + 1] << 8));
+    }
+    free(raw);
+    return BTF_OK;
+}
+
+/* Version 2: a chunk without a .bin reuses the weights of an earlier loaded chunk of its component. */
+static btf_result btf__shared_weights(const btf_package *p, int i, float *wt, btf_error *err)
+{
+    for (int e = 0; e < i; e++)
+        if (p->chunk[e].component == p->chunk[i].component && p->wt[e]) {
+            memcpy(wt, p->wt[e], (size_t)p->views.n_dirs * p->lights.n_dirs * 3 * sizeof(float));
+            return BTF_OK;
+        }
+    return btf_fail(err, BTF_ERR_FORMAT, "chunk %d lists no .bin weights and no earlier chunk of component %d does",
+                    i, p->chunk[i].component);
+}
+
+/* Loads chunk i's texture (its level's size) and weights (dequantised). */
 static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_error *err)
 {
     const btf_chunk_info *ci = &p->chunk[i];
     const char *tf = btf__chunk_file(ci, ".png"), *wf = btf__chunk_file(ci, ".bin");
     char path[4200];
-    if (!tf || !wf)
+    if (!tf || (!wf && p->version < 2))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png texture or no .bin weights", dir, i);
-    int nb = p->blocks->n_blocks, W = p->width, H = p->height, L = p->lights.n_dirs, V = p->views.n_dirs;
+    int nb = p->blocks->n_blocks, W = p->width >> ci->level, H = p->height >> ci->level;
     int ch_want = p->bits == 16 ? 3 : 1, w, h, ch;
     uint8_t *px = NULL;
     snprintf(path, sizeof path, "%s/%s", dir, tf);
@@ -919,11 +974,10 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
         return btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, manifest says %dx%d with %d", path, w, h,
                         ch, p->atlas_cols * W, p->atlas_rows * H, ch_want);
     }
-    size_t nwt = (size_t)V * L * 3;
-    float *tex = malloc((size_t)nb * W * H * sizeof(float)), *wt = malloc(nwt * sizeof(float));
-    uint8_t *raw = malloc(2 * nwt);
-    if (!tex || !wt || !raw) {
-        free(px), free(tex), free(wt), free(raw);
+    float *tex = malloc((size_t)nb * W * H * sizeof(float));
+    float *wt = malloc((size_t)p->views.n_dirs * p->lights.n_dirs * 3 * sizeof(float));
+    if (!tex || !wt) {
+        free(px), free(tex), free(wt);
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
     }
     for (int b = 0; b < nb; b++) {
@@ -936,23 +990,11 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
             }
     }
     free(px);
-    snprintf(path, sizeof path, "%s/%s", dir, wf);
-    long long sz = btf__file_size(path);
-    FILE *f = sz == (long long)(2 * nwt) ? fopen(path, "rb") : NULL;
-    if (!f || fread(raw, 1, 2 * nwt, f) != 2 * nwt) {
-        if (f)
-            fclose(f);
-        free(tex), free(wt), free(raw);
-        if (sz < 0)
-            return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected %zu", path, sz, 2 * nwt);
+    r = wf ? btf__load_weights(p, dir, i, wf, wt, err) : btf__shared_weights(p, i, wt, err);
+    if (r != BTF_OK) {
+        free(tex), free(wt);
+        return r;
     }
-    fclose(f);
-    for (size_t k = 0; k < nwt; k++) {
-        int v = (int)(k / (3 * (size_t)L));
-        wt[k] = btf__deq(ci->wt_range + 2 * p->blocks->block_of_view[v], (unsigned)raw[2 * k] | ((unsigned)raw[2 * k + 1] << 8));
-    }
-    free(raw);
     p->tex[i] = tex;
     p->wt[i] = wt;
     p->n_loaded = i + 1;
@@ -1033,7 +1075,10 @@ void btf_package_value(const btf_package *p, int view, int light, int x, int y, 
     size_t ti = ((size_t)b * p->height + y) * p->width + x, wi = ((size_t)view * p->lights.n_dirs + light) * 3;
     rgb[0] = rgb[1] = rgb[2] = 0.0f;
     for (int j = 0; j < n; j++) {
-        float t = p->tex[j][ti];
+        /* version 2: each component once, at its finest loaded level (upsampled) */
+        if (p->n_levels > 1 && btf_lod_chunk_at(p, n, p->chunk[j].component, 0) != j)
+            continue;
+        float t = p->n_levels > 1 ? btf_lod_texel(p, j, b, x, y) : p->tex[j][ti];
         rgb[0] += t * p->wt[j][wi];
         rgb[1] += t * p->wt[j][wi + 1];
         rgb[2] += t * p->wt[j][wi + 2];

@@ -15,7 +15,7 @@
  * The writer builds the package in "OUT.tmp-<pid>" and renames it to OUT only
  * when every file and the manifest are written; on failure nothing named OUT
  * appears (an existing package OUT is left untouched).
- * Not done here: spatial levels (a later version), thesis-format export.
+ * Spatial levels (version 2) are added to a written package by codec/btf_lod.h.
  */
 #ifndef BTF_PACKAGE_H
 #define BTF_PACKAGE_H
@@ -60,6 +60,8 @@ typedef struct btf_chunk_info {
     double rmse, lab, psnr, delta_e76, rmse_float; /* after chunks 0..id have arrived */
     float *tex_range; /* n_blocks x {lo, step} (malloc'd) */
     float *wt_range;  /* n_blocks x {lo, step} (malloc'd) */
+    int level;        /* spatial level (version 2, codec/btf_lod.h): texels are (W >> level) x (H >> level); 0 in version 1 */
+    double contrib;   /* version 2: RMS (0..255) of this component's contribution seen at this level; 0 if absent */
 } btf_chunk_info;
 
 /* A package read from disk (or just written); owned by the caller, btf_package_free. */
@@ -77,7 +79,9 @@ typedef struct btf_package {
     btf_chunk_info *chunk;  /* n_chunks, importance order */
     int n_loaded;           /* chunks 0..n_loaded-1 have their data below */
     float **tex;            /* per loaded chunk: n_blocks * width * height dequantised texels, block-major */
-    float **wt;             /* per loaded chunk: views * lights * 3 dequantised weights */
+    float **wt;             /* per loaded chunk: views * lights * 3 dequantised weights (of its component) */
+    int version;            /* manifest version: 1, or 2 with spatial levels */
+    int n_levels;           /* spatial levels (1 in version 1); level l has (W >> l) x (H >> l) texels */
 } btf_package;
 
 /* Summary of a compression run (optional output of btf_package_compress). */
@@ -112,6 +116,7 @@ typedef struct btf_decode_options {
     btf_filter filter;
     int wrap;     /* 1: texel indices modulo the size (tiling); 0: clamp to the edge */
     int n_chunks; /* use the first n loaded chunks; 0 = all loaded */
+    float lod;    /* version 2: level of detail (0 = finest; fractional = trilinear between levels) */
 } btf_decode_options;
 
 /* CPU reference decoder (doc/package-format.md section 6): texture coordinate (u, v)

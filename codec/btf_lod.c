@@ -1,0 +1,638 @@
+/* btf_lod.c - spatial levels of a package (version 2 of doc/package-format.md,
+ * section 10): the builder (v1 package -> v2 with per-component mip levels), the
+ * level look-ups the CPU decoder uses, and the scene-driven chunk selection. */
+#include "btf_lod.h"
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "btf_image.h"
+
+/* ---------------------------------------------------------------- look-ups */
+
+int btf_lod_chunk_at(const btf_package *p, int n, int component, int level)
+{
+    if (n <= 0 || n > p->n_loaded)
+        n = p->n_loaded;
+    int best = -1, bd = 1 << 30;
+    for (int i = 0; i < n; i++) {
+        if (p->chunk[i].component != component)
+            continue;
+        int d = p->chunk[i].level - level;
+        int score = d <= 0 ? -2 * d : 2 * d + 1; /* nearest; ties go to the finer level */
+        if (score < bd)
+            bd = score, best = i;
+    }
+    return best;
+}
+
+/* Bilinear value of a tile of w x h texels at continuous texel coordinate (fx, fy)
+ * (texel centres at integers), clamped to the tile. */
+static float btf__bilin(const float *tile, int w, int h, float fx, float fy)
+{
+    float x0f = floorf(fx), y0f = floorf(fy), ax = fx - x0f, ay = fy - y0f;
+    int x0 = (int)x0f, y0 = (int)y0f;
+    int xa = x0 < 0 ? 0 : x0 >= w ? w - 1 : x0, xb = x0 + 1 < 0 ? 0 : x0 + 1 >= w ? w - 1 : x0 + 1;
+    int ya = y0 < 0 ? 0 : y0 >= h ? h - 1 : y0, yb = y0 + 1 < 0 ? 0 : y0 + 1 >= h ? h - 1 : y0 + 1;
+    return (1.0f - ay) * ((1.0f - ax) * tile[(size_t)ya * w + xa] + ax * tile[(size_t)ya * w + xb]) +
+           ay * ((1.0f - ax) * tile[(size_t)yb * w + xa] + ax * tile[(size_t)yb * w + xb]);
+}
+
+/* Level-l texel coordinate of the centre of level-0 texel x. */
+static float btf__centre(int x, int l)
+{
+    return ((float)x + 0.5f) / (float)(1 << l) - 0.5f;
+}
+
+float btf_lod_texel(const btf_package *p, int i, int b, int x, int y)
+{
+    int l = p->chunk[i].level, w = p->width >> l, h = p->height >> l;
+    const float *tile = p->tex[i] + (size_t)b * w * h;
+    if (l == 0)
+        return tile[(size_t)y * w + x];
+    return btf__bilin(tile, w, h, btf__centre(x, l), btf__centre(y, l));
+}
+
+/* ---------------------------------------------------------------- selection */
+
+double btf_lod_footprint(int width, double repeat, double pixels)
+{
+    if (!(pixels > 0.0) || width <= 0 || !(repeat > 0.0))
+        return 0.0;
+    return (double)width * repeat / pixels;
+}
+
+/* contrib of component c's chunk at level l (0 when the manifest has none). */
+static double btf__contrib(const btf_package *p, int c, int l)
+{
+    for (int i = 0; i < p->n_chunks; i++)
+        if (p->chunk[i].component == c && p->chunk[i].level == l)
+            return p->chunk[i].contrib;
+    return 0.0;
+}
+
+void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_selection *out, unsigned char *need)
+{
+    memset(out, 0, sizeof *out);
+    double tpp = view ? view->texels_per_pixel : 1.0, thr = view ? view->threshold : BTF_LOD_THRESHOLD;
+    if (need)
+        memset(need, 0, (size_t)p->n_chunks);
+    if (!(tpp > 0.0)) /* off screen (or NaN): nothing */
+        return;
+    int lev = 0;
+    while (lev + 1 < p->n_levels && tpp >= (double)(1 << (lev + 1)))
+        lev++;
+    out->level = p->version >= 2 ? lev : 0;
+    int c0 = p->chunk[0].component;
+    for (int i = 0; i < p->n_chunks; i++) {
+        const btf_chunk_info *ci = &p->chunk[i];
+        int first = 1; /* first chunk of its component: count the component once */
+        for (int e = 0; e < i && first; e++)
+            first = p->chunk[e].component != ci->component;
+        int vis = p->version < 2 || ci->component == c0 || btf__contrib(p, ci->component, out->level) >= thr;
+        if (vis && first)
+            out->n_components++;
+        if (vis && ci->level >= out->level) {
+            out->n_needed++;
+            out->limit = i + 1;
+            if (need)
+                need[i] = 1;
+        }
+    }
+    for (int i = 0; i < out->limit; i++)
+        out->bytes += p->chunk[i].bytes;
+}
+
+/* ---------------------------------------------------------------- builder */
+
+/* State of one btf_lod_build call. Index a = position of the component in the v1
+ * chunk order; [a * nl + l] = its level l. */
+typedef struct btf__lod {
+    btf_package *p; /* the complete v1 package (owned) */
+    int nl, nb, C, W, H, ch, qmax;
+    double thr;
+    float **lev;     /* [a*nl+l] dequantised texels, nb * Wl * Hl; level 0 borrowed from p->tex */
+    uint8_t **atlas; /* [a*nl+l] atlas pixels for l >= 1 */
+    double *contrib; /* [a*nl+l] */
+    long long *tbytes, *wbytes; /* [a*nl+l] texture file bytes; [a] weight file bytes */
+    int *order;      /* n_chunks * 2: (a, l) in chunk order */
+    int n_order;
+    double *rmse_full; /* per chunk: RMSE against the complete package */
+} btf__lod;
+
+static void btf__lod_free(btf__lod *s)
+{
+    for (int i = 0; s->lev && i < s->C * s->nl; i++) {
+        if (i % s->nl)
+            free(s->lev[i]);
+        if (s->atlas)
+            free(s->atlas[i]);
+    }
+    free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
+    free(s->rmse_full);
+    btf_package_free(s->p);
+}
+
+static int btf__default_levels(int W, int H, int want)
+{
+    int nl = 1;
+    while (nl < BTF_LOD_MAX_LEVELS && (want > 0 ? nl < want : nl < 4 && (W >> nl) >= 8 && (H >> nl) >= 8) &&
+           W % (1 << nl) == 0 && H % (1 << nl) == 0)
+        nl++;
+    return nl;
+}
+
+/* 2x2 box average of the exact previous level into ex (nb tiles of w x h, w = 2 * next). */
+static void btf__box(const float *prev, int nb, int w, int h, float *next)
+{
+    int w2 = w / 2, h2 = h / 2;
+    for (int b = 0; b < nb; b++)
+        for (int y = 0; y < h2; y++)
+            for (int x = 0; x < w2; x++) {
+                const float *t = prev + (size_t)b * w * h + (size_t)(2 * y) * w + 2 * x;
+                next[(size_t)b * w2 * h2 + (size_t)y * w2 + x] = 0.25f * ((t[0] + t[1]) + (t[w] + t[w + 1]));
+            }
+}
+
+/* Quantises level l of component a from the exact values ex with the v1 ranges. */
+static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
+{
+    const btf_package *p = s->p;
+    int w = s->W >> l, h = s->H >> l, aw = p->atlas_cols * w;
+    float *dq = s->lev[a * s->nl + l];
+    uint8_t *px = s->atlas[a * s->nl + l];
+    for (int b = 0; b < s->nb; b++) {
+        const float *rg = p->chunk[a].tex_range + 2 * b;
+        int x0 = (b % p->atlas_cols) * w, y0 = (b / p->atlas_cols) * h;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                size_t i = (size_t)b * w * h + (size_t)y * w + x;
+                float qf = rg[1] > 0.0f ? rintf((ex[i] - rg[0]) / rg[1]) : 0.0f;
+                unsigned q = qf <= 0.0f ? 0u : qf >= (float)s->qmax ? (unsigned)s->qmax : (unsigned)qf;
+                dq[i] = rg[0] + rg[1] * (float)q;
+                uint8_t *o = px + ((size_t)(y0 + y) * aw + (size_t)(x0 + x)) * s->ch;
+                if (s->ch == 3)
+                    o[0] = (uint8_t)(q >> 8), o[1] = (uint8_t)(q & 255u);
+                else
+                    o[0] = (uint8_t)q;
+            }
+    }
+}
+
+/* Levels 1..nl-1 of every component. */
+static btf_result btf__make_levels(btf__lod *s, btf_error *err)
+{
+    const btf_package *p = s->p;
+    size_t n0 = (size_t)s->nb * s->W * s->H;
+    float *ex = malloc(n0 * sizeof(float)), *ex2 = malloc(n0 * sizeof(float));
+    for (int a = 0; ex && ex2 && a < s->C; a++) {
+        s->lev[a * s->nl] = p->tex[a];
+        memcpy(ex, p->tex[a], n0 * sizeof(float));
+        for (int l = 1; l < s->nl; l++) {
+            int w = s->W >> l, h = s->H >> l;
+            btf__box(ex, s->nb, w * 2, h * 2, ex2);
+            float *t = ex;
+            ex = ex2, ex2 = t;
+            s->lev[a * s->nl + l] = malloc((size_t)s->nb * w * h * sizeof(float));
+            s->atlas[a * s->nl + l] = calloc((size_t)p->atlas_cols * w * p->atlas_rows * h * s->ch, 1);
+            if (!s->lev[a * s->nl + l] || !s->atlas[a * s->nl + l]) {
+                free(ex), free(ex2);
+                return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
+            }
+            btf__quant_level(s, a, l, ex);
+        }
+    }
+    int ok = ex && ex2;
+    free(ex), free(ex2);
+    return ok ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
+}
+
+/* RMS (0..255) of component a's contribution at level l over its texels and every
+ * measured (view, light, channel). */
+static void btf__contribs(btf__lod *s)
+{
+    const btf_package *p = s->p;
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    for (int a = 0; a < s->C; a++) {
+        double *wsum = calloc((size_t)s->nb, sizeof(double));
+        if (!wsum)
+            return; /* contrib stays 0: the order degrades, nothing breaks */
+        for (int v = 0; v < V; v++)
+            for (size_t k = 0; k < (size_t)L * 3; k++) {
+                double x = p->wt[a][(size_t)v * L * 3 + k];
+                wsum[p->blocks->block_of_view[v]] += x * x;
+            }
+        for (int l = 0; l < s->nl; l++) {
+            size_t n = (size_t)(s->W >> l) * (s->H >> l);
+            double e = 0.0;
+            for (int b = 0; b < s->nb; b++) {
+                const float *t = s->lev[a * s->nl + l] + (size_t)b * n;
+                double tt = 0.0;
+                for (size_t i = 0; i < n; i++)
+                    tt += (double)t[i] * t[i];
+                e += tt / (double)n * wsum[b];
+            }
+            s->contrib[a * s->nl + l] = 255.0 * sqrt(e / ((double)V * L * 3));
+        }
+        free(wsum);
+    }
+}
+
+/* Chunk order (section 10): groups by display level, coarsest first; component a
+ * with visibility level vis (coarsest level whose contrib >= thr) appears at every
+ * level it is needed: its levels >= vis all in group vis (coarse to fine), then one
+ * level per finer group; invisible components close the list. */
+static void btf__lod_order(btf__lod *s)
+{
+    int nl = s->nl;
+    s->n_order = 0;
+    for (int g = nl - 1; g >= -1; g--)
+        for (int a = 0; a < s->C; a++) {
+            int vis = -1;
+            for (int l = nl - 1; l >= 0 && vis < 0; l--)
+                if (s->contrib[a * nl + l] >= s->thr)
+                    vis = l;
+            if (a == 0)
+                vis = nl - 1;
+            if (vis != g && !(g >= 0 && vis > g))
+                continue;
+            int lo = g < 0 ? 0 : g, hi = vis == g ? nl - 1 : g;
+            for (int l = hi; l >= lo; l--) {
+                s->order[2 * s->n_order] = a;
+                s->order[2 * s->n_order + 1] = l;
+                s->n_order++;
+            }
+        }
+}
+
+/* Component a's level-l texels upsampled to level 0 (bilinear at the texel centres). */
+static void btf__upsample(const btf__lod *s, int a, int l, int b, float *out)
+{
+    int w = s->W >> l, h = s->H >> l;
+    const float *tile = s->lev[a * s->nl + l] + (size_t)b * w * h;
+    for (int y = 0; y < s->H; y++)
+        for (int x = 0; x < s->W; x++)
+            out[(size_t)y * s->W + x] = l ? btf__bilin(tile, w, h, btf__centre(x, l), btf__centre(y, l))
+                                          : tile[(size_t)y * s->W + x];
+}
+
+static double btf__dot(const float *x, const float *y, size_t n)
+{
+    double d = 0.0;
+    for (size_t i = 0; i < n; i++)
+        d += (double)x[i] * y[i];
+    return d;
+}
+
+/* RMSE against the complete package after each chunk of the order, at level 0 over
+ * every measured pair: |D W^T|^2 = sum_ab (d_a.d_b)(w_a.w_b) per block, where d_a is
+ * component a's full texture minus what the chunks so far give (0 if absent). */
+static btf_result btf__errors(btf__lod *s, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int C = s->C, V = p->views.n_dirs, L = p->lights.n_dirs;
+    size_t N = (size_t)s->W * s->H, CC = (size_t)C * C;
+    float *D = malloc((size_t)C * s->nb * N * sizeof(float)), *up = malloc(N * sizeof(float));
+    double *G = calloc(CC * s->nb, sizeof(double)), *WW = calloc(CC * s->nb, sizeof(double));
+    if (!D || !up || !G || !WW) {
+        free(D), free(up), free(G), free(WW);
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (error sums)");
+    }
+    for (int a = 0; a < C; a++)
+        memcpy(D + (size_t)a * s->nb * N, p->tex[a], s->nb * N * sizeof(float));
+    for (int v = 0; v < V; v++) {
+        double *ww = WW + CC * p->blocks->block_of_view[v];
+        for (int a = 0; a < C; a++)
+            for (int c = 0; c <= a; c++) {
+                double d = 0.0;
+                for (size_t k = 0; k < (size_t)L * 3; k++)
+                    d += (double)p->wt[a][(size_t)v * L * 3 + k] * p->wt[c][(size_t)v * L * 3 + k];
+                ww[(size_t)a * C + c] += d;
+                if (c != a)
+                    ww[(size_t)c * C + a] += d;
+            }
+    }
+    for (int b = 0; b < s->nb; b++)
+        for (int a = 0; a < C; a++)
+            for (int c = 0; c < C; c++)
+                G[CC * b + (size_t)a * C + c] = btf__dot(D + ((size_t)a * s->nb + b) * N, D + ((size_t)c * s->nb + b) * N, N);
+    for (int k = 0; k < s->n_order; k++) {
+        int a = s->order[2 * k], l = s->order[2 * k + 1];
+        double e = 0.0;
+        for (int b = 0; b < s->nb; b++) {
+            float *d = D + ((size_t)a * s->nb + b) * N;
+            btf__upsample(s, a, l, b, up);
+            for (size_t i = 0; i < N; i++)
+                d[i] = p->tex[a][(size_t)b * N + i] - up[i];
+            for (int c = 0; c < C; c++) {
+                double x = btf__dot(d, D + ((size_t)c * s->nb + b) * N, N);
+                G[CC * b + (size_t)a * C + c] = G[CC * b + (size_t)c * C + a] = x;
+            }
+            for (size_t i = 0; i < CC; i++)
+                e += G[CC * b + i] * WW[CC * b + i];
+        }
+        s->rmse_full[k] = 255.0 * sqrt((e > 0.0 ? e : 0.0) / ((double)N * V * L * 3));
+    }
+    free(D), free(up), free(G), free(WW);
+    return BTF_OK;
+}
+
+static long long btf__fsize(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISREG(st.st_mode) ? (long long)st.st_size : -1;
+}
+
+static btf_result btf__copy_file(const char *from, const char *to, btf_error *err)
+{
+    FILE *in = fopen(from, "rb");
+    if (!in)
+        return btf_fail(err, BTF_ERR_MISSING, "%s: cannot open (%s)", from, strerror(errno));
+    FILE *out = fopen(to, "wb");
+    if (!out) {
+        fclose(in);
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", to, strerror(errno));
+    }
+    char buf[65536];
+    size_t n;
+    int ok = 1;
+    while ((n = fread(buf, 1, sizeof buf, in)) > 0)
+        ok = ok && fwrite(buf, 1, n, out) == n;
+    ok = ok && !ferror(in);
+    fclose(in);
+    ok = (fclose(out) == 0) && ok;
+    return ok ? BTF_OK : btf_fail(err, BTF_ERR_IO, "%s: write failed", to);
+}
+
+static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
+{
+    for (int i = 0; i < ci->n_files; i++) {
+        size_t n = strlen(ci->files[i]), e = strlen(ext);
+        if (n > e && !strcmp(ci->files[i] + n - e, ext))
+            return ci->files[i];
+    }
+    return NULL;
+}
+
+/* Level file name of component a: level 0 keeps the v1 name, level l adds -lL. */
+static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t n)
+{
+    const char *t = btf__file_ending(&s->p->chunk[a], ".png");
+    if (l == 0)
+        snprintf(name, n, "%s", t);
+    else
+        snprintf(name, n, "%.*s-l%d.png", (int)(strlen(t) - 4), t, l);
+}
+
+/* Every texture and weight file into tmp; fills tbytes, wbytes. */
+static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *tmp, btf_error *err)
+{
+    const btf_package *p = s->p;
+    char from[8400], to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    btf_result r = BTF_OK;
+    for (int a = 0; r == BTF_OK && a < s->C; a++) {
+        const char *wf = btf__file_ending(&p->chunk[a], ".bin");
+        snprintf(from, sizeof from, "%s/%s", in_dir, wf);
+        snprintf(to, sizeof to, "%s/%s", tmp, wf);
+        r = btf__copy_file(from, to, err);
+        s->wbytes[a] = btf__fsize(to);
+        for (int l = 0; r == BTF_OK && l < s->nl; l++) {
+            btf__level_name(s, a, l, name, sizeof name);
+            snprintf(to, sizeof to, "%s/%s", tmp, name);
+            if (l == 0) {
+                snprintf(from, sizeof from, "%s/%s", in_dir, name);
+                r = btf__copy_file(from, to, err);
+            } else {
+                r = btf_image_write(to, p->atlas_cols * (s->W >> l), p->atlas_rows * (s->H >> l), s->ch, 8,
+                                    s->atlas[a * s->nl + l], err);
+            }
+            s->tbytes[a * s->nl + l] = btf__fsize(to);
+        }
+    }
+    return r;
+}
+
+static double btf__jnum(double x)
+{
+    return isfinite(x) ? (double)(float)x : 0.0;
+}
+
+/* The v2 manifest: the v1 one with version 2, "levels", "lod" and the new chunk list. */
+static char *btf__lod_manifest(btf__lod *s, const char *in_dir, btf_lod_stats *st, btf_error *err)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/manifest.json", in_dir);
+    FILE *f = fopen(path, "rb");
+    long n = -1;
+    char *text = NULL;
+    if (f && fseek(f, 0, SEEK_END) == 0 && (n = ftell(f)) > 0 && n < (64L << 20) && fseek(f, 0, SEEK_SET) == 0 &&
+        (text = malloc((size_t)n + 1)) && fread(text, 1, (size_t)n, f) == (size_t)n)
+        text[n] = 0;
+    else
+        free(text), text = NULL;
+    if (f)
+        fclose(f);
+    cJSON *m = text ? cJSON_Parse(text) : NULL;
+    free(text);
+    cJSON *old = m ? cJSON_DetachItemFromObjectCaseSensitive(m, "chunks") : NULL;
+    if (!old) {
+        cJSON_Delete(m);
+        btf_fail(err, BTF_ERR_FORMAT, "%s: cannot re-read the manifest", path);
+        return NULL;
+    }
+    const btf_package *p = s->p;
+    double rmse_end = p->chunk[s->C - 1].rmse, rf_end = p->chunk[s->C - 1].rmse_float;
+    cJSON_ReplaceItemInObjectCaseSensitive(m, "version", cJSON_CreateNumber(2));
+    cJSON_AddNumberToObject(m, "levels", s->nl);
+    cJSON *lod = cJSON_AddObjectToObject(m, "lod");
+    cJSON_AddStringToObject(lod, "filter", "box");
+    cJSON_AddNumberToObject(lod, "threshold", s->thr);
+    cJSON *chunks = cJSON_AddArrayToObject(m, "chunks");
+    char *seen = calloc((size_t)s->C, 1);
+    for (int k = 0; seen && k < s->n_order; k++) {
+        int a = s->order[2 * k], l = s->order[2 * k + 1];
+        cJSON *c = cJSON_Duplicate(cJSON_GetArrayItem(old, a), 1);
+        char name[BTF_PACKAGE_NAME_MAX + 8];
+        btf__level_name(s, a, l, name, sizeof name);
+        cJSON *files = cJSON_CreateArray();
+        cJSON_AddItemToArray(files, cJSON_CreateString(name));
+        long long bytes = s->tbytes[a * s->nl + l];
+        if (!seen[a]) { /* the component's first chunk carries its weights */
+            cJSON_AddItemToArray(files, cJSON_CreateString(btf__file_ending(&p->chunk[a], ".bin")));
+            bytes += s->wbytes[a];
+            seen[a] = 1;
+        }
+        double rm = sqrt(rmse_end * rmse_end + s->rmse_full[k] * s->rmse_full[k]);
+        cJSON_DeleteItemFromObjectCaseSensitive(c, "lab");
+        cJSON_DeleteItemFromObjectCaseSensitive(c, "delta_e76");
+        cJSON_ReplaceItemInObjectCaseSensitive(c, "id", cJSON_CreateNumber(k));
+        cJSON_ReplaceItemInObjectCaseSensitive(c, "files", files);
+        cJSON_ReplaceItemInObjectCaseSensitive(c, "bytes", cJSON_CreateNumber((double)bytes));
+        cJSON_ReplaceItemInObjectCaseSensitive(c, "rmse", cJSON_CreateNumber(btf__jnum(rm)));
+        cJSON_ReplaceItemInObjectCaseSensitive(c, "psnr", cJSON_CreateNumber(btf__jnum(rm > 0 ? 20.0 * log10(255.0 / rm) : 999.0)));
+        cJSON_ReplaceItemInObjectCaseSensitive(
+            c, "rmse_float", cJSON_CreateNumber(btf__jnum(sqrt(rf_end * rf_end + s->rmse_full[k] * s->rmse_full[k]))));
+        cJSON_AddNumberToObject(c, "level", l);
+        cJSON_AddNumberToObject(c, "contrib", btf__jnum(s->contrib[a * s->nl + l]));
+        cJSON_AddNumberToObject(c, "rmse_full", btf__jnum(s->rmse_full[k]));
+        cJSON_AddItemToArray(chunks, c);
+        if (st) {
+            st->bytes += bytes;
+            if (k == 0)
+                st->first_chunk = bytes;
+        }
+    }
+    free(seen);
+    cJSON_Delete(old);
+    char *out = cJSON_PrintUnformatted(m);
+    cJSON_Delete(m);
+    if (!out)
+        btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (manifest)");
+    return out;
+}
+
+/* Removes the plain files of dir, then dir. */
+static void btf__rm_dir(const char *dir, const btf__lod *s)
+{
+    char path[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    for (int a = 0; s->p && a < s->C; a++) {
+        snprintf(path, sizeof path, "%s/%s", dir, btf__file_ending(&s->p->chunk[a], ".bin"));
+        remove(path);
+        for (int l = 0; l < s->nl; l++) {
+            btf__level_name(s, a, l, name, sizeof name);
+            snprintf(path, sizeof path, "%s/%s", dir, name);
+            remove(path);
+        }
+    }
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    remove(path);
+    rmdir(dir);
+}
+
+static btf_result btf__write_text(const char *path, const char *text, btf_error *err)
+{
+    FILE *f = fopen(path, "wb");
+    size_t n = strlen(text);
+    int ok = f && fwrite(text, 1, n, f) == n;
+    if (f)
+        ok = (fclose(f) == 0) && ok;
+    return ok ? BTF_OK : btf_fail(err, BTF_ERR_IO, "%s: write failed", path);
+}
+
+static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_options *o, btf_error *err)
+{
+    btf_result r = btf_package_read(in_dir, 0, &s->p, err);
+    if (r != BTF_OK)
+        return r;
+    btf_package *p = s->p;
+    if (p->version != 1 || p->n_levels != 1)
+        return btf_fail(err, BTF_ERR_ARG, "%s: already has spatial levels (version %d)", in_dir, p->version);
+    s->C = p->n_chunks, s->nb = p->blocks->n_blocks, s->W = p->width, s->H = p->height;
+    s->ch = p->bits == 16 ? 3 : 1, s->qmax = p->bits == 16 ? 65535 : 255;
+    s->thr = o && o->threshold > 0.0 ? o->threshold : BTF_LOD_THRESHOLD;
+    if (o && (o->levels < 0 || o->levels > BTF_LOD_MAX_LEVELS))
+        return btf_fail(err, BTF_ERR_ARG, "lod: %d levels (1..%d)", o->levels, BTF_LOD_MAX_LEVELS);
+    s->nl = btf__default_levels(s->W, s->H, o ? o->levels : 0);
+    if (o && o->levels > s->nl)
+        return btf_fail(err, BTF_ERR_ARG, "lod: %d levels do not divide %dx%d texels (at most %d)", o->levels, s->W,
+                        s->H, s->nl);
+    for (int a = 0; a < s->C; a++)
+        for (int e = 0; e < a; e++)
+            if (p->chunk[a].component == p->chunk[e].component)
+                return btf_fail(err, BTF_ERR_FORMAT, "%s: component %d in two chunks", in_dir, p->chunk[a].component);
+    size_t n = (size_t)s->C * s->nl;
+    s->lev = calloc(n, sizeof *s->lev), s->atlas = calloc(n, sizeof *s->atlas);
+    s->contrib = calloc(n, sizeof(double)), s->tbytes = calloc(n, sizeof(long long));
+    s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
+    s->rmse_full = calloc(n, sizeof(double));
+    if (!s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    return BTF_OK;
+}
+
+/* Moves tmp to out; an existing package at out is moved aside first and removed. */
+static btf_result btf__lod_commit(const char *tmp, const char *out, btf_error *err)
+{
+    char old[4200], man[8400];
+    struct stat st;
+    if (lstat(out, &st) == 0) {
+        snprintf(man, sizeof man, "%s/manifest.json", out);
+        if (!S_ISDIR(st.st_mode) || btf__fsize(man) < 0)
+            return btf_fail(err, BTF_ERR_IO, "%s: exists and is not a package", out);
+        snprintf(old, sizeof old, "%s.old-%ld", out, (long)getpid());
+        if (rename(out, old) != 0)
+            return btf_fail(err, BTF_ERR_IO, "%s: cannot move aside (%s)", out, strerror(errno));
+        if (rename(tmp, out) != 0) {
+            int e = errno;
+            rename(old, out);
+            return btf_fail(err, BTF_ERR_IO, "%s: cannot rename into place (%s)", out, strerror(e));
+        }
+        btf_package *gone = NULL; /* remove the old package's listed files, then the directory */
+        if (btf_package_read(old, 1, &gone, NULL) == BTF_OK) {
+            for (int i = 0; i < gone->n_chunks; i++)
+                for (int f = 0; f < gone->chunk[i].n_files; f++) {
+                    snprintf(man, sizeof man, "%s/%s", old, gone->chunk[i].files[f]);
+                    remove(man);
+                }
+            btf_package_free(gone);
+        }
+        snprintf(man, sizeof man, "%s/manifest.json", old);
+        remove(man);
+        rmdir(old);
+        return BTF_OK;
+    }
+    if (rename(tmp, out) != 0)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot rename into place (%s)", out, strerror(errno));
+    return BTF_OK;
+}
+
+btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
+                         btf_error *err)
+{
+    if (!in_dir || !out_dir || strlen(out_dir) > 4000 || !strcmp(in_dir, out_dir))
+        return btf_fail(err, BTF_ERR_ARG, "lod: need two different package directories");
+    btf__lod s;
+    memset(&s, 0, sizeof s);
+    btf_lod_stats st = {0};
+    btf_result r = btf__lod_setup(&s, in_dir, opt, err);
+    if (r == BTF_OK)
+        r = btf__make_levels(&s, err);
+    if (r == BTF_OK) {
+        btf__contribs(&s);
+        btf__lod_order(&s);
+        r = btf__errors(&s, err);
+    }
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", out_dir, (long)getpid());
+    if (r == BTF_OK && mkdir(tmp, 0755) != 0)
+        r = btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp, strerror(errno));
+    else if (r == BTF_OK) {
+        r = btf__write_files(&s, in_dir, tmp, err);
+        char *man = r == BTF_OK ? btf__lod_manifest(&s, in_dir, &st, err) : NULL;
+        if (r == BTF_OK && !man)
+            r = BTF_ERR_FORMAT;
+        char path[8400];
+        snprintf(path, sizeof path, "%s/manifest.json", tmp);
+        if (r == BTF_OK)
+            r = btf__write_text(path, man, err);
+        free(man);
+        if (r == BTF_OK)
+            r = btf__lod_commit(tmp, out_dir, err);
+        if (r != BTF_OK)
+            btf__rm_dir(tmp, &s);
+    }
+    if (r == BTF_OK && stats) {
+        st.levels = s.nl, st.n_chunks = s.n_order;
+        for (int a = 0; a < s.C; a++)
+            st.bytes_v1 += s.p->chunk[a].bytes;
+        *stats = st;
+    }
+    btf__lod_free(&s);
+    return r;
+}

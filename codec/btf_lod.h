@@ -1,0 +1,88 @@
+/* btf_lod.h - spatial levels of detail of a package (doc/package-format.md,
+ * version 2) and the scene-driven chunk selection.
+ *
+ *     btf_lod_options o = {0};  o.levels = 4;
+ *     btf_lod_build("lib/wool-v1", "lib/wool", &o, NULL, &err);   // v1 -> v2 with mips
+ *
+ *     btf_lod_view v = {0};
+ *     v.texels_per_pixel = btf_lod_footprint(p->width, 1.0, 300.0); // 300-px thumbnail
+ *     v.threshold = BTF_LOD_THRESHOLD;
+ *     btf_lod_selection s;
+ *     btf_lod_select(p, &v, &s, NULL);  // s.limit = chunks to ask the server for
+ *
+ * The client (client/btf-lod.js) implements btf_lod_select with the same rule; the
+ * shared cases in tests/e2e/ check both.
+ */
+#ifndef BTF_LOD_H
+#define BTF_LOD_H
+
+#include "btf_package.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BTF_LOD_MAX_LEVELS 15
+#define BTF_LOD_THRESHOLD 1.0 /* default visibility threshold: RMS contribution on the 0..255 scale */
+
+/* Options of btf_lod_build; zero means default. Plain value. */
+typedef struct btf_lod_options {
+    int levels;       /* levels including level 0; 0 = as many as keep tiles >= 8 texels, at most 4 */
+    double threshold; /* reference visibility threshold used for the chunk order; 0 = BTF_LOD_THRESHOLD */
+} btf_lod_options;
+
+/* Summary of btf_lod_build (optional). Plain value. */
+typedef struct btf_lod_stats {
+    int levels, n_chunks;
+    long long bytes;       /* all chunk files of the new package */
+    long long bytes_v1;    /* all chunk files of the source package */
+    long long first_chunk; /* bytes of chunk 0 */
+} btf_lod_stats;
+
+/* Reads the complete version-1 package in_dir and writes out_dir (a different path)
+ * as version 2: level 0 = the v1 files unchanged, level l = 2x2 box averages of
+ * level l-1 (dequantised, requantised with the component's ranges) in tex-JJ-lL.png;
+ * chunks are (component, level) pairs in the order of doc/package-format.md section 10. */
+btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
+                         btf_error *err);
+
+/* Texels per screen pixel of a material W texels wide, repeated `repeat` times
+ * across `pixels` device pixels. <= 0 when pixels <= 0 (nothing visible). */
+double btf_lod_footprint(int width, double repeat, double pixels);
+
+/* One viewer's view of a material. Plain value. */
+typedef struct btf_lod_view {
+    double texels_per_pixel; /* btf_lod_footprint; <= 0: off screen, nothing needed */
+    double threshold;        /* a component is visible if its RMS contribution at the display level is >= this */
+} btf_lod_view;
+
+/* What a view needs. Plain value. */
+typedef struct btf_lod_selection {
+    int level;        /* finest level the footprint resolves: floor(log2(texels_per_pixel)), clamped */
+    int n_components; /* components visible at that level */
+    int n_needed;     /* chunks needed */
+    int limit;        /* prefix length that holds every needed chunk (the budget "chunks") */
+    long long bytes;  /* bytes of that prefix */
+} btf_lod_selection;
+
+/* Selection rule (doc/package-format.md section 10): level = the largest l < levels
+ * with 2^l <= texels_per_pixel (0 below 2); component c is visible when the
+ * `contrib` of its chunk at that level is >= threshold (the component of chunk 0
+ * always); a chunk is needed when its component is visible and its level >= level.
+ * Version-1 packages: every chunk. need (optional, n_chunks bytes) gets 1 per needed
+ * chunk. Uses only the manifest (no chunk data). */
+void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_selection *out, unsigned char *need);
+
+/* Index of the loaded chunk (among the first n) of component c at the finest loaded
+ * level >= level... more precisely: the loaded level closest to `level` from below
+ * (finer), else the coarsest loaded level above it; -1 if c has no loaded chunk. */
+int btf_lod_chunk_at(const btf_package *p, int n, int component, int level);
+
+/* Value of chunk i's texture in block b at level-0 texel (x, y): direct at level 0,
+ * bilinear (clamped to the tile) at the texel centre otherwise. */
+float btf_lod_texel(const btf_package *p, int i, int b, int x, int y);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,335 @@
+/* test_lod.c - spatial levels (package version 2), level-aware decoding and the
+ * scene-driven chunk selection (codec/btf_lod.h), suite "lod". */
+#include <criterion/criterion.h>
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "btf_gen.h"
+#include "btf_lod.h"
+#include "btf_package.h"
+#include "test_util.h"
+
+#define SIZE 32
+#define COMPS 5
+#define LEVELS 3
+
+static btf_dirset small_set(void)
+{
+    btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 4, 0.0f}, {60.0f, 6, 15.0f}};
+    btf_dirset d;
+    btf_error err = {0};
+    cr_assert_eq(btf_dirset_make(r, 3, &d, &err), BTF_OK, "%s", err.msg);
+    return d;
+}
+
+/* v1 package of a generated knit (SIZE^2, 11 x 11 directions) in dir/v1 and its
+ * version 2 with LEVELS levels in dir/v2. */
+static void make_packages(char *dir, size_t n, btf_lod_stats *st)
+{
+    cr_assert(test_tmpdir(dir, n));
+    btf_dirset d = small_set();
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
+    btf *src = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_gen_create(&gp, SIZE, SIZE, &d, &d, BTF_U8, &src, &err), BTF_OK, "%s", err.msg);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = COMPS;
+    btf_package_options ko = {0};
+    char v1[600], v2[600];
+    snprintf(v1, sizeof v1, "%s/v1", dir);
+    snprintf(v2, sizeof v2, "%s/v2", dir);
+    cr_assert_eq(btf_package_compress(src, &po, &ko, v1, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_free(src);
+    btf_lod_options lo = {0};
+    lo.levels = LEVELS;
+    cr_assert_eq(btf_lod_build(v1, v2, &lo, st, &err), BTF_OK, "%s", err.msg);
+}
+
+static btf_package *read_ok(const char *dir, const char *sub, int n)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/%s", dir, sub);
+    btf_package *p = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_read(path, n, &p, &err), BTF_OK, "%s", err.msg);
+    return p;
+}
+
+/* Field `key` of chunk i in dir/sub/manifest.json (read independently of the reader). */
+static double manifest_num(const char *dir, const char *sub, int i, const char *key)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/%s/manifest.json", dir, sub);
+    FILE *f = fopen(path, "rb");
+    cr_assert(f);
+    static char text[1 << 20];
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = 0;
+    cJSON *m = cJSON_Parse(text);
+    cr_assert(m);
+    cJSON *v = cJSON_GetObjectItem(cJSON_GetArrayItem(cJSON_GetObjectItem(m, "chunks"), i), key);
+    cr_assert(cJSON_IsNumber(v), "chunk %d has no %s", i, key);
+    double x = v->valuedouble;
+    cJSON_Delete(m);
+    return x;
+}
+
+static void rm_tree(const char *dir)
+{
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    cr_assert_eq(system(cmd), 0);
+}
+
+Test(lod, chunks_are_component_level_pairs_coarse_first)
+{
+    char dir[256];
+    btf_lod_stats st;
+    make_packages(dir, sizeof dir, &st);
+    btf_package *p1 = read_ok(dir, "v1", 0), *p = read_ok(dir, "v2", 0);
+    cr_assert_eq(p->version, 2);
+    cr_assert_eq(p->n_levels, LEVELS);
+    cr_assert_eq(p->n_chunks, COMPS * LEVELS);
+    cr_assert_eq(st.n_chunks, COMPS * LEVELS);
+    int seen[COMPS][LEVELS] = {{0}}, finest[COMPS];
+    for (int c = 0; c < COMPS; c++)
+        finest[c] = LEVELS;
+    for (int i = 0; i < p->n_chunks; i++) {
+        int c = p->chunk[i].component, l = p->chunk[i].level;
+        cr_assert_eq(seen[c][l]++, 0, "chunk %d repeats (%d, %d)", i, c, l);
+        cr_assert_eq(l, finest[c] - 1, "chunk %d: component %d level %d is not the next finer one", i, c, l);
+        finest[c] = l;
+        int has_wt = p->chunk[i].n_files == 2;
+        cr_assert_eq(has_wt, l == LEVELS - 1, "chunk %d: weights travel with the coarsest level only", i);
+        if (i > 0)
+            cr_assert_leq(p->chunk[i].rmse, p->chunk[i - 1].rmse + 1e-3, "chunk %d raises the error", i);
+    }
+    cr_assert_eq(p->chunk[0].component, p1->chunk[0].component, "chunk 0 = v1's first component");
+    cr_assert_eq(p->chunk[0].level, LEVELS - 1, "chunk 0 at the coarsest level");
+    /* the complete v2 package is the v1 package: same final error, same bytes + the coarse levels */
+    cr_assert_float_eq(p->chunk[p->n_chunks - 1].rmse, p1->chunk[p1->n_chunks - 1].rmse, 1e-3);
+    cr_assert_gt(st.bytes, st.bytes_v1);
+    cr_assert_lt(st.first_chunk, p1->chunk[0].bytes, "coarse first chunk is smaller than v1's");
+    btf_package_free(p1);
+    btf_package_free(p);
+    rm_tree(dir);
+}
+
+/* Level l texels are 2^l x 2^l means of level 0 (v1 dequantised) within half a step. */
+Test(lod, levels_are_box_means)
+{
+    char dir[256];
+    make_packages(dir, sizeof dir, NULL);
+    btf_package *p1 = read_ok(dir, "v1", 0), *p = read_ok(dir, "v2", 0);
+    int nb = p->blocks->n_blocks;
+    for (int i = 0; i < p->n_chunks; i++) {
+        int c = p->chunk[i].component, l = p->chunk[i].level, s = 1 << l, w = SIZE >> l;
+        int a = 0;
+        while (p1->chunk[a].component != c)
+            a++;
+        for (int b = 0; b < nb; b++) {
+            float half = 0.5f * p->chunk[i].tex_range[2 * b + 1] + 1e-5f;
+            for (int y = 0; y < w; y++)
+                for (int x = 0; x < w; x++) {
+                    double m = 0.0;
+                    for (int yy = 0; yy < s; yy++)
+                        for (int xx = 0; xx < s; xx++)
+                            m += p1->tex[a][((size_t)b * SIZE + y * s + yy) * SIZE + x * s + xx];
+                    m /= (double)s * s;
+                    float got = p->tex[i][((size_t)b * w + y) * w + x];
+                    cr_assert_leq(fabs(got - m), half, "chunk %d block %d texel (%d,%d): %g vs mean %g", i, b, x, y,
+                                  got, m);
+                }
+        }
+    }
+    btf_package_free(p1);
+    btf_package_free(p);
+    rm_tree(dir);
+}
+
+/* rmse_full of every prefix against a brute-force reconstruction (btf_package_value). */
+Test(lod, prefix_errors_match_reconstruction)
+{
+    char dir[256];
+    make_packages(dir, sizeof dir, NULL);
+    btf_package *full = read_ok(dir, "v2", 0);
+    int V = full->views.n_dirs, L = full->lights.n_dirs;
+    int probes[] = {1, 3, COMPS + 2, full->n_chunks};
+    for (size_t k = 0; k < sizeof probes / sizeof probes[0]; k++) {
+        int n = probes[k];
+        double e = 0.0;
+        for (int v = 0; v < V; v++)
+            for (int l = 0; l < L; l++)
+                for (int y = 0; y < SIZE; y++)
+                    for (int x = 0; x < SIZE; x++) {
+                        float a[3], b[3];
+                        btf_package_value(full, v, l, x, y, n, a);
+                        btf_package_value(full, v, l, x, y, 0, b);
+                        for (int c = 0; c < 3; c++)
+                            e += (double)(a[c] - b[c]) * (a[c] - b[c]);
+                    }
+        double rmse = 255.0 * sqrt(e / ((double)V * L * SIZE * SIZE * 3));
+        /* float32 texels and weights: agreement to 1e-3 of the 0..255 scale plus 0.1 % */
+        cr_assert_float_eq(rmse, manifest_num(dir, "v2", n - 1, "rmse_full"), 1e-3 + 1e-3 * rmse, "prefix %d", n);
+    }
+    btf_package_free(full);
+    rm_tree(dir);
+}
+
+/* btf_decode with lod: at a measured pair and the centre of a level-l texel, integer
+ * lod l gives sum_c T_c^l * Wt_c (computed here from the loaded arrays); lod l + 0.5
+ * the mean of levels l and l + 1 sampled bilinearly at that point. */
+Test(lod, decode_selects_and_blends_levels)
+{
+    char dir[256];
+    make_packages(dir, sizeof dir, NULL);
+    btf_package *p = read_ok(dir, "v2", 0);
+    int L = p->lights.n_dirs, vi = 5, li = 7, b = p->blocks->block_of_view[vi];
+    float lv[3], vv[3];
+    btf_dirset_vector(&p->lights, li, lv);
+    btf_dirset_vector(&p->views, vi, vv);
+    for (int l = 0; l < LEVELS; l++) {
+        int w = SIZE >> l, x = w / 2 + 1, y = w / 3;
+        float u = ((float)x + 0.5f) / (float)w, v = ((float)y + 0.5f) / (float)w;
+        double want[3] = {0}, half[3] = {0};
+        for (int i = 0; i < p->n_chunks; i++) {
+            int c = p->chunk[i].component;
+            if (p->chunk[i].level != l)
+                continue;
+            float t = p->tex[i][((size_t)b * w + y) * w + x];
+            float t1 = t;
+            if (l + 1 < LEVELS) { /* the level-(l+1) value at the same point, bilinear */
+                int j = btf_lod_chunk_at(p, 0, c, l + 1), w1 = w / 2;
+                float fx = u * w1 - 0.5f, fy = v * w1 - 0.5f;
+                int x0 = (int)floorf(fx), y0 = (int)floorf(fy);
+                float ax = fx - x0, ay = fy - y0, s = 0.0f;
+                for (int dy = 0; dy < 2; dy++)
+                    for (int dx = 0; dx < 2; dx++) {
+                        int xx = x0 + dx < 0 ? 0 : x0 + dx >= w1 ? w1 - 1 : x0 + dx;
+                        int yy = y0 + dy < 0 ? 0 : y0 + dy >= w1 ? w1 - 1 : y0 + dy;
+                        s += (dx ? ax : 1 - ax) * (dy ? ay : 1 - ay) * p->tex[j][((size_t)b * w1 + yy) * w1 + xx];
+                    }
+                t1 = s;
+            }
+            for (int ch = 0; ch < 3; ch++) {
+                float wt = p->wt[i][((size_t)vi * L + li) * 3 + ch];
+                want[ch] += t * wt;
+                half[ch] += 0.5 * (t + t1) * wt;
+            }
+        }
+        btf_decode_options o = {0};
+        o.filter = BTF_FILTER_BILINEAR;
+        o.lod = (float)l;
+        float got[3], gh[3];
+        btf_decode(p, u, v, lv, vv, &o, got);
+        o.lod = (float)l + 0.5f;
+        btf_decode(p, u, v, lv, vv, &o, gh);
+        for (int ch = 0; ch < 3; ch++) { /* float32 sums of <= 5 terms: 1e-5 */
+            cr_assert_float_eq(got[ch], want[ch], 1e-5, "level %d channel %d", l, ch);
+            cr_assert_float_eq(gh[ch], half[ch], 1e-5, "lod %d.5 channel %d", l, ch);
+        }
+    }
+    /* a partial package: component with only its coarsest level loaded is drawn from it at lod 0 */
+    btf_package *p1 = read_ok(dir, "v2", 1);
+    float a[3], c[3];
+    btf_decode_options o = {0};
+    btf_decode(p1, 0.3f, 0.6f, lv, vv, &o, a);
+    o.lod = (float)(LEVELS - 1);
+    btf_decode(p1, 0.3f, 0.6f, lv, vv, &o, c);
+    for (int ch = 0; ch < 3; ch++)
+        cr_assert_float_eq(a[ch], c[ch], 1e-6);
+    btf_package_free(p1);
+    btf_package_free(p);
+    rm_tree(dir);
+}
+
+/* The selection rule on a hand-made manifest (2 components, 3 levels). */
+static btf_package *fake_package(void)
+{
+    static const int comp[6] = {0, 0, 1, 0, 1, 1}, lev[6] = {2, 1, 2, 0, 1, 0};
+    static const double contrib[6] = {40, 50, 0.5, 55, 3, 6}, bytes[6] = {100, 200, 300, 800, 400, 1600};
+    btf_package *p = calloc(1, sizeof *p);
+    p->version = 2, p->n_levels = 3, p->n_chunks = 6, p->n_comp = 2, p->width = p->height = 64;
+    p->chunk = calloc(6, sizeof *p->chunk);
+    for (int i = 0; i < 6; i++) {
+        p->chunk[i].component = comp[i], p->chunk[i].level = lev[i];
+        p->chunk[i].contrib = contrib[i], p->chunk[i].bytes = (long long)bytes[i];
+    }
+    return p;
+}
+
+Test(lod, selection_rule)
+{
+    btf_package *p = fake_package();
+    struct { double tpp, thr; int level, ncomp, limit; long long bytes; const char *need; } cases[] = {
+        {0.5, 1.0, 0, 2, 6, 3400, "111111"},  /* close-up: everything */
+        {1.9, 1.0, 0, 2, 6, 3400, "111111"},
+        {2.0, 1.0, 1, 2, 5, 1800, "111010"},  /* level 1: component 1 visible (3 >= 1) */
+        {2.0, 4.0, 1, 1, 2, 300, "110000"},   /* ... not at threshold 4 */
+        {3.9, 4.0, 1, 1, 2, 300, "110000"},
+        {4.0, 1.0, 2, 1, 1, 100, "100000"},   /* level 2: component 1 (0.5) invisible */
+        {100, 0.1, 2, 2, 3, 600, "101000"},   /* coarsest level, low threshold */
+        {0.0, 1.0, 0, 0, 0, 0, "000000"},     /* off screen */
+        {-1, 1.0, 0, 0, 0, 0, "000000"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        btf_lod_view v = {cases[k].tpp, cases[k].thr};
+        btf_lod_selection s;
+        unsigned char need[6];
+        btf_lod_select(p, &v, &s, need);
+        char got[7];
+        for (int i = 0; i < 6; i++)
+            got[i] = (char)('0' + need[i]);
+        got[6] = 0;
+        cr_assert_str_eq(got, cases[k].need, "case %zu", k);
+        if (cases[k].tpp > 0)
+            cr_assert_eq(s.level, cases[k].level, "case %zu", k);
+        cr_assert_eq(s.n_components, cases[k].ncomp, "case %zu", k);
+        cr_assert_eq(s.limit, cases[k].limit, "case %zu", k);
+        cr_assert_eq(s.bytes, cases[k].bytes, "case %zu", k);
+    }
+    cr_assert_float_eq(btf_lod_footprint(256, 2.0, 128.0), 4.0, 1e-12);
+    cr_assert_eq(btf_lod_footprint(256, 1.0, 0.0), 0.0);
+    free(p->chunk);
+    free(p);
+}
+
+Test(lod, bad_inputs)
+{
+    char dir[256], a[600], b[600];
+    make_packages(dir, sizeof dir, NULL);
+    btf_error err = {0};
+    snprintf(a, sizeof a, "%s/v2", dir);
+    snprintf(b, sizeof b, "%s/v3", dir);
+    cr_assert_neq(btf_lod_build(a, b, NULL, NULL, &err), BTF_OK, "a v2 package is not rebuilt");
+    cr_assert(strstr(err.msg, "already"), "%s", err.msg);
+    snprintf(a, sizeof a, "%s/v1", dir);
+    btf_lod_options o = {0};
+    o.levels = 7; /* 32 = 2^5: at most 6 levels */
+    cr_assert_neq(btf_lod_build(a, b, &o, NULL, &err), BTF_OK);
+    cr_assert_neq(btf_lod_build(a, a, NULL, NULL, &err), BTF_OK, "in place");
+    snprintf(a, sizeof a, "%s/none", dir);
+    cr_assert_eq(btf_lod_build(a, b, NULL, NULL, &err), BTF_ERR_MISSING, "%s", err.msg);
+    /* a level-1 texture of the wrong size, a missing coarse file */
+    btf_package *p = read_ok(dir, "v2", 1);
+    char f[900], g[900];
+    snprintf(f, sizeof f, "%s/v2/%s", dir, p->chunk[0].files[0]);
+    snprintf(g, sizeof g, "%s/v2/tex-00.png", dir);
+    btf_package_free(p);
+    char cmd[4000];
+    snprintf(cmd, sizeof cmd, "cp '%s' '%s.bak' && cp '%s' '%s'", f, f, g, f);
+    cr_assert_eq(system(cmd), 0);
+    snprintf(a, sizeof a, "%s/v2", dir);
+    btf_package *q = NULL;
+    cr_assert_eq(btf_package_read(a, 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    cr_assert_null(q);
+    remove(f);
+    cr_assert_neq(btf_package_read(a, 1, &q, &err), BTF_OK); /* the image reader says BTF_ERR_IO */
+    cr_assert(strstr(err.msg, "tex-"), "%s", err.msg);
+    cr_assert_eq(btf_package_read(a, -1, &q, &err), BTF_ERR_MISSING, "%s", err.msg);
+    rm_tree(dir);
+}
