@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # bench/run.sh - runs every bench/bench_NAME.c program (built by `make bench`)
-# and writes its stdout (`name value unit` lines) to bench/results/NAME.txt.
+# and every bench/bench_NAME.sh script (which builds what it needs), and
+# writes its stdout (`name value unit` lines) to bench/results/NAME.txt.
 #
 #   make bench                      # builds into build/, then runs this script
 #   bash bench/run.sh [NAME...]     # only bench/bench_NAME.c (after `make bench`)
@@ -17,19 +18,24 @@ export BTF_ROOT=${BTF_ROOT:-$(pwd)}
 
 if (($#)); then
     srcs=()
-    for n in "$@"; do srcs+=("bench/bench_${n#bench_}.c"); done
+    for n in "$@"; do
+        n=bench/bench_${n#bench_}
+        if [[ -f $n.sh ]]; then srcs+=("$n.sh"); else srcs+=("$n.c"); fi
+    done
 else
-    srcs=(bench/bench_*.c)
+    srcs=(bench/bench_*.c bench/bench_*.sh)
 fi
 
 mkdir -p "$BUILD/bench" bench/results
 failed=0
 for src in "${srcs[@]}"; do
     [[ -f $src ]] || { echo "bench: $src not found" >&2; failed=1; continue; }
-    base=$(basename "$src" .c)
+    base=$(basename "${src%.sh}" .c)
     name=${base#bench_}
     exe=$BUILD/bench/$base
-    if [[ ! -x $exe ]]; then
+    cmd=("$exe")
+    [[ $src == *.sh ]] && cmd=(env BUILD="$BUILD" bash "$src") # a script builds what it needs
+    if [[ $src != *.sh && ! -x $exe ]]; then
         echo "bench: $exe is missing: run 'make bench' (it builds bench/*.c)" >&2
         failed=1
         continue
@@ -41,7 +47,7 @@ for src in "${srcs[@]}"; do
         echo "# host: $(nproc) cpus, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//')"
     } >"$out.tmp"
     start=$(date +%s.%N)
-    if "$exe" >>"$out.tmp"; then
+    if "${cmd[@]}" >>"$out.tmp"; then
         awk -v s="$start" -v e="$(date +%s.%N)" 'BEGIN { printf "bench_wall_time %.2f s\n", e - s }' >>"$out.tmp"
         mv "$out.tmp" "$out"
         cat "$out"

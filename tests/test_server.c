@@ -1,0 +1,1257 @@
+/* test_server.c - the btfd streaming server, as a real process on a loopback port.
+ *
+ * Each test writes a small fake library (manifests + files of pseudo-random
+ * bytes) into a temp dir, starts $BTF_BUILD/btfd on a free port (--port 0; the
+ * port is read from its first stdout line; the binary is looked up next to
+ * the test binary, then in $BTF_BUILD, then in build/) and talks to it with the
+ * libwebsockets client of ws_client.h (one lws context per connection, so a
+ * test can stop reading one of them). Received bytes are compared
+ * with the package files on disk; orders and limits are recomputed here from
+ * the manifests, following doc/protocol.md. The server must exit 0 on SIGTERM
+ * (under `make asan` that includes "no leaks").
+ * When BTF_BUILD is unset and build/btfd does not exist the suite is skipped;
+ * when BTF_BUILD is set (by the Makefile) a missing binary is a failure.
+ */
+#include <criterion/criterion.h>
+#include <cJSON.h>
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/prctl.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "test_util.h"
+#include "ws_client.h"
+
+#define TMO 5000 /* ms: every wait in these tests; loopback transfers here take well under 1 s */
+
+/* ---------------------------------------------------------------- files */
+
+static void write_file(const char *path, const void *data, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    cr_assert_not_null(f, "cannot write %s", path);
+    cr_assert_eq(fwrite(data, 1, n, f), n);
+    fclose(f);
+}
+
+static uint8_t *read_whole(const char *path, size_t *n)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    uint8_t *b = malloc((size_t)len + 1);
+    *n = fread(b, 1, (size_t)len, f);
+    b[*n] = 0;
+    fclose(f);
+    return b;
+}
+
+/* Pseudo-random bytes (xorshift32), so a shifted or swapped piece cannot match. */
+static void fill_random(uint8_t *b, size_t n, uint32_t seed)
+{
+    uint32_t x = seed * 2654435761u + 1;
+    for (size_t i = 0; i < n; i++) {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        b[i] = (uint8_t)x;
+    }
+}
+
+static void rm_rf(const char *path)
+{
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", path);
+    cr_assert_eq(system(cmd), 0);
+}
+
+/* Writes package lib/name (through a .tmp-<pid> directory and a rename) with
+ * n_chunks chunks of fpc files each; sizes[c * fpc + f] bytes per file; lab[c]
+ * (rmse = 1.5 lab). Returns the total bytes. */
+static size_t make_pkg(const char *lib, const char *name, int n_chunks, int fpc, const size_t *sizes,
+                       const double *lab)
+{
+    char tmp[512], dst[512], path[700];
+    snprintf(tmp, sizeof tmp, "%s/%s.tmp-%d", lib, name, (int)getpid());
+    snprintf(dst, sizeof dst, "%s/%s", lib, name);
+    cr_assert_eq(mkdir(tmp, 0755), 0, "mkdir %s", tmp);
+    cJSON *root = cJSON_CreateObject(), *chunks = cJSON_CreateArray();
+    cJSON_AddStringToObject(root, "format", "btf-package");
+    cJSON_AddNumberToObject(root, "version", 1);
+    cJSON_AddStringToObject(root, "name", name);
+    cJSON_AddNumberToObject(root, "width", 16);
+    cJSON_AddNumberToObject(root, "height", 16);
+    size_t total = 0;
+    for (int c = 0; c < n_chunks; c++) {
+        cJSON *jc = cJSON_CreateObject(), *files = cJSON_CreateArray();
+        size_t bytes = 0;
+        for (int f = 0; f < fpc; f++) {
+            char fname[64];
+            snprintf(fname, sizeof fname, "c%d_f%d.bin", c, f);
+            size_t n = sizes[c * fpc + f];
+            uint8_t *b = malloc(n + 1);
+            fill_random(b, n, (uint32_t)(c * 131 + f * 7 + strlen(name) * 1009 + (uint8_t)name[0]));
+            snprintf(path, sizeof path, "%s/%s", tmp, fname);
+            write_file(path, b, n);
+            free(b);
+            cJSON_AddItemToArray(files, cJSON_CreateString(fname));
+            bytes += n;
+        }
+        char id[16];
+        snprintf(id, sizeof id, "k%d", c);
+        cJSON_AddStringToObject(jc, "id", id);
+        cJSON_AddItemToObject(jc, "files", files);
+        cJSON_AddNumberToObject(jc, "bytes", (double)bytes);
+        cJSON_AddNumberToObject(jc, "rmse", lab[c] * 1.5);
+        cJSON_AddNumberToObject(jc, "lab", lab[c]);
+        cJSON_AddItemToArray(chunks, jc);
+        total += bytes;
+    }
+    cJSON_AddItemToObject(root, "chunks", chunks);
+    char *txt = cJSON_Print(root);
+    snprintf(path, sizeof path, "%s/manifest.json", tmp);
+    write_file(path, txt, strlen(txt));
+    free(txt);
+    cJSON_Delete(root);
+    cr_assert_eq(rename(tmp, dst), 0, "rename %s", tmp);
+    return total;
+}
+
+/* Package with n_chunks chunks of one file of `bytes` bytes each, lab 100/(c+1). */
+static size_t make_simple(const char *lib, const char *name, int n_chunks, size_t bytes)
+{
+    size_t sizes[64];
+    double lab[64];
+    for (int c = 0; c < n_chunks; c++) {
+        sizes[c] = bytes + (size_t)c * 13;
+        lab[c] = 100.0 / (c + 1);
+    }
+    return make_pkg(lib, name, n_chunks, 1, sizes, lab);
+}
+
+/* ---------------------------------------------------------------- the server process */
+
+/* A running btfd; owned by the test, stopped with srv_stop. */
+typedef struct srv {
+    pid_t pid;
+    int port;
+} srv;
+
+static pid_t g_pid; /* the server of the running test, killed by the suite's fini if a test fails */
+
+/* Path of a program built next to this test binary (make asan runs
+ * build-asan/run_tests), else in $BTF_BUILD, else in build/. */
+static void btfd_binary(char *buf, size_t n, const char *prog)
+{
+    char exe[400];
+    ssize_t k = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (k > 0) {
+        exe[k] = 0;
+        char *slash = strrchr(exe, '/');
+        if (slash) {
+            *slash = 0;
+            snprintf(buf, n, "%s/%s", exe, prog);
+            if (access(buf, X_OK) == 0)
+                return;
+        }
+    }
+    const char *b = getenv("BTF_BUILD");
+    snprintf(buf, n, "%s/%s", b ? b : "build", prog);
+    if (access(buf, X_OK) != 0) {
+        if (b)
+            cr_assert_fail("%s is missing: build it with `make build` (server/build.mk)", buf);
+        else
+            cr_skip_test("%s not built (set BTF_BUILD or include server/build.mk)", buf);
+    }
+}
+
+/* Starts btfd on lib with optional extra arguments (NULL-terminated). */
+static void srv_start(srv *s, const char *lib, const char *const *extra)
+{
+    char bin[512];
+    btfd_binary(bin, sizeof bin, "btfd");
+    const char *argv[32] = {bin, "--library", lib, "--port", "0", "--rescan-ms", "0"};
+    int argc = 7;
+    for (int i = 0; extra && extra[i] && argc < 30; i++)
+        argv[argc++] = extra[i];
+    argv[argc] = NULL;
+    int fds[2];
+    cr_assert_eq(pipe(fds), 0);
+    s->pid = fork();
+    cr_assert_geq(s->pid, 0);
+    g_pid = s->pid;
+    if (s->pid == 0) {
+        prctl(PR_SET_PDEATHSIG, SIGKILL); /* never outlive a crashed test */
+        dup2(fds[1], 1);
+        close(fds[0]);
+        close(fds[1]);
+        execv(bin, (char *const *)argv);
+        _exit(127);
+    }
+    close(fds[1]);
+    char line[512] = "";
+    size_t len = 0;
+    long long deadline = wsc_now_ms() + TMO;
+    while (!strchr(line, '\n') && len < sizeof line - 1 && wsc_now_ms() < deadline) {
+        struct pollfd p = {fds[0], POLLIN, 0};
+        if (poll(&p, 1, 100) <= 0)
+            continue;
+        ssize_t k = read(fds[0], line + len, sizeof line - 1 - len);
+        if (k <= 0)
+            break;
+        len += (size_t)k;
+        line[len] = 0;
+    }
+    close(fds[0]);
+    const char *at = strstr(line, "http://127.0.0.1:");
+    cr_assert_not_null(at, "btfd did not report its port: \"%s\"", line);
+    s->port = atoi(at + 17);
+    cr_assert_gt(s->port, 0);
+}
+
+/* SIGTERM, then expects a clean exit (status 0) within the timeout. */
+static void srv_stop(srv *s)
+{
+    kill(s->pid, SIGTERM);
+    int status = 0;
+    long long deadline = wsc_now_ms() + TMO;
+    pid_t r;
+    while ((r = waitpid(s->pid, &status, WNOHANG)) == 0 && wsc_now_ms() < deadline)
+        usleep(10000);
+    if (r == 0) {
+        kill(s->pid, SIGKILL);
+        waitpid(s->pid, &status, 0);
+        cr_assert_fail("btfd did not stop on SIGTERM");
+    }
+    g_pid = 0;
+    cr_expect(WIFEXITED(status) && WEXITSTATUS(status) == 0, "btfd exit status %d", status);
+}
+
+static void open_ws(wsc *c, const srv *s)
+{
+    char st[128];
+    cr_assert_eq(wsc_open(c, s->port, "btf-stream.v1", 0, st, sizeof st), 0, "handshake: %s", st);
+}
+
+/* Next text message as JSON (skipping nothing); asserts one arrives. */
+static cJSON *recv_json(wsc *c)
+{
+    wsc_msg m;
+    cr_assert_eq(wsc_recv(c, &m, TMO), 1, "no message");
+    cr_assert_eq(m.op, 1, "expected text, got op %d (%.*s)", m.op, (int)m.len, m.data);
+    cJSON *j = cJSON_Parse((char *)m.data);
+    cr_assert_not_null(j, "server sent invalid JSON: %s", m.data);
+    wsc_msg_free(&m);
+    return j;
+}
+
+static const char *jstr(const cJSON *o, const char *k)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+    return cJSON_IsString(v) ? v->valuestring : "";
+}
+
+static double jnum(const cJSON *o, const char *k)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+    return cJSON_IsNumber(v) ? v->valuedouble : NAN;
+}
+
+/* Text message of the given type (others of type "hello" are skipped). */
+static cJSON *expect_type(wsc *c, const char *type)
+{
+    for (;;) {
+        cJSON *j = recv_json(c);
+        if (!strcmp(jstr(j, "type"), "hello") && strcmp(type, "hello")) {
+            cJSON_Delete(j);
+            continue;
+        }
+        cr_assert_str_eq(jstr(j, "type"), type, "got %s", cJSON_PrintUnformatted(j));
+        return j;
+    }
+}
+
+static void expect_error(wsc *c, const char *code)
+{
+    cJSON *j = expect_type(c, "error");
+    cr_expect_str_eq(jstr(j, "code"), code, "message: %s", jstr(j, "message"));
+    cr_expect_gt(strlen(jstr(j, "message")), 0);
+    cJSON_Delete(j);
+}
+
+/* ---------------------------------------------------------------- stream checker */
+
+#define MAXC 64
+#define MAXF 4
+
+/* What one subscription has received, checked against the package on disk. */
+typedef struct mstate {
+    int mid;
+    char name[130];
+    char etag[40];
+    int n_chunks, limit, resumed, held;
+    int n_files[MAXC];
+    uint8_t *data[MAXC][MAXF]; /* the files as on disk when the manifest arrived */
+    size_t size[MAXC][MAXF];
+    size_t got[MAXC][MAXF];
+    int done[MAXC];
+    double lab[MAXC];
+    size_t bytes[MAXC];
+    cJSON *manifest;
+} mstate;
+
+/* Everything received on one connection. */
+typedef struct stream {
+    const char *lib;
+    int n;
+    mstate m[48];
+    int order_mid[512], order_chunk[512]; /* chunks in completion order */
+    int n_order;
+    int completes, errors;
+    int cur_mid, cur_chunk; /* chunk whose pieces are arriving (0 = none) */
+    size_t max_piece;
+    cJSON *last_complete;
+} stream;
+
+static mstate *by_mid(stream *st, int mid)
+{
+    for (int i = 0; i < st->n; i++)
+        if (st->m[i].mid == mid)
+            return &st->m[i];
+    return NULL;
+}
+
+static mstate *by_name(stream *st, const char *name)
+{
+    for (int i = 0; i < st->n; i++)
+        if (!strcmp(st->m[i].name, name))
+            return &st->m[i];
+    return NULL;
+}
+
+/* A manifest message: the embedded manifest must equal manifest.json on disk. */
+static void on_manifest(stream *st, cJSON *j)
+{
+    mstate *m = by_name(st, jstr(j, "material"));
+    if (!m) {
+        cr_assert_lt(st->n, 48);
+        m = &st->m[st->n++];
+        memset(m, 0, sizeof *m);
+    } else {
+        cJSON_Delete(m->manifest);
+    }
+    snprintf(m->name, sizeof m->name, "%s", jstr(j, "material"));
+    snprintf(m->etag, sizeof m->etag, "%s", jstr(j, "etag"));
+    m->mid = (int)jnum(j, "mid");
+    m->limit = (int)jnum(j, "limit");
+    m->held = (int)jnum(j, "held");
+    m->resumed = cJSON_IsTrue(cJSON_GetObjectItem(j, "resumed"));
+    m->manifest = cJSON_DetachItemFromObject(j, "manifest");
+    char path[700];
+    snprintf(path, sizeof path, "%s/%s/manifest.json", st->lib, m->name);
+    size_t n;
+    uint8_t *txt = read_whole(path, &n);
+    cr_assert_not_null(txt);
+    cJSON *disk = cJSON_Parse((char *)txt);
+    cr_assert(cJSON_Compare(disk, m->manifest, 1), "manifest of %s differs from the file", m->name);
+    free(txt);
+    cJSON_Delete(disk);
+    const cJSON *chunks = cJSON_GetObjectItem(m->manifest, "chunks"), *c;
+    m->n_chunks = 0;
+    cJSON_ArrayForEach(c, chunks) {
+        int ci = m->n_chunks++;
+        cr_assert_lt(ci, MAXC);
+        m->lab[ci] = jnum(c, "lab");
+        const cJSON *f;
+        m->n_files[ci] = 0;
+        m->bytes[ci] = 0;
+        cJSON_ArrayForEach(f, cJSON_GetObjectItem(c, "files")) {
+            int fi = m->n_files[ci]++;
+            snprintf(path, sizeof path, "%s/%s/%s", st->lib, m->name, f->valuestring);
+            free(m->data[ci][fi]);
+            m->data[ci][fi] = read_whole(path, &m->size[ci][fi]);
+            cr_assert_not_null(m->data[ci][fi], "%s", path);
+            m->bytes[ci] += m->size[ci][fi];
+        }
+    }
+}
+
+static uint32_t le32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+/* A binary piece: must continue the current chunk in file order, byte-exact. */
+static void on_piece(stream *st, const uint8_t *p, size_t len)
+{
+    cr_assert_geq(len, 20, "piece without a header");
+    int mid = (int)le32(p), chunk = (int)le32(p + 4), file = (int)le32(p + 8);
+    size_t off = le32(p + 12), total = le32(p + 16), n = len - 20;
+    if (n > st->max_piece)
+        st->max_piece = n;
+    mstate *m = by_mid(st, mid);
+    cr_assert_not_null(m, "piece for mid %d before its manifest", mid);
+    cr_assert_lt(chunk, m->n_chunks);
+    cr_assert_lt(file, m->n_files[chunk]);
+    cr_assert(!m->done[chunk], "chunk %d of %s sent twice", chunk, m->name);
+    if (st->cur_mid != mid || st->cur_chunk != chunk) {
+        cr_assert_eq(st->cur_mid, 0, "chunk %d of mid %d interrupted", st->cur_chunk, st->cur_mid);
+        st->cur_mid = mid;
+        st->cur_chunk = chunk;
+    }
+    for (int f = 0; f < file; f++)
+        cr_assert_eq(m->got[chunk][f], m->size[chunk][f], "file %d before file %d finished", file, f);
+    cr_assert_eq(total, m->size[chunk][file], "total of %s chunk %d file %d", m->name, chunk, file);
+    cr_assert_eq(off, m->got[chunk][file], "offset of %s chunk %d file %d", m->name, chunk, file);
+    cr_assert_leq(off + n, total);
+    cr_assert(n == 0 || !memcmp(p + 20, m->data[chunk][file] + off, n), "bytes of %s chunk %d file %d differ at %zu",
+              m->name, chunk, file, off);
+    m->got[chunk][file] += n;
+    for (int f = 0; f < m->n_files[chunk]; f++)
+        if (m->got[chunk][f] != m->size[chunk][f] || (m->size[chunk][f] == 0 && f > file))
+            return;
+    m->done[chunk] = 1;
+    st->cur_mid = 0;
+    cr_assert_lt(st->n_order, 512);
+    st->order_mid[st->n_order] = mid;
+    st->order_chunk[st->n_order++] = chunk;
+}
+
+/* Processes messages until `completes` "complete" messages have arrived in total. */
+static void run_until_complete(wsc *c, stream *st, int completes)
+{
+    while (st->completes < completes) {
+        wsc_msg msg;
+        int r = wsc_recv(c, &msg, TMO);
+        cr_assert_eq(r, 1, "stream stalled after %d chunks (%d/%d complete)", st->n_order, st->completes,
+                     completes);
+        cr_assert(msg.op == 1 || msg.op == 2, "unexpected op %d (%.*s)", msg.op, (int)msg.len, msg.data);
+        if (msg.op == 2) {
+            on_piece(st, msg.data, msg.len);
+        } else {
+            cJSON *j = cJSON_Parse((char *)msg.data);
+            cr_assert_not_null(j);
+            const char *t = jstr(j, "type");
+            if (!strcmp(t, "manifest"))
+                on_manifest(st, j);
+            else if (!strcmp(t, "complete")) {
+                st->completes++;
+                cr_expect_eq(st->cur_mid, 0, "complete in the middle of a chunk");
+                cJSON_Delete(st->last_complete);
+                st->last_complete = cJSON_Duplicate(j, 1);
+            } else if (!strcmp(t, "error"))
+                st->errors++;
+            cJSON_Delete(j);
+        }
+        wsc_msg_free(&msg);
+    }
+}
+
+static void stream_free(stream *st)
+{
+    for (int i = 0; i < st->n; i++) {
+        cJSON_Delete(st->m[i].manifest);
+        for (int c = 0; c < MAXC; c++)
+            for (int f = 0; f < MAXF; f++)
+                free(st->m[i].data[c][f]);
+    }
+    cJSON_Delete(st->last_complete);
+}
+
+/* No further message within ms. */
+static void expect_silence(wsc *c, int ms)
+{
+    wsc_msg m;
+    int r = wsc_recv(c, &m, ms);
+    cr_expect_eq(r, 0, "unexpected message op %d: %.*s", m.op, (int)(m.len > 200 ? 200 : m.len),
+                 m.op == 1 ? (char *)m.data : "");
+    wsc_msg_free(&m);
+}
+
+/* ---------------------------------------------------------------- raw HTTP */
+
+/* Plain TCP connection to 127.0.0.1:port, -1 on failure. */
+static int tcp_connect(int port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0)
+        return -1;
+    struct sockaddr_in a = {0};
+    a.sin_family = AF_INET;
+    a.sin_port = htons((uint16_t)port);
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(fd, (struct sockaddr *)&a, sizeof a) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* Case-insensitive strstr (strcasestr is a GNU extension). */
+static const char *find_nocase(const char *h, const char *n)
+{
+    for (size_t k = strlen(n); *h; h++)
+        if (!strncasecmp(h, n, k))
+            return h;
+    return NULL;
+}
+
+/* GET path with HTTP/1.1 (Connection: close; the paths are deliberately odd,
+ * so they are sent verbatim); returns the status (0: no reply), body
+ * malloc'd into *body (*blen bytes). */
+static int http_get(int port, const char *path, uint8_t **body, size_t *blen)
+{
+    int fd = tcp_connect(port);
+    cr_assert_geq(fd, 0);
+    char req[512];
+    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n", path);
+    cr_assert_eq(send(fd, req, (size_t)n, MSG_NOSIGNAL), n);
+    long long deadline = wsc_now_ms() + TMO;
+    size_t len = 0, cap = 65536, h = 0, clen = (size_t)-1; /* h: header length, 0 until seen */
+    char *buf = malloc(cap + 1);
+    for (;;) {
+        buf[len] = 0;
+        const char *e = h ? NULL : strstr(buf, "\r\n\r\n");
+        if (e) {
+            h = (size_t)(e + 4 - buf);
+            const char *cl = find_nocase(buf, "content-length:");
+            if (cl && cl < e)
+                clen = strtoul(cl + 15, NULL, 10);
+        }
+        if (h && clen != (size_t)-1 && len >= h + clen)
+            break;
+        struct pollfd p = {fd, POLLIN, 0};
+        long long left = deadline - wsc_now_ms();
+        if (left <= 0 || poll(&p, 1, (int)left) <= 0)
+            break;
+        if (cap - len < 4096)
+            buf = realloc(buf, (cap *= 2) + 1);
+        ssize_t k = recv(fd, buf + len, cap - len, 0);
+        if (k <= 0)
+            break;
+        len += (size_t)k;
+    }
+    close(fd);
+    int status = h ? atoi(buf + 9) : 0;
+    *blen = h ? len - h : 0;
+    *body = malloc(*blen + 1);
+    memcpy(*body, buf + h, *blen);
+    (*body)[*blen] = 0;
+    free(buf);
+    return status;
+}
+
+/* ================================================================ tests */
+
+static char g_lib[320], g_root[256];
+
+static void lib_setup(void)
+{
+    cr_assert(test_tmpdir(g_root, sizeof g_root));
+    snprintf(g_lib, sizeof g_lib, "%s/lib", g_root);
+    cr_assert_eq(mkdir(g_lib, 0755), 0);
+    srand((unsigned)getpid());
+}
+
+static void lib_teardown(void)
+{
+    if (g_pid > 0) {
+        kill(g_pid, SIGKILL);
+        waitpid(g_pid, NULL, 0);
+    }
+    rm_rf(g_root);
+}
+
+TestSuite(server, .init = lib_setup, .fini = lib_teardown, .timeout = 60);
+
+Test(server, list_over_http_and_websocket_skips_non_packages)
+{
+    size_t ta = make_simple(g_lib, "alpha", 3, 1000);
+    make_simple(g_lib, "beta", 2, 500);
+    make_simple(g_lib, "gamma", 1, 10);
+    char p[600], q[700];
+    snprintf(p, sizeof p, "%s/gamma", g_lib);
+    snprintf(q, sizeof q, "%s/gamma.tmp-42", g_lib); /* a package being written */
+    cr_assert_eq(rename(p, q), 0);
+    make_simple(g_lib, "delta", 1, 10);
+    snprintf(p, sizeof p, "%s/delta", g_lib);
+    snprintf(q, sizeof q, "%s/delta.old-7", g_lib); /* a package being replaced */
+    cr_assert_eq(rename(p, q), 0);
+    make_simple(g_lib, "hidden", 1, 10);
+    snprintf(p, sizeof p, "%s/hidden", g_lib);
+    snprintf(q, sizeof q, "%s/.hidden", g_lib);
+    cr_assert_eq(rename(p, q), 0);
+    uint8_t thumb[3000];
+    fill_random(thumb, sizeof thumb, 77);
+    snprintf(p, sizeof p, "%s/beta/thumbnail.png", g_lib);
+    write_file(p, thumb, sizeof thumb);
+    const char *broken[][2] = {
+        {"nomanifest", NULL},
+        {"badjson", "{\"format\":\"btf-package\",\"version\":1,"},
+        {"wrongformat", "{\"format\":\"other\",\"version\":1,\"chunks\":[{\"files\":[\"a\"]}]}"},
+        {"wrongversion", "{\"format\":\"btf-package\",\"version\":2,\"chunks\":[{\"files\":[\"a\"]}]}"},
+        {"missingfile", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[{\"files\":[\"nope.bin\"]}]}"},
+        {"escapingfile", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[{\"files\":[\"../alpha/c0_f0.bin\"]}]}"},
+        {"nochunks", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[]}"},
+        {"bad name", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[{\"files\":[\"a\"]}]}"},
+    };
+    for (size_t i = 0; i < sizeof broken / sizeof broken[0]; i++) {
+        snprintf(p, sizeof p, "%s/%s", g_lib, broken[i][0]);
+        cr_assert_eq(mkdir(p, 0755), 0);
+        snprintf(q, sizeof q, "%s/a", p);
+        write_file(q, "xyz", 3);
+        if (broken[i][1]) {
+            snprintf(q, sizeof q, "%s/manifest.json", p);
+            write_file(q, broken[i][1], strlen(broken[i][1]));
+        }
+    }
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    uint8_t *body;
+    size_t blen;
+    cr_assert_eq(http_get(s.port, "/materials", &body, &blen), 200);
+    cJSON *j = cJSON_Parse((char *)body);
+    cr_assert_not_null(j, "%s", body);
+    free(body);
+    const cJSON *mats = cJSON_GetObjectItem(j, "materials");
+    cr_assert_eq(cJSON_GetArraySize(mats), 2, "%s", cJSON_PrintUnformatted(mats));
+    const cJSON *a = cJSON_GetArrayItem(mats, 0), *b = cJSON_GetArrayItem(mats, 1);
+    cr_expect_str_eq(jstr(a, "name"), "alpha");
+    cr_expect_str_eq(jstr(b, "name"), "beta");
+    cr_expect_eq(jnum(a, "chunks"), 3);
+    cr_expect_eq(jnum(a, "bytes"), (double)ta);
+    cr_expect_eq(jnum(a, "width"), 16);
+    cr_expect_eq(jnum(a, "error"), 100.0 / 3, "final error = last chunk's lab");
+    cr_expect(cJSON_IsNull(cJSON_GetObjectItem(a, "thumbnail")));
+    cr_expect_str_eq(jstr(b, "thumbnail"), "/materials/beta/thumbnail.png");
+    cJSON_Delete(j);
+
+    cr_assert_eq(http_get(s.port, "/materials/beta/thumbnail.png", &body, &blen), 200);
+    cr_expect(blen == sizeof thumb && !memcmp(body, thumb, blen), "thumbnail bytes differ");
+    free(body);
+    /* lws folds "/../" segments before routing: whatever it makes of this, the
+     * answer is the indexed thumbnail or nothing, never a file outside the index */
+    int st0 = http_get(s.port, "/materials/../beta/thumbnail.png", &body, &blen);
+    cr_expect(st0 == 404 || (st0 == 200 && blen == sizeof thumb && !memcmp(body, thumb, blen)), "got %d", st0);
+    free(body);
+    const char *missing[] = {"/materials/alpha/thumbnail.png", "/materials/nosuch/thumbnail.png",
+                             "/materials/.beta/thumbnail.png", "/materials/beta/manifest.json",
+                             "/materials/beta/c0_f0.bin", "/materials/beta", "/materials/beta%00/thumbnail.png"};
+    for (size_t i = 0; i < sizeof missing / sizeof missing[0]; i++) {
+        int st = http_get(s.port, missing[i], &body, &blen);
+        cr_expect(st == 404 || st == 403 || st == 400 || st == 0, "%s gave %d", missing[i], st);
+        free(body);
+    }
+
+    wsc c;
+    open_ws(&c, &s);
+    cJSON *hello = expect_type(&c, "hello");
+    cr_expect_str_eq(jstr(hello, "protocol"), "btf-stream.v1");
+    cr_expect_eq(jnum(hello, "header_bytes"), 20);
+    cJSON_Delete(hello);
+    wsc_send_text(&c, "{\"type\":\"list\",\"seq\":7}");
+    j = expect_type(&c, "list");
+    cr_expect_eq(jnum(j, "seq"), 7);
+    mats = cJSON_GetObjectItem(j, "materials");
+    cr_expect_eq(cJSON_GetArraySize(mats), 2);
+    cr_expect_str_eq(jstr(cJSON_GetArrayItem(mats, 1), "name"), "beta");
+    cJSON_Delete(j);
+    /* the name of a skipped directory is not a material */
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"gamma.tmp-42\"}");
+    expect_error(&c, "unknown_material");
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"missingfile\"}");
+    expect_error(&c, "unknown_material");
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+Test(server, http_mounts_serve_client_and_shaders)
+{
+    char client[300], shaders[300], p[400];
+    snprintf(client, sizeof client, "%s/client", g_root);
+    snprintf(shaders, sizeof shaders, "%s/shaders", g_root);
+    cr_assert_eq(mkdir(client, 0755), 0);
+    cr_assert_eq(mkdir(shaders, 0755), 0);
+    snprintf(p, sizeof p, "%s/index.html", client);
+    write_file(p, "<p>hello-client</p>\n", 20);
+    snprintf(p, sizeof p, "%s/decode.glsl", shaders);
+    write_file(p, "vec3 decode() { return vec3(0.); }\n", 35);
+    srv s;
+    const char *extra[] = {"--client", client, "--shaders", shaders, NULL};
+    srv_start(&s, g_lib, extra);
+    uint8_t *body;
+    size_t n;
+    cr_expect_eq(http_get(s.port, "/", &body, &n), 200);
+    cr_expect(strstr((char *)body, "hello-client"), "%s", body);
+    free(body);
+    cr_expect_eq(http_get(s.port, "/shaders/decode.glsl", &body, &n), 200);
+    cr_expect(n == 35 && !memcmp(body, "vec3 decode()", 13), "%s", body);
+    free(body);
+    cr_expect_eq(http_get(s.port, "/shaders/../../etc/passwd", &body, &n) != 200, 1);
+    free(body);
+    srv_stop(&s);
+}
+
+Test(server, stream_every_chunk_in_order_byte_exact)
+{
+    /* 4 chunks x 2 files: some files span several fragments (128 KiB default), one is empty */
+    const size_t sizes[] = {150000, 70000, 65536, 0, 1, 131073, 90000, 12345};
+    const double lab[] = {9, 5, 3, 2};
+    size_t total = make_pkg(g_lib, "alpha", 4, 2, sizes, lab);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON *hello = expect_type(&c, "hello");
+    size_t fragment = (size_t)jnum(hello, "fragment");
+    cJSON_Delete(hello);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"seq\":3}");
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 1);
+    cr_assert_eq(st.n, 1);
+    cr_expect_eq(st.m[0].limit, 4);
+    cr_assert_eq(st.n_order, 4, "every chunk arrives");
+    for (int i = 0; i < 4; i++)
+        cr_expect_eq(st.order_chunk[i], i, "chunk %d arrived as #%d", st.order_chunk[i], i);
+    cr_expect_leq(st.max_piece, fragment, "pieces stay within the advertised fragment");
+    cr_expect_eq(st.max_piece, fragment, "large files are split at the fragment size");
+    cr_expect_eq(jnum(st.last_complete, "bytes_sent"), (double)total);
+    cr_expect_eq(jnum(st.last_complete, "chunks_sent"), 4);
+    expect_silence(&c, 150);
+    stream_free(&st);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+/* The order doc/protocol.md promises: first every material's first chunk (in
+ * subscription order), then repeatedly the next allowed chunk with the largest
+ * (error before - error after) / bytes, ties to the earlier subscription. */
+static int expected_order(const mstate *const *m, int n, int *out_mat, int *out_chunk)
+{
+    int next[8] = {0}, count = 0;
+    for (;;) {
+        int best = -1;
+        double bp = -1;
+        for (int k = 0; k < n; k++) {
+            int i = next[k];
+            if (i >= m[k]->limit)
+                continue;
+            double p = i == 0 ? INFINITY : fmax(m[k]->lab[i - 1] - m[k]->lab[i], 0) / (double)m[k]->bytes[i];
+            if (p > bp) {
+                bp = p;
+                best = k;
+            }
+        }
+        if (best < 0)
+            return count;
+        out_mat[count] = best;
+        out_chunk[count++] = next[best]++;
+    }
+}
+
+Test(server, two_materials_interleave_by_error_reduction_per_byte)
+{
+    const size_t sa[] = {10000, 10000, 10000, 10000}, sb[] = {5000, 5000, 5000, 5000};
+    const double la[] = {20, 10, 8, 7.5}, lb[] = {30, 12, 11.2, 11.1};
+    make_pkg(g_lib, "alpha", 4, 1, sa, la);
+    make_pkg(g_lib, "beta", 4, 1, sb, lb);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON_Delete(expect_type(&c, "hello"));
+    const char *msgs[] = {"{\"type\":\"subscribe\",\"material\":\"alpha\"}",
+                          "{\"type\":\"subscribe\",\"material\":\"beta\"}"};
+    wsc_send_batch(&c, msgs, 2); /* one write: the server sees both before sending */
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 2);
+    const mstate *ms[2] = {by_name(&st, "alpha"), by_name(&st, "beta")};
+    cr_assert(ms[0] && ms[1]);
+    int em[16], ec[16];
+    int n = expected_order(ms, 2, em, ec);
+    cr_assert_eq(n, 8);
+    cr_assert_eq(st.n_order, 8);
+    int interleaved = 0;
+    for (int i = 0; i < n; i++) {
+        cr_expect_eq(st.order_mid[i], ms[em[i]]->mid, "#%d: mid %d chunk %d, expected %s chunk %d", i,
+                     st.order_mid[i], st.order_chunk[i], ms[em[i]]->name, ec[i]);
+        cr_expect_eq(st.order_chunk[i], ec[i]);
+        interleaved += i > 0 && st.order_mid[i] != st.order_mid[i - 1];
+    }
+    cr_expect_geq(interleaved, 4, "the materials alternate, not one after the other");
+    stream_free(&st);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+Test(server, budgets_limit_chunks_bytes_and_error_and_can_change)
+{
+    const size_t sz[] = {10000, 10000, 10000, 10000, 10000, 10000};
+    const double lab[] = {50, 30, 20, 15, 12, 10};
+    make_pkg(g_lib, "pc", 6, 1, sz, lab);
+    make_pkg(g_lib, "pb", 6, 1, sz, lab);
+    make_pkg(g_lib, "pe", 6, 1, sz, lab);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON_Delete(expect_type(&c, "hello"));
+    const char *msgs[] = {
+        "{\"type\":\"subscribe\",\"material\":\"pc\",\"budget\":{\"chunks\":2}}",
+        "{\"type\":\"subscribe\",\"material\":\"pb\",\"budget\":{\"bytes\":25000}}",
+        "{\"type\":\"subscribe\",\"material\":\"pe\",\"budget\":{\"error\":16}}",
+    };
+    wsc_send_batch(&c, msgs, 3);
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 3);
+    mstate *pc = by_name(&st, "pc"), *pb = by_name(&st, "pb"), *pe = by_name(&st, "pe");
+    cr_assert(pc && pb && pe);
+    /* limits recomputed from the budgets: 2 chunks; 2 x 10000 <= 25000 < 3 x 10000;
+     * the first chunk whose lab <= 16 is #3 (lab 15) -> 4 chunks */
+    cr_expect_eq(pc->limit, 2);
+    cr_expect_eq(pb->limit, 2);
+    cr_expect_eq(pe->limit, 4);
+    for (int i = 0; i < 6; i++) {
+        cr_expect_eq(pc->done[i], i < 2, "pc chunk %d", i);
+        cr_expect_eq(pb->done[i], i < 2, "pb chunk %d", i);
+        cr_expect_eq(pe->done[i], i < 4, "pe chunk %d", i);
+    }
+    expect_silence(&c, 150);
+    /* raise: only the missing chunks 2..4 come */
+    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"pc\",\"budget\":{\"chunks\":5},\"seq\":9}");
+    int before = st.n_order;
+    run_until_complete(&c, &st, 4);
+    cr_expect_eq(st.n_order - before, 3);
+    for (int i = 0; i < 6; i++)
+        cr_expect_eq(pc->done[i], i < 5, "pc chunk %d after raising", i);
+    /* lower and pause: acknowledged, nothing sent */
+    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"pb\",\"budget\":{\"chunks\":0}}");
+    cJSON *ack = expect_type(&c, "budget");
+    cr_expect_eq(jnum(ack, "limit"), 0);
+    cJSON_Delete(ack);
+    cJSON_Delete(expect_type(&c, "complete"));
+    expect_silence(&c, 150);
+    /* unsubscribe: acknowledged; a budget for it is then an error */
+    wsc_send_text(&c, "{\"type\":\"unsubscribe\",\"material\":\"pe\"}");
+    cJSON *u = expect_type(&c, "unsubscribed");
+    cr_expect_eq(jnum(u, "mid"), pe->mid);
+    cJSON_Delete(u);
+    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"pe\",\"budget\":{}}");
+    expect_error(&c, "not_subscribed");
+    stream_free(&st);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+Test(server, resume_after_reconnect_sends_only_missing_chunks)
+{
+    const size_t sz[] = {70000, 3000, 4000, 5000, 6000};
+    const double lab[] = {9, 7, 5, 4, 3};
+    make_pkg(g_lib, "alpha", 5, 1, sz, lab);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    open_ws(&c, &s);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"budget\":{\"chunks\":2}}");
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 1);
+    cr_assert_eq(st.n_order, 2);
+    char etag[40];
+    snprintf(etag, sizeof etag, "%s", st.m[0].etag);
+    cr_assert_eq(strlen(etag), 16);
+    stream_free(&st);
+    wsc_close(&c);
+
+    /* reconnect holding chunks 0 and 1 */
+    open_ws(&c, &s);
+    char msg[300];
+    snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"have\":[0,1],\"etag\":\"%s\"}", etag);
+    wsc_send_text(&c, msg);
+    stream st2 = {.lib = g_lib};
+    run_until_complete(&c, &st2, 1);
+    cr_expect(st2.m[0].resumed);
+    cr_expect_eq(st2.m[0].held, 2);
+    cr_assert_eq(st2.n_order, 3, "only the 3 missing chunks");
+    for (int i = 0; i < 3; i++)
+        cr_expect_eq(st2.order_chunk[i], i + 2);
+    stream_free(&st2);
+    wsc_close(&c);
+
+    /* a stale etag: "have" is ignored and everything comes again */
+    open_ws(&c, &s);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"have\":[0,1],\"etag\":\"0000000000000000\"}");
+    stream st3 = {.lib = g_lib};
+    run_until_complete(&c, &st3, 1);
+    cr_expect(!st3.m[0].resumed);
+    cr_expect_eq(st3.n_order, 5);
+    stream_free(&st3);
+    /* an index the material does not have */
+    snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"have\":[99],\"etag\":\"%s\"}", etag);
+    wsc_send_text(&c, "{\"type\":\"unsubscribe\",\"material\":\"alpha\"}");
+    cJSON_Delete(expect_type(&c, "unsubscribed"));
+    wsc_send_text(&c, msg);
+    expect_error(&c, "bad_field");
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+Test(server, bad_messages_get_error_frames_and_the_connection_stays)
+{
+    make_simple(g_lib, "alpha", 2, 3000);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON_Delete(expect_type(&c, "hello"));
+    char longname[400] = "{\"type\":\"subscribe\",\"material\":\"";
+    memset(longname + strlen(longname), 'a', 200);
+    strcat(longname, "\"}");
+    const char *cases[][2] = {
+        {"{bad", "bad_json"},
+        {"[1,2]", "bad_json"},
+        {"{\"type\":\"list\"} trailing", "bad_json"},
+        {"{\"type\":42}", "bad_type"},
+        {"{\"kind\":\"list\"}", "bad_type"},
+        {"{\"type\":\"explode\"}", "unknown_type"},
+        {"{\"type\":\"subscribe\",\"material\":\"../alpha\"}", "bad_name"},
+        {"{\"type\":\"subscribe\",\"material\":\"/etc/passwd\"}", "bad_name"},
+        {"{\"type\":\"subscribe\",\"material\":\"..\"}", "bad_name"},
+        {"{\"type\":\"subscribe\",\"material\":\"\"}", "bad_name"},
+        {"{\"type\":\"subscribe\",\"material\":7}", "bad_name"},
+        {"{\"type\":\"subscribe\",\"material\":\"alpha\\u0000/../x\"}", "bad_json"},
+        {longname, "bad_name"},
+        {"{\"type\":\"subscribe\",\"material\":\"nosuch\"}", "unknown_material"},
+        {"{\"type\":\"budget\",\"material\":\"alpha\",\"budget\":{\"chunks\":1}}", "not_subscribed"},
+        {"{\"type\":\"unsubscribe\",\"material\":\"alpha\"}", "not_subscribed"},
+        {"{\"type\":\"subscribe\",\"material\":\"alpha\",\"budget\":{\"chunks\":-1}}", "bad_field"},
+        {"{\"type\":\"subscribe\",\"material\":\"alpha\",\"budget\":{\"bytes\":1.5}}", "bad_field"},
+        {"{\"type\":\"subscribe\",\"material\":\"alpha\",\"budget\":{\"error\":\"low\"}}", "bad_field"},
+        {"{\"type\":\"subscribe\",\"material\":\"alpha\",\"budget\":[]}", "bad_field"},
+        {"{\"type\":\"subscribe\",\"material\":\"alpha\",\"have\":\"all\"}", "bad_field"},
+        {"{\"type\":\"subscribe\",\"material\":\"alpha\",\"have\":[-1]}", "bad_field"},
+        {"{\"type\":\"list\",\"seq\":\"x\"}", "bad_field"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        wsc_send_text(&c, cases[i][0]);
+        expect_error(&c, cases[i][1]);
+    }
+    /* a raw NUL byte inside the text */
+    wsc_send_frame(&c, 1, 1, "{\"type\":\"list\"}\0", 16);
+    expect_error(&c, "bad_json");
+    /* oversized: one frame, and the same split over three fragments */
+    size_t big = 20000;
+    char *huge = malloc(big + 1);
+    memset(huge, ' ', big);
+    memcpy(huge, "{\"type\":\"ping\",\"pad\":\"", 22);
+    memcpy(huge + big - 2, "\"}", 2);
+    huge[big] = 0;
+    wsc_send_text(&c, huge);
+    expect_error(&c, "too_large");
+    wsc_send_frame(&c, 1, 0, huge, 8000);
+    wsc_send_frame(&c, 0, 0, huge + 8000, 8000);
+    wsc_send_frame(&c, 0, 1, huge + 16000, big - 16000);
+    expect_error(&c, "too_large");
+    free(huge);
+    /* a valid message in two fragments works */
+    wsc_send_frame(&c, 1, 0, "{\"type\":\"pi", 11);
+    wsc_send_frame(&c, 0, 1, "ng\",\"seq\":5}", 12);
+    cJSON *pong = expect_type(&c, "pong");
+    cr_expect_eq(jnum(pong, "seq"), 5);
+    cJSON_Delete(pong);
+    /* still fully usable, and a second subscribe is refused */
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\"}");
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 1);
+    cr_expect_eq(st.n_order, 2);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\"}");
+    expect_error(&c, "already_subscribed");
+    stream_free(&st);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+/* Reads until the server closes; returns the close code (-1: EOF without a close frame). */
+static int wait_close(wsc *c, char *reason, size_t n)
+{
+    for (;;) {
+        wsc_msg m;
+        int r = wsc_recv(c, &m, TMO);
+        cr_assert_neq(r, 0, "server did not close the connection");
+        if (r < 0)
+            return -1;
+        if (m.op == 8) {
+            snprintf(reason, n, "%s", (char *)m.data);
+            wsc_msg_free(&m);
+            return m.close_code;
+        }
+        wsc_msg_free(&m);
+    }
+}
+
+static void expect_healthy(const srv *s)
+{
+    wsc c;
+    open_ws(&c, s);
+    wsc_send_text(&c, "{\"type\":\"ping\",\"seq\":1}");
+    cJSON_Delete(expect_type(&c, "pong"));
+    wsc_close(&c);
+}
+
+Test(server, binary_frames_and_bad_utf8_close_with_a_reason_others_unaffected)
+{
+    make_simple(g_lib, "alpha", 2, 3000);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc other;
+    open_ws(&other, &s);
+    cJSON_Delete(expect_type(&other, "hello"));
+    wsc c;
+    open_ws(&c, &s);
+    wsc_send_frame(&c, 2, 1, "\x01\x02\x03", 3);
+    char reason[128];
+    cr_expect_eq(wait_close(&c, reason, sizeof reason), 1003);
+    cr_expect(strstr(reason, "binary"), "reason: %s", reason);
+    wsc_close(&c);
+    open_ws(&c, &s);
+    wsc_send_frame(&c, 1, 1, "{\"type\":\"\xff\xfe\"}", 13);
+    int code = wait_close(&c, reason, sizeof reason);
+    cr_expect(code == 1007 || code == 1002, "invalid UTF-8 closes with 1007, got %d", code);
+    wsc_close(&c);
+    /* the other connection streams as if nothing happened */
+    wsc_send_text(&other, "{\"type\":\"subscribe\",\"material\":\"alpha\"}");
+    stream st = {.lib = g_lib};
+    run_until_complete(&other, &st, 1);
+    cr_expect_eq(st.n_order, 2);
+    stream_free(&st);
+    wsc_close(&other);
+    srv_stop(&s);
+}
+
+Test(server, unknown_or_missing_subprotocol_is_refused)
+{
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    char st[128];
+    cr_expect_neq(wsc_open(&c, s.port, "btf-stream.v0", 0, st, sizeof st), 0, "v0 accepted: %s", st);
+    wsc_close(&c);
+    cr_expect_neq(wsc_open(&c, s.port, NULL, 0, st, sizeof st), 0, "no subprotocol accepted: %s", st);
+    wsc_close(&c);
+    expect_healthy(&s);
+    srv_stop(&s);
+}
+
+Test(server, request_and_subscribe_floods_are_bounded)
+{
+    for (int i = 0; i < 40; i++) {
+        char name[16];
+        snprintf(name, sizeof name, "m%02d", i);
+        make_simple(g_lib, name, 1, 100);
+    }
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    /* 40 subscriptions at once: 32 accepted, the rest refused with an error */
+    wsc c;
+    open_ws(&c, &s);
+    const char *msgs[40];
+    char buf[40][80];
+    for (int i = 0; i < 40; i++) {
+        snprintf(buf[i], sizeof buf[i], "{\"type\":\"subscribe\",\"material\":\"m%02d\"}", i);
+        msgs[i] = buf[i];
+    }
+    wsc_send_batch(&c, msgs, 40);
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 32);
+    cr_expect_eq(st.n, 32, "32 manifests");
+    cr_expect_eq(st.errors, 8, "8 too_many_subscriptions errors");
+    cr_expect_eq(st.n_order, 32);
+    stream_free(&st);
+    wsc_close(&c);
+
+    /* 1000 pings (4x the burst allowance) in one corked write, without
+     * reading a reply: closed with a reason. 1000 x 21 bytes stays below half
+     * of the initial loopback window, so the kernel holds all of them until
+     * the batch is written; with more, the server could close (and reset)
+     * the connection while the client is still writing, and libwebsockets
+     * drops a connection whose write fails without reading the close frame. */
+    open_ws(&c, &s);
+    enum { N_PINGS = 1000 };
+    const char **pings = malloc(N_PINGS * sizeof *pings);
+    for (int i = 0; i < N_PINGS; i++)
+        pings[i] = "{\"type\":\"ping\"}";
+    wsc_send_batch(&c, pings, N_PINGS);
+    free(pings);
+    char reason[128];
+    cr_expect_eq(wait_close(&c, reason, sizeof reason), 1008);
+    cr_expect(strlen(reason) > 0, "close without a reason");
+    wsc_close(&c);
+    expect_healthy(&s);
+    srv_stop(&s);
+}
+
+Test(server, stalled_client_is_dropped_and_others_keep_streaming)
+{
+    size_t sizes[4] = {6u << 20, 6u << 20, 6u << 20, 6u << 20};
+    const double lab[] = {4, 3, 2, 1};
+    size_t total = make_pkg(g_lib, "big", 4, 1, sizes, lab);
+    srv s;
+    const char *extra[] = {"--stall-timeout", "1", NULL};
+    srv_start(&s, g_lib, extra);
+    /* the slow client has its own lws context, which nothing services until
+     * the drain below: nothing is read from its socket. Its receive buffer is
+     * fixed at 128 KiB (no autotuning; kernel + server buffers stay far below
+     * the 24 MiB package), yet above the loopback MSS so the drain is not
+     * held up by small-window avoidance. */
+    wsc slow;
+    char st[128];
+    cr_assert_eq(wsc_open(&slow, s.port, "btf-stream.v1", 131072, st, sizeof st), 0, "%s", st);
+    wsc_send_text(&slow, "{\"type\":\"subscribe\",\"material\":\"big\"}");
+    usleep(300000);
+    /* meanwhile another client gets the whole package */
+    wsc fast;
+    open_ws(&fast, &s);
+    wsc_send_text(&fast, "{\"type\":\"subscribe\",\"material\":\"big\"}");
+    stream sf = {.lib = g_lib};
+    long long t0 = wsc_now_ms();
+    run_until_complete(&fast, &sf, 1);
+    cr_expect_eq(sf.n_order, 4);
+    cr_expect_lt(wsc_now_ms() - t0, 3000, "the stalled client slowed the other one down");
+    stream_free(&sf);
+    wsc_close(&fast);
+    sleep(3); /* > stall timeout + lws's 1 s timer granularity */
+    /* now drain: the connection must end before the package is complete */
+    size_t got = 0;
+    for (;;) {
+        wsc_msg m;
+        int r = wsc_recv(&slow, &m, TMO);
+        cr_assert_neq(r, 0, "stalled client was not dropped");
+        if (r < 0 || m.op == 8)
+            break;
+        if (m.op == 2)
+            got += m.len - 20;
+        wsc_msg_free(&m);
+    }
+    cr_expect_lt(got, total, "received %zu of %zu bytes", got, total);
+    wsc_close(&slow);
+    expect_healthy(&s);
+    srv_stop(&s);
+}
+
+Test(server, packages_added_later_appear_and_removed_ones_finish_streaming)
+{
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON_Delete(expect_type(&c, "hello"));
+    wsc_send_text(&c, "{\"type\":\"list\"}");
+    cJSON *j = expect_type(&c, "list");
+    cr_expect_eq(cJSON_GetArraySize(cJSON_GetObjectItem(j, "materials")), 0);
+    cJSON_Delete(j);
+    /* a package being written (temp name) is not listed ... */
+    make_simple(g_lib, "late", 3, 40000);
+    char p[600], q[600];
+    snprintf(p, sizeof p, "%s/late", g_lib);
+    snprintf(q, sizeof q, "%s/late.tmp-99", g_lib);
+    cr_assert_eq(rename(p, q), 0);
+    usleep(250000); /* on-demand rescans are rate limited to one per 200 ms */
+    wsc_send_text(&c, "{\"type\":\"list\"}");
+    j = expect_type(&c, "list");
+    cr_expect_eq(cJSON_GetArraySize(cJSON_GetObjectItem(j, "materials")), 0);
+    cJSON_Delete(j);
+    /* ... and appears once renamed into place, without a restart */
+    cr_assert_eq(rename(q, p), 0);
+    usleep(250000);
+    wsc_send_text(&c, "{\"type\":\"list\"}");
+    j = expect_type(&c, "list");
+    cr_expect_eq(cJSON_GetArraySize(cJSON_GetObjectItem(j, "materials")), 1);
+    cJSON_Delete(j);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"late\",\"budget\":{\"chunks\":1}}");
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 1); /* st now holds the files as they were on disk */
+    /* removed from the library while subscribed: the stream still completes */
+    rm_rf(p);
+    usleep(250000);
+    wsc_send_text(&c, "{\"type\":\"list\"}");
+    j = expect_type(&c, "list");
+    cr_expect_eq(cJSON_GetArraySize(cJSON_GetObjectItem(j, "materials")), 0);
+    cJSON_Delete(j);
+    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"late\",\"budget\":{}}");
+    run_until_complete(&c, &st, 2);
+    cr_expect_eq(st.n_order, 3, "all 3 chunks, byte-exact, after the package was deleted");
+    stream_free(&st);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+/* Runs a built program with arguments; returns its exit status (-1 if it did not exit). */
+static int run_prog(const char *prog, const char *const *args, char *out, size_t n)
+{
+    char bin[512];
+    btfd_binary(bin, sizeof bin, prog);
+    const char *argv[16] = {bin};
+    int argc = 1;
+    for (int i = 0; args[i] && argc < 15; i++)
+        argv[argc++] = args[i];
+    argv[argc] = NULL;
+    int fds[2];
+    cr_assert_eq(pipe(fds), 0);
+    pid_t pid = fork();
+    if (pid == 0) {
+        dup2(fds[1], 1);
+        dup2(fds[1], 2);
+        close(fds[0]);
+        close(fds[1]);
+        execv(bin, (char *const *)argv);
+        _exit(127);
+    }
+    close(fds[1]);
+    size_t len = 0;
+    ssize_t k;
+    while (len < n - 1 && (k = read(fds[0], out + len, n - 1 - len)) > 0)
+        len += (size_t)k;
+    out[len] = 0;
+    close(fds[0]);
+    int status;
+    waitpid(pid, &status, 0);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+Test(server, command_line_errors)
+{
+    char out[4096];
+    const char *none[] = {NULL};
+    cr_expect_eq(run_prog("btfd", none, out, sizeof out), 2, "%s", out);
+    cr_expect(strstr(out, "--library"), "%s", out);
+    const char *badport[] = {"--library", g_lib, "--port", "http", NULL};
+    cr_expect_eq(run_prog("btfd", badport, out, sizeof out), 2, "%s", out);
+    const char *nolib[] = {"--library", "/nonexistent/btf-library", "--port", "0", NULL};
+    cr_expect_eq(run_prog("btfd", nolib, out, sizeof out), 1, "%s", out);
+    cr_expect(strstr(out, "/nonexistent/btf-library"), "message names the directory: %s", out);
+}
+
+Test(server, fuzz_corpus_replays_through_the_request_parser)
+{
+    char corpus[600], out[4096];
+    const char *root = getenv("BTF_ROOT");
+    snprintf(corpus, sizeof corpus, "%s/fuzz/corpus/request", root ? root : ".");
+    const char *args[] = {corpus, NULL};
+    cr_expect_eq(run_prog("fuzz_request_replay", args, out, sizeof out), 0, "%s", out);
+    const char *n = strstr(out, "replay: ");
+    cr_assert_not_null(n, "%s", out);
+    cr_expect_geq(atoi(n + 8), 20, "the saved corpus has inputs: %s", out);
+}
