@@ -41,12 +41,7 @@ struct btf_taps {
 
 int btf_wrap_or_clamp(int i, int n)
 {
-    if (u_btf_wrap != 0) {
-        if (i < 0) // GLSL ES leaves % of negative operands undefined
-            i += n * ((-i) / n + 1);
-        return i % n;
-    }
-    return clamp(i, 0, n - 1);
+    return u_btf_wrap != 0 ? btf_divmod(i, n).y : clamp(i, 0, n - 1);
 }
 
 btf_taps btf_texel_taps(vec2 uv)
@@ -84,11 +79,11 @@ float btf_tex_q(int j, ivec2 p)
     return round(s.r * 255.0);
 }
 
-// Filtered, dequantised texture value of chunk j in block b.
-float btf_tex(int j, int b, btf_taps t)
+// Filtered, dequantised texture value of chunk j in block b, whose atlas tile starts
+// at texel `tile`.
+float btf_tex(int j, int b, ivec2 tile, btf_taps t)
 {
     vec2 range = texelFetch(u_btf_range, ivec2(b, j), 0).xy;
-    ivec2 tile = ivec2(b % u_btf_atlas_cols, b / u_btf_atlas_cols) * u_btf_size;
     float s = 0.0;
     for (int i = 0; i < 4; i++) {
         if (i >= t.n)
@@ -109,10 +104,12 @@ vec3 btf_decode(vec2 uv, vec3 light, vec3 view)
             continue;
         int vi = iv.idx[a];
         int b = int(texelFetch(u_btf_view_block, ivec2(vi, 0), 0).r);
+        // atlas tile of block b (column, row), once per view
+        ivec2 tile = btf_divmod(b, u_btf_atlas_cols).yx * u_btf_size;
         for (int j = 0; j < BTF_MAX_CHUNKS; j++) {
             if (j >= u_btf_chunks)
                 break;
-            float t = btf_tex(j, b, taps);
+            float t = btf_tex(j, b, tile, taps);
             vec3 s = vec3(0.0); // sum over the 3 lights of wl * Wt_j[vi][li]
             for (int e = 0; e < 3; e++)
                 if (il.w[e] != 0.0)

@@ -41,6 +41,21 @@ struct btf_dirs_pair {
     vec3 vhi;
 };
 
+// (floor(a / n), a - n * floor(a / n)) for n > 0 and |a| < 2^24: the quotient in
+// float (GPU division may be off by one ulp, the two corrections fix that), because
+// integer division runs one lane at a time on CPU rasterizers (llvmpipe), and GLSL ES
+// leaves % of negative operands undefined. Used by btf_decode.glsl too.
+ivec2 btf_divmod(int a, int n)
+{
+    int q = int(floor(float(a) / float(n)));
+    int m = a - n * q;
+    q -= m < 0 ? 1 : 0;
+    m += m < 0 ? n : 0;
+    q += m >= n ? 1 : 0;
+    m -= m >= n ? n : 0;
+    return ivec2(q, clamp(m, 0, n - 1)); // in range even where |a| >= 2^24 is inexact
+}
+
 vec3 btf_dirs_vec(float theta_deg, float phi_deg)
 {
     float t = theta_deg * BTF_DEG2RAD, p = phi_deg * BTF_DEG2RAD;
@@ -63,9 +78,7 @@ vec3 btf_dirs_vertex(btf_dirset d, int r, int k, out int idx)
 {
     vec4 g = d.rings[r];
     int n = int(g.y);
-    if (k < 0) // GLSL ES leaves % of negative operands undefined
-        k += n * ((-k) / n + 1);
-    int m = k % n;
+    int m = btf_divmod(k, n).y;
     idx = int(g.w) + m;
     return btf_dirs_vec(g.x, g.z + float(m) * (360.0 / float(n)));
 }
@@ -118,25 +131,23 @@ btf_interp btf_dirs_azimuth(vec3 p, btf_dirs_pair q)
     return r;
 }
 
-// P between ring lo (inner) and lo + 1 (outer): walk the band's zipper triangulation
-// from the vertex pair current at phi until P lies left of the walk's new cross edge.
-btf_interp btf_dirs_band(btf_dirset d, int lo, vec3 p, float phi)
+// P between ring lo (inner) and lo + 1 (outer), whose vertex pairs current at phi are
+// qi and qo: walk the band's zipper triangulation from those vertices until P lies
+// left of the walk's new cross edge. One vertex per step (the ring and index are
+// chosen first): CPU rasterizers such as llvmpipe run both sides of every branch.
+btf_interp btf_dirs_band(btf_dirset d, int lo, vec3 p, float phi, btf_dirs_pair qi, btf_dirs_pair qo)
 {
     vec4 g_in = d.rings[lo], g_out = d.rings[lo + 1];
     int kl = btf_dirs_vertex_below(g_in, phi), ku = btf_dirs_vertex_below(g_out, phi);
-    int il, iu, ix;
-    vec3 vl = btf_dirs_vertex(d, lo, kl, il), vu = btf_dirs_vertex(d, lo + 1, ku, iu);
+    int il = qi.lo, iu = qo.lo, ix;
+    vec3 vl = qi.vlo, vu = qo.vlo;
     btf_interp r;
     r.idx = ivec3(il);
     r.w = vec3(1.0, 0.0, 0.0);
     for (int s = 0; s < BTF_INTERP_MAX_STEPS; s++) {
         bool lower_next =
             btf_dirs_vertex_phi(g_in, kl + 1, phi) - btf_dirs_vertex_phi(g_out, ku + 1, phi) <= BTF_PHI_TIE_DEG;
-        vec3 x;
-        if (lower_next)
-            x = btf_dirs_vertex(d, lo, kl + 1, ix);
-        else
-            x = btf_dirs_vertex(d, lo + 1, ku + 1, ix);
+        vec3 x = btf_dirs_vertex(d, lower_next ? lo : lo + 1, lower_next ? kl + 1 : ku + 1, ix);
         r = btf_dirs_tri(p, il, vl, iu, vu, ix, x);
         // the next cross edge runs from the new inner vertex to the new outer one;
         // det(P, inner, outer) > 0 means P lies beyond it (larger phi)
@@ -171,17 +182,28 @@ btf_interp btf_dirs_interp(btf_dirset d, float theta_deg, float phi_deg)
         if (d.rings[r].x <= t)
             lo = r;
     }
-    // 3. the next ring's polygon edge may bulge past P: then P belongs one band out
-    if (lo + 1 < d.n_rings) {
-        btf_dirs_pair q = btf_dirs_ring_pair(d, lo + 1, phi);
-        if (!(btf_dirs_det(p, q.vlo, q.vhi) > 0.0))
-            lo++;
-    }
+    // 3. the next ring's polygon edge may bulge past P: then P belongs one band out.
+    // qa = vertex pair of ring lo + 1 at phi (of the last ring when there is none).
+    int n = d.n_rings;
+    btf_dirs_pair qa = btf_dirs_ring_pair(d, min(lo + 1, n - 1), phi);
+    bool moved = lo + 1 < n && !(btf_dirs_det(p, qa.vlo, qa.vhi) > 0.0);
+    // the other pair the cases below need: ring lo + 2 when P moved out, else ring lo
+    btf_dirs_pair qb = btf_dirs_ring_pair(d, clamp(moved ? lo + 2 : lo, 0, n - 1), phi);
+    if (moved)
+        lo++;
     // 4. inside the innermost polygon (no pole) or beyond the outermost one
-    if (lo < 0 || lo == d.n_rings - 1)
-        return btf_dirs_azimuth(p, btf_dirs_ring_pair(d, lo < 0 ? 0 : lo, phi));
+    // (no ?: on structs: WebGL forbids it)
+    btf_dirs_pair qi = qb, qo = qa; // inner ring lo, outer ring lo + 1
+    if (moved) {
+        qi = qa;
+        qo = qb;
+    }
+    if (lo < 0)
+        return btf_dirs_azimuth(p, qa);
+    if (lo == n - 1)
+        return btf_dirs_azimuth(p, qi);
     // 5. between two rings
-    return btf_dirs_band(d, lo, p, phi);
+    return btf_dirs_band(d, lo, p, phi, qi, qo);
 }
 
 btf_interp btf_dirs_interp_vec(btf_dirset d, vec3 v)

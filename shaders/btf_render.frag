@@ -3,9 +3,13 @@
 // surface's local frame (x = tangent, y = cross(normal, tangent) * w, z = normal)
 // and passed to btf_decode; the result is the BTF's own value (sRGB-encoded,
 // cos(theta_light) included, as measured), clamped to 0..1 for display.
+// With u_horizon_fade = 1 a light beyond the outermost measured light ring (where
+// the decoder holds that ring's values) fades linearly in cos(theta_light) to 0 at
+// the horizon and stays 0 below it: no lit back side on curved objects.
 uniform vec3 u_camera;   // world position of the eye
 uniform vec4 u_light;    // w = 0: direction towards a distant light; w = 1: light position
 uniform vec2 u_uv_scale; // material repeats across the surface (set u_btf_wrap = 1 when > 1)
+uniform int u_horizon_fade; // 0: decoder value as is; 1: fade (btf render's default)
 in vec3 v_world;
 in vec3 v_normal;
 in vec4 v_tangent;
@@ -17,6 +21,18 @@ layout(location = 2) out vec4 o_light; // local light direction (not normalised)
 layout(location = 3) out vec4 o_view;  // local view direction (not normalised)
 #endif
 
+// 1 inside the outermost measured light ring; beyond it cos(theta_l) / cos(theta_outer),
+// reaching 0 at the horizon; 0 below the horizon.
+float btf_render_horizon(vec3 l)
+{
+    float len = length(l);
+    float c_outer = cos(u_btf_lights.rings[max(u_btf_lights.n_rings - 1, 0)].x * BTF_DEG2RAD);
+    if (!(len > 0.0) || !(c_outer > 1e-3))
+        return 1.0;
+    float c = l.z / len;
+    return c >= c_outer ? 1.0 : max(c, 0.0) / c_outer;
+}
+
 void main()
 {
     vec3 n = normalize(v_normal);
@@ -27,7 +43,10 @@ void main()
     vec3 l = vec3(dot(L, t), dot(L, b), dot(L, n));
     vec3 v = vec3(dot(V, t), dot(V, b), dot(V, n));
     vec2 uv = v_uv * u_uv_scale;
-    o_color = vec4(clamp(btf_decode(uv, l, v), 0.0, 1.0), 1.0);
+    vec3 rgb = btf_decode(uv, l, v);
+    if (u_horizon_fade != 0)
+        rgb *= btf_render_horizon(l);
+    o_color = vec4(clamp(rgb, 0.0, 1.0), 1.0);
 #ifdef BTF_RENDER_DEBUG
     o_uv = vec4(uv, 0.0, 0.0);
     o_light = vec4(l, 0.0);

@@ -1,0 +1,684 @@
+/* bench_shader.c - fragment cost of the package shader against two baselines, at
+ * 1280x720 in the headless EGL harness, printed as `name value unit` lines:
+ *
+ *   shader   the product `render` program (shaders/btf_render.*, btf_decode.glsl)
+ *            with C = 1, 2, 4, 8, 16 chunks of one package;
+ *   thesis   the 2015 thesis's approach (shaders/bench/thesis.frag, benchmark only):
+ *            precomputed 512x512 direction/weight lookup maps, 8-bit textures with
+ *            4 components per texel, 8-bit weights, WebGL1-style texture() fetches;
+ *   textured a plain textured surface, one texture() fetch (shaders/bench/textured.frag).
+ *
+ * All three draw the same plane mesh (btf_render.vert, btf_render.h conventions),
+ * camera (30, -90, 1.1), fov 40, the material repeated 8 x 8 so it covers the whole
+ * viewport, distant light (40, -30), nearest texels (the thesis's filtering).
+ * Material: generated knit 64x64 sampled at UBO2003's 81 x 81 directions,
+ * compressed with k = 3, 16 components, 8-bit textures; C = the first C chunks.
+ *
+ * ms/frame: median of 5 frames after one warm-up (glFinish each), llvmpipe is a CPU
+ * rasterizer: compare the ratios (`*_ratio` lines), not the absolute numbers.
+ * Error: RGB RMSE and max (0..255 scale) of the RGBA8 output against the CPU
+ * reference btf_decode (float, same package, same C, clamped to 0..1) at every 4th
+ * pixel in x and y, evaluated at the uv / local light / local view that the product
+ * program reports through its debug outputs (tests/test_render.c checks those).
+ * BENCH_MAX_C=N limits the run to C <= N (quick checks).
+ * Fetches and ALU per fragment: counted from the shader sources (see the
+ * `fetches`/`alu` comments below; this Mesa build prints no shader statistics);
+ * texture fetches exactly, ALU as scalar operations on the path taken (a vec4
+ * multiply-add = 4, sin/cos/atan/sqrt = 1 each), an estimate. llvmpipe runs both
+ * sides of every branch under a mask, so there the cost follows the code size of
+ * the branchy product shader more than these path counts.
+ */
+#include "btf.h"
+#include "btf_gen.h"
+#include "btf_gl.h"
+#include "btf_gl_package.h"
+#include "btf_package.h"
+#include "btf_render.h"
+#include "btf_shader.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <time.h>
+#include <unistd.h>
+
+#define BW 1280
+#define BH 720
+#define SUB 4        /* error sample stride */
+#define MAT 64       /* material side */
+#define NCOMP 16     /* components in the package */
+#define MAPN 512     /* thesis lookup map side */
+#define FRAMES 5
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
+}
+
+/* CPU seconds (user + system, all threads: llvmpipe's too) of this process so far. */
+static double cpu_s(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec +
+           1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+static int die(const char *what, const btf_error *err)
+{
+    fprintf(stderr, "bench_shader: %s: %s\n", what, err ? err->msg : "");
+    return 1;
+}
+
+/* ---------------------------------------------------------------- package */
+
+static void remove_dir(const char *dir)
+{
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    char path[1200];
+    while (d && (e = readdir(d)))
+        if (e->d_name[0] != '.') {
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            remove(path);
+        }
+    if (d)
+        closedir(d);
+    rmdir(dir);
+}
+
+static btf_result make_package(const char *dir, btf_error *err)
+{
+    btf_dirset d = btf_dirset_ubo2003();
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
+    btf *m = NULL;
+    btf_result r = btf_gen_create(&gp, MAT, MAT, &d, &d, BTF_F32, &m, err);
+    btf_pca_options po = {0};
+    po.k = 3;
+    po.components = NCOMP;
+    btf_package_options ko = {0};
+    ko.bits = 8;
+    if (r == BTF_OK)
+        r = btf_package_compress(m, &po, &ko, dir, NULL, err);
+    btf_free(m);
+    return r;
+}
+
+/* ---------------------------------------------------------------- programs */
+
+static char *read_text(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    if (s && fread(s, 1, (size_t)n, f) != (size_t)n) {
+        free(s);
+        s = NULL;
+    }
+    if (s)
+        s[n] = '\0';
+    fclose(f);
+    return s;
+}
+
+static GLuint compile_stage(const btf_gl_api *f, GLenum stage, const char *src, const char *name)
+{
+    GLuint s = f->CreateShader(stage);
+    f->ShaderSource(s, 1, &src, NULL);
+    f->CompileShader(s);
+    GLint ok = 0;
+    f->GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char log[4096];
+        f->GetShaderInfoLog(s, sizeof log, NULL, log);
+        fprintf(stderr, "bench_shader: %s does not compile:\n%s\n", name, log);
+        f->DeleteShader(s);
+        return 0;
+    }
+    return s;
+}
+
+/* The product vertex stage (btf_render.vert, assembled as the manifest says) with a
+ * benchmark fragment file from shaders/bench/, after the same prefix lines. */
+static GLuint build_bench_program(btf_gl *gl, const char *frag_file)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    btf_shader_desc sd = {.program = "render"};
+    btf_shader_source *vs = NULL;
+    btf_error err = {{0}};
+    if (btf_shader_assemble(&sd, BTF_SHADER_VERTEX, &vs, &err) != BTF_OK) {
+        die("assembling btf_render.vert", &err);
+        return 0;
+    }
+    const char *root = getenv("BTF_ROOT");
+    char path[1024];
+    snprintf(path, sizeof path, "%s/shaders/bench/%s", root ? root : ".", frag_file);
+    char *body = read_text(path), *src = NULL;
+    const char *marker = strstr(vs->text, "// ---- ");
+    size_t np = marker ? (size_t)(marker - vs->text) : 0; /* the prefix lines */
+    if (body && marker && (src = malloc(np + strlen(body) + 64))) {
+        memcpy(src, vs->text, np);
+        sprintf(src + np, "// ---- bench/%s\n%s", frag_file, body);
+    }
+    GLuint prog = 0;
+    GLuint v = src ? compile_stage(f, GL_VERTEX_SHADER, vs->text, "btf_render.vert") : 0;
+    GLuint fr = v ? compile_stage(f, GL_FRAGMENT_SHADER, src, frag_file) : 0;
+    if (!src)
+        fprintf(stderr, "bench_shader: cannot read %s\n", path);
+    if (v && fr) {
+        prog = f->CreateProgram();
+        f->AttachShader(prog, v);
+        f->AttachShader(prog, fr);
+        f->LinkProgram(prog);
+        GLint ok = 0;
+        f->GetProgramiv(prog, GL_LINK_STATUS, &ok);
+        if (!ok) {
+            fprintf(stderr, "bench_shader: %s does not link\n", frag_file);
+            f->DeleteProgram(prog);
+            prog = 0;
+        }
+    }
+    if (v)
+        f->DeleteShader(v);
+    if (fr)
+        f->DeleteShader(fr);
+    free(body);
+    free(src);
+    btf_shader_source_free(vs);
+    return prog;
+}
+
+/* ---------------------------------------------------------------- scene */
+
+/* The plane mesh in a VAO, shared by every program. */
+typedef struct scene {
+    GLuint vao, vbo, ibo;
+    int n_indices;
+    btf_render_params rp;
+    btf_render_camera cam;
+} scene;
+
+static int scene_create(btf_gl *gl, scene *s)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    btf_render_mesh *m = NULL;
+    btf_error err = {{0}};
+    if (btf_render_mesh_create(BTF_RENDER_PLANE, 0, &m, &err) != BTF_OK)
+        return die("mesh", &err);
+    f->GenVertexArrays(1, &s->vao);
+    f->BindVertexArray(s->vao);
+    f->GenBuffers(1, &s->vbo);
+    f->GenBuffers(1, &s->ibo);
+    f->BindBuffer(GL_ARRAY_BUFFER, s->vbo);
+    f->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(m->n_vertices * BTF_RENDER_VERTEX_FLOATS * sizeof(float)),
+                  m->vertices, GL_STATIC_DRAW);
+    f->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, s->ibo);
+    f->BufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(m->n_indices * sizeof(unsigned)), m->indices,
+                  GL_STATIC_DRAW);
+    static const int sizes[4] = {3, 3, 4, 2}, offs[4] = {0, 3, 6, 10};
+    for (int a = 0; a < 4; a++) {
+        f->EnableVertexAttribArray((GLuint)a);
+        f->VertexAttribPointer((GLuint)a, sizes[a], GL_FLOAT, GL_FALSE, BTF_RENDER_VERTEX_FLOATS * sizeof(float),
+                               (const void *)(size_t)(offs[a] * sizeof(float)));
+    }
+    s->n_indices = m->n_indices;
+    btf_render_mesh_free(m);
+    s->rp = btf_render_defaults(BTF_RENDER_PLANE);
+    s->rp.width = BW;
+    s->rp.height = BH;
+    s->rp.camera_theta = 30;
+    s->rp.camera_dist = 1.1f;
+    s->rp.light_theta = 40;
+    s->rp.light_phi = -30;
+    s->rp.repeat = 8;
+    s->rp.filter = 0;
+    s->rp.background[0] = s->rp.background[1] = s->rp.background[2] = 0;
+    btf_render_camera_make(&s->rp, &s->cam);
+    return 0;
+}
+
+/* The uniforms every program shares (those a program lacks are ignored by GL). */
+static void scene_uniforms(btf_gl *gl, GLuint prog, const scene *s)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    f->UniformMatrix4fv(f->GetUniformLocation(prog, "u_model"), 1, GL_FALSE, s->cam.model);
+    f->UniformMatrix4fv(f->GetUniformLocation(prog, "u_view_proj"), 1, GL_FALSE, s->cam.view_proj);
+    f->Uniform3f(f->GetUniformLocation(prog, "u_camera"), s->cam.eye[0], s->cam.eye[1], s->cam.eye[2]);
+    f->Uniform4f(f->GetUniformLocation(prog, "u_light"), s->cam.light[0], s->cam.light[1], s->cam.light[2], 0);
+    f->Uniform2f(f->GetUniformLocation(prog, "u_uv_scale"), s->cam.uv_scale[0], s->cam.uv_scale[1]);
+    f->Uniform1i(f->GetUniformLocation(prog, "u_horizon_fade"), 1);
+}
+
+static double median(double *v, int n)
+{
+    for (int i = 0; i < n; i++) /* insertion sort, a few values */
+        for (int j = i; j > 0 && v[j] < v[j - 1]; j--) {
+            double x = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = x;
+        }
+    return v[n / 2];
+}
+
+/* Frame cost: wall ms and CPU ms (all threads), medians of FRAMES frames after a
+ * warm-up. The CPU time stays comparable when other work shares the machine. */
+typedef struct frame_cost {
+    double wall_ms, cpu_ms;
+} frame_cost;
+
+/* Draws FRAMES + 1 frames into t with the program in use. */
+static frame_cost time_frames(btf_gl *gl, const scene *s, const btf_gl_target *t)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    double wall[FRAMES], cpu[FRAMES];
+    btf_gl_target_bind(gl, t);
+    f->BindVertexArray(s->vao);
+    for (int i = -1; i < FRAMES; i++) {
+        double t0 = now_s(), c0 = cpu_s();
+        f->ClearColor(0, 0, 0, 1);
+        f->Clear(GL_COLOR_BUFFER_BIT);
+        f->DrawElements(GL_TRIANGLES, s->n_indices, GL_UNSIGNED_INT, 0);
+        f->Finish();
+        if (i >= 0) {
+            wall[i] = (now_s() - t0) * 1e3;
+            cpu[i] = (cpu_s() - c0) * 1e3;
+        }
+    }
+    frame_cost c = {median(wall, FRAMES), median(cpu, FRAMES)};
+    return c;
+}
+
+/* ---------------------------------------------------------------- reference and error */
+
+/* Per sampled pixel: uv, light, view from the product program's debug outputs. */
+typedef struct ref_pixels {
+    int n;
+    int *index;      /* pixel index in GL order */
+    float *uv, *l, *v; /* 2, 3, 3 per sample */
+    float *rgb;      /* reference, 3 per sample */
+} ref_pixels;
+
+static int ref_create(btf_gl *gl, const btf_package *p, const char *dir, const scene *s, ref_pixels *r)
+{
+    btf_error err = {{0}};
+    btf_renderer *dbg = NULL;
+    btf_gl_target *t = NULL;
+    float *out = malloc((size_t)BW * BH * 4 * sizeof(float) * 4);
+    if (!out)
+        return die("out of memory", NULL);
+    if (btf_renderer_create(gl, p, dir, 1, &dbg, &err) != BTF_OK ||
+        btf_gl_target_create(gl, BW, BH, BTF_GL_RGBA32F, 4, &t, &err) != BTF_OK ||
+        btf_renderer_draw(dbg, &s->rp, t, &err) != BTF_OK)
+        return die("debug render", &err);
+    for (int a = 0; a < 4; a++)
+        if (btf_gl_target_read(gl, t, a, out + (size_t)a * BW * BH * 4, &err) != BTF_OK)
+            return die("debug readback", &err);
+    btf_gl_target_free(gl, t);
+    btf_renderer_free(dbg);
+    int cap = (BW / SUB) * (BH / SUB), covered = 0;
+    r->index = malloc((size_t)cap * sizeof(int));
+    r->uv = malloc((size_t)cap * 2 * sizeof(float));
+    r->l = malloc((size_t)cap * 3 * sizeof(float));
+    r->v = malloc((size_t)cap * 3 * sizeof(float));
+    r->rgb = malloc((size_t)cap * 3 * sizeof(float));
+    r->n = 0;
+    for (int i = 0; i < BW * BH; i++)
+        covered += out[(size_t)i * 4 + 3] == 1.0f;
+    for (int y = SUB / 2; y < BH; y += SUB)
+        for (int x = SUB / 2; x < BW; x += SUB) {
+            size_t i = (size_t)y * BW + x;
+            if (out[i * 4 + 3] != 1.0f)
+                continue; /* background */
+            r->index[r->n] = (int)i;
+            memcpy(&r->uv[r->n * 2], &out[(size_t)BW * BH * 4 + i * 4], 2 * sizeof(float));
+            memcpy(&r->l[r->n * 3], &out[(size_t)2 * BW * BH * 4 + i * 4], 3 * sizeof(float));
+            memcpy(&r->v[r->n * 3], &out[(size_t)3 * BW * BH * 4 + i * 4], 3 * sizeof(float));
+            r->n++;
+        }
+    printf("coverage %.4f fraction\n", (double)covered / (BW * BH));
+    printf("error_samples %d pixels\n", r->n);
+    free(out);
+    return 0;
+}
+
+/* Reference colours for the first n chunks (nearest, tiled, clamped to 0..1). */
+static void ref_decode(const btf_package *p, ref_pixels *r, int n)
+{
+    btf_decode_options o = {0};
+    o.filter = BTF_FILTER_NEAREST;
+    o.wrap = 1;
+    o.n_chunks = n;
+    for (int i = 0; i < r->n; i++) {
+        float rgb[3];
+        btf_decode(p, r->uv[i * 2], r->uv[i * 2 + 1], &r->l[i * 3], &r->v[i * 3], &o, rgb);
+        for (int c = 0; c < 3; c++)
+            r->rgb[i * 3 + c] = rgb[c] < 0 ? 0 : rgb[c] > 1 ? 1 : rgb[c];
+    }
+}
+
+static void ref_free(ref_pixels *r)
+{
+    free(r->index);
+    free(r->uv);
+    free(r->l);
+    free(r->v);
+    free(r->rgb);
+}
+
+/* RMSE and max abs error (0..255) of an RGBA8 render against the reference. */
+static int render_error(btf_gl *gl, const btf_gl_target *t, const ref_pixels *r, double *rmse, double *maxe)
+{
+    btf_error err = {{0}};
+    uint8_t *px = malloc((size_t)BW * BH * 4);
+    if (!px || btf_gl_target_read(gl, t, 0, px, &err) != BTF_OK) {
+        free(px);
+        return die("readback", &err);
+    }
+    double s = 0, m = 0;
+    for (int i = 0; i < r->n; i++)
+        for (int c = 0; c < 3; c++) {
+            double e = px[(size_t)r->index[i] * 4 + c] - 255.0 * r->rgb[i * 3 + c];
+            s += e * e;
+            m = fabs(e) > m ? fabs(e) : m;
+        }
+    *rmse = sqrt(s / (3.0 * r->n));
+    *maxe = m;
+    free(px);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- thesis textures */
+
+/* GPU data of the thesis baseline for the first C chunks; freed by thesis_free. */
+typedef struct thesis_data {
+    GLuint map_idx[2], map_w[2]; /* lights, views */
+    GLuint L, R;
+    int G, Lw, Lh, Rw, Rh;
+    float tlo[16], tstep[16], wlo[16], wstep[16], mask[16];
+} thesis_data;
+
+static uint8_t quant8(float x, float lo, float step) { return (uint8_t)lrintf(step > 0 ? (x - lo) / step : 0.0f); }
+
+/* 512x512 lookup maps of one direction set (azimuthal-equidistant hemisphere). */
+static int thesis_maps(btf_gl *gl, const btf_dirset *d, GLuint *idx, GLuint *w)
+{
+    uint8_t *a = malloc((size_t)MAPN * MAPN * 4), *b = malloc((size_t)MAPN * MAPN * 4);
+    btf_error err = {{0}};
+    if (!a || !b || d->n_dirs > 256)
+        return die("thesis maps: memory or more than 256 directions", NULL);
+    for (int j = 0; j < MAPN; j++)
+        for (int i = 0; i < MAPN; i++) {
+            double x = (i + 0.5) / MAPN * 2 - 1, y = (j + 0.5) / MAPN * 2 - 1, r = sqrt(x * x + y * y);
+            float theta = (float)(90.0 * (r > 1 ? 1 : r)), phi = (float)(atan2(y, x) * 180.0 / M_PI);
+            btf_interp in = btf_dirset_interp(d, theta, phi);
+            size_t o = ((size_t)j * MAPN + i) * 4;
+            for (int k = 0; k < 3; k++) {
+                a[o + k] = (uint8_t)in.idx[k];
+                b[o + k] = (uint8_t)lrintf(in.w[k] * 255.0f);
+            }
+            a[o + 3] = b[o + 3] = 255;
+        }
+    int rc = btf_gl_texture_create(gl, MAPN, MAPN, BTF_GL_RGBA8, a, idx, &err) != BTF_OK ||
+             btf_gl_texture_create(gl, MAPN, MAPN, BTF_GL_RGBA8, b, w, &err) != BTF_OK;
+    free(a);
+    free(b);
+    return rc ? die("thesis maps upload", &err) : 0;
+}
+
+/* Per-component global 8-bit ranges and the packed L and R textures. */
+static int thesis_create(btf_gl *gl, const btf_package *p, int C, thesis_data *t)
+{
+    memset(t, 0, sizeof *t);
+    int W = p->width, H = p->height, B = p->blocks->n_blocks, Ln = p->lights.n_dirs, Vn = p->views.n_dirs;
+    t->G = (C + 3) / 4;
+    t->Lw = W * t->G;
+    t->Lh = H * B;
+    t->Rw = Ln * 3 * t->G;
+    t->Rh = Vn;
+    for (int j = 0; j < C; j++) {
+        float lo = 1e30f, hi = -1e30f, wl = 1e30f, wh = -1e30f;
+        for (size_t i = 0; i < (size_t)B * W * H; i++) {
+            lo = fminf(lo, p->tex[j][i]);
+            hi = fmaxf(hi, p->tex[j][i]);
+        }
+        for (size_t i = 0; i < (size_t)Vn * Ln * 3; i++) {
+            wl = fminf(wl, p->wt[j][i]);
+            wh = fmaxf(wh, p->wt[j][i]);
+        }
+        t->tlo[j] = lo;
+        t->tstep[j] = (hi - lo) / 255.0f;
+        t->wlo[j] = wl;
+        t->wstep[j] = (wh - wl) / 255.0f;
+        t->mask[j] = 1;
+    }
+    uint8_t *L = calloc((size_t)t->Lw * t->Lh * 4, 1), *R = calloc((size_t)t->Rw * t->Rh * 4, 1);
+    if (!L || !R)
+        return die("thesis textures: out of memory", NULL);
+    for (int j = 0; j < C; j++) {
+        int g = j / 4, ch = j % 4;
+        for (int b = 0; b < B; b++)
+            for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++) {
+                    float v = p->tex[j][((size_t)b * H + y) * W + x];
+                    L[(((size_t)b * H + y) * t->Lw + (size_t)g * W + x) * 4 + ch] = quant8(v, t->tlo[j], t->tstep[j]);
+                }
+        for (int v = 0; v < Vn; v++)
+            for (int l = 0; l < Ln; l++)
+                for (int c = 0; c < 3; c++) {
+                    float w = p->wt[j][((size_t)v * Ln + l) * 3 + c];
+                    size_t col = ((size_t)l * 3 + c) * t->G + g;
+                    R[((size_t)v * t->Rw + col) * 4 + ch] = quant8(w, t->wlo[j], t->wstep[j]);
+                }
+    }
+    btf_error err = {{0}};
+    int rc = btf_gl_texture_create(gl, t->Lw, t->Lh, BTF_GL_RGBA8, L, &t->L, &err) != BTF_OK ||
+             btf_gl_texture_create(gl, t->Rw, t->Rh, BTF_GL_RGBA8, R, &t->R, &err) != BTF_OK;
+    free(L);
+    free(R);
+    if (rc)
+        return die("thesis textures upload", &err);
+    if (thesis_maps(gl, &p->lights, &t->map_idx[0], &t->map_w[0]) ||
+        thesis_maps(gl, &p->views, &t->map_idx[1], &t->map_w[1]))
+        return 1;
+    return 0;
+}
+
+static void thesis_bind(btf_gl *gl, GLuint prog, const btf_package *p, const thesis_data *t)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    const char *names[6] = {"u_light_idx", "u_light_w", "u_view_idx", "u_view_w", "u_L", "u_R"};
+    GLuint tex[6] = {t->map_idx[0], t->map_w[0], t->map_idx[1], t->map_w[1], t->L, t->R};
+    for (int i = 0; i < 6; i++) {
+        f->ActiveTexture((GLenum)(GL_TEXTURE0 + i));
+        f->BindTexture(GL_TEXTURE_2D, tex[i]);
+        f->Uniform1i(f->GetUniformLocation(prog, names[i]), i);
+    }
+    f->Uniform2i(f->GetUniformLocation(prog, "u_size"), p->width, p->height);
+    f->Uniform2f(f->GetUniformLocation(prog, "u_L_size"), (float)t->Lw, (float)t->Lh);
+    f->Uniform2f(f->GetUniformLocation(prog, "u_R_size"), (float)t->Rw, (float)t->Rh);
+    f->Uniform1i(f->GetUniformLocation(prog, "u_groups"), t->G);
+    int vb[256] = {0};
+    for (int v = 0; v < p->views.n_dirs && v < 256; v++)
+        vb[v] = p->blocks->block_of_view[v];
+    f->Uniform1iv(f->GetUniformLocation(prog, "u_view_block"), p->views.n_dirs, vb);
+    f->Uniform4fv(f->GetUniformLocation(prog, "u_tlo"), 4, t->tlo);
+    f->Uniform4fv(f->GetUniformLocation(prog, "u_tstep"), 4, t->tstep);
+    f->Uniform4fv(f->GetUniformLocation(prog, "u_wlo"), 4, t->wlo);
+    f->Uniform4fv(f->GetUniformLocation(prog, "u_wstep"), 4, t->wstep);
+    f->Uniform4fv(f->GetUniformLocation(prog, "u_cmask"), 4, t->mask);
+}
+
+static void thesis_free(btf_gl *gl, thesis_data *t)
+{
+    GLuint tex[6] = {t->map_idx[0], t->map_w[0], t->map_idx[1], t->map_w[1], t->L, t->R};
+    for (int i = 0; i < 6; i++)
+        btf_gl_texture_free(gl, tex[i]);
+}
+
+/* ---------------------------------------------------------------- main */
+
+/* Texture fetches per fragment, from the sources:
+ *   shader: 3 view-block fetches + per (view a of 3, chunk j): 1 range + 1 texel
+ *           (nearest) + 3 weights (one per light) = 3 + 15 C (pairs of weight 0 skip,
+ *           so this is the maximum; it is the count away from measured directions);
+ *   thesis: 4 map fetches + per (view a, group g of 4 components): 1 L fetch + per
+ *           light e: 3 R fetches (one per channel) = 4 + 30 ceil(C/4);
+ *   textured: 1.
+ * ALU (scalar ops, estimated from the sources): shader: frame + light/view vectors
+ *   ~40, btf_dirs_interp_vec twice ~2 x 260 (atan x2, sqrt, ring search over 6 rings,
+ *   2 ring vertices with sin/cos, ~2 band-walk steps of 4 determinants each),
+ *   per (a, j) ~28 (tile/index math 8, dequantise 3, 3 weighted RGB adds 12, blend 4,
+ *   loop 1) -> ~560 + 84 C; thesis: frame ~40, 2 map coordinates ~2 x 12, index and
+ *   weight unpacking ~20, per (a, g) ~14 (coordinates, dequantise and mask a vec4),
+ *   per (a, g, e) ~60 (3 coordinates, 3 vec4 dequantisations 24, 3 dot4 21, blend 7)
+ *   -> ~84 + 582 ceil(C/4); textured: ~4. */
+static int shader_fetches(int C) { return 3 + 15 * C; }
+static int shader_alu(int C) { return 560 + 84 * C; }
+static int thesis_fetches(int C) { return 4 + 30 * ((C + 3) / 4); }
+static int thesis_alu(int C) { return 84 + 582 * ((C + 3) / 4); }
+
+static int run(btf_gl *gl, const btf_package *p, const char *dir)
+{
+    btf_error err = {{0}};
+    scene s;
+    memset(&s, 0, sizeof s);
+    if (scene_create(gl, &s))
+        return 1;
+    ref_pixels ref;
+    if (ref_create(gl, p, dir, &s, &ref))
+        return 1;
+    const btf_gl_api *f = btf_gl_fn(gl);
+    btf_gl_target *t = NULL;
+    if (btf_gl_target_create(gl, BW, BH, BTF_GL_RGBA8, 1, &t, &err) != BTF_OK)
+        return die("target", &err);
+    /* product program */
+    btf_shader_desc sd = {.program = "render"};
+    btf_shader_program *prog = NULL;
+    btf_gl_package *g = NULL;
+    if (btf_shader_build(gl, &sd, &prog, NULL, &err) != BTF_OK || btf_gl_package_upload(gl, p, dir, &g, &err))
+        return die("product program", &err);
+    GLuint thesis = build_bench_program(gl, "thesis.frag"), textured = build_bench_program(gl, "textured.frag");
+    if (!thesis || !textured)
+        return 1;
+    /* textured: the package's value for light = view = normal, RGBA8, bilinear, tiled */
+    uint8_t *img = malloc((size_t)p->width * p->height * 4);
+    const float z[3] = {0, 0, 1};
+    btf_decode_options dop = {0};
+    for (int y = 0; y < p->height; y++)
+        for (int x = 0; x < p->width; x++) {
+            float rgb[3];
+            btf_decode(p, (x + 0.5f) / p->width, (y + 0.5f) / p->height, z, z, &dop, rgb);
+            for (int c = 0; c < 4; c++)
+                img[((size_t)y * p->width + x) * 4 + c] = c == 3 ? 255 : (uint8_t)lrintf(255 * fminf(fmaxf(rgb[c], 0), 1));
+        }
+    GLuint tex = 0;
+    if (btf_gl_texture_create(gl, p->width, p->height, BTF_GL_RGBA8, img, &tex, &err) != BTF_OK)
+        return die("textured texture", &err);
+    free(img);
+    f->BindTexture(GL_TEXTURE_2D, tex);
+    f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+    f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+    f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+
+    f->UseProgram(textured);
+    scene_uniforms(gl, textured, &s);
+    f->ActiveTexture(GL_TEXTURE0);
+    f->BindTexture(GL_TEXTURE_2D, tex);
+    f->Uniform1i(f->GetUniformLocation(textured, "u_tex"), 0);
+    frame_cost ms_tex = time_frames(gl, &s, t);
+    double e_tex, m_tex;
+    ref_decode(p, &ref, 0);
+    if (render_error(gl, t, &ref, &e_tex, &m_tex))
+        return 1;
+    printf("textured_ms %.2f ms\ntextured_cpu_ms %.2f ms\n", ms_tex.wall_ms, ms_tex.cpu_ms);
+    printf("textured_fetches 1 per_fragment\ntextured_alu 4 per_fragment_est\n");
+    printf("textured_rmse_vs_all_chunks %.3f 0..255\n", e_tex);
+
+    static const int Cs[5] = {1, 2, 4, 8, 16};
+    for (int k = 0; k < 5; k++) {
+        int C = Cs[k];
+        if (C > p->n_loaded || (getenv("BENCH_MAX_C") && C > atoi(getenv("BENCH_MAX_C"))))
+            break;
+        ref_decode(p, &ref, C);
+        /* product */
+        f->UseProgram(prog->id);
+        if (btf_gl_package_bind(gl, g, prog, 0, &err) != BTF_OK)
+            return die("bind", &err);
+        btf_gl_decode_settings ds = {0, 1, C};
+        btf_gl_package_settings(gl, g, prog, &ds);
+        scene_uniforms(gl, prog->id, &s);
+        frame_cost ms_s = time_frames(gl, &s, t);
+        double e_s, m_s;
+        if (render_error(gl, t, &ref, &e_s, &m_s))
+            return 1;
+        /* thesis */
+        thesis_data td;
+        if (thesis_create(gl, p, C, &td))
+            return 1;
+        f->UseProgram(thesis);
+        thesis_bind(gl, thesis, p, &td);
+        scene_uniforms(gl, thesis, &s);
+        if (btf_gl_check(gl, "thesis setup", &err) != BTF_OK)
+            return die("thesis", &err);
+        frame_cost ms_t = time_frames(gl, &s, t);
+        double e_t, m_t;
+        if (render_error(gl, t, &ref, &e_t, &m_t))
+            return 1;
+        thesis_free(gl, &td);
+        printf("shader_C%d_ms %.2f ms\nthesis_C%d_ms %.2f ms\n", C, ms_s.wall_ms, C, ms_t.wall_ms);
+        printf("shader_C%d_cpu_ms %.2f ms\nthesis_C%d_cpu_ms %.2f ms\n", C, ms_s.cpu_ms, C, ms_t.cpu_ms);
+        printf("thesis_over_shader_C%d_cpu_ratio %.3f x\nshader_over_textured_C%d_cpu_ratio %.2f x\n", C,
+               ms_t.cpu_ms / ms_s.cpu_ms, C, ms_s.cpu_ms / ms_tex.cpu_ms);
+        printf("shader_C%d_rmse %.3f 0..255\nshader_C%d_max_err %.1f 0..255\n", C, e_s, C, m_s);
+        printf("thesis_C%d_rmse %.3f 0..255\nthesis_C%d_max_err %.1f 0..255\n", C, e_t, C, m_t);
+        printf("shader_C%d_fetches %d per_fragment\nthesis_C%d_fetches %d per_fragment\n", C, shader_fetches(C), C,
+               thesis_fetches(C));
+        printf("shader_C%d_alu %d per_fragment_est\nthesis_C%d_alu %d per_fragment_est\n", C, shader_alu(C), C,
+               thesis_alu(C));
+        fflush(stdout);
+    }
+    printf("renderer %s\n", btf_gl_renderer(gl));
+    btf_gl_texture_free(gl, tex);
+    f->DeleteProgram(thesis);
+    f->DeleteProgram(textured);
+    btf_gl_package_free(gl, g);
+    btf_shader_program_free(gl, prog);
+    btf_gl_target_free(gl, t);
+    ref_free(&ref);
+    return 0;
+}
+
+int main(void)
+{
+    char dir[256] = "/tmp/bench-shader-XXXXXX", pkg[300];
+    if (!mkdtemp(dir))
+        return die("mkdtemp", NULL);
+    snprintf(pkg, sizeof pkg, "%s/knit", dir);
+    btf_error err = {{0}};
+    fprintf(stderr, "bench_shader: compressing a 64x64 knit, 81 x 81 directions, 16 components\n");
+    if (make_package(pkg, &err) != BTF_OK)
+        return die("package", &err);
+    btf_package *p = NULL;
+    if (btf_package_read(pkg, 0, &p, &err) != BTF_OK)
+        return die("package read", &err);
+    btf_gl *gl = NULL;
+    btf_gl_desc gd = {.backend = BTF_GL_EGL};
+    if (btf_gl_create(&gd, &gl, &err) != BTF_OK)
+        return die("EGL", &err);
+    int rc = run(gl, p, pkg);
+    btf_gl_free(gl);
+    btf_package_free(p);
+    remove_dir(pkg);
+    rmdir(dir);
+    return rc;
+}

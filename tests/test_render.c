@@ -1,0 +1,572 @@
+/* test_render.c - suite `render`: `btf render` and its scene module (tools/btf_render.h).
+ *
+ * The main test renders a package of a generated material on a plane (float target)
+ * and compares each pixel with the generator's ground truth at that pixel's texel,
+ * local light and local view, found by a CPU ray cast that follows the documented
+ * scene conventions (shaders/README.md), not btf_render's own matrices. */
+#include <criterion/criterion.h>
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "btf_cli.h"
+#include "btf_gen.h"
+#include "btf_image.h"
+#include "btf_package.h"
+#include "btf_render.h"
+#include "test_util.h"
+
+#define TW 16 /* material side in texels */
+#define TC 4  /* components */
+#define RW 48 /* render size */
+#define RH 40
+
+static const btf_gl_backend backends[2] = {BTF_GL_EGL, BTF_GL_OSMESA};
+
+/* ---------------------------------------------------------------- fixtures */
+
+/* 19 directions: pole, 6 at 30 degrees, 12 at 60 degrees offset by 15 (so the plane's
+ * pixels fall between rings of different counts and beyond the outer ring). A small
+ * set keeps compression fast; its coarse sampling makes the interpolation term large. */
+static btf_dirset small_dirset(void)
+{
+    static const btf_ring r[3] = {{0, 1, 0}, {30, 6, 0}, {60, 12, 15}};
+    btf_dirset d;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_dirset_make(r, 3, &d, &err), BTF_OK, "%s", err.msg);
+    return d;
+}
+
+/* A package of a generated knit in a fresh temp dir (tmp), at pkg = tmp/knit. */
+static void make_package(char *tmp, size_t n, char *pkg, size_t pn, btf_gen_params *gp)
+{
+    cr_assert(test_tmpdir(tmp, n));
+    snprintf(pkg, pn, "%s/knit", tmp);
+    *gp = btf_gen_defaults(BTF_GEN_KNIT);
+    btf_dirset d = small_dirset();
+    btf *m = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_gen_create(gp, TW, TW, &d, &d, BTF_F32, &m, &err), BTF_OK, "%s", err.msg);
+    btf_pca_options po = {0};
+    po.k = 3;
+    po.components = TC;
+    btf_package_options ko = {0};
+    ko.bits = 8;
+    cr_assert_eq(btf_package_compress(m, &po, &ko, pkg, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_free(m);
+}
+
+static void remove_tree(const char *tmp, const char *pkg)
+{
+    DIR *dir = opendir(pkg);
+    struct dirent *e;
+    char path[700];
+    while (dir && (e = readdir(dir)))
+        if (e->d_name[0] != '.') {
+            snprintf(path, sizeof path, "%s/%s", pkg, e->d_name);
+            remove(path);
+        }
+    if (dir)
+        closedir(dir);
+    rmdir(pkg);
+    dir = opendir(tmp);
+    while (dir && (e = readdir(dir)))
+        if (e->d_name[0] != '.') {
+            snprintf(path, sizeof path, "%s/%s", tmp, e->d_name);
+            remove(path);
+        }
+    if (dir)
+        closedir(dir);
+    rmdir(tmp);
+}
+
+static btf_gl *open_gl(btf_gl_backend b)
+{
+    btf_gl *gl = NULL;
+    btf_error err = {{0}};
+    btf_gl_desc d = {.backend = b};
+    cr_assert_eq(btf_gl_create(&d, &gl, &err), BTF_OK, "%s: %s", btf_gl_backend_name(b), err.msg);
+    return gl;
+}
+
+/* ---------------------------------------------------------------- the documented camera, again */
+
+typedef struct ray_cam {
+    double eye[3], fwd[3], right[3], up[3], th, aspect;
+} ray_cam;
+
+static void dir_of(double theta_deg, double phi_deg, double v[3])
+{
+    double t = theta_deg * M_PI / 180, p = phi_deg * M_PI / 180;
+    v[0] = sin(t) * cos(p);
+    v[1] = sin(t) * sin(p);
+    v[2] = cos(t);
+}
+
+/* shaders/README.md "Scene conventions": eye = dist * dir(theta, phi), forward = -dir,
+ * up0 = (-cos t cos p, -cos t sin p, sin t), right = normalize(forward x up0),
+ * up = right x forward, vertical fov, aspect = width / height. */
+static ray_cam make_ray_cam(const btf_render_params *p)
+{
+    ray_cam c;
+    double d[3], t = p->camera_theta * M_PI / 180, ph = p->camera_phi * M_PI / 180;
+    dir_of(p->camera_theta, p->camera_phi, d);
+    double up0[3] = {-cos(t) * cos(ph), -cos(t) * sin(ph), sin(t)};
+    for (int i = 0; i < 3; i++) {
+        c.eye[i] = p->camera_dist * d[i];
+        c.fwd[i] = -d[i];
+    }
+    c.right[0] = c.fwd[1] * up0[2] - c.fwd[2] * up0[1];
+    c.right[1] = c.fwd[2] * up0[0] - c.fwd[0] * up0[2];
+    c.right[2] = c.fwd[0] * up0[1] - c.fwd[1] * up0[0];
+    double n = sqrt(c.right[0] * c.right[0] + c.right[1] * c.right[1] + c.right[2] * c.right[2]);
+    for (int i = 0; i < 3; i++)
+        c.right[i] /= n;
+    c.up[0] = c.right[1] * c.fwd[2] - c.right[2] * c.fwd[1];
+    c.up[1] = c.right[2] * c.fwd[0] - c.right[0] * c.fwd[2];
+    c.up[2] = c.right[0] * c.fwd[1] - c.right[1] * c.fwd[0];
+    c.th = tan(p->fov_deg * M_PI / 360);
+    c.aspect = (double)p->width / p->height;
+    return c;
+}
+
+/* Ray through pixel (px, py) (py = 0 the bottom row, GL order) hits the plane z = 0
+ * at (x, y); 0 if it misses the square [-lim, lim]^2. */
+static int ray_plane(const ray_cam *c, int px, int py, int w, int h, double lim, double hit[3])
+{
+    double nx = 2.0 * (px + 0.5) / w - 1, ny = 2.0 * (py + 0.5) / h - 1, d[3];
+    for (int i = 0; i < 3; i++)
+        d[i] = c->fwd[i] + c->right[i] * nx * c->th * c->aspect + c->up[i] * ny * c->th;
+    if (!(d[2] < -1e-9))
+        return 0;
+    double s = -c->eye[2] / d[2];
+    for (int i = 0; i < 3; i++)
+        hit[i] = c->eye[i] + s * d[i];
+    return fabs(hit[0]) <= lim && fabs(hit[1]) <= lim;
+}
+
+/* ---------------------------------------------------------------- render vs ground truth */
+
+/* Error terms gathered over the checked pixels of one render. */
+typedef struct gt_stats {
+    int n;
+    double render_truth, pkg, interp, render_interp; /* sums of squares */
+} gt_stats;
+
+/* One setting: render (debug outputs), then per pixel inside the plane:
+ *   R = GPU colour, G = btf_gen_model_eval at (texel, l, v),
+ *   I = sum wl wv G(texel, li, vi) over btf_dirset_interp's 3 x 3 measured pairs,
+ *   E = sum wl wv |P(vi, li, texel) - G(texel, li, vi)|, P = btf_package_value,
+ * and asserts |R - I| <= E + tol and |R - G| <= E + |I - G| + tol (R - I is exactly the
+ * weighted package error when the renderer decodes at the right texel and directions;
+ * the second bound is its triangle inequality). tol = 1e-4: the GPU decode agrees with
+ * btf_decode to 2e-6 (tests/test_gl.c, bound 1e-4); the sums here are in double. */
+static void check_setting(btf_gl *gl, btf_renderer *r, const btf_package *p, const btf_gen_model *gm,
+                          btf_render_params rp, const char *what, gt_stats *st)
+{
+    btf_error err = {{0}};
+    btf_gl_target *t = NULL;
+    cr_assert_eq(btf_gl_target_create(gl, rp.width, rp.height, BTF_GL_RGBA32F, 4, &t, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_renderer_draw(r, &rp, t, &err), BTF_OK, "%s: %s", what, err.msg);
+    static float out[4][RW * RH * 4];
+    for (int a = 0; a < 4; a++)
+        cr_assert_eq(btf_gl_target_read(gl, t, a, out[a], &err), BTF_OK, "%s", err.msg);
+    btf_gl_target_free(gl, t);
+    ray_cam c = make_ray_cam(&rp);
+    float l[3];
+    double ld[3];
+    dir_of(rp.light_theta, rp.light_phi, ld);
+    for (int i = 0; i < 3; i++)
+        l[i] = (float)ld[i]; /* the plane's local frame is the world frame */
+    const double tol = 1e-4;
+    int misses = 0;
+    for (int py = 0; py < rp.height; py++)
+        for (int px = 0; px < rp.width; px++) {
+            size_t o = (size_t)(py * rp.width + px) * 4;
+            double hit[3];
+            if (!ray_plane(&c, px, py, rp.width, rp.height, 1.02, hit)) { /* clear of the edge: background */
+                misses++;
+                for (int k = 0; k < 3; k++)
+                    cr_assert_eq(out[0][o + k], rp.background[k], "%s pixel (%d,%d) off the plane drawn", what, px,
+                                 py);
+                continue;
+            }
+            if (fabs(hit[0]) > 0.98 || fabs(hit[1]) > 0.98)
+                continue; /* within a pixel of the edge */
+            double u = (hit[0] + 1) / 2, v = (1 - hit[1]) / 2;
+            /* conventions: the GPU decoded at the uv the documented camera gives (1e-4 =
+             * 0.0016 texels; perspective-correct float interpolation is ~1e-6) */
+            cr_assert(fabs(out[1][o] - u) < 1e-4 && fabs(out[1][o + 1] - v) < 1e-4,
+                      "%s pixel (%d,%d): GPU uv %g %g, ray cast %g %g", what, px, py, (double)out[1][o],
+                      (double)out[1][o + 1], u, v);
+            double fx = u * TW, fy = v * TW;
+            if (fabs(fx - floor(fx + 0.5)) < 0.005 || fabs(fy - floor(fy + 0.5)) < 0.005)
+                continue; /* texel boundary: GPU and CPU uv may pick different texels */
+            int x = (int)floor(fx), y = (int)floor(fy);
+            float vw[3];
+            double vn = 0;
+            for (int k = 0; k < 3; k++)
+                vn += (c.eye[k] - hit[k]) * (c.eye[k] - hit[k]);
+            for (int k = 0; k < 3; k++)
+                vw[k] = (float)((c.eye[k] - hit[k]) / sqrt(vn));
+            float g[3], gi[3] = {0, 0, 0}, e[3] = {0, 0, 0};
+            btf_gen_model_eval(gm, x, y, l, vw, g);
+            btf_interp il = btf_dirset_interp_vec(&p->lights, l), iv = btf_dirset_interp_vec(&p->views, vw);
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) {
+                    float w = iv.w[a] * il.w[b];
+                    if (w == 0.0f)
+                        continue;
+                    float ldir[3], vdir[3], gm3[3], pk[3];
+                    btf_dirset_vector(&p->lights, il.idx[b], ldir);
+                    btf_dirset_vector(&p->views, iv.idx[a], vdir);
+                    btf_gen_model_eval(gm, x, y, ldir, vdir, gm3);
+                    btf_package_value(p, iv.idx[a], il.idx[b], x, y, 0, pk);
+                    for (int k = 0; k < 3; k++) {
+                        gi[k] += w * gm3[k];
+                        e[k] += w * fabsf(pk[k] - gm3[k]);
+                    }
+                }
+            for (int k = 0; k < 3; k++) {
+                double R = out[0][o + k], G = g[k], I = gi[k], E = e[k];
+                cr_assert(fabs(R - I) <= E + tol, "%s pixel (%d,%d) c%d: render %.5f, interpolated truth %.5f, "
+                          "package error bound %.5f", what, px, py, k, R, I, E);
+                cr_assert(fabs(R - G) <= E + fabs(I - G) + tol,
+                          "%s pixel (%d,%d) c%d: render %.5f truth %.5f: more than package %.5f + interpolation %.5f",
+                          what, px, py, k, R, G, E, fabs(I - G));
+                st->render_truth += (R - G) * (R - G);
+                st->render_interp += (R - I) * (R - I);
+                st->pkg += E * E;
+                st->interp += (I - G) * (I - G);
+            }
+            st->n++;
+        }
+    cr_assert_gt(misses, 0, "%s: the plane fills the view, background never checked", what);
+}
+
+static void check_ground_truth(btf_gl_backend b)
+{
+    char tmp[256], pkg[300];
+    btf_gen_params gp;
+    make_package(tmp, sizeof tmp, pkg, sizeof pkg, &gp);
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
+    btf_gen_model *gm = NULL;
+    cr_assert_eq(btf_gen_model_create(&gp, TW, TW, &gm, &err), BTF_OK, "%s", err.msg);
+    btf_gl *gl = open_gl(b);
+    btf_renderer *r = NULL;
+    cr_assert_eq(btf_renderer_create(gl, p, pkg, 1, &r, &err), BTF_OK, "%s", err.msg);
+    /* camera straight above / oblique / grazing-ish from another side; lights inside
+     * the measured range (theta <= 60) so the horizon fade plays no part */
+    static const float set[4][6] = {
+        {0, 0, 2.6f, 20, 40, 50}, {35, -90, 3.0f, 45, -50, 40}, {55, 120, 2.8f, 55, 200, 45}, {20, 200, 2.4f, 0, 0, 60}};
+    gt_stats st = {0};
+    for (int s = 0; s < 4; s++) {
+        btf_render_params rp = btf_render_defaults(BTF_RENDER_PLANE);
+        rp.width = RW;
+        rp.height = RH;
+        rp.camera_theta = set[s][0];
+        rp.camera_phi = set[s][1];
+        rp.camera_dist = set[s][2];
+        rp.light_theta = set[s][3];
+        rp.light_phi = set[s][4];
+        rp.fov_deg = set[s][5];
+        rp.filter = 0;
+        rp.horizon_fade = 0;
+        rp.background[0] = 0.25f;
+        char what[96];
+        snprintf(what, sizeof what, "%s setting %d", btf_gl_backend_name(b), s);
+        check_setting(gl, r, p, gm, rp, what, &st);
+    }
+    cr_assert_gt(st.n, 800, "only %d pixels checked", st.n);
+    double n3 = 3.0 * st.n;
+    cr_log_info("%s: %d pixels, RMS (0..255): render-truth %.3f, package %.3f, interpolation %.3f, render-interp %.3f",
+                btf_gl_backend_name(b), st.n, 255 * sqrt(st.render_truth / n3), 255 * sqrt(st.pkg / n3),
+                255 * sqrt(st.interp / n3), 255 * sqrt(st.render_interp / n3));
+    /* not vacuous: both terms are present and the render is not closer to the truth
+     * than the interpolated truth itself can explain */
+    cr_assert_gt(st.pkg, 0.0);
+    cr_assert_gt(st.interp, 0.0);
+    /* aggregate form of the bound (Minkowski): RMS(render - truth) <= RMS(E) + RMS(I - G) */
+    cr_assert_leq(sqrt(st.render_truth), sqrt(st.pkg) + sqrt(st.interp) + 1e-4 * sqrt(n3));
+    btf_renderer_free(r);
+    btf_gl_free(gl);
+    btf_gen_model_free(gm);
+    btf_package_free(p);
+    remove_tree(tmp, pkg);
+}
+
+Test(render, plane_vs_ground_truth_egl) { check_ground_truth(BTF_GL_EGL); }
+Test(render, plane_vs_ground_truth_osmesa) { check_ground_truth(BTF_GL_OSMESA); }
+
+/* ---------------------------------------------------------------- horizon fade */
+
+/* A light beyond the outer measured ring (60 degrees) at 80 degrees: colour =
+ * btf_decode * cos(80)/cos(60); below the horizon: black. CPU decode at the ray cast's
+ * uv and directions (nearest filter, same tolerance as above). */
+Test(render, horizon_fade_both_backends)
+{
+    char tmp[256], pkg[300];
+    btf_gen_params gp;
+    make_package(tmp, sizeof tmp, pkg, sizeof pkg, &gp);
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
+    for (int bi = 0; bi < 2; bi++) {
+        btf_gl *gl = open_gl(backends[bi]);
+        btf_renderer *r = NULL;
+        cr_assert_eq(btf_renderer_create(gl, p, pkg, 0, &r, &err), BTF_OK, "%s", err.msg);
+        static const float light_theta[2] = {80, 100};
+        for (int s = 0; s < 2; s++) {
+            btf_render_params rp = btf_render_defaults(BTF_RENDER_PLANE);
+            rp.width = RW;
+            rp.height = RH;
+            rp.camera_theta = 10;
+            rp.light_theta = light_theta[s];
+            rp.light_phi = 30;
+            rp.filter = 0;
+            btf_gl_target *t = NULL;
+            cr_assert_eq(btf_gl_target_create(gl, RW, RH, BTF_GL_RGBA32F, 1, &t, &err), BTF_OK, "%s", err.msg);
+            cr_assert_eq(btf_renderer_draw(r, &rp, t, &err), BTF_OK, "%s", err.msg);
+            static float out[RW * RH * 4];
+            cr_assert_eq(btf_gl_target_read(gl, t, 0, out, &err), BTF_OK, "%s", err.msg);
+            btf_gl_target_free(gl, t);
+            ray_cam c = make_ray_cam(&rp);
+            double ld[3];
+            dir_of(rp.light_theta, rp.light_phi, ld);
+            float l[3] = {(float)ld[0], (float)ld[1], (float)ld[2]};
+            double fade = s == 0 ? cos(80 * M_PI / 180) / cos(60 * M_PI / 180) : 0.0;
+            int checked = 0;
+            for (int py = 0; py < RH; py++)
+                for (int px = 0; px < RW; px++) {
+                    double hit[3];
+                    if (!ray_plane(&c, px, py, RW, RH, 0.98, hit))
+                        continue;
+                    double u = (hit[0] + 1) / 2, v = (1 - hit[1]) / 2, fx = u * TW, fy = v * TW;
+                    if (fabs(fx - floor(fx + 0.5)) < 0.005 || fabs(fy - floor(fy + 0.5)) < 0.005)
+                        continue;
+                    float vw[3], rgb[3];
+                    for (int k = 0; k < 3; k++)
+                        vw[k] = (float)(c.eye[k] - hit[k]);
+                    btf_decode_options o = {0};
+                    btf_decode(p, (float)u, (float)v, l, vw, &o, rgb);
+                    for (int k = 0; k < 3; k++) {
+                        double want = rgb[k] * fade;
+                        want = want < 0 ? 0 : want > 1 ? 1 : want;
+                        cr_assert(fabs(out[(py * RW + px) * 4 + k] - want) <= 1e-4, "%s light %g pixel (%d,%d): %g vs %g",
+                                  btf_gl_backend_name(backends[bi]), (double)light_theta[s], px, py,
+                                  (double)out[(py * RW + px) * 4 + k], want);
+                    }
+                    checked++;
+                }
+            cr_assert_gt(checked, 200);
+        }
+        btf_renderer_free(r);
+        btf_gl_free(gl);
+    }
+    btf_package_free(p);
+    remove_tree(tmp, pkg);
+}
+
+/* ---------------------------------------------------------------- meshes */
+
+/* Every geometry's frame follows the convention: unit normal; tangent unit, orthogonal
+ * to the normal and along d(position)/du; cross(normal, tangent) along -d(position)/dv
+ * (w = +1: local y towards image row 0). Derivatives by finite differences over the
+ * grid, an independent check of the analytic frame. */
+Test(render, mesh_frames_follow_convention)
+{
+    for (int g = 0; g < BTF_RENDER_GEOMETRY_COUNT; g++) {
+        btf_render_mesh *m = NULL;
+        btf_error err = {{0}};
+        cr_assert_eq(btf_render_mesh_create((btf_render_geometry)g, 16, &m, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(m->n_indices % 3, 0);
+        for (int i = 0; i < m->n_indices; i++)
+            cr_assert_lt(m->indices[i], (unsigned)m->n_vertices);
+        int checked = 0;
+        for (int t = 0; t < m->n_indices; t += 3) {
+            const float *a = &m->vertices[m->indices[t] * BTF_RENDER_VERTEX_FLOATS];
+            const float *b = &m->vertices[m->indices[t + 1] * BTF_RENDER_VERTEX_FLOATS];
+            const float *c = &m->vertices[m->indices[t + 2] * BTF_RENDER_VERTEX_FLOATS];
+            /* solve dP = Pu du + Pv dv over the triangle's two edges */
+            double e1[3], e2[3], du1 = b[10] - a[10], dv1 = b[11] - a[11], du2 = c[10] - a[10], dv2 = c[11] - a[11];
+            double det = du1 * dv2 - du2 * dv1;
+            if (fabs(det) < 1e-12)
+                continue;
+            double pu[3], pv[3], tn[3], tt[3], n2 = 0;
+            for (int k = 0; k < 3; k++) {
+                e1[k] = b[k] - a[k];
+                e2[k] = c[k] - a[k];
+                pu[k] = (e1[k] * dv2 - e2[k] * dv1) / det;
+                pv[k] = (e2[k] * du1 - e1[k] * du2) / det;
+                tn[k] = (a[3 + k] + b[3 + k] + c[3 + k]) / 3; /* face-average frame */
+                tt[k] = (a[6 + k] + b[6 + k] + c[6 + k]) / 3;
+                n2 += (double)a[3 + k] * a[3 + k];
+            }
+            cr_assert(fabs(n2 - 1) < 1e-5, "%s: normal not unit", btf_render_geometry_name(g));
+            cr_assert_eq(a[9], 1.0f);
+            double by[3] = {tn[1] * tt[2] - tn[2] * tt[1], tn[2] * tt[0] - tn[0] * tt[2], tn[0] * tt[1] - tn[1] * tt[0]};
+            double dpu = 0, dpv = 0, lu = 0, lv = 0, nt = 0;
+            for (int k = 0; k < 3; k++) {
+                dpu += pu[k] * tt[k];
+                dpv += -pv[k] * by[k];
+                lu += pu[k] * pu[k];
+                lv += pv[k] * pv[k];
+                nt += a[3 + k] * a[6 + k];
+            }
+            cr_assert(fabs(nt) < 1e-5, "%s: tangent not orthogonal to the normal", btf_render_geometry_name(g));
+            if (lu < 1e-12 || lv < 1e-12)
+                continue; /* sphere pole rows */
+            /* cosines close to 1 (coarse 16-segment grid: about 0.9 at worst) */
+            cr_assert_gt(dpu / sqrt(lu), 0.9, "%s triangle %d: tangent not along dP/du", btf_render_geometry_name(g), t);
+            cr_assert_gt(dpv / sqrt(lv), 0.9, "%s triangle %d: n x t not along -dP/dv", btf_render_geometry_name(g), t);
+            checked++;
+        }
+        cr_assert_gt(checked, 1);
+        btf_render_mesh_free(m);
+    }
+    btf_render_mesh *m = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_render_mesh_create((btf_render_geometry)7, 0, &m, &err), BTF_ERR_ARG);
+    cr_assert_eq(btf_render_mesh_create(BTF_RENDER_SPHERE, 2, &m, &err), BTF_ERR_RANGE);
+    cr_assert_null(m);
+    btf_render_mesh_free(NULL);
+}
+
+Test(render, params_rejected)
+{
+    btf_error err = {{0}};
+    btf_render_params p = btf_render_defaults(BTF_RENDER_SPHERE);
+    cr_assert_eq(btf_render_check_params(&p, &err), BTF_OK, "%s", err.msg);
+    btf_render_params bad[7];
+    for (int i = 0; i < 7; i++)
+        bad[i] = p;
+    bad[0].width = 0;
+    bad[1].camera_dist = -1;
+    bad[2].fov_deg = 180;
+    bad[3].background[1] = 2;
+    bad[4].camera_theta = NAN;
+    bad[5].repeat = 0;
+    bad[6].geometry = (btf_render_geometry)9;
+    for (int i = 0; i < 7; i++)
+        cr_assert_neq(btf_render_check_params(&bad[i], &err), BTF_OK, "case %d accepted", i);
+    cr_assert_str_eq(btf_render_geometry_name(BTF_RENDER_CYLINDER), "cylinder");
+    cr_assert_eq(btf_render_geometry_from_name("sphere"), BTF_RENDER_SPHERE);
+    cr_assert_eq(btf_render_geometry_from_name("cube"), -1);
+}
+
+/* ---------------------------------------------------------------- CLI */
+
+static int run_cli(int n, const char **argv) { return cmd_render(n, (char **)argv); }
+
+Test(render, cli_writes_png_and_checks_arguments)
+{
+    char tmp[256], pkg[300], out[400], out2[400];
+    btf_gen_params gp;
+    make_package(tmp, sizeof tmp, pkg, sizeof pkg, &gp);
+    snprintf(out, sizeof out, "%s/a.png", tmp);
+    snprintf(out2, sizeof out2, "%s/b.png", tmp);
+    const char *ok[] = {"render", pkg, out, "--geometry", "sphere", "--size", "40x30", "--camera", "60,-90,3.5",
+                        "--light", "30,10", "--background", "0.2,0.4,0.6", "--backend", "egl"};
+    cr_assert_eq(run_cli(15, ok), 0);
+    int w, h, ch;
+    uint8_t *px = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_image_read_u8(out, &w, &h, &ch, &px, &err), BTF_OK, "%s", err.msg);
+    cr_assert(w == 40 && h == 30 && ch == 3, "%dx%dx%d", w, h, ch);
+    /* corner: background round(255 * (0.2, 0.4, 0.6)) +- 1; centre: the sphere */
+    cr_assert(abs(px[0] - 51) <= 1 && abs(px[1] - 102) <= 1 && abs(px[2] - 153) <= 1, "%d %d %d", px[0], px[1],
+              px[2]);
+    const uint8_t *c = &px[(15 * 40 + 20) * 3];
+    cr_assert(abs(c[0] - 51) + abs(c[1] - 102) + abs(c[2] - 153) > 6, "centre is background");
+    /* the same scene on OSMesa: same image within one step */
+    const char *ok2[] = {"render", pkg, out2, "--geometry", "sphere", "--size", "40x30", "--camera", "60,-90,3.5",
+                         "--light", "30,10", "--background", "0.2,0.4,0.6", "--backend", "osmesa"};
+    cr_assert_eq(run_cli(15, ok2), 0);
+    uint8_t *px2 = NULL;
+    cr_assert_eq(btf_image_read_u8(out2, &w, &h, &ch, &px2, &err), BTF_OK, "%s", err.msg);
+    for (int i = 0; i < 40 * 30 * 3; i++)
+        cr_assert(abs(px[i] - px2[i]) <= 1, "egl vs osmesa byte %d: %d vs %d", i, px[i], px2[i]);
+    /* one chunk differs from all chunks */
+    const char *one[] = {"render", pkg, out2, "--geometry", "sphere", "--size", "40x30", "--camera", "60,-90,3.5",
+                         "--light", "30,10", "--background", "0.2,0.4,0.6", "--chunks", "1"};
+    cr_assert_eq(run_cli(15, one), 0);
+    free(px2);
+    cr_assert_eq(btf_image_read_u8(out2, &w, &h, &ch, &px2, &err), BTF_OK, "%s", err.msg);
+    int differ = 0;
+    for (int i = 0; i < 40 * 30 * 3; i++)
+        differ += abs(px[i] - px2[i]) > 2;
+    cr_assert_gt(differ, 20, "--chunks 1 looks like all chunks");
+    free(px);
+    free(px2);
+
+    /* usage errors: exit 2, nothing written */
+    const char *bad[][4] = {
+        {"--geometry", "cube", NULL}, {"--size", "0x5", NULL},    {"--size", "12y4", NULL},
+        {"--camera", "a,b", NULL},    {"--camera", "1,2,3,4", NULL}, {"--fov", "0", NULL},
+        {"--chunks", "0", NULL},      {"--backend", "vulkan", NULL}, {"--frobnicate", "1", NULL},
+        {"--light", "30", NULL},      {"--background", "1,1,2", NULL}, {"--camera", "30,0,-2", NULL},
+        {"--size", NULL},
+    };
+    char out3[400];
+    snprintf(out3, sizeof out3, "%s/c.png", tmp);
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        const char *argv[6] = {"render", pkg, out3, bad[i][0], bad[i][1]};
+        int n = bad[i][1] ? 5 : 4;
+        cr_assert_eq(run_cli(n, argv), 2, "case %zu (%s %s) not a usage error", i, bad[i][0],
+                     bad[i][1] ? bad[i][1] : "");
+    }
+    const char *missing_out[] = {"render", pkg};
+    cr_assert_eq(run_cli(2, missing_out), 2);
+    const char *extra[] = {"render", pkg, out3, "extra"};
+    cr_assert_eq(run_cli(4, extra), 2);
+    struct stat st;
+    cr_assert_neq(stat(out3, &st), 0, "a usage error wrote %s", out3);
+    /* failures: exit 1 */
+    char nopkg[400];
+    snprintf(nopkg, sizeof nopkg, "%s/no-such-package", tmp);
+    const char *missing[] = {"render", nopkg, out3};
+    cr_assert_eq(run_cli(3, missing), 1);
+    cr_assert_neq(stat(out3, &st), 0);
+    const char *help[] = {"render", "--help"};
+    cr_assert_eq(run_cli(2, help), 0);
+    remove_tree(tmp, pkg);
+}
+
+/* A target of the wrong size and NULL arguments are errors, not crashes. */
+Test(render, draw_bad_arguments)
+{
+    char tmp[256], pkg[300];
+    btf_gen_params gp;
+    make_package(tmp, sizeof tmp, pkg, sizeof pkg, &gp);
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
+    btf_gl *gl = open_gl(BTF_GL_EGL);
+    btf_renderer *r = NULL;
+    cr_assert_eq(btf_renderer_create(gl, p, pkg, 0, &r, &err), BTF_OK, "%s", err.msg);
+    btf_gl_target *t = NULL;
+    cr_assert_eq(btf_gl_target_create(gl, 8, 8, BTF_GL_RGBA8, 1, &t, &err), BTF_OK, "%s", err.msg);
+    btf_render_params rp = btf_render_defaults(BTF_RENDER_PLANE);
+    cr_assert_eq(btf_renderer_draw(r, &rp, t, &err), BTF_ERR_ARG);
+    cr_assert(strstr(err.msg, "8x8"), "%s", err.msg);
+    cr_assert_eq(btf_renderer_draw(r, NULL, t, &err), BTF_ERR_ARG);
+    rp.width = rp.height = 8;
+    cr_assert_eq(btf_renderer_draw(r, &rp, t, &err), BTF_OK, "%s", err.msg);
+    uint8_t rgb[8 * 8 * 3];
+    cr_assert_eq(btf_render_read_rgb8(gl, t, rgb, &err), BTF_OK, "%s", err.msg);
+    btf_renderer *r2 = NULL;
+    cr_assert_eq(btf_renderer_create(gl, NULL, pkg, 0, &r2, &err), BTF_ERR_ARG);
+    cr_assert_null(r2);
+    btf_gl_target_free(gl, t);
+    btf_renderer_free(r);
+    btf_renderer_free(NULL);
+    btf_gl_free(gl);
+    btf_package_free(p);
+    remove_tree(tmp, pkg);
+}

@@ -1,0 +1,137 @@
+/* btf_render.h - scene setup of `btf render`: meshes (plane, sphere, cylinder),
+ * camera and light from angles, and drawing a package with the shared `render`
+ * program of shaders/ (btf_render.vert/.frag) in a headless btf_gl context.
+ *
+ *     btf_render_params rp = btf_render_defaults(BTF_RENDER_SPHERE);
+ *     rp.camera_theta = 60; rp.light_phi = 30;
+ *     btf_renderer *r;
+ *     btf_renderer_create(gl, pkg, "lib/wool", 0, &r, &err);   // uploads the package
+ *     btf_gl_target *t; btf_gl_target_create(gl, rp.width, rp.height, BTF_GL_RGBA8, 1, &t, &err);
+ *     btf_renderer_draw(r, &rp, t, &err);                       // clear, draw, finish
+ *     ...
+ *     btf_render_png("lib/wool", &rp, BTF_GL_DEFAULT, "wool.png", &err);  // all in one
+ *
+ * Conventions (shaders/README.md, "Scene conventions", is the spec the browser
+ * client follows; tests/test_render.c checks them with an independent ray cast):
+ * - World: right-handed, +z up. Angles in degrees. A direction (theta, phi) is
+ *   (sin t cos p, sin t sin p, cos t): theta from +z, phi from +x towards +y.
+ * - Objects (model matrix = identity, uv in 0..1 scaled by u_uv_scale):
+ *   plane    square [-1,1]^2 at z = 0, normal +z, uv = ((x+1)/2, (1-y)/2);
+ *            its local BTF frame equals the world frame (x = u, y = towards row 0)
+ *   sphere   radius 1, u = (longitude - 90)/360 mod 1 (longitude from +x towards
+ *            +y: the seam faces +y, away from the default camera), v = colatitude/180
+ *   cylinder axis along x, length 2 (x in [-1,1]), radius 2/pi (circumference 4),
+ *            u = (x+1)/2, v = 0.5 + angle/360, angle from the top line (z max)
+ *            towards -y (seam along the bottom line)
+ *   default repeats: plane 1 x 1, sphere 2 x 1, cylinder 1 x 2 (square texels)
+ *   times `repeat`.
+ * - Camera at dist * dir(camera_theta, camera_phi), looking at the origin, up =
+ *   -d(dir)/d(theta) = (-cos t cos p, -cos t sin p, sin t) (defined at theta 0 too),
+ *   vertical field of view fov_deg, aspect width/height, near 0.05*dist, far dist+4.
+ * - Light: distant, towards dir(light_theta, light_phi) (u_light.w = 0).
+ * Output values are the BTF's own (sRGB-encoded, byte/255 scale), clamped to 0..1.
+ *
+ * Limitations: one material per draw; convex objects only (depth-tested, no
+ * shadows between objects); the whole loaded package is uploaded.
+ */
+#ifndef BTF_RENDER_H
+#define BTF_RENDER_H
+
+#include "btf_gl.h"
+#include "btf_gl_package.h"
+#include "btf_package.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum btf_render_geometry {
+    BTF_RENDER_PLANE = 0,
+    BTF_RENDER_SPHERE = 1,
+    BTF_RENDER_CYLINDER = 2,
+    BTF_RENDER_GEOMETRY_COUNT
+} btf_render_geometry;
+
+/* "plane" / "sphere" / "cylinder"; "?" if unknown. */
+const char *btf_render_geometry_name(btf_render_geometry g);
+/* -1 if the name is unknown. */
+int btf_render_geometry_from_name(const char *name);
+
+/* What to draw and from where; plain value. Start from btf_render_defaults(). */
+typedef struct btf_render_params {
+    int width, height;              /* pixels, 1..8192 */
+    btf_render_geometry geometry;
+    float camera_theta, camera_phi; /* degrees: camera direction from the origin */
+    float camera_dist;              /* world units from the origin, > 0 */
+    float light_theta, light_phi;   /* degrees: direction towards a distant light */
+    float fov_deg;                  /* vertical field of view, 1..170 */
+    float background[3];            /* 0..1, written as is */
+    float repeat;                   /* material repeats, times the geometry's default; > 0 */
+    int filter;                     /* 0 nearest texel, 1 bilinear (default) */
+    int n_chunks;                   /* first n uploaded chunks; 0 = all */
+    int horizon_fade;               /* 1 (default): light beyond the outermost measured
+                                       ring fades linearly in cos(theta) to 0 at the horizon */
+} btf_render_params;
+
+/* Defaults for a geometry: 320 x 240, camera and light framing the object. */
+btf_render_params btf_render_defaults(btf_render_geometry g);
+/* BTF_ERR_RANGE / BTF_ERR_ARG naming the first bad field. */
+btf_result btf_render_check_params(const btf_render_params *p, btf_error *err);
+
+/* Matrices (column-major float[16], as glUniformMatrix4fv wants) and uniforms of
+ * one view; plain value filled by btf_render_camera_make. */
+typedef struct btf_render_camera {
+    float model[16], view[16], proj[16], view_proj[16];
+    float eye[3];      /* world position of the camera */
+    float forward[3], right[3], up[3]; /* unit camera axes in world */
+    float light[3];    /* unit direction towards the light, world */
+    float uv_scale[2]; /* u_uv_scale */
+    int wrap;          /* u_btf_wrap: 1 for sphere and cylinder (seam) or repeat != 1 */
+} btf_render_camera;
+
+void btf_render_camera_make(const btf_render_params *p, btf_render_camera *out);
+
+/* Triangle mesh, interleaved per vertex: position 3, normal 3, tangent 4 (w = +1),
+ * uv 2 (attribute locations 0..3 of btf_render.vert). Owned by the caller,
+ * btf_render_mesh_free. */
+typedef struct btf_render_mesh {
+    float *vertices; /* n_vertices * BTF_RENDER_VERTEX_FLOATS (malloc'd) */
+    int n_vertices;
+    unsigned *indices; /* n_indices (malloc'd), triangles */
+    int n_indices;
+} btf_render_mesh;
+
+#define BTF_RENDER_VERTEX_FLOATS 12
+
+/* segments: subdivisions around (sphere, cylinder) or per side (plane); 0 = default 64. */
+btf_result btf_render_mesh_create(btf_render_geometry g, int segments, btf_render_mesh **out, btf_error *err);
+void btf_render_mesh_free(btf_render_mesh *m);
+
+/* A package on the GPU plus the compiled `render` program and mesh buffers, ready
+ * to draw many frames. Made by btf_renderer_create with a current btf_gl, freed by
+ * btf_renderer_free with the same btf_gl (before that btf_gl is freed). */
+typedef struct btf_renderer btf_renderer;
+
+/* debug = 1 builds the program with BTF_RENDER_DEBUG (colour attachments 1..3 get
+ * uv, local light, local view; draw into a target with 4 attachments). dir is the
+ * package directory (its texture files are uploaded as a browser receives them). */
+btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir, int debug, btf_renderer **out,
+                               btf_error *err);
+void btf_renderer_free(btf_renderer *r);
+/* Clears t to the background (depth too), draws the scene, waits for the GPU. */
+btf_result btf_renderer_draw(btf_renderer *r, const btf_render_params *p, btf_gl_target *t, btf_error *err);
+
+/* Reads colour attachment 0 of an RGBA8 target into rgb (width*height*3 bytes),
+ * top row first (image order). */
+btf_result btf_render_read_rgb8(btf_gl *gl, const btf_gl_target *t, uint8_t *rgb, btf_error *err);
+
+/* All in one: reads the package in dir (the first n_chunks present when
+ * p->n_chunks > 0, else every chunk present), renders with the backend into an
+ * RGBA8 target and writes an RGB PNG (or any format btf_image_write knows). */
+btf_result btf_render_png(const char *dir, const btf_render_params *p, btf_gl_backend backend, const char *out_path,
+                          btf_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,236 @@
+/* cmd_render.c - `btf render PACKAGE OUT.png`: a package (possibly partial) on a
+ * plane, sphere or cylinder, headless (EGL or OSMesa), through the shared shaders.
+ *
+ *     btf render lib/wool wool.png --geometry cylinder --size 640x480
+ *     btf render lib/knit knit-2.png --chunks 2 --camera 60,-90,3.5 --light 30,0
+ *
+ * Scene conventions (camera and light angles, objects, uv): tools/btf_render.h and
+ * shaders/README.md ("Scene conventions").
+ */
+#include "btf_cli.h"
+#include "btf_render.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* Parsed command line; stack value of cmd_render, strings point into argv. */
+typedef struct render_opts {
+    const char *pkg, *out;
+    btf_render_params p;
+    btf_gl_backend backend;
+} render_opts;
+
+static void render_usage(FILE *f)
+{
+    fprintf(f, "usage: btf render PACKAGE OUT.png [--chunks N] [--geometry plane|sphere|cylinder]\n"
+               "                  [--size W[xH]] [--camera THETA,PHI[,DIST]] [--light THETA,PHI]\n"
+               "                  [--fov DEG] [--repeat R] [--filter nearest|bilinear]\n"
+               "                  [--no-horizon-fade] [--backend egl|osmesa] [--background R,G,B]\n"
+               "\n"
+               "Renders the package directory PACKAGE (its first N chunks; default: every chunk\n"
+               "present) headless with the shaders the browser runs, and writes OUT (PNG).\n"
+               "World: +z up; a direction (THETA, PHI) in degrees is theta from +z, phi from +x\n"
+               "towards +y. The object sits at the origin: plane = [-1,1]^2 at z = 0 (image row 0\n"
+               "towards +y), sphere of radius 1, cylinder along x (length 2, circumference 4).\n"
+               "  --chunks N           use the first N chunks (default and at most: all present)\n"
+               "  --geometry G         plane (default), sphere or cylinder\n"
+               "  --size WxH           image size in pixels (default 320x240; W alone: square)\n"
+               "  --camera T,P[,D]     camera direction and distance (default per geometry,\n"
+               "                       plane 35,-90,3; the camera looks at the origin, up = +z tilted)\n"
+               "  --light T,P          direction towards a distant light (default 45,-50)\n"
+               "  --fov DEG            vertical field of view (default 40)\n"
+               "  --repeat R           material repeats across the object (default 1)\n"
+               "  --filter F           texel filter (default bilinear)\n"
+               "  --no-horizon-fade    keep the decoder's value for lights below the measured range\n"
+               "  --backend B          egl or osmesa (default $BTF_GL_BACKEND, else egl, else osmesa)\n"
+               "  --background R,G,B   0..1 each (default 0.12,0.12,0.12)\n");
+}
+
+/* Parses n_min..n comma-separated finite floats, the whole string. */
+static int render_floats(const char *s, float *v, int n_min, int n)
+{
+    const char *c = s;
+    for (int k = 0; k < n; k++) {
+        char *end;
+        errno = 0;
+        double x = strtod(c, &end);
+        if (errno || end == c || !isfinite(x))
+            return 0;
+        v[k] = (float)x;
+        if (*end == '\0')
+            return k + 1 >= n_min;
+        if (*end != ',')
+            return 0;
+        c = end + 1;
+    }
+    return 0; /* more than n values */
+}
+
+static int render_size(const char *s, int *w, int *h)
+{
+    char *end;
+    errno = 0;
+    long a = strtol(s, &end, 10), b = a;
+    if (errno || end == s)
+        return 0;
+    if (*end == 'x') {
+        const char *c = end + 1;
+        b = strtol(c, &end, 10);
+        if (errno || end == c)
+            return 0;
+    }
+    if (*end || a < 1 || a > 8192 || b < 1 || b > 8192)
+        return 0;
+    *w = (int)a;
+    *h = (int)b;
+    return 1;
+}
+
+/* One option with its value; 0 ok, 2 usage error. */
+static int render_option(render_opts *o, const char *a, const char *val)
+{
+    btf_render_params *p = &o->p;
+    int ok = 1;
+    if (!strcmp(a, "--chunks")) {
+        char *end;
+        errno = 0;
+        long n = strtol(val, &end, 10);
+        ok = !errno && end != val && !*end && n >= 1 && n <= 1024;
+        p->n_chunks = (int)n;
+    } else if (!strcmp(a, "--size")) {
+        ok = render_size(val, &p->width, &p->height);
+    } else if (!strcmp(a, "--camera")) {
+        float v[3] = {0, 0, p->camera_dist};
+        ok = render_floats(val, v, 2, 3);
+        p->camera_theta = v[0];
+        p->camera_phi = v[1];
+        p->camera_dist = v[2];
+    } else if (!strcmp(a, "--light")) {
+        float v[2];
+        ok = render_floats(val, v, 2, 2);
+        p->light_theta = v[0];
+        p->light_phi = v[1];
+    } else if (!strcmp(a, "--fov")) {
+        ok = render_floats(val, &p->fov_deg, 1, 1);
+    } else if (!strcmp(a, "--repeat")) {
+        ok = render_floats(val, &p->repeat, 1, 1);
+    } else if (!strcmp(a, "--background")) {
+        ok = render_floats(val, p->background, 3, 3);
+    } else if (!strcmp(a, "--filter")) {
+        ok = !strcmp(val, "nearest") || !strcmp(val, "bilinear");
+        p->filter = !strcmp(val, "bilinear");
+    } else if (!strcmp(a, "--backend")) {
+        btf_error e = {{0}};
+        ok = btf_gl_backend_parse(val, &o->backend, &e) == BTF_OK && o->backend != BTF_GL_DEFAULT;
+    } else {
+        fprintf(stderr, "btf render: unknown option '%s'\n", a);
+        return 2;
+    }
+    if (!ok) {
+        fprintf(stderr, "btf render: bad value '%s' for %s (see btf render --help)\n", val, a);
+        return 2;
+    }
+    return 0;
+}
+
+/* 0 ok, 2 usage error, -1 help printed. --geometry is applied first (it sets the
+ * defaults the other options then change). */
+static int render_parse(int argc, char **argv, render_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    btf_render_geometry g = BTF_RENDER_PLANE;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+            render_usage(stdout);
+            return -1;
+        }
+        if (!strcmp(argv[i], "--geometry") && i + 1 < argc) {
+            int k = btf_render_geometry_from_name(argv[i + 1]);
+            if (k < 0) {
+                fprintf(stderr, "btf render: unknown geometry '%s' (plane, sphere, cylinder)\n", argv[i + 1]);
+                return 2;
+            }
+            g = (btf_render_geometry)k;
+        }
+    }
+    o->p = btf_render_defaults(g);
+    int npos = 0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "--no-horizon-fade")) {
+            o->p.horizon_fade = 0;
+        } else if (!strcmp(a, "--geometry") && i + 1 < argc) {
+            i++;
+        } else if (a[0] == '-' && a[1] == '-') {
+            if (i + 1 >= argc) {
+                fprintf(stderr, "btf render: option '%s' needs a value\n", a);
+                return 2;
+            }
+            int rc = render_option(o, a, argv[++i]);
+            if (rc)
+                return rc;
+        } else if (npos < 2) {
+            if (npos++ == 0)
+                o->pkg = a;
+            else
+                o->out = a;
+        } else {
+            fprintf(stderr, "btf render: unexpected argument '%s'\n", a);
+            return 2;
+        }
+    }
+    if (npos != 2) {
+        render_usage(stderr);
+        return 2;
+    }
+    btf_error err = {{0}};
+    if (btf_render_check_params(&o->p, &err) != BTF_OK) {
+        fprintf(stderr, "btf render: %s\n", err.msg);
+        return 2;
+    }
+    return 0;
+}
+
+/* When neither $BTF_SHADERS nor $BTF_ROOT is set and ./shaders has no manifest,
+ * points $BTF_SHADERS at the source tree next to the binary (BUILD/btf ->
+ * BUILD/../shaders), so `btf render` works from any directory. */
+static void render_find_shaders(void)
+{
+    struct stat st;
+    if (getenv("BTF_SHADERS") || getenv("BTF_ROOT") || stat("shaders/manifest.json", &st) == 0)
+        return;
+    char exe[4096], dir[4200];
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n <= 0)
+        return;
+    exe[n] = '\0';
+    char *slash = strrchr(exe, '/');
+    if (!slash)
+        return;
+    *slash = '\0';
+    snprintf(dir, sizeof dir, "%s/../shaders/manifest.json", exe);
+    if (stat(dir, &st) == 0) {
+        snprintf(dir, sizeof dir, "%s/../shaders", exe);
+        setenv("BTF_SHADERS", dir, 0);
+    }
+}
+
+int cmd_render(int argc, char **argv)
+{
+    render_opts o;
+    int rc = render_parse(argc, argv, &o);
+    if (rc)
+        return rc < 0 ? 0 : rc;
+    render_find_shaders();
+    btf_error err = {{0}};
+    if (btf_render_png(o.pkg, &o.p, o.backend, o.out, &err) != BTF_OK) {
+        fprintf(stderr, "btf render: %s\n", err.msg);
+        return 1;
+    }
+    return 0;
+}
