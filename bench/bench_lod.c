@@ -9,7 +9,8 @@
  * Scenes (device pixels across the surface, times the material repeats across it):
  * close-up 1920 px x 1; thumbnail 300 px x 8 (a gallery sphere tiles the material);
  * grid of 12 thumbnails 200 px x 8; phone 1080 px x 2. First frame: manifest + chunk 0.
- * Environment: BENCH_TMP (default /tmp/btf-bench-lod), BENCH_LOD_SIDE.
+ * Environment: BENCH_TMP (default /tmp/btf-bench-lod), BENCH_LOD_SIDE, BENCH_LOD_THRESHOLD
+ * (visibility threshold of the build and the selection, default BTF_LOD_THRESHOLD).
  */
 #include "btf.h"
 #include "btf_gen.h"
@@ -46,31 +47,35 @@ static float texel(const btf_package *p, int n, int c, int ld, int b, int x, int
     return bilin(t, w, h, ((float)x + 0.5f) / s - 0.5f, ((float)y + 0.5f) / s - 0.5f);
 }
 
-/* RMSE at level ld of the prefix n against the whole package at level ld. */
-static double display_error(const btf_package *p, int n, int ld)
+/* RMSE at level ld of the prefix package q (read with only its budget, so with the
+ * 8-bit coarse weights where those came first) against the whole package p at level ld. */
+static double display_error(const btf_package *p, const btf_package *q, int ld)
 {
     int w = p->width >> ld, h = p->height >> ld, V = p->views.n_dirs, L = p->lights.n_dirs, C = p->n_comp;
     double e = 0.0;
-    float *d = malloc((size_t)C * sizeof(float));
-    int *wj = malloc((size_t)C * sizeof(int));
-    for (int c = 0; c < C; c++)
-        wj[c] = btf_lod_chunk_at(p, 0, c, 0);
+    float *tf = malloc((size_t)C * sizeof(float)), *tq = malloc((size_t)C * sizeof(float));
+    const float **wf = malloc((size_t)C * sizeof *wf), **wq = malloc((size_t)C * sizeof *wq);
+    for (int c = 0; c < C; c++) {
+        int jf = btf_lod_chunk_at(p, 0, c, 0), jq = btf_lod_chunk_at(q, 0, c, ld);
+        wf[c] = jf >= 0 ? p->wt[jf] : NULL;
+        wq[c] = jq >= 0 ? q->wt[jq] : NULL;
+    }
     for (int v = 0; v < V; v++) {
         int b = p->blocks->block_of_view[v];
         for (int y = 0; y < h; y++)
             for (int x = 0; x < w; x++) {
                 for (int c = 0; c < C; c++)
-                    d[c] = texel(p, 0, c, ld, b, x, y) - texel(p, n, c, ld, b, x, y);
+                    tf[c] = texel(p, 0, c, ld, b, x, y), tq[c] = texel(q, 0, c, ld, b, x, y);
                 for (int k = 0; k < L * 3; k++) {
                     float s = 0.0f;
                     for (int c = 0; c < C; c++)
-                        if (wj[c] >= 0)
-                            s += d[c] * p->wt[wj[c]][(size_t)v * L * 3 + k];
+                        s += (wf[c] ? tf[c] * wf[c][(size_t)v * L * 3 + k] : 0.0f) -
+                             (wq[c] ? tq[c] * wq[c][(size_t)v * L * 3 + k] : 0.0f);
                     e += (double)s * s;
                 }
             }
     }
-    free(d), free(wj);
+    free(tf), free(tq), free(wf), free(wq);
     return 255.0 * sqrt(e / ((double)V * L * 3 * w * h));
 }
 
@@ -97,6 +102,9 @@ int main(void)
     btf_free(src);
     btf_lod_options lo = {0};
     lo.levels = 4;
+    double thr = getenv("BENCH_LOD_THRESHOLD") ? atof(getenv("BENCH_LOD_THRESHOLD")) : BTF_LOD_THRESHOLD;
+    lo.threshold = thr;
+    printf("threshold %.2f rmse\n", thr);
     btf_lod_stats st;
     clock_t t0 = clock();
     if (btf_lod_build(v1, v2, &lo, &st, &err) != BTF_OK)
@@ -115,10 +123,14 @@ int main(void)
     struct { const char *name; double px, repeat; int count; } sc[] = {
         {"closeup", 1920, 1, 1}, {"thumbnail", 300, 8, 1}, {"grid12", 200, 8, 12}, {"phone", 1080, 2, 1}};
     for (size_t i = 0; i < sizeof sc / sizeof sc[0]; i++) {
-        btf_lod_view v = {btf_lod_footprint(p->width, sc[i].repeat, sc[i].px), BTF_LOD_THRESHOLD};
+        btf_lod_view v = {btf_lod_footprint(p->width, sc[i].repeat, sc[i].px), thr};
         btf_lod_selection s;
         btf_lod_select(p, &v, &s, NULL);
-        double e = display_error(p, s.limit, s.level);
+        btf_package *q = NULL;
+        if (btf_package_read(v2, s.limit, &q, &err) != BTF_OK)
+            return fprintf(stderr, "%s\n", err.msg), 1;
+        double e = display_error(p, q, s.level);
+        btf_package_free(q);
         long long all = st.bytes_v1 * sc[i].count, got = (s.bytes + mbytes) * sc[i].count;
         printf("%s_texels_per_pixel %.3f\n%s_level %d\n%s_chunks %d of %d\n", sc[i].name, v.texels_per_pixel,
                sc[i].name, s.level, sc[i].name, s.limit, p->n_chunks);

@@ -121,6 +121,8 @@ typedef struct btf__lod {
     uint8_t **atlas; /* [a*nl+l] atlas pixels for l >= 1 */
     double *contrib; /* [a*nl+l] */
     long long *tbytes, *wbytes; /* [a*nl+l] texture file bytes; [a] weight file bytes */
+    long long *w8bytes;         /* [a] 8-bit weight file bytes (0: none, the first chunk is level 0) */
+    int *w8mult;                /* [a] step multiplier of the 8-bit weights (btf__w8_mult) */
     int *order;      /* n_chunks * 2: (a, l) in chunk order */
     int n_order;
     double *rmse_full; /* per chunk: RMSE against the complete package */
@@ -135,6 +137,7 @@ static void btf__lod_free(btf__lod *s)
             free(s->atlas[i]);
     }
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
+    free(s->w8bytes), free(s->w8mult);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -390,6 +393,62 @@ static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t 
         snprintf(name, n, "%.*s-l%d.png", (int)(strlen(t) - 4), t, l);
 }
 
+/* Name of component a's 8-bit weights: "wt-JJ.bin" -> "wt-JJ-8.png". */
+static void btf__w8_name(const btf__lod *s, int a, char *name, size_t n)
+{
+    const char *w = btf__file_ending(&s->p->chunk[a], ".bin");
+    snprintf(name, n, "%.*s-8.png", (int)(strlen(w) - 4), w);
+}
+
+/* Level of component a's first chunk in the order (its coarse weights travel there when > 0). */
+static int btf__first_level(const btf__lod *s, int a)
+{
+    for (int k = 0; k < s->n_order; k++)
+        if (s->order[2 * k] == a)
+            return s->order[2 * k + 1];
+    return 0;
+}
+
+/* Step multiplier of component a's 8-bit weights: the largest m >= 1 with
+ * m * 257 * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a) in every block, so the
+ * coarse weights add at most that RMS noise (0..255 scale) per component (the
+ * equal-noise allocation of section 4 applied to weights). */
+#define BTF__W8_NOISE 0.25
+static int btf__w8_mult(const btf__lod *s, int a)
+{
+    const btf_package *p = s->p;
+    double m = 65535.0;
+    for (int b = 0; b < s->nb; b++) {
+        const float *t = p->tex[a] + (size_t)b * s->W * s->H;
+        double e = 0.0;
+        for (size_t k = 0; k < (size_t)s->W * s->H; k++)
+            e += (double)t[k] * t[k];
+        double rms = sqrt(e / ((double)s->W * s->H)), st = 257.0 * p->chunk[a].wt_range[2 * b + 1];
+        if (rms > 0.0 && st > 0.0 && BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st < m)
+            m = BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st;
+    }
+    return m < 1.0 ? 1 : (int)m;
+}
+
+/* Component a's weights requantised to 8 bits (q8 = round(q16 / (257 m)), the same lo),
+ * as a grey PNG of 3L x V pixels (doc/package-format.md section 10). */
+static btf_result btf__write_w8(const btf__lod *s, int a, const char *path, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    uint8_t *q = malloc((size_t)V * L * 3);
+    if (!q)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
+        const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
+        double x = rg[1] > 0.0f ? ((double)p->wt[a][k] - rg[0]) / (257.0 * s->w8mult[a] * rg[1]) : 0.0;
+        q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
+    }
+    btf_result r = btf_image_write(path, 3 * L, V, 1, 8, q, err);
+    free(q);
+    return r;
+}
+
 /* Every texture and weight file into tmp; fills tbytes, wbytes. */
 static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *tmp, btf_error *err)
 {
@@ -402,6 +461,13 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
         snprintf(to, sizeof to, "%s/%s", tmp, wf);
         r = btf__copy_file(from, to, err);
         s->wbytes[a] = btf__fsize(to);
+        if (r == BTF_OK && btf__first_level(s, a) > 0) {
+            btf__w8_name(s, a, name, sizeof name);
+            snprintf(to, sizeof to, "%s/%s", tmp, name);
+            s->w8mult[a] = btf__w8_mult(s, a);
+            r = btf__write_w8(s, a, to, err);
+            s->w8bytes[a] = btf__fsize(to);
+        }
         for (int l = 0; r == BTF_OK && l < s->nl; l++) {
             btf__level_name(s, a, l, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
@@ -418,9 +484,53 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
     return r;
 }
 
+/* Informational numbers (errors, contributions) with 4 significant digits: short JSON. */
 static double btf__jnum(double x)
 {
-    return isfinite(x) ? (double)(float)x : 0.0;
+    char b[32];
+    snprintf(b, sizeof b, "%.4g", isfinite(x) ? x : 0.0);
+    return strtod(b, NULL);
+}
+
+/* Standard base64 of n bytes into a new string (NULL: out of memory). */
+static char *btf__b64(const uint8_t *d, size_t n)
+{
+    static const char A[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    char *o = malloc((n + 2) / 3 * 4 + 1), *q = o;
+    for (size_t i = 0; o && i < n; i += 3) {
+        unsigned v = (unsigned)d[i] << 16 | (i + 1 < n ? (unsigned)d[i + 1] << 8 : 0) | (i + 2 < n ? d[i + 2] : 0);
+        *q++ = A[v >> 18 & 63], *q++ = A[v >> 12 & 63];
+        *q++ = i + 1 < n ? A[v >> 6 & 63] : '=';
+        *q++ = i + 2 < n ? A[v & 63] : '=';
+    }
+    if (o)
+        *q = 0;
+    return o;
+}
+
+/* "ranges": per component number, base64 of n_blocks x float32 LE {tex lo, step, wt lo, step}. */
+static cJSON *btf__ranges_b64(const btf__lod *s)
+{
+    cJSON *arr = cJSON_CreateArray();
+    uint8_t *raw = malloc((size_t)s->nb * 16);
+    for (int c = 0; arr && raw && c < s->C; c++) {
+        int a = 0;
+        while (a < s->C && s->p->chunk[a].component != c)
+            a++;
+        for (int b = 0; a < s->C && b < s->nb; b++)
+            for (int j = 0; j < 4; j++) {
+                float x = (j < 2 ? s->p->chunk[a].tex_range : s->p->chunk[a].wt_range)[2 * b + j % 2];
+                uint32_t u;
+                memcpy(&u, &x, sizeof u);
+                for (int t = 0; t < 4; t++)
+                    raw[16 * b + 4 * j + t] = (uint8_t)(u >> (8 * t));
+            }
+        char *e = btf__b64(raw, (size_t)s->nb * 16);
+        cJSON_AddItemToArray(arr, cJSON_CreateString(e ? e : ""));
+        free(e);
+    }
+    free(raw);
+    return arr;
 }
 
 /* The v2 manifest: the v1 one with version 2, "levels", "lod" and the new chunk list. */
@@ -453,6 +563,14 @@ static char *btf__lod_manifest(btf__lod *s, const char *in_dir, btf_lod_stats *s
     cJSON *lod = cJSON_AddObjectToObject(m, "lod");
     cJSON_AddStringToObject(lod, "filter", "box");
     cJSON_AddNumberToObject(lod, "threshold", s->thr);
+    cJSON_AddItemToObject(m, "ranges", btf__ranges_b64(s));
+    cJSON *mult = cJSON_AddArrayToObject(m, "weights8_step");
+    for (int c = 0; c < s->C; c++) { /* per component number, 0 = no 8-bit weights */
+        int a = 0;
+        while (a < s->C && p->chunk[a].component != c)
+            a++;
+        cJSON_AddItemToArray(mult, cJSON_CreateNumber(a < s->C && s->w8bytes[a] ? 257.0 * s->w8mult[a] : 0.0));
+    }
     cJSON *chunks = cJSON_AddArrayToObject(m, "chunks");
     char *seen = calloc((size_t)s->C, 1);
     for (int k = 0; seen && k < s->n_order; k++) {
@@ -463,11 +581,19 @@ static char *btf__lod_manifest(btf__lod *s, const char *in_dir, btf_lod_stats *s
         cJSON *files = cJSON_CreateArray();
         cJSON_AddItemToArray(files, cJSON_CreateString(name));
         long long bytes = s->tbytes[a * s->nl + l];
-        if (!seen[a]) { /* the component's first chunk carries its weights */
+        if (!seen[a] && l > 0) { /* a coarse first chunk carries the 8-bit weights */
+            char w8[BTF_PACKAGE_NAME_MAX + 8];
+            btf__w8_name(s, a, w8, sizeof w8);
+            cJSON_AddItemToArray(files, cJSON_CreateString(w8));
+            bytes += s->w8bytes[a];
+        }
+        if (l == 0 || (!seen[a] && s->w8bytes[a] == 0)) { /* level 0 carries the 16-bit weights */
             cJSON_AddItemToArray(files, cJSON_CreateString(btf__file_ending(&p->chunk[a], ".bin")));
             bytes += s->wbytes[a];
-            seen[a] = 1;
         }
+        seen[a] = 1;
+        cJSON_DeleteItemFromObjectCaseSensitive(c, "tex_range");
+        cJSON_DeleteItemFromObjectCaseSensitive(c, "wt_range");
         double rm = sqrt(rmse_end * rmse_end + s->rmse_full[k] * s->rmse_full[k]);
         cJSON_DeleteItemFromObjectCaseSensitive(c, "lab");
         cJSON_DeleteItemFromObjectCaseSensitive(c, "delta_e76");
@@ -503,6 +629,9 @@ static void btf__rm_dir(const char *dir, const btf__lod *s)
     char path[8400], name[BTF_PACKAGE_NAME_MAX + 8];
     for (int a = 0; s->p && a < s->C; a++) {
         snprintf(path, sizeof path, "%s/%s", dir, btf__file_ending(&s->p->chunk[a], ".bin"));
+        remove(path);
+        btf__w8_name(s, a, name, sizeof name);
+        snprintf(path, sizeof path, "%s/%s", dir, name);
         remove(path);
         for (int l = 0; l < s->nl; l++) {
             btf__level_name(s, a, l, name, sizeof name);
@@ -550,8 +679,9 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->lev = calloc(n, sizeof *s->lev), s->atlas = calloc(n, sizeof *s->atlas);
     s->contrib = calloc(n, sizeof(double)), s->tbytes = calloc(n, sizeof(long long));
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
-    s->rmse_full = calloc(n, sizeof(double));
-    if (!s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full)
+    s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
+    s->w8mult = calloc((size_t)s->C, sizeof(int));
+    if (!s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;
 }

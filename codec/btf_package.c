@@ -787,8 +787,65 @@ static btf_result btf__parse_ranges(const cJSON *c, const char *key, int nb, flo
     return BTF_OK;
 }
 
-static btf_result btf__parse_chunk(const cJSON *c, btf_package *p, int id, const char *path, btf_error *err)
+/* Decodes standard base64 (no line breaks, '=' padding) into exactly n bytes; 0 on any error. */
+static int btf__base64(const char *s, uint8_t *out, size_t n)
 {
+    static const char A[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    size_t len = strlen(s), k = 0;
+    if (len != (n + 2) / 3 * 4)
+        return 0;
+    for (size_t i = 0; i < len; i += 4) {
+        unsigned v = 0;
+        int pad = 0;
+        for (int j = 0; j < 4; j++) {
+            const char *q = s[i + j] ? strchr(A, s[i + j]) : NULL;
+            if (s[i + j] == '=' && i + 4 == len && j >= 2)
+                pad++, q = A;
+            else if (!q || pad)
+                return 0;
+            v = v << 6 | (unsigned)(q - A);
+        }
+        for (int j = 0; j < 3 - pad; j++)
+            if (k < n)
+                out[k++] = (uint8_t)(v >> (16 - 8 * j));
+    }
+    return k == n;
+}
+
+/* Version 2: ranges of component `comp` from the header's "ranges" (one base64
+ * string per component of n_blocks x float32 LE {tex_lo, tex_step, wt_lo, wt_step}). */
+static btf_result btf__component_ranges(const cJSON *ranges, btf_chunk_info *ci, int nb, const char *path, int id,
+                                        btf_error *err)
+{
+    const cJSON *s = cJSON_GetArrayItem(ranges, ci->component);
+    size_t n = (size_t)nb * 16;
+    uint8_t *raw = malloc(n);
+    ci->tex_range = malloc((size_t)nb * 2 * sizeof(float));
+    ci->wt_range = malloc((size_t)nb * 2 * sizeof(float));
+    if (!raw || !ci->tex_range || !ci->wt_range) {
+        free(raw);
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    }
+    int ok = cJSON_IsString(s) && btf__base64(s->valuestring, raw, n);
+    for (int b = 0; ok && b < nb; b++)
+        for (int j = 0; j < 4; j++) {
+            const uint8_t *q = raw + 16 * b + 4 * j;
+            uint32_t u = (uint32_t)q[0] | (uint32_t)q[1] << 8 | (uint32_t)q[2] << 16 | (uint32_t)q[3] << 24;
+            float x;
+            memcpy(&x, &u, sizeof x);
+            ok = ok && isfinite(x) && fabsf(x) <= 1e30f && (j % 2 == 0 || x >= 0.0f);
+            (j < 2 ? ci->tex_range : ci->wt_range)[2 * b + j % 2] = x;
+        }
+    free(raw);
+    return ok ? BTF_OK
+              : btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: \"ranges\" entry %d is not %zu base64 bytes of finite ranges",
+                         path, id, ci->component, n);
+}
+
+static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_package *p, int id, const char *path,
+                                   btf_error *err)
+{
+    const cJSON *ranges = cJSON_GetObjectItemCaseSensitive(root, "ranges");
     btf_chunk_info *ci = &p->chunk[id];
     int cid;
     if (!cJSON_IsObject(c) || !btf__get_int(c, "id", id, id, &cid) ||
@@ -808,7 +865,13 @@ static btf_result btf__parse_chunk(const cJSON *c, btf_package *p, int id, const
     ci->level = 0;
     if (p->version >= 2 && !btf__get_int(c, "level", 0, p->n_levels - 1, &ci->level))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: missing or wrong \"level\"", path, id);
-    const cJSON *v;
+    const cJSON *v = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "weights8_step"), ci->component);
+    ci->wt8_step = 257.0;
+    if (v && (!cJSON_IsNumber(v) || !(v->valuedouble >= 0.0 && v->valuedouble <= 65535.0)))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: bad \"weights8_step\" of component %d", path, id,
+                        ci->component);
+    if (v && v->valuedouble >= 1.0)
+        ci->wt8_step = v->valuedouble;
     if ((v = cJSON_GetObjectItemCaseSensitive(c, "contrib")) && cJSON_IsNumber(v) && isfinite(v->valuedouble))
         ci->contrib = v->valuedouble;
     if ((v = cJSON_GetObjectItemCaseSensitive(c, "bytes")) && cJSON_IsNumber(v))
@@ -818,6 +881,8 @@ static btf_result btf__parse_chunk(const cJSON *c, btf_package *p, int id, const
     for (size_t i = 0; i < sizeof nums / sizeof nums[0]; i++)
         if ((v = cJSON_GetObjectItemCaseSensitive(c, nums[i].k)) && cJSON_IsNumber(v))
             *nums[i].d = v->valuedouble;
+    if (p->version >= 2 && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
+        return btf__component_ranges(ranges, ci, p->blocks->n_blocks, path, id, err);
     btf_result r = btf__parse_ranges(c, "tex_range", p->blocks->n_blocks, &ci->tex_range, path, id, err);
     if (r == BTF_OK)
         r = btf__parse_ranges(c, "wt_range", p->blocks->n_blocks, &ci->wt_range, path, id, err);
@@ -901,14 +966,40 @@ static char *btf__read_text(const char *path, btf_result *res, btf_error *err)
     return s;
 }
 
-static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext)
+/* The file of chunk ci ending in ext; weights = 1: only names starting "wt-", 0: only others, -1: any. */
+static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext, int weights)
 {
     for (int i = 0; i < ci->n_files; i++) {
         size_t n = strlen(ci->files[i]), e = strlen(ext);
-        if (n > e && !strcmp(ci->files[i] + n - e, ext))
+        if (n > e && !strcmp(ci->files[i] + n - e, ext) &&
+            (weights < 0 || !strncmp(ci->files[i], "wt-", 3) == !!weights))
             return ci->files[i];
     }
     return NULL;
+}
+
+/* Version 2 coarse weights (doc/package-format.md section 10): an 8-bit grey PNG of
+ * 3L x V pixels, Wt = lo + wt8_step * step * q with the 16-bit [lo, step]. */
+static btf_result btf__load_weights8(const btf_package *p, const char *dir, int i, const char *wf, float *wt,
+                                     btf_error *err)
+{
+    int L = p->lights.n_dirs, V = p->views.n_dirs, w, h, ch;
+    char path[4200];
+    uint8_t *px = NULL;
+    snprintf(path, sizeof path, "%s/%s", dir, wf);
+    btf_result r = btf_image_read_u8(path, &w, &h, &ch, &px, err);
+    if (r != BTF_OK)
+        return r;
+    if (w != 3 * L || h != V || ch != 1) {
+        free(px);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, expected %dx%d grey", path, w, h, ch, 3 * L, V);
+    }
+    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
+        const float *rg = p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
+        wt[k] = rg[0] + (float)p->chunk[i].wt8_step * rg[1] * (float)px[k];
+    }
+    free(px);
+    return BTF_OK;
 }
 
 /* Weights of chunk i (dequantised) from its .bin file into wt (V*L*3 floats). */
@@ -942,10 +1033,10 @@ static btf_result btf__load_weights(const btf_package *p, const char *dir, int i
     return BTF_OK;
 }
 
-/* Version 2: a chunk without a .bin reuses the weights of an earlier loaded chunk of its component. */
+/* Version 2: a chunk without weights reuses the latest weights of its component. */
 static btf_result btf__shared_weights(const btf_package *p, int i, float *wt, btf_error *err)
 {
-    for (int e = 0; e < i; e++)
+    for (int e = i - 1; e >= 0; e--)
         if (p->chunk[e].component == p->chunk[i].component && p->wt[e]) {
             memcpy(wt, p->wt[e], (size_t)p->views.n_dirs * p->lights.n_dirs * 3 * sizeof(float));
             return BTF_OK;
@@ -958,7 +1049,8 @@ static btf_result btf__shared_weights(const btf_package *p, int i, float *wt, bt
 static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_error *err)
 {
     const btf_chunk_info *ci = &p->chunk[i];
-    const char *tf = btf__chunk_file(ci, ".png"), *wf = btf__chunk_file(ci, ".bin");
+    const char *tf = btf__chunk_file(ci, ".png", 0), *wf = btf__chunk_file(ci, ".bin", -1);
+    const char *w8 = p->version >= 2 && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
     char path[4200];
     if (!tf || (!wf && p->version < 2))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png texture or no .bin weights", dir, i);
@@ -990,11 +1082,16 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
             }
     }
     free(px);
-    r = wf ? btf__load_weights(p, dir, i, wf, wt, err) : btf__shared_weights(p, i, wt, err);
+    r = wf ? btf__load_weights(p, dir, i, wf, wt, err)
+       : w8 ? btf__load_weights8(p, dir, i, w8, wt, err)
+            : btf__shared_weights(p, i, wt, err);
     if (r != BTF_OK) {
         free(tex), free(wt);
         return r;
     }
+    for (int e = 0; wf && e < i; e++) /* finer weights replace the coarse ones of earlier levels */
+        if (p->chunk[e].component == ci->component)
+            memcpy(p->wt[e], wt, (size_t)p->views.n_dirs * p->lights.n_dirs * 3 * sizeof(float));
     p->tex[i] = tex;
     p->wt[i] = wt;
     p->n_loaded = i + 1;
@@ -1043,7 +1140,7 @@ btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error
             p->n_chunks = nc;
     }
     for (int i = 0; r == BTF_OK && i < nc; i++)
-        r = btf__parse_chunk(cJSON_GetArrayItem(chunks, i), p, i, path, err);
+        r = btf__parse_chunk(cJSON_GetArrayItem(chunks, i), m, p, i, path, err);
     cJSON_Delete(m);
     if (r == BTF_OK && n > nc)
         r = btf_fail(err, BTF_ERR_RANGE, "%s: %d chunks requested, the package has %d", dir, n, nc);

@@ -62,6 +62,7 @@ typedef struct btf_chunk_info {
     float *wt_range;  /* n_blocks x {lo, step} (malloc'd) */
     int level;        /* spatial level (version 2, codec/btf_lod.h): texels are (W >> level) x (H >> level); 0 in version 1 */
     double contrib;   /* version 2: RMS (0..255) of this component's contribution seen at this level; 0 if absent */
+    double wt8_step;  /* version 2: 8-bit weights are lo + wt8_step * step * q ("weights8_step"; 257 if absent) */
 } btf_chunk_info;
 
 /* A package read from disk (or just written); owned by the caller, btf_package_free. */

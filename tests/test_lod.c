@@ -103,8 +103,11 @@ Test(lod, chunks_are_component_level_pairs_coarse_first)
         cr_assert_eq(seen[c][l]++, 0, "chunk %d repeats (%d, %d)", i, c, l);
         cr_assert_eq(l, finest[c] - 1, "chunk %d: component %d level %d is not the next finer one", i, c, l);
         finest[c] = l;
-        int has_wt = p->chunk[i].n_files == 2;
-        cr_assert_eq(has_wt, l == LEVELS - 1, "chunk %d: weights travel with the coarsest level only", i);
+        const char *last = p->chunk[i].files[p->chunk[i].n_files - 1];
+        int w8 = p->chunk[i].n_files == 2 && strstr(last, "-8.png") != NULL;
+        int w16 = p->chunk[i].n_files == 2 && strstr(last, ".bin") != NULL;
+        cr_assert_eq(w8, l == LEVELS - 1, "chunk %d: 8-bit weights travel with the coarsest level only", i);
+        cr_assert_eq(w16, l == 0, "chunk %d: 16-bit weights travel with level 0 only", i);
         if (i > 0)
             cr_assert_leq(p->chunk[i].rmse, p->chunk[i - 1].rmse + 1e-3, "chunk %d raises the error", i);
     }
@@ -247,55 +250,86 @@ Test(lod, decode_selects_and_blends_levels)
     rm_tree(dir);
 }
 
-/* The selection rule on a hand-made manifest (2 components, 3 levels). */
-static btf_package *fake_package(void)
+/* tests/lod_select_cases.json (shared with tests/e2e/modules.test.mjs), found next to
+ * this source file (__FILE__ is relative to the repository root, where the tests run)
+ * or under $BTF_ROOT. */
+static cJSON *lod_cases(void)
 {
-    static const int comp[6] = {0, 0, 1, 0, 1, 1}, lev[6] = {2, 1, 2, 0, 1, 0};
-    static const double contrib[6] = {40, 50, 0.5, 55, 3, 6}, bytes[6] = {100, 200, 300, 800, 400, 1600};
+    char path[700];
+    const char *root = getenv("BTF_ROOT");
+    if (root)
+        snprintf(path, sizeof path, "%s/tests/lod_select_cases.json", root);
+    else
+        snprintf(path, sizeof path, "%.*slod_select_cases.json", (int)(strrchr(__FILE__, '/') ? strrchr(__FILE__, '/') - __FILE__ + 1 : 0), __FILE__);
+    FILE *f = fopen(path, "rb");
+    cr_assert(f, "%s: cannot open (run from the repository root or set BTF_ROOT)", path);
+    static char text[1 << 16];
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = 0;
+    cJSON *m = cJSON_Parse(text);
+    cr_assert(m, "%s: bad JSON", path);
+    return m;
+}
+
+static double jnum(const cJSON *o, const char *k)
+{
+    const cJSON *v = cJSON_GetObjectItem(o, k);
+    cr_assert(cJSON_IsNumber(v), "case field %s", k);
+    return v->valuedouble;
+}
+
+/* The selection rule on the hand-made manifest of the shared cases. */
+static btf_package *fake_package(const cJSON *pk)
+{
+    const cJSON *ch = cJSON_GetObjectItem(pk, "chunks");
+    int n = cJSON_GetArraySize(ch);
     btf_package *p = calloc(1, sizeof *p);
-    p->version = 2, p->n_levels = 3, p->n_chunks = 6, p->n_comp = 2, p->width = p->height = 64;
-    p->chunk = calloc(6, sizeof *p->chunk);
-    for (int i = 0; i < 6; i++) {
-        p->chunk[i].component = comp[i], p->chunk[i].level = lev[i];
-        p->chunk[i].contrib = contrib[i], p->chunk[i].bytes = (long long)bytes[i];
+    p->version = (int)jnum(pk, "version"), p->n_levels = (int)jnum(pk, "levels"), p->n_chunks = n;
+    p->width = p->height = (int)jnum(pk, "width");
+    p->chunk = calloc((size_t)n, sizeof *p->chunk);
+    for (int i = 0; i < n; i++) {
+        const cJSON *c = cJSON_GetArrayItem(ch, i);
+        p->chunk[i].component = (int)jnum(c, "component"), p->chunk[i].level = (int)jnum(c, "level");
+        p->chunk[i].contrib = jnum(c, "contrib"), p->chunk[i].bytes = (long long)jnum(c, "bytes");
+        p->n_comp = p->chunk[i].component + 1 > p->n_comp ? p->chunk[i].component + 1 : p->n_comp;
     }
     return p;
 }
 
 Test(lod, selection_rule)
 {
-    btf_package *p = fake_package();
-    struct { double tpp, thr; int level, ncomp, limit; long long bytes; const char *need; } cases[] = {
-        {0.5, 1.0, 0, 2, 6, 3400, "111111"},  /* close-up: everything */
-        {1.9, 1.0, 0, 2, 6, 3400, "111111"},
-        {2.0, 1.0, 1, 2, 5, 1800, "111010"},  /* level 1: component 1 visible (3 >= 1) */
-        {2.0, 4.0, 1, 1, 2, 300, "110000"},   /* ... not at threshold 4 */
-        {3.9, 4.0, 1, 1, 2, 300, "110000"},
-        {4.0, 1.0, 2, 1, 1, 100, "100000"},   /* level 2: component 1 (0.5) invisible */
-        {100, 0.1, 2, 2, 3, 600, "101000"},   /* coarsest level, low threshold */
-        {0.0, 1.0, 0, 0, 0, 0, "000000"},     /* off screen */
-        {-1, 1.0, 0, 0, 0, 0, "000000"},
-    };
-    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
-        btf_lod_view v = {cases[k].tpp, cases[k].thr};
+    cJSON *m = lod_cases();
+    btf_package *p = fake_package(cJSON_GetObjectItem(m, "package"));
+    const cJSON *cs = cJSON_GetObjectItem(m, "cases");
+    cr_assert_gt(cJSON_GetArraySize(cs), 5);
+    for (int k = 0; k < cJSON_GetArraySize(cs); k++) {
+        const cJSON *c = cJSON_GetArrayItem(cs, k);
+        btf_lod_view v = {jnum(c, "tpp"), jnum(c, "threshold")};
         btf_lod_selection s;
-        unsigned char need[6];
+        unsigned char need[64];
+        cr_assert_leq(p->n_chunks, 64);
         btf_lod_select(p, &v, &s, need);
-        char got[7];
-        for (int i = 0; i < 6; i++)
+        char got[65];
+        for (int i = 0; i < p->n_chunks; i++)
             got[i] = (char)('0' + need[i]);
-        got[6] = 0;
-        cr_assert_str_eq(got, cases[k].need, "case %zu", k);
-        if (cases[k].tpp > 0)
-            cr_assert_eq(s.level, cases[k].level, "case %zu", k);
-        cr_assert_eq(s.n_components, cases[k].ncomp, "case %zu", k);
-        cr_assert_eq(s.limit, cases[k].limit, "case %zu", k);
-        cr_assert_eq(s.bytes, cases[k].bytes, "case %zu", k);
+        got[p->n_chunks] = 0;
+        cr_assert_str_eq(got, cJSON_GetObjectItem(c, "need")->valuestring, "case %d", k);
+        if (v.texels_per_pixel > 0)
+            cr_assert_eq(s.level, (int)jnum(c, "level"), "case %d", k);
+        cr_assert_eq(s.n_components, (int)jnum(c, "components"), "case %d", k);
+        cr_assert_eq(s.limit, (int)jnum(c, "limit"), "case %d", k);
+        cr_assert_eq(s.bytes, (long long)jnum(c, "bytes"), "case %d", k);
     }
-    cr_assert_float_eq(btf_lod_footprint(256, 2.0, 128.0), 4.0, 1e-12);
-    cr_assert_eq(btf_lod_footprint(256, 1.0, 0.0), 0.0);
+    const cJSON *fp = cJSON_GetObjectItem(m, "footprint");
+    for (int k = 0; k < cJSON_GetArraySize(fp); k++) {
+        const cJSON *c = cJSON_GetArrayItem(fp, k);
+        cr_assert_float_eq(btf_lod_footprint((int)jnum(c, "width"), jnum(c, "repeat"), jnum(c, "pixels")),
+                           jnum(c, "tpp"), 1e-12, "footprint case %d", k);
+    }
     free(p->chunk);
     free(p);
+    cJSON_Delete(m);
 }
 
 Test(lod, bad_inputs)
@@ -331,5 +365,72 @@ Test(lod, bad_inputs)
     cr_assert_neq(btf_package_read(a, 1, &q, &err), BTF_OK); /* the image reader says BTF_ERR_IO */
     cr_assert(strstr(err.msg, "tex-"), "%s", err.msg);
     cr_assert_eq(btf_package_read(a, -1, &q, &err), BTF_ERR_MISSING, "%s", err.msg);
+    rm_tree(dir);
+}
+
+/* Compact v2 manifest: ranges once per component (base64 float32) equal to v1's JSON
+ * numbers bit for bit; no per-chunk ranges; smaller than v1's manifest although it
+ * lists LEVELS times the chunks. Coarse weights: 8 bits (q16 / 257) in the first
+ * chunk, replaced by the exact 16-bit weights when level 0 arrives. */
+Test(lod, compact_manifest_and_coarse_weights)
+{
+    char dir[256], path[700];
+    make_packages(dir, sizeof dir, NULL);
+    btf_package *p1 = read_ok(dir, "v1", 0), *p = read_ok(dir, "v2", 0), *c = read_ok(dir, "v2", 1);
+    int nb = p->blocks->n_blocks, L = p->lights.n_dirs, V = p->views.n_dirs;
+    for (int i = 0; i < p->n_chunks; i++) {
+        int a = 0;
+        while (p1->chunk[a].component != p->chunk[i].component)
+            a++;
+        cr_assert_eq(memcmp(p->chunk[i].tex_range, p1->chunk[a].tex_range, (size_t)nb * 2 * sizeof(float)), 0);
+        cr_assert_eq(memcmp(p->chunk[i].wt_range, p1->chunk[a].wt_range, (size_t)nb * 2 * sizeof(float)), 0);
+        cr_assert_eq(memcmp(p->wt[i], p1->wt[a], (size_t)V * L * 3 * sizeof(float)), 0, "chunk %d: 16-bit weights", i);
+    }
+    long long sz[2];
+    for (int k = 0; k < 2; k++) {
+        snprintf(path, sizeof path, "%s/%s/manifest.json", dir, k ? "v2" : "v1");
+        FILE *f = fopen(path, "rb");
+        cr_assert(f);
+        fseek(f, 0, SEEK_END);
+        sz[k] = ftell(f);
+        fclose(f);
+    }
+    cr_assert_lt(sz[1], sz[0], "v2 manifest %lld B, v1 %lld B", sz[1], sz[0]);
+    /* chunk 0 alone: 8-bit weights within half an 8-bit step (257 16-bit steps) of the 16-bit ones */
+    int a = 0, coarse = 0;
+    while (p1->chunk[a].component != c->chunk[0].component)
+        a++;
+    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
+        float st = p1->chunk[a].wt_range[2 * p->blocks->block_of_view[k / (3 * (size_t)L)] + 1];
+        float d = fabsf(c->wt[0][k] - p1->wt[a][k]);
+        cr_assert_leq(d, 0.5f * (float)c->chunk[0].wt8_step * st * 1.001f + 1e-7f, "weight %zu", k);
+        coarse += d > 0.5f * st;
+    }
+    cr_assert_gt(coarse, 0, "the first chunk's weights are really 8-bit");
+    /* the step multiplier is 257 (same range in 255 steps) times a whole number */
+    double m = c->chunk[0].wt8_step / 257.0;
+    cr_assert(m >= 1.0 && m == floor(m), "weights8_step %g", c->chunk[0].wt8_step);
+    btf_package_free(c);
+    /* a negative "weights8_step" and a damaged "ranges" entry are format errors naming them */
+    snprintf(path, sizeof path, "%s/v2/manifest.json", dir);
+    char cmd[4000], pkg[700];
+    snprintf(pkg, sizeof pkg, "%s/v2", dir);
+    snprintf(cmd, sizeof cmd, "cp '%s' '%s.bak' && sed -i 's/\"weights8_step\":\\[[0-9]*/\"weights8_step\":[-3/' '%s'",
+             path, path, path);
+    cr_assert_eq(system(cmd), 0);
+    btf_package *q = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_read(pkg, 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    cr_assert(strstr(err.msg, "weights8_step"), "%s", err.msg);
+    snprintf(cmd, sizeof cmd, "mv '%s.bak' '%s'", path, path);
+    cr_assert_eq(system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "sed -i 's/\"ranges\":\\[\"A/\"ranges\":[\"!/; s/\"ranges\":\\[\"[^\"]/\"ranges\":[\"!/' '%s'",
+             path);
+    cr_assert_eq(system(cmd), 0);
+    cr_assert_eq(btf_package_read(pkg, 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    cr_assert(strstr(err.msg, "ranges"), "%s", err.msg);
+    cr_assert_null(q);
+    btf_package_free(p1);
+    btf_package_free(p);
     rm_tree(dir);
 }

@@ -117,6 +117,10 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
         return btf_fail(err, BTF_ERR_ARG, "gl package: %s has no loaded chunk", dir);
     if (p->bits != 8 && p->bits != 16)
         return btf_fail(err, BTF_ERR_FORMAT, "gl package: %d-bit textures unsupported", p->bits);
+    for (int j = 0; j < p->n_loaded; j++) /* spatial levels (version 2) are not uploaded yet */
+        if (p->chunk[j].level != 0)
+            return btf_fail(err, BTF_ERR_UNSUPPORTED, "gl package: %s: chunk %d is spatial level %d (version 2 "
+                            "packages cannot be drawn by the shaders yet)", dir, j, p->chunk[j].level);
     btf_gl_package *g = calloc(1, sizeof *g);
     if (!g)
         return btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");

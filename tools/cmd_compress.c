@@ -8,12 +8,14 @@
 #include "btf_io.h"
 #include "btf_source.h"
 #include "btf_package.h"
+#include "btf_lod.h"
 
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 /* Parsed command line; stack value of cmd_compress, strings point into argv. */
 typedef struct compress_opts {
@@ -21,6 +23,7 @@ typedef struct compress_opts {
     btf_pca_options pca;
     btf_package_options pkg;
     int downsample, quiet;
+    int levels; /* > 0: write package version 2 with this many spatial levels (codec/btf_lod.h) */
 } compress_opts;
 
 static void compress_usage(FILE *f)
@@ -29,7 +32,7 @@ static void compress_usage(FILE *f)
             "usage: btf compress IN OUT [--k K] [--components C] [--bits 8|16]\n"
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
-            "                           [--name NAME] [--quiet]\n"
+            "                           [--name NAME] [--levels N] [--quiet]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -43,7 +46,8 @@ static void compress_usage(FILE *f)
             "  --center M       none: best rank-C blocks (default); row: thesis, component 0 = mean\n"
             "  --method M       PCA route (default auto: Gram up to 2048 columns, else randomized)\n"
             "  --downsample F   box-filter the input by F on load\n"
-            "  --name NAME      material name in the manifest (default: last element of OUT)\n");
+            "  --name NAME      material name in the manifest (default: last element of OUT)\n"
+            "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n");
 }
 
 static int compress_int(const char *s, long lo, long hi, int *v)
@@ -100,6 +104,8 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
             ok = compress_enum(val, methods, 4, &e), o->pca.method = (btf_pca_method)e;
         } else if (!strcmp(a, "--downsample")) {
             ok = compress_int(val, 1, 256, &o->downsample);
+        } else if (!strcmp(a, "--levels")) {
+            ok = compress_int(val, 1, BTF_LOD_MAX_LEVELS, &o->levels);
         } else if (!strcmp(a, "--name")) {
             o->name = val;
         } else if (a[0] == '-' && a[1] == '-') {
@@ -153,6 +159,49 @@ static void compress_report(const char *out)
     btf_package_free(p);
 }
 
+/* Removes the listed files of package dir, its manifest and the directory. */
+static void compress_remove(const char *dir)
+{
+    btf_package *p = NULL;
+    char path[8400];
+    if (btf_package_read(dir, 1, &p, NULL) == BTF_OK) {
+        for (int i = 0; i < p->n_chunks; i++)
+            for (int f = 0; f < p->chunk[i].n_files; f++) {
+                snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
+                remove(path);
+            }
+        btf_package_free(p);
+    }
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    remove(path);
+    rmdir(dir);
+}
+
+/* --levels: compress into OUT.tmp-v1-PID (not a package name), add levels into OUT. */
+static btf_result compress_v2(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
+{
+    char tmp[4200], name[BTF_PACKAGE_NAME_MAX];
+    if (strlen(o->out) > 4000)
+        return btf_fail(err, BTF_ERR_ARG, "output path too long");
+    snprintf(tmp, sizeof tmp, "%s.tmp-v1-%ld", o->out, (long)getpid());
+    if (!o->pkg.name) {
+        const char *b = strrchr(o->out, '/');
+        b = b && b[1] ? b + 1 : o->out;
+        snprintf(name, sizeof name, "%s", b);
+        o->pkg.name = name;
+    }
+    btf_result r = btf_package_compress(src, &o->pca, &o->pkg, tmp, st, err);
+    if (r != BTF_OK)
+        return r;
+    btf_lod_options lo = {0};
+    lo.levels = o->levels;
+    btf_lod_stats ls = {0};
+    r = btf_lod_build(tmp, o->out, &lo, &ls, err);
+    compress_remove(tmp);
+    st->bytes = ls.bytes, st->n_chunks = ls.n_chunks;
+    return r;
+}
+
 int cmd_compress(int argc, char **argv)
 {
     compress_opts o;
@@ -170,7 +219,8 @@ int cmd_compress(int argc, char **argv)
     }
     double t1 = compress_now();
     btf_compress_stats st = {0};
-    btf_result r = btf_package_compress(src, &o.pca, &o.pkg, o.out, &st, &err);
+    btf_result r = o.levels > 0 ? compress_v2(src, &o, &st, &err)
+                                : btf_package_compress(src, &o.pca, &o.pkg, o.out, &st, &err);
     btf_free(src);
     if (r != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);

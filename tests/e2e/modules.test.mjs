@@ -153,3 +153,30 @@ describe('scene.js (port of tools/btf_render.c conventions)', () => {
     }
   });
 });
+
+// The chunk selection of package version 2: the same cases as btf_lod_select in
+// tests/test_lod.c (tests/lod_select_cases.json), so C and the client agree.
+describe('btf-lod.js', async () => {
+  const lod = await import('../../client/btf-lod.js');
+  const shared = JSON.parse(fs.readFileSync(path.join(ROOT, 'tests/lod_select_cases.json'), 'utf8'));
+  it('selects the same chunks as btf_lod_select', () => {
+    assert.ok(shared.cases.length > 5);
+    for (const [k, c] of shared.cases.entries()) {
+      const s = lod.lodSelect(shared.package, {texelsPerPixel: c.tpp, threshold: c.threshold});
+      assert.equal([...s.need].join(''), c.need, `case ${k}`);
+      if (c.tpp > 0) assert.equal(s.level, c.level, `case ${k}`);
+      assert.equal(s.components, c.components, `case ${k}`);
+      assert.equal(s.limit, c.limit, `case ${k}`);
+      assert.equal(s.bytes, c.bytes, `case ${k}`);
+    }
+  });
+  it('footprint: texels per device pixel, 0 off screen', () => {
+    for (const c of shared.footprint) assert.ok(Math.abs(lod.lodFootprint(c.width, c.repeat, c.pixels) - c.tpp) < 1e-12);
+    assert.equal(lod.lodFootprint(256, 1, NaN), 0);
+  });
+  it('version 1: every chunk at level 0', () => {
+    const m = {version: 1, chunks: [{component: 0, bytes: 5}, {component: 1, bytes: 7}]};
+    const s = lod.lodSelect(m, {texelsPerPixel: 50, threshold: 1});
+    assert.deepEqual([s.level, s.limit, s.bytes, s.components], [0, 2, 12, 2]);
+  });
+});
