@@ -39,7 +39,7 @@ TEST_BIN  := $(BUILD)/run_tests
 INC       := -Icodec -Itools
 LINK_LIBS  = $(PKG_LIBS) -lgsl -lstdc++ -lm -lpthread
 
-.PHONY: all setup build test e2e check asan bench demo clean lib
+.PHONY: all setup build test e2e check asan bench chart demo clean lib
 all: build
 build: $(CODEC_LIB) $(BTF_BIN) $(TEST_BIN)
 lib: $(CODEC_LIB)
@@ -96,6 +96,14 @@ bench: setup
 	$(MAKE) build $(BENCH_BIN)
 	@mkdir -p bench/results
 	bash bench/run.sh
+
+# The speed/accuracy charts (doc/chart-*) and the stability table (doc/stability.md).
+chart: setup
+	$(MAKE) build
+	$(BTF_BIN) chart gen:knit gen:tiles gen:stone \
+	    $(wildcard $(SHARED)/data/thesis-ubo2003/wool $(SHARED)/data/thesis-ubo2003/corduroy) \
+	    --size 32 --stream-size 64 --out doc
+	$(TEST_BIN) --jobs 2 --filter 'stability/*'
 
 demo: setup build
 	bash tools/demo.sh

@@ -1,0 +1,819 @@
+/* btf_chart.c - the numbers behind `btf chart` (see btf_chart.h): methods, streaming
+ * curves, shader timing, Pareto fronts, CSV files. The gnuplot part is in
+ * btf_chart_plot.c. */
+#include "btf_chart.h"
+
+#include "btf_export.h"
+#include "btf_metrics.h"
+#include "btf_package.h"
+#include "btf_render.h"
+#include "btf_thesis.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#define BTF__CHART_MAX_THREADS 16
+
+static double btf__chart_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void btf__chart_log(const btf_chart_options *o, const char *fmt, ...)
+{
+    if (!o || !o->log)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vfprintf(o->log, fmt, ap);
+    va_end(ap);
+    fflush(o->log);
+}
+
+/* Copies s into dst (size n) keeping only CSV- and file-safe characters. */
+static void btf__chart_clean(char *dst, size_t n, const char *s)
+{
+    size_t i = 0;
+    for (; s && s[i] && i + 1 < n; i++) {
+        char ch = s[i];
+        int keep = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '-' ||
+                   ch == '_' || ch == '.' || ch == ' ';
+        dst[i] = keep ? ch : '_';
+    }
+    dst[i] = 0;
+}
+
+/* Same for free text (notes): only commas, quotes and line breaks are replaced. */
+static void btf__chart_note(char *dst, size_t n, const char *s)
+{
+    size_t i = 0;
+    for (; s && s[i] && i + 1 < n; i++)
+        dst[i] = (s[i] == ',' || s[i] == '"' || s[i] == '\n' || s[i] == '\r') ? ';' : s[i];
+    dst[i] = 0;
+}
+
+/* ---------------------------------------------------------------- containers */
+
+btf_result btf_chart_create(btf_chart **out, btf_error *err)
+{
+    if (!out)
+        return btf_fail(err, BTF_ERR_ARG, "chart: NULL output");
+    *out = calloc(1, sizeof **out);
+    return *out ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory");
+}
+
+void btf_chart_free(btf_chart *c)
+{
+    if (!c)
+        return;
+    free(c->rows);
+    free(c->stream);
+    free(c);
+}
+
+static btf_chart_row *btf__chart_row_add(btf_chart *c, btf_error *err)
+{
+    if (c->n_rows == c->cap_rows) {
+        int cap = c->cap_rows ? 2 * c->cap_rows : 64;
+        btf_chart_row *r = realloc(c->rows, (size_t)cap * sizeof *r);
+        if (!r) {
+            btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for %d rows", cap);
+            return NULL;
+        }
+        c->rows = r, c->cap_rows = cap;
+    }
+    btf_chart_row *r = &c->rows[c->n_rows++];
+    memset(r, 0, sizeof *r);
+    r->shader_ms = NAN;
+    return r;
+}
+
+static btf_chart_stream_row *btf__chart_stream_add(btf_chart *c, btf_error *err)
+{
+    if (c->n_stream == c->cap_stream) {
+        int cap = c->cap_stream ? 2 * c->cap_stream : 64;
+        btf_chart_stream_row *r = realloc(c->stream, (size_t)cap * sizeof *r);
+        if (!r) {
+            btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for %d streaming rows", cap);
+            return NULL;
+        }
+        c->stream = r, c->cap_stream = cap;
+    }
+    btf_chart_stream_row *r = &c->stream[c->n_stream++];
+    memset(r, 0, sizeof *r);
+    r->lab_manifest = NAN;
+    return r;
+}
+
+/* ---------------------------------------------------------------- temporary dirs */
+
+/* Removes dir and what is inside it, two levels deep (packages are flat). */
+static void btf__chart_rmtree(const char *dir, int depth)
+{
+    DIR *d = opendir(dir);
+    if (d) {
+        struct dirent *e;
+        char path[8192];
+        while ((e = readdir(d)) != NULL) {
+            if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+                continue;
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            struct stat st;
+            if (lstat(path, &st) == 0 && S_ISDIR(st.st_mode) && depth > 0)
+                btf__chart_rmtree(path, depth - 1);
+            else
+                unlink(path);
+        }
+        closedir(d);
+    }
+    rmdir(dir);
+}
+
+static btf_result btf__chart_tmpdir(char *buf, size_t n, btf_error *err)
+{
+    const char *t = getenv("TMPDIR");
+    snprintf(buf, n, "%s/btf-chart-XXXXXX", t && *t ? t : "/tmp");
+    if (!mkdtemp(buf))
+        return btf_fail(err, BTF_ERR_IO, "chart: cannot create a temporary directory %s", buf);
+    return BTF_OK;
+}
+
+static long long btf__chart_file_bytes(const char *dir, const char *name)
+{
+    char path[8192];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    struct stat st;
+    return stat(path, &st) == 0 ? (long long)st.st_size : -1;
+}
+
+/* ---------------------------------------------------------------- whole-BTF error */
+
+/* Produces one decoded (view, light) image, width*height*3 floats, byte/255 scale. */
+typedef void (*btf__chart_image_fn)(const void *ctx, const btf *src, int view, int light, float *out);
+
+/* One worker's share of the error sums; lives on btf__chart_error's stack. */
+typedef struct btf__chart_job {
+    const btf *src;
+    btf__chart_image_fn fn;
+    const void *ctx;
+    int first, step;
+    btf_metrics_acc acc;
+    int nomem;
+} btf__chart_job;
+
+static void *btf__chart_worker(void *arg)
+{
+    btf__chart_job *j = arg;
+    size_t n = btf_image_samples(j->src);
+    float *ref = malloc(n * sizeof *ref), *dec = malloc(n * sizeof *dec);
+    if (!ref || !dec) {
+        j->nomem = 1;
+    } else {
+        int V = j->src->views.n_dirs, L = j->src->lights.n_dirs;
+        for (int p = j->first; p < V * L; p += j->step) {
+            btf_get_image(j->src, p / L, p % L, ref);
+            j->fn(j->ctx, j->src, p / L, p % L, dec);
+            btf_metrics_add(&j->acc, ref, dec, n / 3);
+        }
+    }
+    free(ref);
+    free(dec);
+    return NULL;
+}
+
+/* Error of fn's images against src over every measured (view, light) pair. */
+static btf_result btf__chart_error(const btf *src, btf__chart_image_fn fn, const void *ctx, int threads,
+                                   btf_metrics *out, btf_error *err)
+{
+    if (threads < 1)
+        threads = 2;
+    if (threads > BTF__CHART_MAX_THREADS)
+        threads = BTF__CHART_MAX_THREADS;
+    btf__chart_job job[BTF__CHART_MAX_THREADS];
+    pthread_t tid[BTF__CHART_MAX_THREADS];
+    int started[BTF__CHART_MAX_THREADS] = {0};
+    for (int t = 0; t < threads; t++) {
+        memset(&job[t], 0, sizeof job[t]);
+        job[t].src = src, job[t].fn = fn, job[t].ctx = ctx, job[t].first = t, job[t].step = threads;
+    }
+    for (int t = 1; t < threads; t++)
+        started[t] = pthread_create(&tid[t], NULL, btf__chart_worker, &job[t]) == 0;
+    btf__chart_worker(&job[0]);
+    btf_metrics_acc all = {0};
+    int nomem = 0;
+    for (int t = 0; t < threads; t++) {
+        if (t > 0 && started[t])
+            pthread_join(tid[t], NULL);
+        else if (t > 0) /* no thread: do its share here */
+            btf__chart_worker(&job[t]);
+        nomem |= job[t].nomem;
+        all.sum_abs += job[t].acc.sum_abs, all.sum_sq += job[t].acc.sum_sq;
+        all.sum_lab += job[t].acc.sum_lab, all.sum_de += job[t].acc.sum_de;
+        all.samples += job[t].acc.samples, all.pixels += job[t].acc.pixels;
+    }
+    if (nomem)
+        return btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for the error images");
+    btf_metrics_finish(&all, out);
+    return BTF_OK;
+}
+
+static void btf__chart_model_image(const void *ctx, const btf *src, int view, int light, float *out)
+{
+    const btf_model *m = ctx;
+    float lv[3], vv[3];
+    btf_dirset_vector(&src->lights, light, lv);
+    btf_dirset_vector(&src->views, view, vv);
+    for (int y = 0; y < src->height; y++)
+        for (int x = 0; x < src->width; x++)
+            btf_model_decode(m, x, y, lv, vv, out + 3 * ((size_t)y * src->width + x));
+}
+
+/* A package read from disk and how many of its chunks to use. */
+typedef struct btf__chart_pkg_ctx {
+    const btf_package *p;
+    int n;
+} btf__chart_pkg_ctx;
+
+static void btf__chart_pkg_image(const void *ctx, const btf *src, int view, int light, float *out)
+{
+    const btf__chart_pkg_ctx *c = ctx;
+    for (int y = 0; y < src->height; y++)
+        for (int x = 0; x < src->width; x++)
+            btf_package_value(c->p, view, light, x, y, c->n, out + 3 * ((size_t)y * src->width + x));
+}
+
+static void btf__chart_thesis_image(const void *ctx, const btf *src, int view, int light, float *out)
+{
+    (void)src;
+    btf_thesis_decode_image(ctx, view, light, out);
+}
+
+/* ---------------------------------------------------------------- shader timing */
+
+#define BTF__CHART_MAX_SHADER 16
+
+/* ms per frame of each package dirs[i] (i < n), drawn on a plane filling a w x h
+ * frame. Frames are taken round-robin over the packages and the fastest of each is
+ * kept, so a burst of load from other processes does not favour one package. */
+static btf_result btf__chart_shader_time(const char *const *dirs, int n, const btf_chart_options *o, double *ms,
+                                         btf_error *err)
+{
+    int w = o->shader_width > 0 ? o->shader_width : 1280, h = o->shader_height > 0 ? o->shader_height : 720;
+    int frames = o->shader_frames > 0 ? o->shader_frames : 3;
+    btf_package *p[BTF__CHART_MAX_SHADER] = {0};
+    btf_renderer *r[BTF__CHART_MAX_SHADER] = {0};
+    btf_gl *gl = NULL;
+    btf_gl_target *t = NULL;
+    btf_gl_desc gd = {0};
+    btf_result res = n >= 1 && n <= BTF__CHART_MAX_SHADER ? btf_gl_create(&gd, &gl, err)
+                                                           : btf_fail(err, BTF_ERR_ARG, "chart: %d packages to time", n);
+    if (res == BTF_OK)
+        res = btf_gl_target_create(gl, w, h, BTF_GL_RGBA8, 1, &t, err);
+    btf_render_params rp = btf_render_defaults(BTF_RENDER_PLANE);
+    rp.width = w, rp.height = h;
+    rp.camera_theta = 0.0f;
+    rp.repeat = 4.0f;
+    /* the plane's half width 1 fills the frame: dist * tan(fov/2) * aspect < 1 */
+    rp.camera_dist = 0.9f / (tanf(rp.fov_deg * 0.5f * 3.14159265f / 180.0f) * ((float)w / (float)h));
+    for (int i = 0; res == BTF_OK && i < n; i++) {
+        ms[i] = INFINITY;
+        res = btf_package_read(dirs[i], 0, &p[i], err);
+        if (res == BTF_OK)
+            res = btf_renderer_create(gl, p[i], dirs[i], 0, &r[i], err);
+        if (res == BTF_OK)
+            res = btf_renderer_draw(r[i], &rp, t, err); /* warm-up: shader compile, uploads */
+    }
+    for (int f = 0; res == BTF_OK && f < frames; f++)
+        for (int i = 0; res == BTF_OK && i < n; i++) {
+            rp.light_phi += 7.0f; /* a different frame each time, same work */
+            double t0 = btf__chart_now();
+            res = btf_renderer_draw(r[i], &rp, t, err);
+            double dt = 1000.0 * (btf__chart_now() - t0);
+            ms[i] = dt < ms[i] ? dt : ms[i];
+        }
+    for (int i = 0; i < n && i < BTF__CHART_MAX_SHADER; i++) {
+        btf_renderer_free(r[i]);
+        btf_package_free(p[i]);
+    }
+    if (gl)
+        btf_gl_target_free(gl, t);
+    btf_gl_free(gl);
+    return res;
+}
+
+/* Times k = 3 packages of src for each component count Cs[i] (i < n) and caches
+ * the results in c->shader_ms_by_c (NAN on failure, with c->shader_note). */
+static void btf__chart_shader_measure(btf_chart *c, const btf *src, const int *Cs, int n,
+                                      const btf_chart_options *o, const char *tmp)
+{
+    char dirs[BTF__CHART_MAX_SHADER][4200];
+    const char *dp[BTF__CHART_MAX_SHADER];
+    double ms[BTF__CHART_MAX_SHADER];
+    btf_error e = {{0}};
+    btf_result r = BTF_OK;
+    int made = 0;
+    for (int i = 0; r == BTF_OK && i < n; i++, made++) {
+        snprintf(dirs[i], sizeof dirs[i], "%s/shader-c%d", tmp, Cs[i]);
+        dp[i] = dirs[i];
+        btf_pca_options po = {0};
+        po.k = 3, po.components = Cs[i];
+        btf_package_options ko = {0};
+        ko.bits = 8, ko.name = "chart", ko.lab_max_texels = 16;
+        r = btf_package_compress(src, &po, &ko, dirs[i], NULL, &e);
+    }
+    if (r == BTF_OK)
+        r = btf__chart_shader_time(dp, n, o, ms, &e);
+    for (int i = 0; i < made; i++)
+        btf__chart_rmtree(dirs[i], 1);
+    if (r != BTF_OK) {
+        btf__chart_note(c->shader_note, sizeof c->shader_note, e.msg);
+        btf__chart_log(o, "  shader timing failed: %s\n", e.msg);
+    }
+    for (int i = 0; i < n; i++) {
+        c->shader_ms_by_c[Cs[i]] = r == BTF_OK && isfinite(ms[i]) ? ms[i] : NAN;
+        if (r == BTF_OK)
+            btf__chart_log(o, "  shader C%d: %.1f ms/frame\n", Cs[i], ms[i]);
+    }
+}
+
+/* Shader ms/frame for C components (cached; measured alone if not yet). */
+static double btf__chart_shader_for(btf_chart *c, const btf *src, int C, const btf_chart_options *o,
+                                    const char *tmp)
+{
+    if (C < 1 || C > 64)
+        return NAN;
+    if (c->shader_ms_by_c[C] == 0.0)
+        btf__chart_shader_measure(c, src, &C, 1, o, tmp);
+    return c->shader_ms_by_c[C];
+}
+
+/* Measures every component count the PCA settings to run will need, together. */
+static void btf__chart_shader_all(btf_chart *c, const btf *src, const btf_chart_options *o, const char *tmp)
+{
+    const btf_method_setting *set;
+    int n = btf_method_registry(&set), Cs[BTF__CHART_MAX_SHADER], nc = 0;
+    for (int i = 0; i < n; i++) {
+        if ((o->quick && !btf_chart_setting_quick(&set[i])) ||
+            (set[i].method != &btf_method_pca && set[i].method != &btf_method_pca_q))
+            continue;
+        int C = set[i].params.components > 0 ? set[i].params.components : 8, seen = 0;
+        for (int j = 0; j < nc; j++)
+            seen |= Cs[j] == C;
+        if (!seen && C <= 64 && c->shader_ms_by_c[C] == 0.0 && nc < BTF__CHART_MAX_SHADER)
+            Cs[nc++] = C;
+    }
+    if (nc > 0)
+        btf__chart_shader_measure(c, src, Cs, nc, o, tmp);
+}
+
+/* ---------------------------------------------------------------- methods */
+
+int btf_chart_setting_quick(const btf_method_setting *s)
+{
+    static const char *const quick[] = {"phong",     "lafortune 1", "pca k1 C8",   "pca k3 C8",
+                                        "pca k3 C2", "pca k3 C4",   "pca-q k3 C8", "lpyr L3 C8"};
+    for (size_t i = 0; s && i < sizeof quick / sizeof quick[0]; i++)
+        if (!strcmp(s->label, quick[i]))
+            return 1;
+    return 0;
+}
+
+static int btf__chart_is_pca(const btf_model *m)
+{
+    return m->method == &btf_method_pca || m->method == &btf_method_pca_q;
+}
+
+/* Runs one setting on src and fills row r. Method failures land in the row. */
+static btf_result btf__chart_setting(btf_chart *c, btf_chart_row *row, const btf_method_setting *s, const btf *src,
+                                     const btf_chart_options *o, const char *tmp, btf_error *err)
+{
+    btf__chart_clean(row->label, sizeof row->label, s->label);
+    btf__chart_clean(row->family, sizeof row->family, s->family);
+    btf__chart_clean(row->method, sizeof row->method, s->method->name);
+    btf_model *m = NULL;
+    btf_error e = {{0}};
+    btf_result r = btf_model_encode(s->method, src, &s->params, &m, &e);
+    if (r != BTF_OK) {
+        btf__chart_note(row->note, sizeof row->note, e.msg);
+        btf__chart_log(o, "  %-16s FAILED: %s\n", s->label, e.msg);
+        return r == BTF_ERR_NOMEM ? btf_fail(err, r, "%s", e.msg) : BTF_OK;
+    }
+    row->k = m->params.k, row->components = m->params.components, row->lobes = m->params.lobes;
+    row->levels = m->params.levels, row->decode_levels = m->params.decode_levels;
+    row->encode_s = m->seconds;
+    row->bytes = (double)btf_model_bytes(m);
+    btf_method_cost cost = btf_model_cost(m);
+    row->fetches = cost.fetches, row->flops = cost.flops;
+    row->n_fallback = m->n_fallback, row->n_unconverged = m->n_unconverged;
+    btf_metrics met;
+    double t0 = btf__chart_now();
+    r = btf__chart_error(src, btf__chart_model_image, m, o->threads, &met, err);
+    row->decode_s = btf__chart_now() - t0;
+    if (r == BTF_OK) {
+        row->ok = 1;
+        row->lab = met.lab_thesis, row->delta_e76 = met.delta_e76, row->rmse = met.rmse;
+        if (btf__chart_is_pca(m) && o->shader)
+            row->shader_ms = btf__chart_shader_for(c, src, m->params.components, o, tmp);
+        if (btf__chart_is_pca(m) && !isfinite(row->shader_ms))
+            btf__chart_note(row->note, sizeof row->note,
+                            o->shader ? c->shader_note : "shader not timed (run without --no-shader)");
+        else if (!btf__chart_is_pca(m))
+            btf__chart_note(row->note, sizeof row->note, "no shader variant: cost model only");
+        else
+            snprintf(row->note, sizeof row->note, "shader: k3 C%d package; %dx%d", m->params.components,
+                     o->shader_width > 0 ? o->shader_width : 1280, o->shader_height > 0 ? o->shader_height : 720);
+    }
+    btf__chart_log(o, "  %-16s %7.2f s  %9.0f B  Lab %6.3f  cost %5.0f+%-6.0f decode %.2f s\n", s->label,
+                   row->encode_s, row->bytes, row->lab, row->fetches, row->flops, row->decode_s);
+    btf_model_free(m);
+    return r;
+}
+
+/* ---------------------------------------------------------------- streaming */
+
+static btf_result btf__chart_stream_package(btf_chart *c, const char *name, const btf *src,
+                                            const btf_chart_options *o, const char *tmp, btf_error *err)
+{
+    char dir[4200];
+    snprintf(dir, sizeof dir, "%s/package", tmp);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 8;
+    btf_package_options ko = {0};
+    ko.bits = 8, ko.name = "chart";
+    ko.lab_max_texels = src->width * src->height; /* manifest numbers over every texel */
+    btf_package *p = NULL;
+    btf_result r = btf_package_compress(src, &po, &ko, dir, NULL, err);
+    if (r == BTF_OK)
+        r = btf_package_read(dir, 0, &p, err);
+    long long bytes = btf__chart_file_bytes(dir, "manifest.json");
+    for (int i = 0; r == BTF_OK && i < p->n_chunks; i++) {
+        btf__chart_pkg_ctx ctx = {p, i + 1};
+        btf_metrics met;
+        met.lab_thesis = p->chunk[i].lab;
+        if (o->verify_stream)
+            r = btf__chart_error(src, btf__chart_pkg_image, &ctx, o->threads, &met, err);
+        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
+        if (!s) {
+            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
+            break;
+        }
+        bytes += p->chunk[i].bytes;
+        btf__chart_clean(s->material, sizeof s->material, name);
+        snprintf(s->format, sizeof s->format, "package");
+        s->step = i + 1;
+        snprintf(s->file, sizeof s->file, "%s%s%s", i == 0 ? "manifest.json " : "", p->chunk[i].files[0],
+                 p->chunk[i].n_files > 1 ? " +weights" : "");
+        s->bytes = bytes;
+        s->lab = met.lab_thesis;
+        s->lab_manifest = p->chunk[i].lab;
+    }
+    btf_package_free(p);
+    btf__chart_rmtree(dir, 1);
+    return r;
+}
+
+static btf_result btf__chart_stream_thesis(btf_chart *c, const char *name, const btf *src,
+                                           const btf_chart_options *o, const char *tmp, btf_error *err)
+{
+    char dir[4200];
+    snprintf(dir, sizeof dir, "%s/thesis", tmp);
+    btf_export_options eo = {0};
+    eo.k = 3, eo.components = 8;
+    btf_thesis_pkg p = {0};
+    btf_error e = {{0}};
+    btf_result r = btf_export_thesis(src, &eo, dir, NULL, &e);
+    if (r == BTF_OK)
+        r = btf_thesis_read(dir, &p, &e);
+    if (r != BTF_OK) { /* e.g. a non-square source: the format cannot hold it */
+        btf__chart_log(o, "  thesis export skipped: %s\n", e.msg);
+        btf__chart_rmtree(dir, 1);
+        return r == BTF_ERR_NOMEM ? btf_fail(err, r, "%s", e.msg) : BTF_OK;
+    }
+    float *sigma = malloc((size_t)p.nb * (size_t)p.C * sizeof *sigma);
+    if (!sigma)
+        r = btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory");
+    else
+        memcpy(sigma, p.sigma, (size_t)p.nb * (size_t)p.C * sizeof *sigma);
+    long long bytes = btf__chart_file_bytes(dir, "meta.json") + btf__chart_file_bytes(dir, "R.png");
+    for (int j = 0; r == BTF_OK && j < p.C; j++) {
+        char file[32];
+        snprintf(file, sizeof file, "%d.png", j);
+        /* components beyond j not received: their sigma is zero */
+        for (int b = 0; b < p.nb; b++)
+            for (int i = 0; i < p.C; i++)
+                p.sigma[b * p.C + i] = i <= j ? sigma[b * p.C + i] : 0.0f;
+        btf_metrics met;
+        r = btf__chart_error(src, btf__chart_thesis_image, &p, o->threads, &met, err);
+        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
+        if (!s) {
+            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
+            break;
+        }
+        bytes += btf__chart_file_bytes(dir, file);
+        btf__chart_clean(s->material, sizeof s->material, name);
+        snprintf(s->format, sizeof s->format, "thesis");
+        s->step = j + 1;
+        snprintf(s->file, sizeof s->file, "%s%s", j == 0 ? "meta.json R.png " : "", file);
+        s->bytes = bytes;
+        s->lab = met.lab_thesis;
+    }
+    free(sigma);
+    btf_thesis_free(&p);
+    btf__chart_rmtree(dir, 1);
+    return r;
+}
+
+btf_result btf_chart_add_material(btf_chart *c, const char *name, const btf *src, const btf_chart_options *opt,
+                                  btf_error *err)
+{
+    if (!c || !name || !src || !src->data)
+        return btf_fail(err, BTF_ERR_ARG, "chart: NULL chart, name or source");
+    btf_chart_options o = {0};
+    if (opt)
+        o = *opt;
+    btf_result r = btf_check_finite(src, err); /* every method would refuse it */
+    if (r != BTF_OK)
+        return r;
+    char tmp[4096];
+    r = btf__chart_tmpdir(tmp, sizeof tmp, err);
+    if (r != BTF_OK)
+        return r;
+    btf__chart_log(&o, "%s: %dx%d texels, %d lights x %d views\n", name, src->width, src->height,
+                   src->lights.n_dirs, src->views.n_dirs);
+    if (o.shader && !o.no_methods)
+        btf__chart_shader_all(c, src, &o, tmp);
+    const btf_method_setting *set;
+    int n = btf_method_registry(&set);
+    for (int i = 0; r == BTF_OK && !o.no_methods && i < n; i++) {
+        if (o.quick && !btf_chart_setting_quick(&set[i]))
+            continue;
+        btf_chart_row *row = btf__chart_row_add(c, err);
+        if (!row) {
+            r = BTF_ERR_NOMEM;
+            break;
+        }
+        btf__chart_clean(row->material, sizeof row->material, name);
+        r = btf__chart_setting(c, row, &set[i], src, &o, tmp, err);
+    }
+    double t0 = btf__chart_now();
+    if (r == BTF_OK && !o.no_stream)
+        r = btf__chart_stream_package(c, name, src, &o, tmp, err);
+    double t1 = btf__chart_now();
+    if (r == BTF_OK && !o.no_stream)
+        r = btf__chart_stream_thesis(c, name, src, &o, tmp, err);
+    if (r == BTF_OK && !o.no_stream)
+        btf__chart_log(&o, "  streaming: package %.1f s, thesis format %.1f s\n", t1 - t0, btf__chart_now() - t1);
+    btf__chart_rmtree(tmp, 2);
+    if (r == BTF_OK && !o.no_methods)
+        c->n_materials++; /* materials with method rows (for the mean rows) */
+    return r;
+}
+
+/* ---------------------------------------------------------------- mean rows, Pareto */
+
+void btf_chart_pareto(const double *x, const double *y, int n, int *front)
+{
+    /* sweep by ascending x (ties: ascending y); a point is on the front when its y is
+     * below every y seen at strictly smaller x and it is the lowest y of its x group */
+    int *ord = malloc((size_t)(n > 0 ? n : 1) * sizeof *ord);
+    for (int i = 0; i < n; i++)
+        front[i] = 0;
+    if (!ord) { /* quadratic fallback */
+        for (int i = 0; i < n; i++) {
+            front[i] = isfinite(x[i]) && isfinite(y[i]);
+            for (int j = 0; j < n && front[i]; j++)
+                if (isfinite(x[j]) && isfinite(y[j]) && x[j] <= x[i] && y[j] <= y[i] && (x[j] < x[i] || y[j] < y[i]))
+                    front[i] = 0;
+        }
+        return;
+    }
+    int m = 0;
+    for (int i = 0; i < n; i++)
+        if (isfinite(x[i]) && isfinite(y[i]))
+            ord[m++] = i;
+    for (int i = 1; i < m; i++) { /* insertion sort: n is a few dozen */
+        int v = ord[i], j = i - 1;
+        while (j >= 0 && (x[ord[j]] > x[v] || (x[ord[j]] == x[v] && y[ord[j]] > y[v]))) {
+            ord[j + 1] = ord[j];
+            j--;
+        }
+        ord[j + 1] = v;
+    }
+    double best = INFINITY; /* lowest y at strictly smaller x */
+    for (int a = 0; a < m;) {
+        int b = a;
+        while (b < m && x[ord[b]] == x[ord[a]])
+            b++;
+        double ymin = y[ord[a]];
+        for (int i = a; i < b; i++)
+            front[ord[i]] = y[ord[i]] == ymin && ymin < best;
+        best = ymin < best ? ymin : best;
+        a = b;
+    }
+    free(ord);
+}
+
+/* Adds one "mean" row per label that succeeded on every material. */
+static btf_result btf__chart_means(btf_chart *c, btf_error *err)
+{
+    int n0 = c->n_rows;
+    for (int i = 0; i < n0; i++) {
+        int first = 1, count = 0;
+        for (int j = 0; j < i; j++)
+            first &= strcmp(c->rows[j].label, c->rows[i].label) != 0;
+        if (!first)
+            continue;
+        btf_chart_row sum;
+        memset(&sum, 0, sizeof sum);
+        int all_ok = 1, shader_n = 0;
+        for (int j = 0; j < n0; j++) {
+            const btf_chart_row *r = &c->rows[j];
+            if (strcmp(r->label, c->rows[i].label))
+                continue;
+            count++;
+            all_ok &= r->ok;
+            sum.encode_s += r->encode_s, sum.decode_s += r->decode_s, sum.lab += r->lab;
+            sum.delta_e76 += r->delta_e76, sum.rmse += r->rmse, sum.bytes += r->bytes;
+            sum.fetches += r->fetches, sum.flops += r->flops;
+            sum.n_fallback += r->n_fallback, sum.n_unconverged += r->n_unconverged;
+            if (isfinite(r->shader_ms))
+                sum.shader_ms += r->shader_ms, shader_n++;
+        }
+        if (!all_ok || count != c->n_materials)
+            continue;
+        btf_chart_row *m = btf__chart_row_add(c, err);
+        if (!m)
+            return BTF_ERR_NOMEM;
+        const btf_chart_row *proto = &c->rows[i];
+        *m = *proto;
+        snprintf(m->material, sizeof m->material, "mean");
+        double k = 1.0 / count;
+        m->encode_s = sum.encode_s * k, m->decode_s = sum.decode_s * k, m->lab = sum.lab * k;
+        m->delta_e76 = sum.delta_e76 * k, m->rmse = sum.rmse * k, m->bytes = sum.bytes * k;
+        m->fetches = sum.fetches * k, m->flops = sum.flops * k;
+        m->n_fallback = sum.n_fallback, m->n_unconverged = sum.n_unconverged;
+        m->shader_ms = shader_n ? sum.shader_ms / shader_n : NAN;
+    }
+    return BTF_OK;
+}
+
+/* Marks both fronts among the rows of one material. */
+static btf_result btf__chart_mark(btf_chart *c, const char *material, btf_error *err)
+{
+    int n = c->n_rows;
+    double *x = malloc((size_t)n * sizeof *x), *b = malloc((size_t)n * sizeof *b), *y = malloc((size_t)n * sizeof *y);
+    int *idx = malloc((size_t)n * sizeof *idx), *f = malloc((size_t)n * sizeof *f);
+    int m = 0;
+    btf_result r = BTF_OK;
+    if (!x || !b || !y || !idx || !f) {
+        r = btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory");
+        goto done;
+    }
+    for (int i = 0; i < n; i++) {
+        btf_chart_row *row = &c->rows[i];
+        if (strcmp(row->material, material) || !row->ok)
+            continue;
+        idx[m] = i, x[m] = row->fetches + row->flops, b[m] = row->bytes, y[m] = row->lab;
+        m++;
+    }
+    btf_chart_pareto(x, y, m, f);
+    for (int i = 0; i < m; i++)
+        c->rows[idx[i]].pareto_cost = f[i];
+    btf_chart_pareto(b, y, m, f);
+    for (int i = 0; i < m; i++)
+        c->rows[idx[i]].pareto_bytes = f[i];
+done:
+    free(x), free(b), free(y), free(idx), free(f);
+    return r;
+}
+
+btf_result btf_chart_finish(btf_chart *c, btf_error *err)
+{
+    if (!c)
+        return btf_fail(err, BTF_ERR_ARG, "chart: NULL chart");
+    btf_result r = c->n_materials > 0 ? btf__chart_means(c, err) : BTF_OK;
+    for (int i = 0; r == BTF_OK && i < c->n_rows; i++) {
+        int first = 1;
+        for (int j = 0; j < i && first; j++)
+            first = strcmp(c->rows[j].material, c->rows[i].material) != 0;
+        if (first)
+            r = btf__chart_mark(c, c->rows[i].material, err);
+    }
+    return r;
+}
+
+/* ---------------------------------------------------------------- CSV */
+
+/* "%.6g" or empty for a non-finite value. */
+static const char *btf__chart_num(char *buf, size_t n, double v)
+{
+    if (isfinite(v))
+        snprintf(buf, n, "%.6g", v);
+    else
+        buf[0] = 0;
+    return buf;
+}
+
+static void btf__chart_csv_rows(const btf_chart *c, FILE *f)
+{
+    fprintf(f, "material,label,family,method,k,components,lobes,levels,decode_levels,ok,encode_s,decode_s,"
+               "lab,delta_e76,rmse,bytes,fetches,flops,cost,shader_ms,pareto_cost,pareto_bytes,n_fallback,"
+               "n_unconverged,note\n");
+    for (int i = 0; i < c->n_rows; i++) {
+        const btf_chart_row *r = &c->rows[i];
+        char a[9][32];
+        fprintf(f, "%s,%s,%s,%s,%d,%d,%d,%d,%d,%d,%s,%s,%s,%s,%s,%.10g,%.6g,%.6g,%.6g,%s,%d,%d,%d,%d,%s\n",
+                r->material, r->label, r->family, r->method, r->k, r->components, r->lobes, r->levels,
+                r->decode_levels, r->ok, btf__chart_num(a[0], 32, r->encode_s),
+                btf__chart_num(a[1], 32, r->decode_s), btf__chart_num(a[2], 32, r->ok ? r->lab : NAN),
+                btf__chart_num(a[3], 32, r->ok ? r->delta_e76 : NAN), btf__chart_num(a[4], 32, r->ok ? r->rmse : NAN),
+                r->bytes, r->fetches, r->flops, r->fetches + r->flops, btf__chart_num(a[5], 32, r->shader_ms),
+                r->pareto_cost, r->pareto_bytes, r->n_fallback, r->n_unconverged, r->note);
+    }
+}
+
+static void btf__chart_csv_stream(const btf_chart *c, FILE *f)
+{
+    fprintf(f, "material,format,step,file,bytes,lab,lab_manifest\n");
+    for (int i = 0; i < c->n_stream; i++) {
+        const btf_chart_stream_row *s = &c->stream[i];
+        char a[2][32];
+        fprintf(f, "%s,%s,%d,%s,%lld,%s,%s\n", s->material, s->format, s->step, s->file, s->bytes,
+                btf__chart_num(a[0], 32, s->lab), btf__chart_num(a[1], 32, s->lab_manifest));
+    }
+}
+
+/* Wide table: one line per setting, one encode-time column per material (+ mean). */
+static void btf__chart_csv_time(const btf_chart *c, FILE *f)
+{
+    const char *mats[256];
+    int nm = 0;
+    for (int i = 0; i < c->n_rows && nm < 256; i++) {
+        int seen = 0;
+        for (int j = 0; j < nm; j++)
+            seen |= !strcmp(mats[j], c->rows[i].material);
+        if (!seen)
+            mats[nm++] = c->rows[i].material;
+    }
+    fprintf(f, "label,family");
+    for (int j = 0; j < nm; j++)
+        fprintf(f, ",%s", mats[j]);
+    fprintf(f, "\n");
+    for (int i = 0; i < c->n_rows; i++) {
+        int first = 1;
+        for (int j = 0; j < i && first; j++)
+            first = strcmp(c->rows[j].label, c->rows[i].label) != 0;
+        if (!first)
+            continue;
+        fprintf(f, "%s,%s", c->rows[i].label, c->rows[i].family);
+        for (int j = 0; j < nm; j++) {
+            char a[32] = "";
+            for (int k = 0; k < c->n_rows; k++)
+                if (!strcmp(c->rows[k].label, c->rows[i].label) && !strcmp(c->rows[k].material, mats[j]) &&
+                    c->rows[k].ok)
+                    btf__chart_num(a, sizeof a, c->rows[k].encode_s);
+            fprintf(f, ",%s", a);
+        }
+        fprintf(f, "\n");
+    }
+}
+
+static btf_result btf__chart_csv_file(const btf_chart *c, const char *dir, const char *name,
+                                      void (*body)(const btf_chart *, FILE *), btf_error *err)
+{
+    char path[4096], tmp[4200];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (!f)
+        return btf_fail(err, BTF_ERR_IO, "chart: cannot write %s", tmp);
+    body(c, f);
+    int bad = ferror(f);
+    bad |= fclose(f) != 0;
+    if (bad || rename(tmp, path) != 0) {
+        unlink(tmp);
+        return btf_fail(err, BTF_ERR_IO, "chart: cannot write %s", path);
+    }
+    return BTF_OK;
+}
+
+btf_result btf_chart_write_csv(const btf_chart *c, const char *dir, btf_error *err)
+{
+    if (!c || !dir)
+        return btf_fail(err, BTF_ERR_ARG, "chart: NULL chart or directory");
+    btf_result r = btf__chart_csv_file(c, dir, "chart-speed-accuracy.csv", btf__chart_csv_rows, err);
+    if (r == BTF_OK)
+        r = btf__chart_csv_file(c, dir, "chart-streaming.csv", btf__chart_csv_stream, err);
+    if (r == BTF_OK)
+        r = btf__chart_csv_file(c, dir, "chart-compress-time.csv", btf__chart_csv_time, err);
+    return r;
+}
