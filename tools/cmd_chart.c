@@ -5,6 +5,7 @@
  *     btf chart gen:tiles:16 --quick --no-shader --out /tmp/c
  */
 #include "btf_chart.h"
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_source.h"
 
@@ -52,17 +53,6 @@ static void chart_usage(FILE *f)
                "  --threads N    threads for the error sums (default 2)\n");
 }
 
-static int chart_int(const char *s, int lo, int hi, int *v)
-{
-    char *end;
-    errno = 0;
-    long x = strtol(s, &end, 10);
-    if (errno || end == s || *end || x < lo || x > hi)
-        return 0;
-    *v = (int)x;
-    return 1;
-}
-
 /* 0 ok, 2 usage error, -1 help printed. */
 static int chart_parse(int argc, char **argv, chart_opts *c)
 {
@@ -82,17 +72,17 @@ static int chart_parse(int argc, char **argv, chart_opts *c)
         } else if (!strcmp(a, "--out") && has) {
             c->out = argv[++i];
         } else if (!strcmp(a, "--size") && has) {
-            if (!chart_int(argv[++i], 1, BTF_MAX_SIDE, &c->size)) {
+            if (!btf_arg_int(argv[++i], 1, BTF_MAX_SIDE, &c->size)) {
                 fprintf(stderr, "btf chart: --size %s: expected 1..%d\n", argv[i], BTF_MAX_SIDE);
                 return 2;
             }
         } else if (!strcmp(a, "--stream-size") && has) {
-            if (!chart_int(argv[++i], 1, BTF_MAX_SIDE, &c->stream_size)) {
+            if (!btf_arg_int(argv[++i], 1, BTF_MAX_SIDE, &c->stream_size)) {
                 fprintf(stderr, "btf chart: --stream-size %s: expected 1..%d\n", argv[i], BTF_MAX_SIDE);
                 return 2;
             }
         } else if (!strcmp(a, "--threads") && has) {
-            if (!chart_int(argv[++i], 1, 16, &c->o.threads)) {
+            if (!btf_arg_int(argv[++i], 1, 16, &c->o.threads)) {
                 fprintf(stderr, "btf chart: --threads %s: expected 1..16\n", argv[i]);
                 return 2;
             }

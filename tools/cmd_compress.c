@@ -4,6 +4,7 @@
  *     btf compress wool/ lib/wool --k 3 --components 8
  *     btf compress knit.btf lib/knit --k 9 --components 16 --bits 16 --grouping spatial
  */
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_io.h"
 #include "btf_source.h"
@@ -50,27 +51,6 @@ static void compress_usage(FILE *f)
             "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n");
 }
 
-static int compress_int(const char *s, long lo, long hi, int *v)
-{
-    char *end;
-    errno = 0;
-    long x = strtol(s, &end, 10);
-    if (errno || end == s || *end || x < lo || x > hi)
-        return 0;
-    *v = (int)x;
-    return 1;
-}
-
-static int compress_enum(const char *s, const char *const *names, int n, int *v)
-{
-    for (int i = 0; i < n; i++)
-        if (!strcmp(s, names[i])) {
-            *v = i;
-            return 1;
-        }
-    return 0;
-}
-
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int compress_parse(int argc, char **argv, compress_opts *o)
 {
@@ -91,21 +71,21 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
         } else if (a[0] == '-' && a[1] == '-' && !val) {
             ok = 0;
         } else if (!strcmp(a, "--k")) {
-            ok = compress_int(val, 1, BTF_MAX_DIRS, &o->pca.k);
+            ok = btf_arg_int(val, 1, BTF_MAX_DIRS, &o->pca.k);
         } else if (!strcmp(a, "--components")) {
-            ok = compress_int(val, 1, BTF_PACKAGE_MAX_CHUNKS, &o->pca.components);
+            ok = btf_arg_int(val, 1, BTF_PACKAGE_MAX_CHUNKS, &o->pca.components);
         } else if (!strcmp(a, "--bits")) {
-            ok = compress_int(val, 8, 16, &o->pkg.bits) && (o->pkg.bits == 8 || o->pkg.bits == 16);
+            ok = btf_arg_int(val, 8, 16, &o->pkg.bits) && (o->pkg.bits == 8 || o->pkg.bits == 16);
         } else if (!strcmp(a, "--grouping")) {
-            ok = compress_enum(val, groupings + 1, 2, &e), o->pca.grouping = (btf_grouping)(e + 1);
+            ok = btf_arg_enum(val, groupings + 1, 2, &e), o->pca.grouping = (btf_grouping)(e + 1);
         } else if (!strcmp(a, "--center")) {
-            ok = compress_enum(val, centers + 1, 2, &e), o->pca.center = (btf_center)(e + 1);
+            ok = btf_arg_enum(val, centers + 1, 2, &e), o->pca.center = (btf_center)(e + 1);
         } else if (!strcmp(a, "--method")) {
-            ok = compress_enum(val, methods, 4, &e), o->pca.method = (btf_pca_method)e;
+            ok = btf_arg_enum(val, methods, 4, &e), o->pca.method = (btf_pca_method)e;
         } else if (!strcmp(a, "--downsample")) {
-            ok = compress_int(val, 1, 256, &o->downsample);
+            ok = btf_arg_int(val, 1, 256, &o->downsample);
         } else if (!strcmp(a, "--levels")) {
-            ok = compress_int(val, 1, BTF_LOD_MAX_LEVELS, &o->levels);
+            ok = btf_arg_int(val, 1, BTF_LOD_MAX_LEVELS, &o->levels);
         } else if (!strcmp(a, "--name")) {
             o->name = val;
         } else if (a[0] == '-' && a[1] == '-') {

@@ -5,6 +5,7 @@
  *     btf export-thesis knit/ out/knit-thesis --k 3 --components 8
  *     btf eval knit/ out/knit-thesis        # thesis packages load like any BTF
  */
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_export.h"
 #include "btf_io.h"
@@ -43,28 +44,6 @@ static void export_usage(FILE *f)
             BTF_THESIS_MAX_C);
 }
 
-static int export_int(const char *s, long lo, long hi, int *v)
-{
-    char *end;
-    errno = 0;
-    long x = s ? strtol(s, &end, 10) : 0;
-    if (!s || errno || end == s || *end || x < lo || x > hi)
-        return 0;
-    *v = (int)x;
-    return 1;
-}
-
-/* Value of an enumerated option (index into names), or 0 if unknown. */
-static int export_enum(const char *s, const char *const *names, int n, int *v)
-{
-    for (int i = 0; s && i < n; i++)
-        if (!strcmp(s, names[i])) {
-            *v = i;
-            return 1;
-        }
-    return 0;
-}
-
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int export_parse(int argc, char **argv, export_opts *o)
 {
@@ -82,15 +61,15 @@ static int export_parse(int argc, char **argv, export_opts *o)
         } else if (!strcmp(a, "--quiet") || !strcmp(a, "--eval")) {
             *(a[2] == 'q' ? &o->quiet : &o->eval) = 1, used = 0;
         } else if (!strcmp(a, "--k")) {
-            ok = export_int(val, 1, BTF_MAX_DIRS, &o->ex.k);
+            ok = btf_arg_int(val, 1, BTF_MAX_DIRS, &o->ex.k);
         } else if (!strcmp(a, "--components")) {
-            ok = export_int(val, 1, BTF_THESIS_MAX_C, &o->ex.components);
+            ok = btf_arg_int(val, 1, BTF_THESIS_MAX_C, &o->ex.components);
         } else if (!strcmp(a, "--scale")) {
-            ok = export_enum(val, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
+            ok = btf_arg_enum(val, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
         } else if (!strcmp(a, "--method")) {
-            ok = export_enum(val, methods, 4, &e), o->ex.method = (btf_pca_method)e;
+            ok = btf_arg_enum(val, methods, 4, &e), o->ex.method = (btf_pca_method)e;
         } else if (!strcmp(a, "--downsample")) {
-            ok = export_int(val, 1, 256, &o->downsample);
+            ok = btf_arg_int(val, 1, 256, &o->downsample);
         } else if (a[0] == '-' && a[1] == '-') {
             fprintf(stderr, "btf export-thesis: unknown option '%s'\n", a);
             return 2;

@@ -8,6 +8,7 @@
  * unless --components is given.
  * Samples are generated as 8-bit (what the images store).
  */
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_gen.h"
 #include "btf_io.h"
@@ -48,17 +49,6 @@ static void gen_usage(FILE *f)
                "Images hold round(255 * value); the model is documented in tools/btf_gen.h.\n");
 }
 
-static int gen_parse_int(const char *s, long lo, long hi, long *v)
-{
-    char *end;
-    errno = 0;
-    long x = strtol(s, &end, 10);
-    if (errno || end == s || *end || x < lo || x > hi)
-        return 0;
-    *v = x;
-    return 1;
-}
-
 static int gen_ends_with(const char *s, const char *suffix)
 {
     size_t n = strlen(s), m = strlen(suffix);
@@ -79,13 +69,13 @@ static int gen_parse(int argc, char **argv, gen_opts *o)
             return -1;
         }
         int has = i + 1 < argc;
-        if (!strcmp(a, "--size") && has && gen_parse_int(argv[i + 1], 1, 4096, &v))
+        if (!strcmp(a, "--size") && has && btf_arg_long(argv[i + 1], 1, 4096, &v))
             o->size = (int)v, i++;
-        else if (!strcmp(a, "--seed") && has && gen_parse_int(argv[i + 1], 0, 4294967295L, &v))
+        else if (!strcmp(a, "--seed") && has && btf_arg_long(argv[i + 1], 0, 4294967295L, &v))
             o->seed = (unsigned)v, i++;
         else if (!strcmp(a, "--sampling") && has)
             o->sampling = argv[++i];
-        else if (!strcmp(a, "--components") && has && gen_parse_int(argv[i + 1], 0, 1000000, &v))
+        else if (!strcmp(a, "--components") && has && btf_arg_long(argv[i + 1], 0, 1000000, &v))
             o->components = (int)v, i++;
         else if (!strcmp(a, "--format") && has)
             o->format = argv[++i];
