@@ -37,24 +37,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_util.h"
+
 static char g_tmp[1024], g_wool[1024];
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-/* CPU seconds (user + system, all threads) of this process so far: comparable
- * when other work shares the machine, unlike wall times. */
-static double cpu_s(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec +
-           1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-}
 
 static int env_int(const char *name, int def)
 {

@@ -45,6 +45,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_util.h"
+
 #define BW 1280
 #define BH 720
 #define SUB 4        /* error sample stride */
@@ -52,22 +54,6 @@
 #define NCOMP 16     /* components in the package */
 #define MAPN 512     /* thesis lookup map side */
 #define FRAMES 5
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
-}
-
-/* CPU seconds (user + system, all threads: llvmpipe's too) of this process so far. */
-static double cpu_s(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec +
-           1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-}
 
 static int die(const char *what, const btf_error *err)
 {
