@@ -2,7 +2,8 @@
 // as tools/btf_shader.c does (shaders/README.md), compile/link errors reported
 // twgl-style against the numbered source, and the package's textures (the same
 // layout as tools/btf_gl_package.c: u_btf_tex, u_btf_wt, u_btf_range,
-// u_btf_view_block), uploaded one chunk at a time.
+// u_btf_view_block), uploaded one chunk at a time; version-2 packages as mip levels
+// of per-component slots (shaders/README.md, "Spatial levels").
 
 const manifests = new Map(); // shaders base URL -> Promise of {manifest, files: Map}
 
@@ -156,9 +157,11 @@ function nearest(gl, target) {
   gl.texParameteri(target, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
 }
 
-// A package's GPU textures. Layers for `capacity` chunks (the budget); grows by a
-// GPU-side copy of the layers already there, so no chunk is uploaded twice. Owned
-// by one viewer; free() with the same context.
+// A package's GPU textures. Version 1: layers for `capacity` chunks (the budget);
+// grows by a GPU-side copy of the layers already there, so no chunk is uploaded
+// twice. Version 2 (shaders/README.md, "Spatial levels"): one layer (slot) per
+// component with every mip level, allocated at once; chunk (component, level) goes
+// into that mip level. Owned by one viewer; free() with the same context.
 export class GpuPackage {
   constructor(gl, pkg, capacity) {
     this.gl = gl;
@@ -166,8 +169,14 @@ export class GpuPackage {
     this.uploaded = 0;
     this.capacity = 0;
     this.uploads = 0; // texture-layer uploads so far (tests check: one per chunk)
-    const V = pkg.views.dirs, L = pkg.lights.dirs, nc = pkg.chunks.length;
-    // weights for every chunk of the manifest: 12 * L * V bytes each (78 KB at 81 x 81)
+    const V = pkg.views.dirs, L = pkg.lights.dirs;
+    // Version 2 (shaders/README.md, "Spatial levels"): textures by slot (the s-th
+    // component to arrive), levels as mip levels; version 1: slot = chunk, one level.
+    this.levels = pkg.version >= 2 ? pkg.levels : 1;
+    this.slotOf = new Map(); // component -> slot (version 2)
+    this.loaded = [];        // per slot: {fine, coarse, wt16} (version 2)
+    const nc = pkg.version >= 2 ? pkg.components.length : pkg.chunks.length;
+    // weights for every chunk (slot) of the manifest: 12 * L * V bytes each (78 KB at 81 x 81)
     this.wt = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.wt);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
@@ -175,7 +184,8 @@ export class GpuPackage {
     this.range = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D, this.range);
     nearest(gl, gl.TEXTURE_2D);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, pkg.nBlocks, nc);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, pkg.nBlocks, nc * this.levels);
+    this.rangeRows = new Float32Array(4 * pkg.nBlocks * nc * this.levels); // CPU copy (version 2)
     this.viewBlock = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D, this.viewBlock);
     nearest(gl, gl.TEXTURE_2D);
@@ -184,7 +194,12 @@ export class GpuPackage {
     for (let v = 0; v < V; v++) vb[4 * v] = pkg.viewBlock[v];
     gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, V, 1, gl.RGBA, gl.FLOAT, vb);
     this.tex = null;
-    this.reserve(capacity);
+    this.reserve(pkg.version >= 2 ? nc : capacity);
+  }
+
+  // Slots in use (version 2: components with a loaded chunk; version 1: chunks).
+  get slots() {
+    return this.pkg.version >= 2 ? this.loaded.length : this.uploaded;
   }
 
   get texFormat() {
@@ -193,15 +208,24 @@ export class GpuPackage {
   }
 
   // Makes room for n chunk layers (n <= manifest chunks); copies existing layers on the GPU.
+  // Version 2 allocates every component's slot with all its mip levels at once.
   reserve(n) {
     const gl = this.gl, pkg = this.pkg;
+    if (pkg.version >= 2) {
+      if (this.tex) return;
+      n = pkg.components.length;
+    }
     n = Math.max(1, Math.min(n, pkg.chunks.length));
     if (n <= this.capacity) return;
     const [ifmt] = this.texFormat;
     const tex = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, ifmt, pkg.atlas.width, pkg.atlas.height, n);
+    if (this.levels > 1) {
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, this.levels - 1);
+    }
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.levels, ifmt, pkg.atlas.width, pkg.atlas.height, n);
     if (this.tex && this.uploaded) {
       const fb = gl.createFramebuffer();
       gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb);
@@ -222,6 +246,7 @@ export class GpuPackage {
   upload(j, bitmap, weights) {
     const gl = this.gl, pkg = this.pkg;
     if (j !== this.uploaded) throw new Error(`chunk ${j} uploaded out of order (next is ${this.uploaded})`);
+    if (pkg.version >= 2) return this.uploadLevel(j, bitmap, weights);
     if (bitmap.width !== pkg.atlas.width || bitmap.height !== pkg.atlas.height)
       throw new Error(`package ${pkg.name}: ${pkg.chunks[j].tex} is ${bitmap.width}x${bitmap.height}, ` +
                       `expected ${pkg.atlas.width}x${pkg.atlas.height}`);
@@ -249,6 +274,59 @@ export class GpuPackage {
     this.uploads++;
   }
 
+  // Version 2: chunk j = (component c, level l) into mip level l of c's slot; its
+  // texture range into row s*N + l of u_btf_range and the slot's loaded level range
+  // into .zw of all N rows; weights (8-bit coarse or 16-bit) replace the slot's layer
+  // unless 16-bit weights are there already. weights.precise: from wt-JJ.bin.
+  uploadLevel(j, bitmap, weights) {
+    const gl = this.gl, pkg = this.pkg, ch = pkg.chunks[j], l = ch.level, N = this.levels;
+    const aw = pkg.atlas.width >> l, ah = pkg.atlas.height >> l;
+    if (bitmap.width !== aw || bitmap.height !== ah)
+      throw new Error(`package ${pkg.name}: ${ch.tex} is ${bitmap.width}x${bitmap.height}, expected ${aw}x${ah}`);
+    let s = this.slotOf.get(ch.component);
+    if (s === undefined) { // the component's first chunk: loaded levels [l, l]
+      if (!weights) throw new Error(`package ${pkg.name}: chunk ${j} is the first of component ${ch.component} ` +
+                                    'but carries no weights');
+      s = this.loaded.length;
+      this.slotOf.set(ch.component, s);
+      this.loaded.push({fine: l, coarse: l, wt16: false});
+    } else if (l === this.loaded[s].fine - 1) this.loaded[s].fine = l;
+    else if (l === this.loaded[s].coarse + 1) this.loaded[s].coarse = l;
+    else throw new Error(`package ${pkg.name}: chunk ${j} makes the levels of component ${ch.component} ` +
+                         'non-contiguous');
+    const slot = this.loaded[s];
+    const [, fmt] = this.texFormat;
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
+    gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
+    gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tex);
+    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, l, 0, 0, s, aw, ah, 1, fmt, gl.UNSIGNED_BYTE, bitmap);
+    if (weights && (weights.precise || !slot.wt16)) {
+      gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.wt);
+      gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, s, pkg.lights.dirs, pkg.views.dirs, 1, gl.RGB, gl.FLOAT,
+                       weights);
+      slot.wt16 = slot.wt16 || !!weights.precise;
+    }
+    const nb = pkg.nBlocks, rows = this.rangeRows;
+    for (let k = 0; k < N; k++) {
+      const o = 4 * nb * (s * N + k);
+      for (let b = 0; b < nb; b++) {
+        if (k === l) {
+          rows[o + 4 * b] = ch.texRange[2 * b];
+          rows[o + 4 * b + 1] = ch.texRange[2 * b + 1];
+        }
+        rows[o + 4 * b + 2] = slot.fine;
+        rows[o + 4 * b + 3] = slot.coarse;
+      }
+    }
+    gl.bindTexture(gl.TEXTURE_2D, this.range);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, s * N, nb, N, gl.RGBA, gl.FLOAT,
+                     rows.subarray(4 * nb * s * N, 4 * nb * (s + 1) * N));
+    this.uploaded = j + 1;
+    this.uploads++;
+  }
+
   // Binds the 4 textures to units first..first+3 and sets the u_btf_* uniforms of prog
   // (in use), as btf_gl_package_bind + btf_gl_package_settings do.
   bind(prog, first, {chunks = this.uploaded, filter = 1, wrap = 0} = {}) {
@@ -268,9 +346,39 @@ export class GpuPackage {
     gl.uniform2i(prog.loc('u_btf_size'), pkg.width, pkg.height);
     gl.uniform1i(prog.loc('u_btf_atlas_cols'), pkg.atlas.cols);
     gl.uniform1i(prog.loc('u_btf_bits'), pkg.bits);
-    gl.uniform1i(prog.loc('u_btf_chunks'), Math.max(0, Math.min(chunks, this.uploaded)));
+    // version 2: every loaded slot (the shader picks the level per pixel)
+    const used = pkg.version >= 2 ? (chunks > 0 ? this.slots : 0) : Math.max(0, Math.min(chunks, this.uploaded));
+    gl.uniform1i(prog.loc('u_btf_chunks'), used);
+    gl.uniform1i(prog.loc('u_btf_levels'), this.levels);
+    gl.uniform1f(prog.loc('u_btf_lod'), 0);
+    gl.uniform1i(prog.loc('u_btf_lod_auto'), 1);
     gl.uniform1i(prog.loc('u_btf_filter'), filter);
     gl.uniform1i(prog.loc('u_btf_wrap'), wrap);
+  }
+
+  // Pixels of a grey PNG (wt-JJ-8.png) decoded by the browser: uploaded into an R8
+  // texture (no colour conversion) and read back, so they are exactly the PNG's bytes.
+  readGrey(bitmap) {
+    const gl = this.gl, w = bitmap.width, h = bitmap.height;
+    const t = gl.createTexture(), fb = gl.createFramebuffer();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    nearest(gl, gl.TEXTURE_2D);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.R8, w, h);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
+    gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
+    gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, gl.RED, gl.UNSIGNED_BYTE, bitmap);
+    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb);
+    gl.framebufferTexture2D(gl.READ_FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, t, 0);
+    const rgba = new Uint8Array(4 * w * h);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
+    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
+    gl.deleteFramebuffer(fb);
+    gl.deleteTexture(t);
+    const out = new Uint8Array(w * h);
+    for (let i = 0; i < w * h; i++) out[i] = rgba[4 * i];
+    return out;
   }
 
   free() {

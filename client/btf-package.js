@@ -57,12 +57,80 @@ function parseRanges(name, list, nBlocks, ci, key) {
   return out;
 }
 
+// Standard base64 -> Uint8Array (browser atob or node Buffer).
+function fromBase64(s) {
+  if (typeof atob === 'function') return Uint8Array.from(atob(s), (ch) => ch.charCodeAt(0));
+  return new Uint8Array(Buffer.from(s, 'base64'));
+}
+
+// Version 2 "ranges" (section 10): per component, base64 of B x 4 float32 LE
+// (tex lo, tex step, wt lo, wt step) -> [{tex: Float32Array(2B), wt: Float32Array(2B)}].
+function parseCompactRanges(name, list, nBlocks) {
+  if (!Array.isArray(list) || list.length < 1) fail(name, '"ranges" needs one entry per component');
+  return list.map((e, c) => {
+    let bytes = null;
+    if (typeof e === 'string' && e.length === 4 * Math.ceil((16 * nBlocks) / 3)) {
+      try { bytes = fromBase64(e); } catch { bytes = null; }
+    }
+    if (!bytes || bytes.length !== 16 * nBlocks) fail(name, `"ranges"[${c}] is not ${nBlocks} x 4 float32 in base64`);
+    const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.length);
+    const tex = new Float32Array(2 * nBlocks), wt = new Float32Array(2 * nBlocks);
+    for (let b = 0; b < nBlocks; b++) {
+      tex[2 * b] = dv.getFloat32(16 * b, true);
+      tex[2 * b + 1] = dv.getFloat32(16 * b + 4, true);
+      wt[2 * b] = dv.getFloat32(16 * b + 8, true);
+      wt[2 * b + 1] = dv.getFloat32(16 * b + 12, true);
+    }
+    for (const v of [...tex, ...wt]) if (!Number.isFinite(v)) fail(name, `"ranges"[${c}] holds a non-finite number`);
+    for (let b = 0; b < nBlocks; b++)
+      if (tex[2 * b + 1] < 0 || wt[2 * b + 1] < 0) fail(name, `"ranges"[${c}] block ${b} has a negative step`);
+    return {tex, wt};
+  });
+}
+
+// Version-2 header: levels (tiles divisible by 2^(levels-1)), ranges, weights8_step.
+function parseLevels(name, m, nb) {
+  if (m.version === 1) return {levels: 1, ranges: null, wt8Step: []};
+  if (!isInt(m.levels, 1, 15) || m.width % (1 << (m.levels - 1)) || m.height % (1 << (m.levels - 1)))
+    fail(name, '"levels" is invalid for the texture size');
+  const ranges = m.ranges === undefined ? null : parseCompactRanges(name, m.ranges, nb);
+  const w8 = m.weights8_step === undefined ? [] : m.weights8_step;
+  if (!Array.isArray(w8) || !w8.every((v) => isInt(v, 0, 65535))) fail(name, '"weights8_step" is invalid');
+  return {levels: m.levels, ranges, wt8Step: w8.map((v) => v || 257)};
+}
+
+// One chunk's client view; v2 adds level, contrib, the 8-bit weights, ranges by component.
+function parseChunk(name, c, i, nb, lv, version) {
+  const fileOk = (f) => typeof f === 'string' && /^[A-Za-z0-9._-]+$/.test(f) && f[0] !== '.';
+  if (!c || !Array.isArray(c.files) || !c.files.every(fileOk)) fail(name, `chunk ${i} has invalid "files"`);
+  const tex = c.files.find((f) => f.startsWith('tex-'));
+  const wt = c.files.find((f) => f.startsWith('wt-') && !f.endsWith('.png'));
+  const wt8 = version >= 2 ? c.files.find((f) => f.startsWith('wt-') && f.endsWith('.png')) : undefined;
+  if (!tex || (version < 2 && !wt)) fail(name, `chunk ${i} lacks a tex-* or wt-* file`);
+  const level = version >= 2 ? c.level ?? 0 : 0;
+  if (!isInt(level, 0, lv.levels - 1)) fail(name, `chunk ${i} "level" is out of range`);
+  const component = version >= 2 || c.component !== undefined ? c.component : i;
+  if (version >= 2 && !isInt(component, 0, MAX_CHUNKS - 1)) fail(name, `chunk ${i} "component" is invalid`);
+  const own = c.tex_range !== undefined || version < 2;
+  const r = own ? null : lv.ranges && lv.ranges[component];
+  if (!own && !r) fail(name, `chunk ${i}: no "ranges" entry for component ${component}`);
+  return {
+    id: i, component, level, contrib: c.contrib, files: c.files.slice(), tex, wt, wt8,
+    bytes: Number.isFinite(c.bytes) ? c.bytes : 0,
+    rmse: c.rmse, lab: c.lab, psnr: c.psnr, deltaE: c.delta_e76,
+    texRange: own ? parseRanges(name, c.tex_range, nb, i, 'tex_range') : r.tex,
+    wtRange: own || c.wt_range !== undefined ? parseRanges(name, c.wt_range, nb, i, 'wt_range') : r.wt,
+    wt8Step: lv.wt8Step[component] || 257,
+  };
+}
+
 // Validates a manifest object and returns the client's view of it. Throws Error
 // naming the material and the field on anything outside doc/package-format.md.
+// Versions 1 and 2 (section 10: (component, level) chunks).
 export function parseManifest(m) {
   const name = m && typeof m.name === 'string' ? m.name : '?';
   if (!m || m.format !== 'btf-package') fail(name, 'manifest "format" is not "btf-package"');
-  if (m.version !== 1) fail(name, `manifest version ${m.version} is not 1`);
+  if (m.version !== 1 && m.version !== 2) fail(name, `manifest version ${m.version} is not 1 or 2`);
   if (!isInt(m.width, 1, MAX_SIZE) || !isInt(m.height, 1, MAX_SIZE)) fail(name, 'width/height out of range');
   if (m.bits !== 8 && m.bits !== 16) fail(name, '"bits" must be 8 or 16');
   const lights = parseDirset(name, 'lights', m.lights);
@@ -85,22 +153,12 @@ export function parseManifest(m) {
     fail(name, '"atlas" does not match the blocks and the texture size');
   if (!Array.isArray(m.chunks) || m.chunks.length < 1 || m.chunks.length > MAX_CHUNKS)
     fail(name, `needs 1..${MAX_CHUNKS} chunks`);
-  const fileOk = (f) => typeof f === 'string' && /^[A-Za-z0-9._-]+$/.test(f) && f[0] !== '.';
-  const chunks = m.chunks.map((c, i) => {
-    if (!c || !Array.isArray(c.files) || !c.files.every(fileOk)) fail(name, `chunk ${i} has invalid "files"`);
-    const tex = c.files.find((f) => f.startsWith('tex-'));
-    const wt = c.files.find((f) => f.startsWith('wt-'));
-    if (!tex || !wt) fail(name, `chunk ${i} lacks a tex-* or wt-* file`);
-    return {
-      id: i, component: c.component, files: c.files.slice(), tex, wt,
-      bytes: Number.isFinite(c.bytes) ? c.bytes : 0,
-      rmse: c.rmse, lab: c.lab, psnr: c.psnr, deltaE: c.delta_e76,
-      texRange: parseRanges(name, c.tex_range, nb, i, 'tex_range'),
-      wtRange: parseRanges(name, c.wt_range, nb, i, 'wt_range'),
-    };
-  });
+  const lv = parseLevels(name, m, nb);
+  const chunks = m.chunks.map((c, i) => parseChunk(name, c, i, nb, lv, m.version));
+  const comps = [...new Set(chunks.map((c) => c.component))];
   return {
-    name, width: m.width, height: m.height, bits: m.bits, lights, views, viewBlock, nBlocks: nb,
+    name, version: m.version, levels: lv.levels, components: comps, width: m.width, height: m.height, bits: m.bits,
+    lights, views, viewBlock, nBlocks: nb,
     atlas: {cols: a.cols, rows: a.rows, width: a.width, height: a.height}, chunks,
     totalBytes: chunks.reduce((s, c) => s + c.bytes, 0),
   };
@@ -120,6 +178,20 @@ export function dequantWeights(pkg, chunk, buf) {
     const lo = chunk.wtRange[2 * b], step = chunk.wtRange[2 * b + 1];
     for (let i = v * L * 3, e = (v + 1) * L * 3; i < e; i++)
       out[i] = f32(lo + f32(step * dv.getUint16(2 * i, true)));
+  }
+  return out;
+}
+
+// wt-JJ-8.png pixels (grey, 3L x V, the same index order as wt-JJ.bin) -> Float32Array,
+// Wt = lo + (s_c * step) * q in float32 as codec/btf_package.c.
+export function dequantWeights8(pkg, chunk, px) {
+  const L = pkg.lights.dirs, V = pkg.views.dirs, n = V * L * 3;
+  if (px.length !== n) fail(pkg.name, `${chunk.wt8} has ${px.length} pixels, expected ${n}`);
+  const out = new Float32Array(n);
+  for (let v = 0; v < V; v++) {
+    const b = pkg.viewBlock[v];
+    const lo = chunk.wtRange[2 * b], st = f32(f32(chunk.wt8Step) * chunk.wtRange[2 * b + 1]);
+    for (let i = v * L * 3, e = (v + 1) * L * 3; i < e; i++) out[i] = f32(lo + f32(st * px[i]));
   }
   return out;
 }

@@ -12,7 +12,10 @@
 //   camera-theta, camera-phi, camera-dist, fov   initial camera (then mouse/touch)
 //   repeat         material repeats times the geometry's default (default 1)
 // Angles, distances and surfaces follow `btf render` (doc/client.md, scene.js).
-//   budget-chunks  most chunks to ask for; default: by the viewer's CSS width (autoBudget)
+//   budget-chunks  most chunks to ask for; default: version-2 packages the scene budget
+//                  (client/btf-lod.js: finest level the footprint resolves, visible
+//                  components; 0 off screen / tab hidden), version 1 by CSS width (autoBudget)
+//   lod-threshold  visibility threshold of the scene budget (default 1, RMS on 0..255)
 //   budget-bytes   most bytes to ask for
 //   max-dpr        cap of devicePixelRatio for the canvas (default 2)
 //   shaders        base URL of the shader files (default: http(s) of src + /shaders/)
@@ -21,7 +24,8 @@
 
 import {BtfStream} from './btf-stream.js';
 import {GpuPackage, loadShaders} from './btf-gl.js';
-import {chunksWithinBytes, dequantWeights, parseManifest, promisedError} from './btf-package.js';
+import {chunksWithinBytes, dequantWeights, dequantWeights8, parseManifest, promisedError} from './btf-package.js';
+import {LOD_THRESHOLD, lodFootprint, lodSelect} from './btf-lod.js';
 import {MeshRenderer} from './btf-render.js';
 import {Orbit} from './orbit.js';
 import {GEOMETRIES, sceneDefaults} from './scene.js';
@@ -60,7 +64,7 @@ function sameOriginWs() {
 export class BtfViewer extends HTMLElement {
   static get observedAttributes() {
     return ['material', 'src', 'geometry', 'light', 'light-theta', 'light-phi', 'budget-chunks', 'budget-bytes',
-      'repeat'];
+      'repeat', 'lod-threshold', 'fov'];
   }
 
   constructor() {
@@ -100,7 +104,10 @@ export class BtfViewer extends HTMLElement {
     this.orbit = new Orbit(this.canvas, {
       az: num(this, 'camera-phi', def.cameraPhi), el: 90 - num(this, 'camera-theta', def.cameraTheta),
       dist: num(this, 'camera-dist', def.cameraDist),
-      onChange: () => this.invalidate(),
+      onChange: () => {
+        this.sceneChanged();
+        this.invalidate();
+      },
       onPointer: (x, y) => {
         if (this.getAttribute('light') !== 'pointer') return;
         this.lightPhi = (x - 0.5) * 360 - 90;
@@ -115,9 +122,12 @@ export class BtfViewer extends HTMLElement {
     this.onScreen = true;
     this.visibility = new IntersectionObserver((entries) => {
       this.onScreen = entries[entries.length - 1].isIntersecting;
+      this.sceneChanged();
       if (this.onScreen) this.invalidate();
     });
     this.visibility.observe(this);
+    this.onVisibility = () => this.sceneChanged();
+    document.addEventListener('visibilitychange', this.onVisibility);
     this.onLost = (e) => {
       e.preventDefault();
       this.lost = true;
@@ -140,6 +150,7 @@ export class BtfViewer extends HTMLElement {
     registry.delete(this);
     this.resizer?.disconnect();
     this.visibility?.disconnect();
+    document.removeEventListener('visibilitychange', this.onVisibility);
     if (this.fence && this.gl) this.gl.deleteSync(this.fence);
     this.fence = null;
     this.orbit?.dispose();
@@ -166,6 +177,7 @@ export class BtfViewer extends HTMLElement {
     if (name === 'light-theta') this.lightTheta = num(this, 'light-theta', 45);
     if (name === 'light-phi') this.lightPhi = num(this, 'light-phi', -50);
     if (name.startsWith('budget')) this.budgetChanged();
+    if (name === 'repeat' || name === 'lod-threshold' || name === 'fov') this.sceneChanged();
     this.invalidate();
   }
 
@@ -202,22 +214,52 @@ export class BtfViewer extends HTMLElement {
 
   // ------------------------------------------------------------ budget
 
-  // This viewer's own budget {chunks, bytes, error}; -1 = no limit.
-  budget() {
+  // This viewer's own budget {chunks, bytes, error}; -1 = no limit. Without a
+  // budget-chunks attribute a version-2 package gets its scene budget (sceneBudget),
+  // 0 while the viewer is off screen or the tab hidden (streaming pauses).
+  budget(drawing = false) {
     const c = this.getAttribute('budget-chunks');
-    const chunks = c !== null && c !== '' ? Math.max(0, parseInt(c, 10) || 0) : BtfViewer.budgetPolicy(this);
+    let chunks;
+    if (c !== null && c !== '') chunks = Math.max(0, parseInt(c, 10) || 0);
+    else if (this.pkg && this.pkg.version >= 2) chunks = this.sceneBudget(drawing).limit;
+    else chunks = BtfViewer.budgetPolicy(this);
     const bytes = num(this, 'budget-bytes', -1);
     return {chunks, bytes, error: -1};
+  }
+
+  // Texels per device pixel of the material at the object's centre (issue 8): the
+  // object (2 units across) spans canvas height / (dist tan(fov/2)) device pixels;
+  // u runs over 2 units on plane and cylinder, over 2 pi (twice) on the sphere.
+  footprint() {
+    if (!this.pkg) return 0;
+    const fov = num(this, 'fov', 40), dist = this.orbit ? this.orbit.dist : sceneDefaults(this.geometry).cameraDist;
+    const px = this.canvas.height / (Math.max(dist, 1e-3) * Math.tan((fov * Math.PI) / 360));
+    const rep = num(this, 'repeat', 1) > 0 ? num(this, 'repeat', 1) : 1;
+    const perUnit = this.geometry === 'sphere' ? 2 / Math.PI : 1;
+    return lodFootprint(this.pkg.width, rep * perUnit, px);
+  }
+
+  // lodSelect of the current view (client/btf-lod.js); nothing while paused unless drawing.
+  sceneBudget(drawing = false) {
+    const paused = !this.onScreen || document.hidden;
+    const tpp = paused && !drawing ? 0 : this.footprint();
+    return lodSelect(this.pkg, {texelsPerPixel: tpp, threshold: num(this, 'lod-threshold', LOD_THRESHOLD)});
   }
 
   // Chunks this viewer draws: its own budget within the manifest.
   ownLimit() {
     if (!this.pkg) return 0;
-    const b = this.budget();
+    const b = this.budget(true);
     let n = this.pkg.chunks.length;
     if (b.chunks >= 0) n = Math.min(n, b.chunks);
     if (b.bytes >= 0) n = Math.min(n, chunksWithinBytes(this.pkg, b.bytes));
     return n;
+  }
+
+  // The view changed (zoom, on/off screen, tab shown/hidden): a scene budget may too.
+  sceneChanged() {
+    if (this.sub && this.pkg && this.pkg.version >= 2 && this.getAttribute('budget-chunks') === null)
+      this.budgetChanged();
   }
 
   budgetChanged() {
@@ -253,12 +295,34 @@ export class BtfViewer extends HTMLElement {
     const data = (name) => files[chunk.files.indexOf(name)];
     const bitmap = await createImageBitmap(new Blob([data(chunk.tex)], {type: 'image/png'}),
                                            {premultiplyAlpha: 'none', colorSpaceConversion: 'none'});
-    const wt = dequantWeights(this.pkg, chunk, data(chunk.wt));
+    if (gpu !== this.gpu || this.lost) return bitmap.close();
+    const wt = await this.chunkWeights(chunk, data, gpu);
     if (gpu !== this.gpu || this.lost) return bitmap.close();
     gpu.upload(j, bitmap, wt);
     bitmap.close();
     this.updateLabel();
     this.invalidate();
+  }
+
+  // Dequantised weights of a chunk: wt-JJ.bin (16-bit, .precise), else version 2's
+  // wt-JJ-8.png (8-bit coarse), else null (a chunk that lists only its texture).
+  async chunkWeights(chunk, data, gpu) {
+    if (chunk.wt) {
+      const w = dequantWeights(this.pkg, chunk, data(chunk.wt));
+      w.precise = true;
+      return w;
+    }
+    if (!chunk.wt8) return null;
+    const bm = await createImageBitmap(new Blob([data(chunk.wt8)], {type: 'image/png'}),
+                                       {premultiplyAlpha: 'none', colorSpaceConversion: 'none'});
+    const L = this.pkg.lights.dirs, V = this.pkg.views.dirs;
+    if (bm.width !== 3 * L || bm.height !== V) {
+      bm.close();
+      throw new Error(`package ${this.pkg.name}: ${chunk.wt8} is ${bm.width}x${bm.height}, expected ${3 * L}x${V}`);
+    }
+    const px = gpu.readGrey(bm);
+    bm.close();
+    return dequantWeights8(this.pkg, chunk, px);
   }
 
   onComplete() {
@@ -426,6 +490,10 @@ export class BtfViewer extends HTMLElement {
       firstFrameMs: this.firstFrameMs, firstFrameAt: this.firstFrameAt ?? null, firstFrameBytes: this.firstFrameBytes,
       streamBytes: this.sub ? this.sub.bytes : 0, drags: this.orbit ? this.orbit.drags : 0,
       camera: this.orbit ? [this.orbit.az, this.orbit.el, this.orbit.dist] : null, lost: this.lost,
+      version: this.pkg ? this.pkg.version : 0, footprint: this.footprint(),
+      scene: this.pkg && this.pkg.version >= 2 ? (({level, components, needed, limit, bytes}) =>
+        ({level, components, needed, limit, bytes}))(this.sceneBudget()) : null,
+      slots: this.gpu ? this.gpu.slots : 0,
     };
   }
 }

@@ -16,7 +16,7 @@
 #include "btfd_request.h"
 
 /* Manifest keys copied verbatim into the list summary when present. */
-static const char *const summary_keys[] = {"width", "height", "k", "components", "bits",
+static const char *const summary_keys[] = {"version", "levels", "width", "height", "k", "components", "bits",
                                            "lights", "views", "sampling", "source"};
 
 static char *dup_str(const char *s)
@@ -232,8 +232,10 @@ static btf_result load_parsed(const char *dir, const cJSON *root, btfd_material 
     const cJSON *chunks = cJSON_GetObjectItemCaseSensitive(root, "chunks");
     if (!cJSON_IsObject(root) || !cJSON_IsString(fmt) || strcmp(fmt->valuestring, "btf-package"))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: manifest \"format\" is not \"btf-package\"", dir);
-    if (!cJSON_IsNumber(ver) || ver->valuedouble != 1)
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: manifest version is not 1", dir);
+    /* Version 2 (spatial levels) keeps the chunk contract: files, bytes, per-chunk
+     * errors (`rmse`; no `lab`, so the metric falls back to rmse below). */
+    if (!cJSON_IsNumber(ver) || (ver->valuedouble != 1 && ver->valuedouble != 2))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: manifest version is not 1 or 2", dir);
     int n = cJSON_GetArraySize(chunks);
     if (!cJSON_IsArray(chunks) || n < 1 || n > BTFD_CHUNK_MAX)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: manifest needs 1..%d chunks", dir, BTFD_CHUNK_MAX);

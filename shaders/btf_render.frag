@@ -10,13 +10,14 @@ uniform vec3 u_camera;   // world position of the eye
 uniform vec4 u_light;    // w = 0: direction towards a distant light; w = 1: light position
 uniform vec2 u_uv_scale; // material repeats across the surface (set u_btf_wrap = 1 when > 1)
 uniform int u_horizon_fade; // 0: decoder value as is; 1: fade (btf render's default)
+uniform int u_btf_lod_auto; // 1: lod from screen-space derivatives; 0: u_btf_lod
 in vec3 v_world;
 in vec3 v_normal;
 in vec4 v_tangent;
 in vec2 v_uv;
 layout(location = 0) out vec4 o_color;
 #ifdef BTF_RENDER_DEBUG
-layout(location = 1) out vec4 o_uv;    // (u, v, 0, 0) as decoded
+layout(location = 1) out vec4 o_uv;    // (u, v, lod, 0) as decoded
 layout(location = 2) out vec4 o_light; // local light direction (not normalised)
 layout(location = 3) out vec4 o_view;  // local view direction (not normalised)
 #endif
@@ -33,6 +34,15 @@ float btf_render_horizon(vec3 l)
     return c >= c_outer ? 1.0 : max(c, 0.0) / c_outer;
 }
 
+// Level of detail of uv (after u_uv_scale) at this fragment: log2 of the larger
+// screen-space footprint of a pixel in level-0 texels (the GL isotropic rule).
+float btf_render_lod(vec2 uv)
+{
+    vec2 t = uv * vec2(u_btf_size);
+    vec2 dx = dFdx(t), dy = dFdy(t);
+    return 0.5 * log2(max(max(dot(dx, dx), dot(dy, dy)), 1e-12));
+}
+
 void main()
 {
     vec3 n = normalize(v_normal);
@@ -43,12 +53,15 @@ void main()
     vec3 l = vec3(dot(L, t), dot(L, b), dot(L, n));
     vec3 v = vec3(dot(V, t), dot(V, b), dot(V, n));
     vec2 uv = v_uv * u_uv_scale;
-    vec3 rgb = btf_decode(uv, l, v);
+    float lod = btf_render_lod(uv); // outside any branch: derivatives need uniform control flow
+    if (u_btf_lod_auto == 0)
+        lod = u_btf_lod;
+    vec3 rgb = btf_decode_lod(uv, l, v, lod);
     if (u_horizon_fade != 0)
         rgb *= btf_render_horizon(l);
     o_color = vec4(clamp(rgb, 0.0, 1.0), 1.0);
 #ifdef BTF_RENDER_DEBUG
-    o_uv = vec4(uv, 0.0, 0.0);
+    o_uv = vec4(uv, lod, 0.0);
     o_light = vec4(l, 0.0);
     o_view = vec4(v, 0.0);
 #endif

@@ -603,7 +603,7 @@ Test(server, list_over_http_and_websocket_skips_non_packages)
         {"nomanifest", NULL},
         {"badjson", "{\"format\":\"btf-package\",\"version\":1,"},
         {"wrongformat", "{\"format\":\"other\",\"version\":1,\"chunks\":[{\"files\":[\"a\"]}]}"},
-        {"wrongversion", "{\"format\":\"btf-package\",\"version\":2,\"chunks\":[{\"files\":[\"a\"]}]}"},
+        {"wrongversion", "{\"format\":\"btf-package\",\"version\":3,\"chunks\":[{\"files\":[\"a\"]}]}"},
         {"missingfile", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[{\"files\":[\"nope.bin\"]}]}"},
         {"escapingfile", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[{\"files\":[\"../alpha/c0_f0.bin\"]}]}"},
         {"nochunks", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[]}"},
@@ -732,6 +732,61 @@ Test(server, stream_every_chunk_in_order_byte_exact)
     cr_expect_eq(jnum(st.last_complete, "bytes_sent"), (double)total);
     cr_expect_eq(jnum(st.last_complete, "chunks_sent"), 4);
     expect_silence(&c, 150);
+    stream_free(&st);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+/* A version-2 package (doc/package-format.md section 10): (component, level)
+ * chunks with `level`/`contrib` and `rmse` but no `lab`. The server streams it
+ * like version 1 and ranks it by rmse. */
+Test(server, version2_package_streams_with_rmse_metric)
+{
+    char dir[400], path[500];
+    snprintf(dir, sizeof dir, "%s/knit2", g_lib);
+    cr_assert_eq(mkdir(dir, 0755), 0);
+    const char *files[] = {"wt-00-8.png", "tex-00-l1.png", "tex-00.png", "wt-00.bin"};
+    const size_t sizes[] = {700, 300, 1200, 900};
+    for (int i = 0; i < 4; i++) {
+        uint8_t b[1200];
+        fill_random(b, sizes[i], (uint32_t)(i + 11));
+        snprintf(path, sizeof path, "%s/%s", dir, files[i]);
+        write_file(path, b, sizes[i]);
+    }
+    const char *man = "{\"format\":\"btf-package\",\"version\":2,\"levels\":2,\"width\":16,\"height\":16,"
+                      "\"chunks\":[{\"files\":[\"wt-00-8.png\",\"tex-00-l1.png\"],\"component\":0,\"level\":1,"
+                      "\"contrib\":5,\"rmse\":7.5},"
+                      "{\"files\":[\"tex-00.png\",\"wt-00.bin\"],\"component\":0,\"level\":0,"
+                      "\"contrib\":2,\"rmse\":2.5}]}";
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    write_file(path, man, strlen(man));
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    uint8_t *body;
+    size_t blen;
+    cr_assert_eq(http_get(s.port, "/materials", &body, &blen), 200);
+    cJSON *j = cJSON_Parse((char *)body);
+    cr_assert_not_null(j, "%s", body);
+    free(body);
+    const cJSON *mats = cJSON_GetObjectItem(j, "materials");
+    cr_assert_eq(cJSON_GetArraySize(mats), 1, "the v2 package is listed");
+    const cJSON *a = cJSON_GetArrayItem(mats, 0);
+    cr_expect_str_eq(jstr(a, "metric"), "rmse", "no lab in v2: rmse ranks the chunks");
+    cr_expect_eq(jnum(a, "error"), 2.5);
+    cr_expect_eq(jnum(a, "bytes"), (double)(700 + 300 + 1200 + 900));
+    cJSON_Delete(j);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON_Delete(expect_type(&c, "hello"));
+    /* a budget of the coarse chunk only, then everything */
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"knit2\",\"budget\":{\"chunks\":1}}");
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 1);
+    cr_assert_eq(st.n_order, 1, "only the budgeted coarse chunk");
+    cr_expect_eq(jnum(st.last_complete, "bytes_sent"), 1000.0);
+    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"knit2\",\"budget\":{}}");
+    run_until_complete(&c, &st, 2);
+    cr_expect_eq(st.n_order, 2, "the level-0 chunk follows when the budget grows");
     stream_free(&st);
     wsc_close(&c);
     srv_stop(&s);

@@ -9,8 +9,10 @@ import {ROOT, capture, hasRender, launch, makeLibrary, meanAbsDiff, newPage, req
   startServer, viewers, waitFor, writePng} from './util.mjs';
 
 // 32x32 texels, 81 x 81 directions: knit with 6 chunks (progressive capture after
-// 1, 2, 4, all), tiles and stone with 3 (three different materials on the embed page).
-const MATERIALS = {knit: ['knit', 6], tiles: ['tiles', 3], stone: ['stone', 3]};
+// 1, 2, 4, all), tiles and stone with 3 (three different materials on the embed page);
+// tiles-lod: version 2 with 3 spatial levels (scene budgets; sorts last, so the embed
+// page's first three materials stay version 1).
+const MATERIALS = {knit: ['knit', 6], tiles: ['tiles', 3], stone: ['stone', 3], 'tiles-lod': ['tiles', 6, 3]};
 let lib, server, desktop;
 
 before(async () => {
@@ -45,10 +47,23 @@ describe('gallery (index.html)', () => {
     for (const name of Object.keys(MATERIALS))
       assert.ok(cards.some((t) => t.includes(name) && /32×32 texels/.test(t) && /KB/.test(t)), `card of ${name}`);
     // no thumbnails in this library: each card shows a live viewer of the first chunk
-    await waitFor(page, () => window.__btf.viewers().every((v) => v.drawnChunks === 1 && v.frames > 0),
-      null, 'the thumbnail viewers');
+    // (version 1) or of its scene budget (version 2)
+    await waitFor(page, () => window.__btf.viewers().every((v) => v.drawnChunks === (v.version >= 2 ?
+      v.scene.limit : 1) && v.frames > 0 && (v.version < 2 || v.complete)), null, 'the thumbnail viewers');
     const vs = await viewers(page);
-    assert.ok(vs.every((v) => v.budget.chunks === 1 && v.received === 1), JSON.stringify(vs));
+    const v1 = vs.filter((v) => v.version === 1), v2 = vs.filter((v) => v.version === 2);
+    assert.equal(v2.length, 1, JSON.stringify(vs));
+    assert.ok(v1.every((v) => v.budget.chunks === 1 && v.received === 1), JSON.stringify(v1));
+    const t = v2[0], full = (await (await fetch(`${server.url}materials`)).json()).materials
+      .find((m) => m.name === 'tiles-lod');
+    assert.ok(t.scene.limit >= 1 && t.budget.chunks === t.scene.limit && t.received === t.scene.limit,
+      `the version-2 thumbnail asks for and receives its scene budget: ${JSON.stringify(t)}`);
+    const sent = (await page.evaluate(() => window.__btf.streams()))[0].subscriptions
+      .find((s) => s.material === 'tiles-lod');
+    assert.equal(sent.budget.chunks, t.scene.limit, 'the server is asked for the scene budget');
+    assert.ok(t.streamBytes <= t.scene.bytes && t.streamBytes <= full.bytes, JSON.stringify(t));
+    console.log(`# gallery thumbnail of tiles-lod (v2, ${t.cssWidth} CSS px): level ${t.scene.level}, ` +
+      `${t.received}/${t.manifestChunks} chunks, ${t.streamBytes} of ${full.bytes} bytes`);
     fs.mkdirSync(path.join(ROOT, 'doc'), {recursive: true});
     await page.screenshot({path: path.join(ROOT, 'doc/gallery.png')});
 
@@ -65,6 +80,84 @@ describe('gallery (index.html)', () => {
   });
 });
 
+// Scene budgets (issue 8): the same version-2 material tiled 16 times on a plane, as a
+// 128-px thumbnail and as a 600-px view. The budgets come from client/btf-lod.js on
+// the viewer's footprint; the server must send exactly those prefixes.
+describe('scene budgets (version 2)', () => {
+  const open = async (size) => {
+    const page = await newPage(desktop);
+    await page.setViewportSize({width: size + 40, height: size + 40});
+    await page.goto(`${server.url}viewer.html?material=tiles-lod&geometry=plane&light=fixed&repeat=16` +
+      `&width=${size}&height=${size}&max-dpr=1`);
+    await waitFor(page, () => {
+      const v = window.__btf && window.__btf.viewers()[0];
+      return v && v.scene && v.complete && v.received === v.scene.limit && v.drawnChunks === v.scene.limit &&
+        v.frames > 0;
+    }, null, `the ${size}-px viewer streamed and drew its scene budget`);
+    return page;
+  };
+
+  it('a thumbnail gets the coarse prefix, a large view more, a zoom in more again', async () => {
+    const page = await open(128); // newPage reuses the context's one page
+    const s = (await viewers(page))[0];
+    assert.equal(s.version, 2);
+    assert.ok(s.received < s.manifestChunks, 'the thumbnail does not get the whole package');
+    assert.equal(s.streamBytes, s.scene.bytes, 'exactly the budgeted bytes arrive');
+    const sub = (await page.evaluate(() => window.__btf.streams()))[0].subscriptions[0];
+    assert.deepEqual([sub.budget.chunks, sub.limit], [s.scene.limit, s.scene.limit],
+      'asked for the scene budget, and the server granted that prefix');
+    // the thumbnail drew something other than the background from its coarse levels
+    const img = await capture(page, 0);
+    const bg = img.data.slice(0, 4);
+    let fg = 0;
+    for (let k = 0; k < img.data.length; k += 4) if (Math.abs(img.data[k] - bg[0]) > 8) fg++;
+    assert.ok(fg > img.width * img.height * 0.1, `the thumbnail covers > 10% of its canvas (${fg} px)`);
+    // zooming in (a view change) asks for and receives a longer prefix
+    await page.evaluate(() => window.__btf.element(0).setAttribute('repeat', '1'));
+    await waitFor(page, (n) => {
+      const v = window.__btf.viewers()[0];
+      return v.scene.limit > n && v.received === v.scene.limit && v.complete;
+    }, s.received, 'the zoomed thumbnail streams more');
+    // a large view of the same scene receives more than the thumbnail
+    await open(600);
+    const l = (await viewers(page))[0];
+    assert.ok(s.scene.level > l.scene.level, `thumbnail level ${s.scene.level} > large ${l.scene.level}`);
+    assert.ok(s.received < l.received && s.streamBytes < l.streamBytes,
+      `thumbnail ${s.received} chunks / ${s.streamBytes} B < large ${l.received} / ${l.streamBytes} B`);
+    console.log(`# scene budgets, tiles-lod: 128 px x16 level ${s.scene.level} ${s.received}/${s.manifestChunks} ` +
+      `chunks ${s.streamBytes} B; 600 px x16 level ${l.scene.level} ${l.received} chunks ${l.streamBytes} B`);
+    assertClean(desktop);
+  });
+
+  it('pauses while the tab is hidden and while the viewer is off screen', async () => {
+    const page = await newPage(desktop);
+    await page.setViewportSize({width: 400, height: 400});
+    await page.goto(`${server.url}viewer.html?material=tiles-lod&geometry=plane&light=fixed&repeat=16` +
+      '&width=128&height=128&max-dpr=1');
+    await waitFor(page, () => window.__btf && window.__btf.viewers()[0].scene, null, 'the manifest');
+    const sentBudget = () => page.evaluate(() => window.__btf.streams()[0].subscriptions[0].budget.chunks);
+    const want = (await viewers(page))[0].scene.limit;
+    assert.ok(want > 0);
+    await page.evaluate(() => {
+      Object.defineProperty(document, 'hidden', {configurable: true, get: () => true});
+      document.dispatchEvent(new Event('visibilitychange'));
+    });
+    assert.equal(await sentBudget(), 0, 'hidden tab: budget 0');
+    await page.evaluate(() => {
+      delete document.hidden;
+      document.dispatchEvent(new Event('visibilitychange'));
+    });
+    assert.equal(await sentBudget(), want, 'shown again: the scene budget');
+    await page.evaluate(() => { window.__btf.element(0).style.marginTop = '3000px'; });
+    await waitFor(page, () => window.__btf.streams()[0].subscriptions[0].budget.chunks === 0, null,
+      'off screen: budget 0');
+    await page.evaluate(() => { window.__btf.element(0).style.marginTop = '0px'; });
+    await waitFor(page, (n) => window.__btf.streams()[0].subscriptions[0].budget.chunks === n, want,
+      'back on screen: the scene budget');
+    assertClean(desktop);
+  });
+});
+
 describe('embed (embed.html)', () => {
   it('shows three materials through one WebSocket', async () => {
     const page = await newPage(desktop);
@@ -76,7 +169,8 @@ describe('embed (embed.html)', () => {
     await waitFor(page, () => window.__btf.viewers().every((v) => v.complete && v.drawnChunks === v.ownLimit &&
       v.frames > 0), null, 'every embed drawn with its budget');
     const vs = await viewers(page);
-    assert.deepEqual(new Set(vs.map((v) => v.material)), new Set(Object.keys(MATERIALS)));
+    // the page shows the library's first three materials (by name): the version-1 ones
+    assert.deepEqual(new Set(vs.map((v) => v.material)), new Set(['knit', 'stone', 'tiles']));
     assert.deepEqual(new Set(vs.map((v) => v.geometry)), new Set(['plane', 'sphere', 'cylinder']));
     assert.equal(sockets.length, 1, `one shared WebSocket, saw ${sockets.join(', ')}`);
     const streams = await page.evaluate(() => window.__btf.streams());

@@ -14,6 +14,12 @@ const SCENES = [
   {material: 'tiles', geometry: 'sphere', w: 160, h: 160, camera: [60, -70, 3.6], light: [45, -50], fov: 40, chunks: 2},
   {material: 'stone', geometry: 'cylinder', w: 160, h: 120, camera: [50, -100, 3.6], light: [30, 20], fov: 40,
     chunks: 3},
+  // version 2 (spatial levels, shaders/README.md): a coarse prefix (mip levels, 8-bit
+  // weights) and the whole package (trilinear between levels, 16-bit weights)
+  {material: 'tiles-lod', geometry: 'plane', w: 200, h: 150, camera: [55, -90, 3], light: [40, -60], fov: 40,
+    chunks: 5, repeat: 4},
+  {material: 'tiles-lod', geometry: 'plane', w: 200, h: 150, camera: [55, -90, 3], light: [40, -60], fov: 40,
+    chunks: 18, repeat: 4},
 ];
 
 export async function crossCheck(ctx, server, lib, assert) {
@@ -22,16 +28,17 @@ export async function crossCheck(ctx, server, lib, assert) {
   await page.setViewportSize({width: 400, height: 400});
   try {
     for (const s of SCENES) {
-      const out = path.join(dir, `${s.geometry}.png`);
+      const out = path.join(dir, `${s.material}-${s.geometry}-${s.chunks}.png`);
       const args = ['render', path.join(lib, s.material), out, '--size', `${s.w}x${s.h}`, '--geometry', s.geometry,
         '--camera', s.camera.join(','), '--fov', String(s.fov), '--light', s.light.join(','),
-        '--chunks', String(s.chunks), '--backend', 'egl'];
+        '--chunks', String(s.chunks), '--backend', 'egl', ...(s.repeat ? ['--repeat', String(s.repeat)] : [])];
       const r = spawnSync(BTF, args, {encoding: 'utf8'});
       assert.equal(r.status, 0, `btf ${args.join(' ')} failed: ${r.stderr}`);
       const ref = readPng(out);
       await page.goto(`${server.url}viewer.html?material=${s.material}&geometry=${s.geometry}&light=fixed` +
         `&light-theta=${s.light[0]}&light-phi=${s.light[1]}&camera-theta=${s.camera[0]}&camera-phi=${s.camera[1]}` +
-        `&camera-dist=${s.camera[2]}&fov=${s.fov}&budget-chunks=${s.chunks}&width=${s.w}&height=${s.h}&max-dpr=1`);
+        `&camera-dist=${s.camera[2]}&fov=${s.fov}&budget-chunks=${s.chunks}&width=${s.w}&height=${s.h}&max-dpr=1` +
+        (s.repeat ? `&repeat=${s.repeat}` : ''));
       await waitFor(page, (n) => window.__btf.viewers()[0]?.drawnChunks === n, s.chunks, 'the browser frame');
       const img = await capture(page, 0);
       assert.deepEqual([img.width, img.height], [ref.width, ref.height]);
@@ -44,9 +51,9 @@ export async function crossCheck(ctx, server, lib, assert) {
       }
       const frac = ok / (img.width * img.height);
       // the object must cover a good part of the frame, or equality proves little
-      assert.ok(fg > 0.2 * img.width * img.height, `${s.geometry}: the object covers ${fg} pixels`);
-      assert.ok(frac >= 0.99, `${s.geometry}: ${(100 * frac).toFixed(2)}% of pixels within 2/255 (worst ${worst})`);
-      results.push({geometry: s.geometry, frac, worst});
+      assert.ok(fg > 0.2 * img.width * img.height, `${s.material} ${s.geometry}: the object covers ${fg} pixels`);
+      assert.ok(frac >= 0.99, `${s.material} ${s.geometry}: ${(100 * frac).toFixed(2)}% of pixels within 2/255 (worst ${worst})`);
+      results.push({geometry: `${s.material} ${s.geometry} ${s.chunks} chunks`, frac, worst});
     }
     return results;
   } finally {

@@ -45,7 +45,7 @@ describe('btf-package.js', () => {
 
   it('refuses manifests outside the format', () => {
     const bad = [
-      (m) => { m.version = 2; }, (m) => { m.format = 'x'; }, (m) => { m.width = 0; },
+      (m) => { m.version = 3; }, (m) => { m.format = 'x'; }, (m) => { m.width = 0; },
       (m) => { m.bits = 12; }, (m) => { m.blocks[0] = [0, 1]; }, (m) => { m.blocks[1][0] = 0; },
       (m) => { m.atlas.cols = 2; }, (m) => { m.chunks = []; }, (m) => { m.chunks[0].files = ['../x.png', 'wt-00.bin']; },
       (m) => { m.chunks[1].wt_range.pop(); }, (m) => { m.chunks[0].tex_range[3] = [0, -1]; },
@@ -72,6 +72,74 @@ describe('btf-package.js', () => {
       assert.ok(Math.abs(w[i] - want) <= 2 * Math.abs(want) * 2 ** -23 + 1e-7, `weight ${i}: ${w[i]} vs ${want}`);
     }
     assert.throws(() => pkgMod.dequantWeights(p, p.chunks[0], buf.subarray(0, n)), /wt-00\.bin has/);
+  });
+});
+
+// Version 2 of the same package: 2 components x 2 levels, compact "ranges", 8-bit
+// coarse weights (doc/package-format.md section 10).
+function manifestV2() {
+  const m = manifest();
+  const rng = (c) => {
+    const f = new Float32Array(27 * 4);
+    for (let b = 0; b < 27; b++) f.set([c + b, 0.01 * (b + 1), -2.5 - c, 1e-4 * (b + 1)], 4 * b);
+    return Buffer.from(f.buffer).toString('base64');
+  };
+  m.version = 2;
+  m.levels = 2;
+  m.ranges = [rng(0), rng(1)];
+  m.weights8_step = [257, 514];
+  m.chunks = [
+    {component: 0, level: 1, files: ['tex-00-l1.png', 'wt-00-8.png'], bytes: 10, rmse: 9, contrib: 50},
+    {component: 1, level: 1, files: ['tex-01-l1.png', 'wt-01-8.png'], bytes: 11, rmse: 8, contrib: 3},
+    {component: 0, level: 0, files: ['tex-00.png', 'wt-00.bin'], bytes: 20, rmse: 5, contrib: 50},
+    {component: 1, level: 0, files: ['tex-01.png', 'wt-01.bin'], bytes: 21, rmse: 4, contrib: 0.5}];
+  return m;
+}
+
+describe('btf-package.js version 2', () => {
+  it('parses levels, per-component ranges and the 8-bit weight steps', () => {
+    const p = pkgMod.parseManifest(manifestV2());
+    assert.equal(p.version, 2);
+    assert.equal(p.levels, 2);
+    assert.deepEqual(p.components, [0, 1]);
+    assert.deepEqual(p.chunks.map((c) => [c.component, c.level, c.tex, c.wt ?? null, c.wt8 ?? null]),
+      [[0, 1, 'tex-00-l1.png', null, 'wt-00-8.png'], [1, 1, 'tex-01-l1.png', null, 'wt-01-8.png'],
+        [0, 0, 'tex-00.png', 'wt-00.bin', null], [1, 0, 'tex-01.png', 'wt-01.bin', null]]);
+    // ranges of component 1, block 5, decoded from base64 float32 (bit-exact)
+    assert.equal(p.chunks[3].texRange[10], Math.fround(1 + 5));
+    assert.equal(p.chunks[3].texRange[11], Math.fround(0.01 * 6));
+    assert.equal(p.chunks[1].wtRange[10], Math.fround(-3.5));
+    assert.equal(p.chunks[1].wtRange[11], Math.fround(1e-4 * 6));
+    assert.equal(p.chunks[1].wt8Step, 514);
+    assert.equal(p.totalBytes, 62);
+  });
+
+  it('refuses version-2 manifests outside the format', () => {
+    const bad = [
+      (m) => { delete m.levels; }, (m) => { m.levels = 4; }, // 4 x 4 texels: at most 3 levels
+      (m) => { m.chunks[0].level = 2; }, (m) => { m.ranges = [m.ranges[0]]; },
+      (m) => { m.ranges[0] = m.ranges[0].slice(4); }, (m) => { m.ranges[1] = 'not base64!'; },
+      (m) => { m.weights8_step = [257, 70000]; }, (m) => { m.chunks[2].files = ['wt-00.bin']; },
+      (m) => { m.chunks[0].component = -1; },
+    ];
+    bad.forEach((f, i) => {
+      const m = manifestV2();
+      f(m);
+      assert.throws(() => pkgMod.parseManifest(m), /package m:/, `case ${i}`);
+    });
+  });
+
+  it('dequantises 8-bit weights as lo + (s_c * step) * q in float32', () => {
+    const p = pkgMod.parseManifest(manifestV2());
+    const n = 81 * 81 * 3, q = new Uint8Array(n);
+    for (let i = 0; i < n; i++) q[i] = (i * 31) % 256;
+    const w = pkgMod.dequantWeights8(p, p.chunks[1], q);
+    for (const i of [0, 1, 242, 243, 5000, n - 1]) {
+      const v = Math.floor(i / (81 * 3)), b = Math.floor(v / 3);
+      const want = -3.5 + 514 * 1e-4 * (b + 1) * q[i]; // double: float32 result within its rounding
+      assert.ok(Math.abs(w[i] - want) <= 4 * Math.abs(want) * 2 ** -23 + 1e-6, `weight ${i}: ${w[i]} vs ${want}`);
+    }
+    assert.throws(() => pkgMod.dequantWeights8(p, p.chunks[1], q.subarray(1)), /wt-01-8\.png has/);
   });
 });
 
