@@ -96,6 +96,7 @@ bench: setup
 	$(MAKE) build $(BENCH_BIN)
 	@mkdir -p bench/results
 	bash bench/run.sh
+	bash bench/plot_lod.sh
 
 # The speed/accuracy charts (doc/chart-*) and the stability table (doc/stability.md).
 chart: setup
