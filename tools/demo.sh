@@ -28,12 +28,12 @@ add() {
     fi
 }
 
-add knit gen:knit:128 --k 3 --components 8
-add tiles gen:tiles:128 --k 3 --components 8
-add stone gen:stone:128 --k 3 --components 8
+add knit gen:knit:128 --k 3 --components 8 --levels 4
+add tiles gen:tiles:128 --k 3 --components 8 --levels 4
+add stone gen:stone:128 --k 3 --components 8 --levels 4
 for m in wool corduroy; do
     if [ -f "$SHARED/data/thesis-ubo2003/$m/meta.json" ]; then
-        add "$m" "$SHARED/data/thesis-ubo2003/$m" --k 3 --components 8
+        add "$m" "$SHARED/data/thesis-ubo2003/$m" --k 3 --components 8 --levels 4
     fi
 done
 
