@@ -98,9 +98,9 @@ typedef struct btf__sums {
     double abs, sq, lab, de;
 } btf__sums;
 
+#define BTF__BLOCK 64
 /* Pixel pairs waiting for the Lab step, planar linear light ([0] ref, [1] test);
  * stack value of one summing call. */
-#define BTF__BLOCK 64
 typedef struct btf__lab_block {
     float r[2][BTF__BLOCK], g[2][BTF__BLOCK], b[2][BTF__BLOCK];
     int n;

@@ -22,6 +22,7 @@
 #define GEN_T_EPS 1e-5f      /* view march stops when transmittance falls below */
 #define GEN_MAX_THREADS 8
 
+/* Precomputed maps of one material (owned by the caller of btf_gen_model_create, freed by btf_gen_model_free). */
 struct btf_gen_model {
     btf_gen_params p;
     int w, h;
