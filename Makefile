@@ -43,9 +43,13 @@ LINK_LIBS  = $(PKG_LIBS) -lgsl -lstdc++ -lm -lpthread
 all: build
 build: $(CODEC_LIB) $(BTF_BIN) $(TEST_BIN)
 lib: $(CODEC_LIB)
-# the documented name of the library
+# The library under its documented name, for programs outside this tree
+# (the default build only: sanitizer builds keep theirs in their own folder).
 codec/libbtfcodec.a: $(CODEC_LIB)
 	cp $< $@
+ifeq ($(BUILD),build)
+build: codec/libbtfcodec.a
+endif
 
 setup:
 	@bash tools/setup.sh
