@@ -36,13 +36,6 @@ static btf *gen_material(btf_gen_kind kind, int side, const btf_dirset *d)
     return m;
 }
 
-static void rm_tree(const char *dir)
-{
-    char cmd[4300];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    cr_assert_eq(system(cmd), 0);
-}
-
 /* Float reconstruction sum_j L sigma V of an unquantised package, in double. */
 static double model_value(const btf_thesis_pkg *p, int view, int light, int x, int y, int c)
 {
@@ -113,7 +106,7 @@ static void check_round_trip(const btf *src, int k, int C, btf_thesis_scale scal
     btf_pca_model_free(pm);
     btf_thesis_free(&model);
     btf_thesis_free(&back);
-    rm_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(export, round_trip_thesis_scaling_k3_c8)
@@ -164,7 +157,7 @@ Test(export, fit_scaling_not_worse_than_thesis_scaling)
                     }
         btf_thesis_free(&model);
         btf_thesis_free(&back);
-        rm_tree(tmp);
+        cr_assert_eq(test_rmtree(tmp), 0);
     }
     cr_assert_leq(e[1], e[0] * 1.001, "fit %g vs thesis %g", e[1], e[0]);
     btf_free(m);
@@ -208,7 +201,7 @@ Test(export, import_thesis_reproduces_decoder)
     btf_thesis_free(&back);
     btf_free(imp);
     btf_free(m);
-    rm_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 /* A constant material: every centred block is zero (rank 0); the export must hold
@@ -237,7 +230,7 @@ Test(export, constant_material_rank_deficient)
         }
     btf_thesis_free(&back);
     btf_free(m);
-    rm_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 static void expect_fail(const btf *src, int k, int C, btf_result code, const char *needle)
@@ -252,7 +245,7 @@ static void expect_fail(const btf *src, int k, int C, btf_result code, const cha
     cr_assert(strstr(err.msg, needle), "message '%s' lacks '%s'", err.msg, needle);
     struct stat st;
     cr_assert_neq(stat(dir, &st), 0, "nothing may be written on failure");
-    rm_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(export, bad_k_and_components)
@@ -309,7 +302,7 @@ Test(export, foreign_directory_kept)
     cr_assert_neq(btf_export_thesis(m, &o, tmp, NULL, &err), BTF_OK);
     cr_assert(access(file, F_OK) == 0, "foreign file removed");
     btf_free(m);
-    rm_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(export, cli_usage_and_failures)
@@ -353,7 +346,7 @@ Test(export, package_equal_noise_steps_save_bytes_within_noise)
     cr_assert_leq(st[1].rmse, limit, "rmse %g, float %g", st[1].rmse, st[1].rmse_float);
     cr_assert_geq(st[1].rmse, st[0].rmse - 1e-3, "coarser steps cannot be more accurate");
     btf_free(m);
-    rm_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 /* `btf eval REF PACKAGE`: the package branch succeeds on a complete package and
@@ -376,5 +369,5 @@ Test(export, eval_on_package)
     cr_assert_eq(unlink(wt), 0);
     cr_assert_eq(cmd_eval(4, argv), 1);
     btf_free(m);
-    rm_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }

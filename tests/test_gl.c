@@ -9,30 +9,10 @@
 
 #include "btf_gl.h"
 #include "btf_shader.h"
+#include "test_gl_util.h"
 #include "test_util.h"
 
 static const btf_gl_backend backends[2] = {BTF_GL_EGL, BTF_GL_OSMESA};
-
-static btf_gl *open_gl(btf_gl_backend b)
-{
-    btf_gl *gl = NULL;
-    btf_error err = {{0}};
-    btf_gl_desc d = {.backend = b};
-    cr_assert_eq(btf_gl_create(&d, &gl, &err), BTF_OK, "%s: %s", btf_gl_backend_name(b), err.msg);
-    return gl;
-}
-
-static btf_shader_program *build(btf_gl *gl, const char *program)
-{
-    btf_shader_desc d = {.program = program};
-    btf_shader_program *p = NULL;
-    char *report = NULL;
-    btf_error err = {{0}};
-    btf_result r = btf_shader_build(gl, &d, &p, &report, &err);
-    cr_assert_eq(r, BTF_OK, "%s\n%s", err.msg, report ? report : "");
-    free(report);
-    return p;
-}
 
 /* Writes a tiny shaders directory: manifest + the given fragment body. */
 static void write_shader_dir(char *dir, size_t n, const char *frag_body)
@@ -740,22 +720,6 @@ static void make_package(char *tmp, size_t n, char *pkg, size_t pn, int bits)
     make_package_on(tmp, n, pkg, pn, bits, small_dirset());
 }
 
-static void remove_package(const char *tmp, const char *pkg)
-{
-    DIR *dir = opendir(pkg);
-    struct dirent *e;
-    char path[600];
-    while (dir && (e = readdir(dir)))
-        if (e->d_name[0] != '.') {
-            snprintf(path, sizeof path, "%s/%s", pkg, e->d_name);
-            remove(path);
-        }
-    if (dir)
-        closedir(dir);
-    rmdir(pkg);
-    rmdir(tmp);
-}
-
 static void dir_vec(float theta_deg, float phi_deg, float v[3])
 {
     double t = theta_deg * M_PI / 180.0, p = phi_deg * M_PI / 180.0;
@@ -880,7 +844,7 @@ static void check_decode_on(btf_gl_backend b, int bits, btf_gl_format fmt, btf_d
     btf_shader_program_free(gl, prog);
     btf_gl_free(gl);
     btf_package_free(p);
-    remove_package(tmp, pkg);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 static void check_decode(btf_gl_backend b, int bits, btf_gl_format fmt)
@@ -936,7 +900,7 @@ Test(gl, decode_partial_package_read)
     btf_shader_program_free(gl, prog);
     btf_gl_free(gl);
     btf_package_free(p);
-    remove_package(tmp, pkg);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 /* ---------------------------------------------------------------- surface rendering */
@@ -1097,7 +1061,7 @@ static void check_render_plane(btf_gl_backend b, int filter, float uv_scale)
     free(report);
     btf_gl_free(gl);
     btf_package_free(p);
-    remove_package(tmp, pkg);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(gl, render_plane_matches_decoder_both_backends)

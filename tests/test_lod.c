@@ -78,13 +78,6 @@ static double manifest_num(const char *dir, const char *sub, int i, const char *
     return x;
 }
 
-static void rm_tree(const char *dir)
-{
-    char cmd[700];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    cr_assert_eq(system(cmd), 0);
-}
-
 Test(lod, chunks_are_component_level_pairs_coarse_first)
 {
     char dir[256];
@@ -119,7 +112,7 @@ Test(lod, chunks_are_component_level_pairs_coarse_first)
     cr_assert_lt(st.first_chunk, p1->chunk[0].bytes, "coarse first chunk is smaller than v1's");
     btf_package_free(p1);
     btf_package_free(p);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* Level l texels are 2^l x 2^l means of level 0 (v1 dequantised) within half a step. */
@@ -151,7 +144,7 @@ Test(lod, levels_are_box_means)
     }
     btf_package_free(p1);
     btf_package_free(p);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* rmse_full of every prefix against a brute-force reconstruction (btf_package_value). */
@@ -180,7 +173,7 @@ Test(lod, prefix_errors_match_reconstruction)
         cr_assert_float_eq(rmse, manifest_num(dir, "v2", n - 1, "rmse_full"), 1e-3 + 1e-3 * rmse, "prefix %d", n);
     }
     btf_package_free(full);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* btf_decode with lod: at a measured pair and the centre of a level-l texel, integer
@@ -247,7 +240,7 @@ Test(lod, decode_selects_and_blends_levels)
         cr_assert_float_eq(a[ch], c[ch], 1e-6);
     btf_package_free(p1);
     btf_package_free(p);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* tests/lod_select_cases.json (shared with tests/e2e/modules.test.mjs), found next to
@@ -365,7 +358,7 @@ Test(lod, bad_inputs)
     cr_assert_neq(btf_package_read(a, 1, &q, &err), BTF_OK); /* the image reader says BTF_ERR_IO */
     cr_assert(strstr(err.msg, "tex-"), "%s", err.msg);
     cr_assert_eq(btf_package_read(a, -1, &q, &err), BTF_ERR_MISSING, "%s", err.msg);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* Compact v2 manifest: ranges once per component (base64 float32) equal to v1's JSON
@@ -432,5 +425,5 @@ Test(lod, compact_manifest_and_coarse_weights)
     cr_assert_null(q);
     btf_package_free(p1);
     btf_package_free(p);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }

@@ -18,6 +18,7 @@
 #include "btf_package.h"
 #include "btf_render.h"
 #include "btf_shader.h"
+#include "test_gl_util.h"
 #include "test_util.h"
 
 #define LG_W 32     /* material side (texels) */
@@ -62,26 +63,6 @@ static void make_packages(char *dir, size_t n, int bits)
     cr_assert_eq(btf_lod_build(v1, v2, &lo, NULL, &err), BTF_OK, "%s", err.msg);
 }
 
-static void rm_tree(const char *dir)
-{
-    static const char *subs[2] = {"v1", "v2"};
-    char sub[700], path[1000];
-    for (int s = 0; s < 2; s++) {
-        snprintf(sub, sizeof sub, "%s/%s", dir, subs[s]);
-        DIR *dd = opendir(sub);
-        struct dirent *e;
-        while (dd && (e = readdir(dd)))
-            if (e->d_name[0] != '.') {
-                snprintf(path, sizeof path, "%s/%s", sub, e->d_name);
-                remove(path);
-            }
-        if (dd)
-            closedir(dd);
-        rmdir(sub);
-    }
-    rmdir(dir);
-}
-
 static btf_package *read_pkg(const char *dir, const char *sub, int n)
 {
     char path[700];
@@ -89,26 +70,6 @@ static btf_package *read_pkg(const char *dir, const char *sub, int n)
     btf_package *p = NULL;
     btf_error err = {{0}};
     cr_assert_eq(btf_package_read(path, n, &p, &err), BTF_OK, "%s", err.msg);
-    return p;
-}
-
-static btf_gl *open_gl(btf_gl_backend b)
-{
-    btf_gl *gl = NULL;
-    btf_error err = {{0}};
-    btf_gl_desc d = {.backend = b};
-    cr_assert_eq(btf_gl_create(&d, &gl, &err), BTF_OK, "%s: %s", btf_gl_backend_name(b), err.msg);
-    return gl;
-}
-
-static btf_shader_program *build(btf_gl *gl, const char *program)
-{
-    btf_shader_desc d = {.program = program};
-    btf_shader_program *p = NULL;
-    char *report = NULL;
-    btf_error err = {{0}};
-    cr_assert_eq(btf_shader_build(gl, &d, &p, &report, &err), BTF_OK, "%s\n%s", err.msg, report ? report : "");
-    free(report);
     return p;
 }
 
@@ -236,7 +197,7 @@ static void check_levels(btf_gl_backend b, int bits)
     btf_shader_program_free(gl, prog);
     btf_gl_free(gl);
     btf_package_free(p);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 Test(lod_gl, decode_levels_match_cpu_egl) { check_levels(BTF_GL_EGL, 8); }
@@ -273,7 +234,7 @@ Test(lod_gl, decode_partial_reads_match_cpu)
         btf_shader_program_free(gl, prog);
         btf_gl_free(gl);
     }
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* A version-1 package decodes at level 0 whatever the lod (no levels to choose). */
@@ -295,7 +256,7 @@ Test(lod_gl, v1_ignores_lod)
     btf_shader_program_free(gl, prog);
     btf_gl_free(gl);
     btf_package_free(p);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* Levels of a component that skip one (or repeat one) cannot be drawn: clear error. */
@@ -321,7 +282,7 @@ Test(lod_gl, upload_refuses_level_gaps)
     p->chunk[j2].level = saved;
     btf_gl_free(gl);
     btf_package_free(p);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* ------------------------------------------------------------------ aliasing */
@@ -469,7 +430,7 @@ Test(lod_gl, levels_remove_aliasing_on_grazing_plane)
     make_packages(dir, sizeof dir, 8);
     for (int b = 0; b < 2; b++)
         check_aliasing(backends[b], dir);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 /* ------------------------------------------------- render program: lod and colour */
@@ -551,5 +512,5 @@ Test(lod_gl, render_lod_from_derivatives_both_backends)
     make_packages(dir, sizeof dir, 8);
     for (int b = 0; b < 2; b++)
         check_render_lod(backends[b], dir);
-    rm_tree(dir);
+    cr_assert_eq(test_rmtree(dir), 0);
 }

@@ -67,13 +67,6 @@ static int count_entries(const char *dir)
     return n;
 }
 
-static void remove_tree(const char *dir)
-{
-    char cmd[1200];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    cr_assert_eq(system(cmd), 0);
-}
-
 Test(package, manifest_contract_and_sizes)
 {
     char tmp[256], out[512];
@@ -121,7 +114,7 @@ Test(package, manifest_contract_and_sizes)
     cr_assert_eq(count_entries(tmp), 1, "no temporary directory left beside the package");
     cJSON_Delete(m);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(package, error_curve_monotone_and_equal_to_direct_measurement)
@@ -154,7 +147,7 @@ Test(package, error_curve_monotone_and_equal_to_direct_measurement)
     }
     btf_package_free(p);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 /* Quantisation loss bound (doc/package-format.md): per sample |quantised - float| <=
@@ -199,7 +192,7 @@ static void check_quant_bound(int bits, double *loss_out)
     btf_pca_model_free(m);
     btf_package_free(p);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(package, quantisation_loss_bounded)
@@ -245,7 +238,7 @@ Test(package, partial_package_reads_and_decodes)
     }
     btf_package_free(full), btf_package_free(two), btf_package_free(part);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(package, decoder_at_measured_directions_equals_direct_reconstruction)
@@ -292,7 +285,7 @@ Test(package, decoder_at_measured_directions_equals_direct_reconstruction)
         cr_assert(isfinite(got[c]) && isfinite(want[c]));
     btf_package_free(p);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 /* Failing writer hook: fails when asked for file number *ctx. */
@@ -343,7 +336,7 @@ Test(package, failing_writer_leaves_no_package)
     cr_assert_eq(btf_package_compress(src, &po, NULL, "/nonexistent-btf-dir/sub/m", NULL, &err), BTF_ERR_IO);
     cr_assert(strstr(err.msg, "nonexistent-btf-dir"), "%s", err.msg);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(package, bad_inputs_refused)
@@ -390,7 +383,7 @@ Test(package, bad_inputs_refused)
     cr_assert_eq(btf_package_read("/nonexistent-btf-dir", 0, &p, &err), BTF_ERR_MISSING);
     btf_free(nan);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(package, constant_material_exact_and_finite)
@@ -413,5 +406,5 @@ Test(package, constant_material_exact_and_finite)
         cr_assert_float_eq(rgb[c], 128.0f / 255.0f, 2e-4);
     btf_package_free(p);
     btf_free(src);
-    remove_tree(tmp);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }

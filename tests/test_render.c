@@ -18,6 +18,7 @@
 #include "btf_image.h"
 #include "btf_package.h"
 #include "btf_render.h"
+#include "test_gl_util.h"
 #include "test_util.h"
 
 #define TW 16 /* material side in texels */
@@ -58,39 +59,6 @@ static void make_package(char *tmp, size_t n, char *pkg, size_t pn, btf_gen_para
     ko.bits = 8;
     cr_assert_eq(btf_package_compress(m, &po, &ko, pkg, NULL, &err), BTF_OK, "%s", err.msg);
     btf_free(m);
-}
-
-static void remove_tree(const char *tmp, const char *pkg)
-{
-    DIR *dir = opendir(pkg);
-    struct dirent *e;
-    char path[700];
-    while (dir && (e = readdir(dir)))
-        if (e->d_name[0] != '.') {
-            snprintf(path, sizeof path, "%s/%s", pkg, e->d_name);
-            remove(path);
-        }
-    if (dir)
-        closedir(dir);
-    rmdir(pkg);
-    dir = opendir(tmp);
-    while (dir && (e = readdir(dir)))
-        if (e->d_name[0] != '.') {
-            snprintf(path, sizeof path, "%s/%s", tmp, e->d_name);
-            remove(path);
-        }
-    if (dir)
-        closedir(dir);
-    rmdir(tmp);
-}
-
-static btf_gl *open_gl(btf_gl_backend b)
-{
-    btf_gl *gl = NULL;
-    btf_error err = {{0}};
-    btf_gl_desc d = {.backend = b};
-    cr_assert_eq(btf_gl_create(&d, &gl, &err), BTF_OK, "%s: %s", btf_gl_backend_name(b), err.msg);
-    return gl;
 }
 
 /* ---------------------------------------------------------------- the documented camera, again */
@@ -298,7 +266,7 @@ static void check_ground_truth(btf_gl_backend b)
     btf_gl_free(gl);
     btf_gen_model_free(gm);
     btf_package_free(p);
-    remove_tree(tmp, pkg);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(render, plane_vs_ground_truth_egl) { check_ground_truth(BTF_GL_EGL); }
@@ -370,7 +338,7 @@ Test(render, horizon_fade_both_backends)
         btf_gl_free(gl);
     }
     btf_package_free(p);
-    remove_tree(tmp, pkg);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 /* ---------------------------------------------------------------- meshes */
@@ -535,7 +503,7 @@ Test(render, cli_writes_png_and_checks_arguments)
     cr_assert_neq(stat(out3, &st), 0);
     const char *help[] = {"render", "--help"};
     cr_assert_eq(run_cli(2, help), 0);
-    remove_tree(tmp, pkg);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 /* A target of the wrong size and NULL arguments are errors, not crashes. */
@@ -568,5 +536,5 @@ Test(render, draw_bad_arguments)
     btf_renderer_free(NULL);
     btf_gl_free(gl);
     btf_package_free(p);
-    remove_tree(tmp, pkg);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }

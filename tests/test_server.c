@@ -72,13 +72,6 @@ static void fill_random(uint8_t *b, size_t n, uint32_t seed)
     }
 }
 
-static void rm_rf(const char *path)
-{
-    char cmd[600];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", path);
-    cr_assert_eq(system(cmd), 0);
-}
-
 /* Writes package lib/name (through a .tmp-<pid> directory and a rename) with
  * n_chunks chunks of fpc files each; sizes[c * fpc + f] bytes per file; lab[c]
  * (rmse = 1.5 lab). Returns the total bytes. */
@@ -573,7 +566,7 @@ static void lib_teardown(void)
         kill(g_pid, SIGKILL);
         waitpid(g_pid, NULL, 0);
     }
-    rm_rf(g_root);
+    cr_assert_eq(test_rmtree(g_root), 0);
 }
 
 TestSuite(server, .init = lib_setup, .fini = lib_teardown, .timeout = 60);
@@ -1239,7 +1232,7 @@ Test(server, packages_added_later_appear_and_removed_ones_finish_streaming)
     stream st = {.lib = g_lib};
     run_until_complete(&c, &st, 1); /* st now holds the files as they were on disk */
     /* removed from the library while subscribed: the stream still completes */
-    rm_rf(p);
+    cr_assert_eq(test_rmtree(p), 0);
     usleep(250000);
     wsc_send_text(&c, "{\"type\":\"list\"}");
     j = expect_type(&c, "list");

@@ -391,9 +391,7 @@ static void expect_fail(const char *dir, btf_result code, const char *needle)
 
 static void cleanup(const char *tmp)
 {
-    char cmd[400];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
-    cr_expect_eq(system(cmd), 0);
+    cr_expect_eq(test_rmtree(tmp), 0);
 }
 
 Test(thesis, bad_meta_json)

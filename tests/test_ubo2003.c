@@ -67,13 +67,6 @@ static btf_result load_small(const char *dir, int downsample, btf_storage st, bt
     return btf_load_ubo2003_dir(dir, &o, out, e);
 }
 
-static void rm_rf(const char *dir)
-{
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
-    cr_expect_eq(system(cmd), 0);
-}
-
 /* Path of the file the writer names for (light, view) of the small set. */
 static void small_name(char *buf, size_t n, const char *dir, int light, int view, const char *ext)
 {
@@ -126,7 +119,7 @@ Test(ubo2003, png_round_trip_is_exact)
                                1e-7);
     btf_free(m);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, file_names_follow_the_spec)
@@ -146,7 +139,7 @@ Test(ubo2003, file_names_follow_the_spec)
     closedir(d);
     cr_expect_eq(n, 49, "no stray temporary files");
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, jpeg_round_trip_within_codec_loss)
@@ -184,7 +177,7 @@ Test(ubo2003, jpeg_round_trip_within_codec_loss)
     cr_expect_leq(worst, 3);
     btf_free(m);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, folder_layout_with_spaces)
@@ -215,7 +208,7 @@ Test(ubo2003, folder_layout_with_spaces)
     cr_assert_eq(rename(from, to), 0);
     expect_error(dir, BTF_ERR_FORMAT, "tv030 pv120.png");
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 /* Exact box mean of the source pattern, rounded half up: an independent reference. */
@@ -284,7 +277,7 @@ Test(ubo2003, downsample_on_load_equals_btf_downsample)
     cr_expect(strstr(e.msg, "divisible") != NULL, "%s", e.msg);
     btf_free(full);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, grey_and_rgba_images)
@@ -313,7 +306,7 @@ Test(ubo2003, grey_and_rgba_images)
     cr_expect_eq(p[btf_index(m, 0, 0, 1, 1, 0)], pattern(0, 0, 1, 1, 0), "other images untouched");
     btf_free(m);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, missing_image_names_the_pair)
@@ -326,7 +319,7 @@ Test(ubo2003, missing_image_names_the_pair)
     expect_error(dir, BTF_ERR_MISSING, "light 4 x view 2");
     expect_error(dir, BTF_ERR_MISSING, "tl030_pl180_tv030_pv060");
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, wrong_size_names_the_file)
@@ -340,7 +333,7 @@ Test(ubo2003, wrong_size_names_the_file)
     expect_error(dir, BTF_ERR_FORMAT, path);
     expect_error(dir, BTF_ERR_FORMAT, "4x8");
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, corrupt_and_truncated_files_name_the_file)
@@ -375,7 +368,7 @@ Test(ubo2003, corrupt_and_truncated_files_name_the_file)
     cr_expect_neq(load_small(dir, 0, 0, &m, &e), BTF_OK);
     cr_expect(strstr(e.msg, path) != NULL, "%s", e.msg);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, duplicate_and_foreign_angles_name_the_file)
@@ -410,7 +403,7 @@ Test(ubo2003, duplicate_and_foreign_angles_name_the_file)
     cr_expect_eq(load_small(dir, 0, 0, &m, &e), BTF_OK, "%s", e.msg);
     btf_free(m);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, empty_missing_and_non_directories)
@@ -432,7 +425,7 @@ Test(ubo2003, empty_missing_and_non_directories)
     o.downsample = 0;
     o.storage = (btf_storage)7;
     cr_expect_eq(btf_load_ubo2003_dir(dir, &o, &m, NULL), BTF_ERR_ARG);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, default_sampling_maps_published_names)
@@ -461,7 +454,7 @@ Test(ubo2003, default_sampling_maps_published_names)
     cr_assert_eq(btf_image_write(path, 2, 2, 3, 8, px, NULL), BTF_OK);
     cr_expect_eq(btf_load_ubo2003_dir(dir, NULL, &m, &e), BTF_ERR_RANGE, "%s", e.msg);
     cr_expect(strstr(e.msg, path) != NULL, "%s", e.msg);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(slow_ubo2003, default_sampling_full_round_trip)
@@ -481,7 +474,7 @@ Test(slow_ubo2003, default_sampling_full_round_trip)
     cr_expect_eq(memcmp(m->data, src->data, src->count), 0);
     btf_free(m);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, dome_sampling_round_trips_with_half_degree_angles)
@@ -514,7 +507,7 @@ Test(ubo2003, dome_sampling_round_trips_with_half_degree_angles)
     cr_expect_eq(btf_load_ubo2003_dir(dir, NULL, &m, &e), BTF_ERR_RANGE, "%s", e.msg);
     cr_expect(strstr(e.msg, "not in the expected sampling") != NULL, "%s", e.msg);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, writer_refuses_bad_requests)
@@ -548,7 +541,7 @@ Test(ubo2003, writer_refuses_bad_requests)
     cr_expect_eq(load_small(path, 0, 0, &m, &e), BTF_OK, "%s", e.msg);
     btf_free(m);
     btf_free(b);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
 
 Test(ubo2003, load_any_dispatches_by_content)
@@ -594,5 +587,5 @@ Test(ubo2003, load_any_dispatches_by_content)
     cr_expect(strstr(e.msg, path) != NULL, "%s", e.msg);
     cr_expect_null(m);
     btf_free(src);
-    rm_rf(dir);
+    cr_expect_eq(test_rmtree(dir), 0);
 }
