@@ -1,5 +1,6 @@
 # btf-stream: compress measured BTFs by k-view PCA and stream them to WebGL2.
-# Targets: setup all test check asan bench demo clean (see README.md).
+# Targets: setup all build test e2e check asan bench chart demo install clean
+# (README.md). The rooms and which may use which: doc/architecture.md.
 
 SHELL    := /bin/bash
 BUILD    ?= build
@@ -11,37 +12,64 @@ CC       ?= cc
 CXX      ?= g++
 OPT      ?= -O2 -g
 WARN     := -Wall -Wextra -Werror
-CFLAGS   += -std=c11 $(WARN) $(OPT) -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L -MMD -MP
+CFLAGS   += -std=c11 $(WARN) $(OPT) -fopenmp -D_DEFAULT_SOURCE -D_POSIX_C_SOURCE=200809L -MMD -MP
 CXXFLAGS += -std=c++17 $(WARN) $(OPT) -MMD -MP
 SAN      ?=
 CFLAGS   += $(SAN)
 CXXFLAGS += $(SAN)
-LDFLAGS  += $(SAN)
+LDFLAGS  += $(SAN) -fopenmp
 
-PKGS     := OpenImageIO libcjson lapacke openblas osmesa egl glesv2
-PKG_CFLAGS = $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
-PKG_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null)
-TEST_LIBS  = $(shell pkg-config --libs criterion libwebsockets 2>/dev/null)
+# $(call pkg,--cflags|--libs,NAMES): pkg-config's answer; a missing package stops
+# the build with pkg-config's own message. Deferred (=): only recipes expand it,
+# so `make setup` can install the packages first.
+pkg = $(call pkg__or_stop,$(shell pkg-config $(1) $(2) 2>&1 || echo PKG-CONFIG-FAILED),$(2))
+pkg__or_stop = $(if $(filter PKG-CONFIG-FAILED,$(1)),$(error pkg-config $(2): $(filter-out PKG-CONFIG-FAILED,$(1)) (run 'make setup')),$(1))
 
-CODEC_C   := $(wildcard codec/*.c)
-CODEC_CXX := $(wildcard codec/*.cpp)
-CODEC_OBJ := $(CODEC_C:%.c=$(BUILD)/%.o) $(CODEC_CXX:%.cpp=$(BUILD)/%.o)
-CODEC_LIB := $(BUILD)/codec/libbtfcodec.a
+# --- Rooms: each folder one archive, one include path, dependencies one way ---
+# codec/        product library: formats, PCA, decoder, levels, metrics, file helpers
+CODEC_PKGS := OpenImageIO libcjson lapacke openblas
+CODEC_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/*.c)) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/*.cpp))
+CODEC_LIB  := $(BUILD)/codec/libbtfcodec.a
+$(CODEC_OBJ): INC := -Icodec
+$(CODEC_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(CODEC_PKGS))
 
-TOOLS_C   := $(filter-out tools/btf_main.c,$(wildcard tools/*.c))
-TOOLS_OBJ := $(TOOLS_C:%.c=$(BUILD)/%.o)
-BTF_BIN   := $(BUILD)/btf
+# bench/gen/    synthetic materials with ground truth (uses codec)
+GEN_OBJ    := $(patsubst %.c,$(BUILD)/%.o,$(wildcard bench/gen/*.c))
+GEN_LIB    := $(BUILD)/bench/gen/libbtfgen.a
+$(GEN_OBJ): INC := -Icodec -Ibench/gen
 
-TEST_C    := $(wildcard tests/*.c)
-TEST_OBJ  := $(TEST_C:%.c=$(BUILD)/%.o)
-TEST_BIN  := $(BUILD)/run_tests
+# shaders/host/ headless GL host of shaders/: EGL and OSMesa backends, package upload, render (uses codec)
+GL_PKGS    := osmesa egl glesv2
+GL_OBJ     := $(patsubst %.c,$(BUILD)/%.o,$(wildcard shaders/host/*.c))
+GL_LIB     := $(BUILD)/shaders/host/libbtfgl.a
+$(GL_OBJ): INC := -Icodec -Ishaders/host
+$(GL_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(GL_PKGS) libcjson)
 
-INC       := -Icodec -Itools
-LINK_LIBS  = $(PKG_LIBS) -lgsl -lstdc++ -lm -lpthread
+# bench/eval/   method families, thesis-format export, chart data (uses codec, shaders/host)
+EVAL_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(wildcard bench/eval/*.c))
+EVAL_LIB   := $(BUILD)/bench/eval/libbtfeval.a
+$(EVAL_OBJ): INC := -Icodec -Ishaders/host -Ibench/eval
+$(EVAL_OBJ): PKG_CFLAGS = $(call pkg,--cflags,libcjson gsl)
+
+# tools/        the `btf` command line (uses every room above)
+ALL_INC    := -Icodec -Ibench/gen -Ishaders/host -Ibench/eval -Itools
+TOOLS_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(filter-out tools/btf_main.c,$(wildcard tools/*.c)))
+TOOLS_LIB  := $(BUILD)/tools/libbtftools.a
+BTF_BIN    := $(BUILD)/btf
+$(TOOLS_OBJ) $(BUILD)/tools/btf_main.o: INC := $(ALL_INC)
+
+# tests/        Criterion suites (one binary) and browser tests in tests/e2e/
+TEST_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/*.c))
+TEST_BIN   := $(BUILD)/run_tests
+$(TEST_OBJ): INC := $(ALL_INC) -Itests
+
+ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
+LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread
+TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 
 .PHONY: all setup build test e2e check asan bench chart demo clean lib
 all: build
-build: $(CODEC_LIB) $(BTF_BIN) $(TEST_BIN)
+build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN)
 lib: $(CODEC_LIB)
 # The library under its documented name, for programs outside this tree
 # (the default build only: sanitizer builds keep theirs in their own folder).
@@ -62,14 +90,19 @@ $(BUILD)/%.o: %.cpp
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS) $(INC) $(PKG_CFLAGS) -c $< -o $@
 
-$(CODEC_LIB): $(CODEC_OBJ)
+$(BUILD)/%.a:
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
+$(CODEC_LIB): $(CODEC_OBJ)
+$(GEN_LIB): $(GEN_OBJ)
+$(GL_LIB): $(GL_OBJ)
+$(EVAL_LIB): $(EVAL_OBJ)
+$(TOOLS_LIB): $(TOOLS_OBJ)
 
-$(BTF_BIN): $(BUILD)/tools/btf_main.o $(TOOLS_OBJ) $(CODEC_LIB)
+$(BTF_BIN): $(BUILD)/tools/btf_main.o $(ROOM_LIBS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(LINK_LIBS)
 
-$(TEST_BIN): $(TEST_OBJ) $(TOOLS_OBJ) $(CODEC_LIB)
+$(TEST_BIN): $(TEST_OBJ) $(ROOM_LIBS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(TEST_LIBS) $(LINK_LIBS)
 
 # Every test; Criterion prints the "Synthesis: Tested: N | Passing: N | Failing: N" line.
@@ -91,9 +124,10 @@ asan: setup
 	    SAN='-fsanitize=address,undefined -fno-sanitize-recover=undefined' build
 	ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 build-asan/run_tests --jobs 2
 
-BENCH_C   := $(wildcard bench/*.c)
-BENCH_BIN := $(BENCH_C:bench/%.c=$(BUILD)/bench/%)
-$(BUILD)/bench/%: $(BUILD)/bench/%.o $(TOOLS_OBJ) $(CODEC_LIB)
+# bench/        benchmark programs (one per bench/bench_*.c) and scripts
+BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/*.c))
+$(BENCH_BIN:%=%.o): INC := $(ALL_INC)
+$(BUILD)/bench/%: $(BUILD)/bench/%.o $(ROOM_LIBS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(LINK_LIBS)
 
 bench: setup
@@ -102,12 +136,12 @@ bench: setup
 	bash bench/run.sh
 	bash bench/plot_lod.sh
 
-# The speed/accuracy charts (doc/chart-*) and the stability table (doc/stability.md).
+# The speed/accuracy charts (doc/figures/chart-*) and the stability table (doc/figures/stability.md).
 chart: setup
 	$(MAKE) build
 	$(BTF_BIN) chart gen:knit gen:tiles gen:stone \
 	    $(wildcard $(SHARED)/data/thesis-ubo2003/wool $(SHARED)/data/thesis-ubo2003/corduroy) \
-	    --size 32 --stream-size 64 --out doc
+	    --size 32 --stream-size 64 --out doc/figures
 	$(TEST_BIN) --jobs 2 --filter 'stability/*'
 
 demo: setup build

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# bench/plot_lod.sh - draws doc/budgets.png (bytes each scene streams with
+# bench/plot_lod.sh - draws doc/figures/budgets.png (bytes each scene streams with
 # footprint budgets against sending every package in full) from
 # bench/results/lod.txt, written by bench_lod. Run by `make bench`.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 in=bench/results/lod.txt
-out=${1:-doc/budgets.png}
+out=${1:-doc/figures/budgets.png}
 [[ -f $in ]] || { echo "plot_lod: $in missing: run make bench first" >&2; exit 1; }
 val() { awk -v k="$1" '$1 == k { print $2 }' "$in"; }
 data=$(mktemp)

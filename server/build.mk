@@ -7,15 +7,16 @@
 #   $(BUILD)/fuzz_request_replay  replays fuzz/corpus/request/* through the parser (cc)
 #   fuzz-replay                   runs that replay binary on the saved corpus
 #   fuzz                          libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
+# server/ uses codec/ only (btf.h for direction sets and package metadata).
 # `build` gains btfd and the replay binary, so `make test` runs the server tests
 # (tests/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
 
 SERVER_C     := $(wildcard server/*.c)
 SERVER_OBJ   := $(SERVER_C:%.c=$(BUILD)/%.o)
 BTFD_BIN     := $(BUILD)/btfd
-SERVER_CFLAGS = $(shell pkg-config --cflags libwebsockets libcjson 2>/dev/null)
-SERVER_LIBS   = $(shell pkg-config --libs libwebsockets libcjson 2>/dev/null)
-FUZZ_LIBS     = $(shell pkg-config --libs libcjson 2>/dev/null)
+SERVER_CFLAGS = $(call pkg,--cflags,libwebsockets libcjson)
+SERVER_LIBS   = $(call pkg,--libs,libwebsockets libcjson)
+FUZZ_LIBS     = $(call pkg,--libs,libcjson)
 
 FUZZ_REPLAY  := $(BUILD)/fuzz_request_replay
 FUZZ_BIN     := $(BUILD)/fuzz_request
@@ -28,8 +29,8 @@ export BTF_BUILD := $(abspath $(BUILD))
 server: $(BTFD_BIN)
 build: $(BTFD_BIN) $(FUZZ_REPLAY)
 
-$(SERVER_OBJ): INC += -Iserver
-$(SERVER_OBJ): PKG_CFLAGS += $(SERVER_CFLAGS)
+$(SERVER_OBJ): INC := -Icodec -Iserver
+$(SERVER_OBJ): PKG_CFLAGS = $(SERVER_CFLAGS)
 
 $(BTFD_BIN): $(SERVER_OBJ) $(CODEC_LIB)
 	$(CC) $(LDFLAGS) -o $@ $^ $(SERVER_LIBS) -lm

@@ -13,7 +13,7 @@
  * refused; a Lafortune fit that cannot converge falls back. Recorded, not asserted
  * (soft): the error at an off-grid direction against the same method's error at
  * the measured directions around it, bound ERR_FACTOR * near + ERR_SLACK.
- * The table goes to $BTF_ROOT/doc/stability.md (temp file + rename).
+ * The table goes to $BTF_ROOT/doc/figures/stability.md (temp file + rename).
  */
 #include <criterion/criterion.h>
 #include <criterion/logging.h>
@@ -419,16 +419,16 @@ static void write_summary(FILE *f, const mat_result *r, int n_mat)
     fprintf(f, "\n");
 }
 
-/* Writes $BTF_ROOT/doc/stability.md through a temporary file and a rename. */
+/* Writes $BTF_ROOT/doc/figures/stability.md through a temporary file and a rename. */
 static void write_doc(const mat_result *r, int n_mat)
 {
     const char *root = getenv("BTF_ROOT");
     if (!root || !*root) {
-        cr_log_warn("BTF_ROOT not set: doc/stability.md not written");
+        cr_log_warn("BTF_ROOT not set: doc/figures/stability.md not written");
         return;
     }
     char path[4096], tmp[4200];
-    snprintf(path, sizeof path, "%s/doc/stability.md", root);
+    snprintf(path, sizeof path, "%s/doc/figures/stability.md", root);
     snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
     FILE *f = fopen(tmp, "w");
     cr_assert_not_null(f, "cannot write %s", tmp);

@@ -65,7 +65,7 @@ describe('gallery (index.html)', () => {
     console.log(`# gallery thumbnail of tiles-lod (v2, ${t.cssWidth} CSS px): level ${t.scene.level}, ` +
       `${t.received}/${t.manifestChunks} chunks, ${t.streamBytes} of ${full.bytes} bytes`);
     fs.mkdirSync(path.join(ROOT, 'doc'), {recursive: true});
-    await page.screenshot({path: path.join(ROOT, 'doc/gallery.png')});
+    await page.screenshot({path: path.join(ROOT, 'doc/figures/gallery.png')});
 
     await page.click('#grid .card a');
     await page.waitForSelector('#detail:not([hidden]) btf-viewer');
@@ -215,7 +215,7 @@ describe('progressive refinement', () => {
     for (const [a, b] of [[1, 2], [2, 4], [4, 6]])
       assert.ok(meanAbsDiff(shots[a], shots[b]) > 0.05, `image changes from ${a} to ${b} chunks`);
     assert.ok(d[0] > d[1] && d[1] > d[2] && d[2] > 0, `difference to the final image shrinks: ${d.join(' > ')}`);
-    writePng(path.join(ROOT, 'doc/chunks-1-vs-all.png'), sideBySide([shots[1], shots[6]]));
+    writePng(path.join(ROOT, 'doc/figures/chunks-1-vs-all.png'), sideBySide([shots[1], shots[6]]));
     assertClean(desktop);
   });
 
