@@ -56,12 +56,15 @@ ALL_INC    := -Icodec -Ibench/gen -Ishaders/host -Ibench/eval -Itools
 TOOLS_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(filter-out tools/btf_main.c,$(wildcard tools/*.c)))
 TOOLS_LIB  := $(BUILD)/tools/libbtftools.a
 BTF_BIN    := $(BUILD)/btf
+ALL_CFLAGS  = $(call pkg,--cflags,$(CODEC_PKGS) $(GL_PKGS) gsl)
 $(TOOLS_OBJ) $(BUILD)/tools/btf_main.o: INC := $(ALL_INC)
+$(TOOLS_OBJ) $(BUILD)/tools/btf_main.o: PKG_CFLAGS = $(ALL_CFLAGS)
 
 # tests/        Criterion suites (one binary) and browser tests in tests/e2e/
 TEST_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/*.c))
 TEST_BIN   := $(BUILD)/run_tests
 $(TEST_OBJ): INC := $(ALL_INC) -Itests
+$(TEST_OBJ): PKG_CFLAGS = $(ALL_CFLAGS) $(call pkg,--cflags,criterion libwebsockets)
 
 ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread
@@ -127,6 +130,7 @@ asan: setup
 # bench/        benchmark programs (one per bench/bench_*.c) and scripts
 BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/*.c))
 $(BENCH_BIN:%=%.o): INC := $(ALL_INC)
+$(BENCH_BIN:%=%.o): PKG_CFLAGS = $(ALL_CFLAGS)
 $(BUILD)/bench/%: $(BUILD)/bench/%.o $(ROOM_LIBS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(LINK_LIBS)
 

@@ -36,7 +36,7 @@ static float bilin(const float *t, int w, int h, float fx, float fy)
 /* Texel of component c at level ld from the chunks < n (finest loaded level >= ld, upsampled); 0 if absent. */
 static float texel(const btf_package *p, int n, int c, int ld, int b, int x, int y)
 {
-    int j = btf_lod_chunk_at(p, n, c, ld);
+    int j = btf_package_chunk_at(p, n, c, ld);
     if (j < 0)
         return 0.0f;
     int g = p->chunk[j].level, w = p->width >> g, h = p->height >> g;
@@ -56,7 +56,7 @@ static double display_error(const btf_package *p, const btf_package *q, int ld)
     float *tf = malloc((size_t)C * sizeof(float)), *tq = malloc((size_t)C * sizeof(float));
     const float **wf = malloc((size_t)C * sizeof *wf), **wq = malloc((size_t)C * sizeof *wq);
     for (int c = 0; c < C; c++) {
-        int jf = btf_lod_chunk_at(p, 0, c, 0), jq = btf_lod_chunk_at(q, 0, c, ld);
+        int jf = btf_package_chunk_at(p, 0, c, 0), jq = btf_package_chunk_at(q, 0, c, ld);
         wf[c] = jf >= 0 ? p->wt[jf] : NULL;
         wq[c] = jq >= 0 ? q->wt[jq] : NULL;
     }

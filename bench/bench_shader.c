@@ -29,6 +29,7 @@
  * the branchy product shader more than these path counts.
  */
 #include "btf.h"
+#include "btf_fs.h"
 #include "btf_gen.h"
 #include "btf_gl.h"
 #include "btf_gl_package.h"
@@ -99,20 +100,8 @@ static btf_result make_package(const char *dir, btf_error *err)
 
 static char *read_text(const char *path)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
-    if (s && fread(s, 1, (size_t)n, f) != (size_t)n) {
-        free(s);
-        s = NULL;
-    }
-    if (s)
-        s[n] = '\0';
-    fclose(f);
+    char *s = NULL;
+    btf_fs_read(path, (size_t)1 << 20, &s, NULL, NULL);
     return s;
 }
 

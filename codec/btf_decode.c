@@ -98,7 +98,7 @@ static void btf__decode_levels(const btf_package *p, float u, float v, const flo
         float lc = lod < (float)fine ? (float)fine : lod > (float)coarse ? (float)coarse : lod;
         int l0 = (int)floorf(lc), l1 = l0 + 1 > coarse ? coarse : l0 + 1;
         float f = lc - (float)l0;
-        int j0 = btf_lod_chunk_at(p, n, c, l0), j1 = btf_lod_chunk_at(p, n, c, l1);
+        int j0 = btf_package_chunk_at(p, n, c, l0), j1 = btf_package_chunk_at(p, n, c, l1);
         btf__taps t0 = btf__texel_taps(p, u, v, o, p->chunk[j0].level);
         btf__taps t1 = btf__texel_taps(p, u, v, o, p->chunk[j1].level);
         for (int a = 0; a < 3; a++) {

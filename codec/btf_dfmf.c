@@ -25,6 +25,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "btf_fs.h"
 #include "btf_io.h"
 
 #define SIG "!DFMF08FC"
@@ -804,8 +805,8 @@ btf_result btf_save_dfmf(const btf *b, const char *path, int components, btf_err
     w.f = NULL;
     if (res == BTF_OK && w.failed)
         res = btf_fail(err, w.failed == 2 ? BTF_ERR_NOMEM : BTF_ERR_IO, "%s: write failed", tmp);
-    if (res == BTF_OK && rename(tmp, path) != 0)
-        res = btf_fail(err, BTF_ERR_IO, "%s: cannot rename from %s (%s)", path, tmp, strerror(errno));
+    if (res == BTF_OK)
+        res = btf_fs_commit_file(tmp, path, err); /* fsync, rename, fsync of the directory */
 done:
     if (w.f)
         fclose(w.f);

@@ -8,6 +8,7 @@
  * give exactly these three keys; other top-level keys (e.g. "name") are ignored.
  */
 #include "btf.h"
+#include "btf_fs.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>
@@ -141,30 +142,7 @@ btf_result btf_dirset_parse_json(const char *text, size_t len, const char *name,
 /* Reads a whole small file into a malloc'd buffer (caller frees). */
 static btf_result btf__read_small(const char *path, char **buf, size_t *len, btf_error *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: cannot open: %s", path,
-                        strerror(errno));
-    char *b = malloc(BTF__DIRSET_JSON_MAX + 1);
-    if (!b) {
-        fclose(f);
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    }
-    errno = 0;
-    size_t n = fread(b, 1, BTF__DIRSET_JSON_MAX + 1, f);
-    int bad = ferror(f), e = errno;
-    fclose(f);
-    if (bad) {
-        free(b);
-        return btf_fail(err, BTF_ERR_IO, "%s: read error: %s", path, e ? strerror(e) : "unknown");
-    }
-    if (n > BTF__DIRSET_JSON_MAX) {
-        free(b);
-        return btf_fail(err, BTF_ERR_RANGE, "%s: larger than %u bytes, not a ring table", path, BTF__DIRSET_JSON_MAX);
-    }
-    *buf = b;
-    *len = n;
-    return BTF_OK;
+    return btf_fs_read(path, BTF__DIRSET_JSON_MAX, buf, len, err);
 }
 
 btf_result btf_dirset_load_json(const char *path, btf_dirset *out, btf_error *err)

@@ -1,5 +1,6 @@
 // btf_image.cpp - the one C++ file: OpenImageIO behind the C API of btf_image.h.
 #include "btf_image.h"
+#include "btf_fs.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -83,9 +84,5 @@ extern "C" btf_result btf_image_write(const char *path, int w, int h, int channe
         std::remove(tmp.c_str());
         return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
     }
-    if (std::rename(tmp.c_str(), path) != 0) {
-        std::remove(tmp.c_str());
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot rename temporary file", path);
-    }
-    return BTF_OK;
+    return btf_fs_commit_file(tmp.c_str(), path, err); // fsync, rename, fsync of the directory
 }

@@ -3,7 +3,6 @@
  * level look-ups the CPU decoder uses, and the scene-driven chunk selection. */
 #include "btf_lod.h"
 
-#include <cjson/cJSON.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -12,52 +11,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "btf_fs.h"
 #include "btf_image.h"
+#include "btf_manifest.h"
 
 /* ---------------------------------------------------------------- look-ups */
-
-int btf_lod_chunk_at(const btf_package *p, int n, int component, int level)
-{
-    if (n <= 0 || n > p->n_loaded)
-        n = p->n_loaded;
-    int best = -1, bd = 1 << 30;
-    for (int i = 0; i < n; i++) {
-        if (p->chunk[i].component != component)
-            continue;
-        int d = p->chunk[i].level - level;
-        int score = d <= 0 ? -2 * d : 2 * d + 1; /* nearest; ties go to the finer level */
-        if (score < bd)
-            bd = score, best = i;
-    }
-    return best;
-}
-
-/* Bilinear value of a tile of w x h texels at continuous texel coordinate (fx, fy)
- * (texel centres at integers), clamped to the tile. */
-static float btf__bilin(const float *tile, int w, int h, float fx, float fy)
-{
-    float x0f = floorf(fx), y0f = floorf(fy), ax = fx - x0f, ay = fy - y0f;
-    int x0 = (int)x0f, y0 = (int)y0f;
-    int xa = x0 < 0 ? 0 : x0 >= w ? w - 1 : x0, xb = x0 + 1 < 0 ? 0 : x0 + 1 >= w ? w - 1 : x0 + 1;
-    int ya = y0 < 0 ? 0 : y0 >= h ? h - 1 : y0, yb = y0 + 1 < 0 ? 0 : y0 + 1 >= h ? h - 1 : y0 + 1;
-    return (1.0f - ay) * ((1.0f - ax) * tile[(size_t)ya * w + xa] + ax * tile[(size_t)ya * w + xb]) +
-           ay * ((1.0f - ax) * tile[(size_t)yb * w + xa] + ax * tile[(size_t)yb * w + xb]);
-}
-
-/* Level-l texel coordinate of the centre of level-0 texel x. */
-static float btf__centre(int x, int l)
-{
-    return ((float)x + 0.5f) / (float)(1 << l) - 0.5f;
-}
-
-float btf_lod_texel(const btf_package *p, int i, int b, int x, int y)
-{
-    int l = p->chunk[i].level, w = p->width >> l, h = p->height >> l;
-    const float *tile = p->tex[i] + (size_t)b * w * h;
-    if (l == 0)
-        return tile[(size_t)y * w + x];
-    return btf__bilin(tile, w, h, btf__centre(x, l), btf__centre(y, l));
-}
 
 /* ---------------------------------------------------------------- selection */
 
@@ -281,8 +239,7 @@ static void btf__upsample(const btf__lod *s, int a, int l, int b, float *out)
     const float *tile = s->lev[a * s->nl + l] + (size_t)b * w * h;
     for (int y = 0; y < s->H; y++)
         for (int x = 0; x < s->W; x++)
-            out[(size_t)y * s->W + x] = l ? btf__bilin(tile, w, h, btf__centre(x, l), btf__centre(y, l))
-                                          : tile[(size_t)y * s->W + x];
+            out[(size_t)y * s->W + x] = btf_package_level_sample(tile, l, w, h, x, y);
 }
 
 static double btf__dot(const float *x, const float *y, size_t n)
@@ -346,31 +303,16 @@ static btf_result btf__errors(btf__lod *s, btf_error *err)
     return BTF_OK;
 }
 
-static long long btf__fsize(const char *path)
-{
-    struct stat st;
-    return stat(path, &st) == 0 && S_ISREG(st.st_mode) ? (long long)st.st_size : -1;
-}
 
 static btf_result btf__copy_file(const char *from, const char *to, btf_error *err)
 {
-    FILE *in = fopen(from, "rb");
-    if (!in)
-        return btf_fail(err, BTF_ERR_MISSING, "%s: cannot open (%s)", from, strerror(errno));
-    FILE *out = fopen(to, "wb");
-    if (!out) {
-        fclose(in);
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", to, strerror(errno));
-    }
-    char buf[65536];
+    char *data;
     size_t n;
-    int ok = 1;
-    while ((n = fread(buf, 1, sizeof buf, in)) > 0)
-        ok = ok && fwrite(buf, 1, n, out) == n;
-    ok = ok && !ferror(in);
-    fclose(in);
-    ok = (fclose(out) == 0) && ok;
-    return ok ? BTF_OK : btf_fail(err, BTF_ERR_IO, "%s: write failed", to);
+    btf_result r = btf_fs_read(from, (size_t)1 << 30, &data, &n, err);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(to, data, n, err);
+    free(data);
+    return r;
 }
 
 static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
@@ -460,13 +402,13 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
         snprintf(from, sizeof from, "%s/%s", in_dir, wf);
         snprintf(to, sizeof to, "%s/%s", tmp, wf);
         r = btf__copy_file(from, to, err);
-        s->wbytes[a] = btf__fsize(to);
+        s->wbytes[a] = btf_fs_size(to);
         if (r == BTF_OK && btf__first_level(s, a) > 0) {
             btf__w8_name(s, a, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
             s->w8mult[a] = btf__w8_mult(s, a);
             r = btf__write_w8(s, a, to, err);
-            s->w8bytes[a] = btf__fsize(to);
+            s->w8bytes[a] = btf_fs_size(to);
         }
         for (int l = 0; r == BTF_OK && l < s->nl; l++) {
             btf__level_name(s, a, l, name, sizeof name);
@@ -478,181 +420,71 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
                 r = btf_image_write(to, p->atlas_cols * (s->W >> l), p->atlas_rows * (s->H >> l), s->ch, 8,
                                     s->atlas[a * s->nl + l], err);
             }
-            s->tbytes[a * s->nl + l] = btf__fsize(to);
+            s->tbytes[a * s->nl + l] = btf_fs_size(to);
         }
     }
     return r;
 }
 
-/* Informational numbers (errors, contributions) with 4 significant digits: short JSON. */
-static double btf__jnum(double x)
-{
-    char b[32];
-    snprintf(b, sizeof b, "%.4g", isfinite(x) ? x : 0.0);
-    return strtod(b, NULL);
-}
 
-/* Standard base64 of n bytes into a new string (NULL: out of memory). */
-static char *btf__b64(const uint8_t *d, size_t n)
-{
-    static const char A[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    char *o = malloc((n + 2) / 3 * 4 + 1), *q = o;
-    for (size_t i = 0; o && i < n; i += 3) {
-        unsigned v = (unsigned)d[i] << 16 | (i + 1 < n ? (unsigned)d[i + 1] << 8 : 0) | (i + 2 < n ? d[i + 2] : 0);
-        *q++ = A[v >> 18 & 63], *q++ = A[v >> 12 & 63];
-        *q++ = i + 1 < n ? A[v >> 6 & 63] : '=';
-        *q++ = i + 2 < n ? A[v & 63] : '=';
-    }
-    if (o)
-        *q = 0;
-    return o;
-}
 
-/* "ranges": per component number, base64 of n_blocks x float32 LE {tex lo, step, wt lo, step}. */
-static cJSON *btf__ranges_b64(const btf__lod *s)
-{
-    cJSON *arr = cJSON_CreateArray();
-    uint8_t *raw = malloc((size_t)s->nb * 16);
-    for (int c = 0; arr && raw && c < s->C; c++) {
-        int a = 0;
-        while (a < s->C && s->p->chunk[a].component != c)
-            a++;
-        for (int b = 0; a < s->C && b < s->nb; b++)
-            for (int j = 0; j < 4; j++) {
-                float x = (j < 2 ? s->p->chunk[a].tex_range : s->p->chunk[a].wt_range)[2 * b + j % 2];
-                uint32_t u;
-                memcpy(&u, &x, sizeof u);
-                for (int t = 0; t < 4; t++)
-                    raw[16 * b + 4 * j + t] = (uint8_t)(u >> (8 * t));
-            }
-        char *e = btf__b64(raw, (size_t)s->nb * 16);
-        cJSON_AddItemToArray(arr, cJSON_CreateString(e ? e : ""));
-        free(e);
-    }
-    free(raw);
-    return arr;
-}
 
-/* The v2 manifest: the v1 one with version 2, "levels", "lod" and the new chunk list. */
-static char *btf__lod_manifest(btf__lod *s, const char *in_dir, btf_lod_stats *st, btf_error *err)
+/* The v2 chunk list: (component, level) pairs in s->order, with the files each carries. */
+static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info *c, long long *bytes)
 {
-    char path[4200];
-    snprintf(path, sizeof path, "%s/manifest.json", in_dir);
-    FILE *f = fopen(path, "rb");
-    long n = -1;
-    char *text = NULL;
-    if (f && fseek(f, 0, SEEK_END) == 0 && (n = ftell(f)) > 0 && n < (64L << 20) && fseek(f, 0, SEEK_SET) == 0 &&
-        (text = malloc((size_t)n + 1)) && fread(text, 1, (size_t)n, f) == (size_t)n)
-        text[n] = 0;
-    else
-        free(text), text = NULL;
-    if (f)
-        fclose(f);
-    cJSON *m = text ? cJSON_Parse(text) : NULL;
-    free(text);
-    cJSON *old = m ? cJSON_DetachItemFromObjectCaseSensitive(m, "chunks") : NULL;
-    if (!old) {
-        cJSON_Delete(m);
-        btf_fail(err, BTF_ERR_FORMAT, "%s: cannot re-read the manifest", path);
-        return NULL;
-    }
     const btf_package *p = s->p;
+    int a = s->order[2 * k], l = s->order[2 * k + 1];
+    const btf_chunk_info *v1 = &p->chunk[a];
     double rmse_end = p->chunk[s->C - 1].rmse, rf_end = p->chunk[s->C - 1].rmse_float;
-    cJSON_ReplaceItemInObjectCaseSensitive(m, "version", cJSON_CreateNumber(2));
-    cJSON_AddNumberToObject(m, "levels", s->nl);
-    cJSON *lod = cJSON_AddObjectToObject(m, "lod");
-    cJSON_AddStringToObject(lod, "filter", "box");
-    cJSON_AddNumberToObject(lod, "threshold", s->thr);
-    cJSON_AddItemToObject(m, "ranges", btf__ranges_b64(s));
-    cJSON *mult = cJSON_AddArrayToObject(m, "weights8_step");
-    for (int c = 0; c < s->C; c++) { /* per component number, 0 = no 8-bit weights */
-        int a = 0;
-        while (a < s->C && p->chunk[a].component != c)
-            a++;
-        cJSON_AddItemToArray(mult, cJSON_CreateNumber(a < s->C && s->w8bytes[a] ? 257.0 * s->w8mult[a] : 0.0));
+    c->component = v1->component, c->level = l, c->n_files = 0;
+    c->tex_range = v1->tex_range, c->wt_range = v1->wt_range; /* borrowed from the v1 package */
+    btf__level_name(s, a, l, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+    *bytes = s->tbytes[a * s->nl + l];
+    if (!seen[a] && l > 0) { /* a coarse first chunk carries the 8-bit weights */
+        btf__w8_name(s, a, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+        *bytes += s->w8bytes[a];
     }
-    cJSON *chunks = cJSON_AddArrayToObject(m, "chunks");
+    if (l == 0 || (!seen[a] && s->w8bytes[a] == 0)) { /* level 0 carries the 16-bit weights */
+        snprintf(c->files[c->n_files++], BTF_PACKAGE_NAME_MAX, "%s", btf__file_ending(v1, ".bin"));
+        *bytes += s->wbytes[a];
+    }
+    seen[a] = 1;
+    c->bytes = *bytes;
+    c->rmse = sqrt(rmse_end * rmse_end + s->rmse_full[k] * s->rmse_full[k]);
+    c->psnr = c->rmse > 0 ? 20.0 * log10(255.0 / c->rmse) : 999.0;
+    c->rmse_float = sqrt(rf_end * rf_end + s->rmse_full[k] * s->rmse_full[k]);
+    c->contrib = s->contrib[a * s->nl + l];
+    c->rmse_full = s->rmse_full[k];
+    c->wt8_step = s->w8bytes[a] ? 257.0 * s->w8mult[a] : 257.0;
+}
+
+/* The v2 manifest: the v1 header with levels and the (component, level) chunk list. */
+static char *btf__lod_manifest(btf__lod *s, btf_lod_stats *st, btf_error *err)
+{
+    btf_package q = *s->p; /* header fields shared with the v1 package; chunks are new */
+    q.version = 2, q.n_levels = s->nl, q.lod_threshold = s->thr, q.n_chunks = s->n_order, q.n_loaded = 0;
+    q.chunk = calloc((size_t)s->n_order, sizeof *q.chunk);
     char *seen = calloc((size_t)s->C, 1);
-    for (int k = 0; seen && k < s->n_order; k++) {
-        int a = s->order[2 * k], l = s->order[2 * k + 1];
-        cJSON *c = cJSON_Duplicate(cJSON_GetArrayItem(old, a), 1);
-        char name[BTF_PACKAGE_NAME_MAX + 8];
-        btf__level_name(s, a, l, name, sizeof name);
-        cJSON *files = cJSON_CreateArray();
-        cJSON_AddItemToArray(files, cJSON_CreateString(name));
-        long long bytes = s->tbytes[a * s->nl + l];
-        if (!seen[a] && l > 0) { /* a coarse first chunk carries the 8-bit weights */
-            char w8[BTF_PACKAGE_NAME_MAX + 8];
-            btf__w8_name(s, a, w8, sizeof w8);
-            cJSON_AddItemToArray(files, cJSON_CreateString(w8));
-            bytes += s->w8bytes[a];
-        }
-        if (l == 0 || (!seen[a] && s->w8bytes[a] == 0)) { /* level 0 carries the 16-bit weights */
-            cJSON_AddItemToArray(files, cJSON_CreateString(btf__file_ending(&p->chunk[a], ".bin")));
-            bytes += s->wbytes[a];
-        }
-        seen[a] = 1;
-        cJSON_DeleteItemFromObjectCaseSensitive(c, "tex_range");
-        cJSON_DeleteItemFromObjectCaseSensitive(c, "wt_range");
-        double rm = sqrt(rmse_end * rmse_end + s->rmse_full[k] * s->rmse_full[k]);
-        cJSON_DeleteItemFromObjectCaseSensitive(c, "lab");
-        cJSON_DeleteItemFromObjectCaseSensitive(c, "delta_e76");
-        cJSON_ReplaceItemInObjectCaseSensitive(c, "id", cJSON_CreateNumber(k));
-        cJSON_ReplaceItemInObjectCaseSensitive(c, "files", files);
-        cJSON_ReplaceItemInObjectCaseSensitive(c, "bytes", cJSON_CreateNumber((double)bytes));
-        cJSON_ReplaceItemInObjectCaseSensitive(c, "rmse", cJSON_CreateNumber(btf__jnum(rm)));
-        cJSON_ReplaceItemInObjectCaseSensitive(c, "psnr", cJSON_CreateNumber(btf__jnum(rm > 0 ? 20.0 * log10(255.0 / rm) : 999.0)));
-        cJSON_ReplaceItemInObjectCaseSensitive(
-            c, "rmse_float", cJSON_CreateNumber(btf__jnum(sqrt(rf_end * rf_end + s->rmse_full[k] * s->rmse_full[k]))));
-        cJSON_AddNumberToObject(c, "level", l);
-        cJSON_AddNumberToObject(c, "contrib", btf__jnum(s->contrib[a * s->nl + l]));
-        cJSON_AddNumberToObject(c, "rmse_full", btf__jnum(s->rmse_full[k]));
-        cJSON_AddItemToArray(chunks, c);
+    char *out = NULL;
+    if (!q.chunk || !seen)
+        btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (manifest)");
+    for (int k = 0; q.chunk && seen && k < s->n_order; k++) {
+        long long bytes;
+        btf__lod_chunk(s, k, seen, &q.chunk[k], &bytes);
         if (st) {
             st->bytes += bytes;
             if (k == 0)
                 st->first_chunk = bytes;
         }
     }
+    if (q.chunk && seen)
+        out = btf_manifest_print(&q, err);
     free(seen);
-    cJSON_Delete(old);
-    char *out = cJSON_PrintUnformatted(m);
-    cJSON_Delete(m);
-    if (!out)
-        btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (manifest)");
+    free(q.chunk);
     return out;
 }
 
-/* Removes the plain files of dir, then dir. */
-static void btf__rm_dir(const char *dir, const btf__lod *s)
-{
-    char path[8400], name[BTF_PACKAGE_NAME_MAX + 8];
-    for (int a = 0; s->p && a < s->C; a++) {
-        snprintf(path, sizeof path, "%s/%s", dir, btf__file_ending(&s->p->chunk[a], ".bin"));
-        remove(path);
-        btf__w8_name(s, a, name, sizeof name);
-        snprintf(path, sizeof path, "%s/%s", dir, name);
-        remove(path);
-        for (int l = 0; l < s->nl; l++) {
-            btf__level_name(s, a, l, name, sizeof name);
-            snprintf(path, sizeof path, "%s/%s", dir, name);
-            remove(path);
-        }
-    }
-    snprintf(path, sizeof path, "%s/manifest.json", dir);
-    remove(path);
-    rmdir(dir);
-}
 
-static btf_result btf__write_text(const char *path, const char *text, btf_error *err)
-{
-    FILE *f = fopen(path, "wb");
-    size_t n = strlen(text);
-    int ok = f && fwrite(text, 1, n, f) == n;
-    if (f)
-        ok = (fclose(f) == 0) && ok;
-    return ok ? BTF_OK : btf_fail(err, BTF_ERR_IO, "%s: write failed", path);
-}
 
 static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_options *o, btf_error *err)
 {
@@ -686,41 +518,6 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     return BTF_OK;
 }
 
-/* Moves tmp to out; an existing package at out is moved aside first and removed. */
-static btf_result btf__lod_commit(const char *tmp, const char *out, btf_error *err)
-{
-    char old[4200], man[8400];
-    struct stat st;
-    if (lstat(out, &st) == 0) {
-        snprintf(man, sizeof man, "%s/manifest.json", out);
-        if (!S_ISDIR(st.st_mode) || btf__fsize(man) < 0)
-            return btf_fail(err, BTF_ERR_IO, "%s: exists and is not a package", out);
-        snprintf(old, sizeof old, "%s.old-%ld", out, (long)getpid());
-        if (rename(out, old) != 0)
-            return btf_fail(err, BTF_ERR_IO, "%s: cannot move aside (%s)", out, strerror(errno));
-        if (rename(tmp, out) != 0) {
-            int e = errno;
-            rename(old, out);
-            return btf_fail(err, BTF_ERR_IO, "%s: cannot rename into place (%s)", out, strerror(e));
-        }
-        btf_package *gone = NULL; /* remove the old package's listed files, then the directory */
-        if (btf_package_read(old, 1, &gone, NULL) == BTF_OK) {
-            for (int i = 0; i < gone->n_chunks; i++)
-                for (int f = 0; f < gone->chunk[i].n_files; f++) {
-                    snprintf(man, sizeof man, "%s/%s", old, gone->chunk[i].files[f]);
-                    remove(man);
-                }
-            btf_package_free(gone);
-        }
-        snprintf(man, sizeof man, "%s/manifest.json", old);
-        remove(man);
-        rmdir(old);
-        return BTF_OK;
-    }
-    if (rename(tmp, out) != 0)
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot rename into place (%s)", out, strerror(errno));
-    return BTF_OK;
-}
 
 btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
                          btf_error *err)
@@ -738,24 +535,23 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
         btf__lod_order(&s);
         r = btf__errors(&s, err);
     }
-    char tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld", out_dir, (long)getpid());
-    if (r == BTF_OK && mkdir(tmp, 0755) != 0)
-        r = btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp, strerror(errno));
-    else if (r == BTF_OK) {
+    char tmp[BTF_FS_PATH_MAX];
+    if (r == BTF_OK)
+        r = btf_fs_replaceable(out_dir, btf_manifest_owns_dir, NULL, err);
+    if (r == BTF_OK && (r = btf_fs_temp_dir(out_dir, tmp, sizeof tmp, btf_manifest_owns_temp, NULL, err)) == BTF_OK) {
         r = btf__write_files(&s, in_dir, tmp, err);
-        char *man = r == BTF_OK ? btf__lod_manifest(&s, in_dir, &st, err) : NULL;
+        char *man = r == BTF_OK ? btf__lod_manifest(&s, &st, err) : NULL;
         if (r == BTF_OK && !man)
-            r = BTF_ERR_FORMAT;
-        char path[8400];
+            r = BTF_ERR_NOMEM;
+        char path[BTF_FS_PATH_MAX + 16];
         snprintf(path, sizeof path, "%s/manifest.json", tmp);
         if (r == BTF_OK)
-            r = btf__write_text(path, man, err);
+            r = btf_fs_write_atomic(path, man, strlen(man), err);
         free(man);
         if (r == BTF_OK)
-            r = btf__lod_commit(tmp, out_dir, err);
+            r = btf_fs_replace_dir(tmp, out_dir, btf_manifest_owns_dir, NULL, err);
         if (r != BTF_OK)
-            btf__rm_dir(tmp, &s);
+            btf_fs_rmtree(tmp, NULL);
     }
     if (r == BTF_OK && stats) {
         st.levels = s.nl, st.n_chunks = s.n_order;

@@ -73,15 +73,6 @@ typedef struct btf_lod_selection {
  * chunk. Uses only the manifest (no chunk data). */
 void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_selection *out, unsigned char *need);
 
-/* Index of the loaded chunk (among the first n) of component c at the finest loaded
- * level >= level... more precisely: the loaded level closest to `level` from below
- * (finer), else the coarsest loaded level above it; -1 if c has no loaded chunk. */
-int btf_lod_chunk_at(const btf_package *p, int n, int component, int level);
-
-/* Value of chunk i's texture in block b at level-0 texel (x, y): direct at level 0,
- * bilinear (clamped to the tile) at the texel centre otherwise. */
-float btf_lod_texel(const btf_package *p, int i, int b, int x, int y);
-
 #ifdef __cplusplus
 }
 #endif

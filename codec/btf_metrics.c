@@ -8,11 +8,12 @@
  * interpolation of the curve (abs. error < 3e-8 in linear light, < 1e-4 in L).
  * The Lab step runs four pixels at a time through GCC/Clang vector extensions
  * (SSE2 on x86-64, generic code elsewhere); its cube root is a bit-trick guess
- * refined by two Halley steps (float precision). btf_compare splits the (view, light) images over up to
- * BTF__METRICS_MAX_THREADS threads and sums per-image partials in image order,
+ * refined by two Halley steps (float precision). btf_compare splits the (view, light) images over OpenMP's
+ * threads (OMP_NUM_THREADS) and sums per-image partials in image order,
  * so the result does not depend on the thread count.
  */
 #include "btf_metrics.h"
+#include "btf_color.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -20,7 +21,6 @@
 #include <string.h>
 #include <unistd.h>
 
-#define BTF__METRICS_MAX_THREADS 8
 #define BTF__LIN_SEGMENTS 4096
 /* Below this many pixels in total btf_compare stays on the calling thread. */
 #define BTF__METRICS_THREAD_MIN_PIXELS ((size_t)1 << 20)
@@ -32,17 +32,12 @@ static float btf__lin8[256];
 static float btf__lin_tab[BTF__LIN_SEGMENTS + 2];
 static pthread_once_t btf__tables_once = PTHREAD_ONCE_INIT;
 
-static double btf__srgb_decode(double v)
-{
-    return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
-}
-
 static void btf__init_tables(void)
 {
     for (int i = 0; i < 256; i++)
-        btf__lin8[i] = (float)btf__srgb_decode(i / 255.0);
+        btf__lin8[i] = (float)btf_color_srgb_decode(i / 255.0);
     for (int i = 0; i <= BTF__LIN_SEGMENTS; i++)
-        btf__lin_tab[i] = (float)btf__srgb_decode((double)i / BTF__LIN_SEGMENTS);
+        btf__lin_tab[i] = (float)btf_color_srgb_decode((double)i / BTF__LIN_SEGMENTS);
     btf__lin_tab[BTF__LIN_SEGMENTS + 1] = btf__lin_tab[BTF__LIN_SEGMENTS];
 }
 
@@ -71,25 +66,6 @@ static inline float btf__lin_of(float v)
 #define BTF__ZN 1.08883f
 #define BTF__LAB_EPS 0.008856451679035631f /* (6/29)^3 */
 #define BTF__LAB_K 7.787037037037037f      /* 1 / (3 (6/29)^2) */
-
-void btf_srgb_to_lab(const float rgb[3], float lab[3])
-{
-    /* Reference path: exact decode and libm cube root, double precision. */
-    double lin[3];
-    for (int c = 0; c < 3; c++) {
-        double v = rgb[c] > 0.0f ? (rgb[c] < 1.0f ? rgb[c] : 1.0) : 0.0; /* NaN -> 0 */
-        lin[c] = btf__srgb_decode(v);
-    }
-    double xyz[3] = {(0.4124564 * lin[0] + 0.3575761 * lin[1] + 0.1804375 * lin[2]) / 0.95047,
-                     0.2126729 * lin[0] + 0.7151522 * lin[1] + 0.0721750 * lin[2],
-                     (0.0193339 * lin[0] + 0.1191920 * lin[1] + 0.9503041 * lin[2]) / 1.08883};
-    double f[3];
-    for (int c = 0; c < 3; c++)
-        f[c] = xyz[c] > 216.0 / 24389.0 ? cbrt(xyz[c]) : xyz[c] * (841.0 / 108.0) + 4.0 / 29.0;
-    lab[0] = (float)(116.0 * f[1] - 16.0);
-    lab[1] = (float)(500.0 * (f[0] - f[1]));
-    lab[2] = (float)(200.0 * (f[1] - f[2]));
-}
 
 /* ---------------------------------------------------------------- accumulation */
 
@@ -273,12 +249,6 @@ typedef struct btf__cmp_job {
     btf__sums *partial;
 } btf__cmp_job;
 
-/* One worker's share: images [first, last); stack value of btf_compare. */
-typedef struct btf__cmp_slice {
-    const btf__cmp_job *job;
-    int first, last;
-} btf__cmp_slice;
-
 /* Copies n pixels of image data starting at sample offset `at` into dst as floats. */
 static void btf__load_f32(const btf *b, size_t at, size_t n, float *dst)
 {
@@ -312,48 +282,18 @@ static void btf__sum_image(const btf *ref, const btf *test, size_t base, btf__su
     }
 }
 
-static void *btf__cmp_worker(void *arg)
+/* Per-image partial sums on OpenMP's threads (OMP_NUM_THREADS); small jobs stay on
+ * the calling thread. Partials are summed in image order afterwards, so the result
+ * does not depend on the thread count. */
+static void btf__cmp_run(const btf__cmp_job *j, size_t total_pixels)
 {
-    const btf__cmp_slice *sl = arg;
-    const btf__cmp_job *j = sl->job;
-    for (int i = sl->first; i < sl->last; i++) {
+#pragma omp parallel for schedule(static) if (total_pixels >= BTF__METRICS_THREAD_MIN_PIXELS)
+    for (int i = 0; i < j->n_images; i++) {
         int v = j->subset ? j->subset->views[i] : i / j->ref->lights.n_dirs;
         int l = j->subset ? j->subset->lights[i] : i % j->ref->lights.n_dirs;
         btf__sums s = {0};
         btf__sum_image(j->ref, j->test, btf_index(j->ref, v, l, 0, 0, 0), &s);
         j->partial[i] = s;
-    }
-    return NULL;
-}
-
-static int btf__thread_count(size_t total_pixels, int n_images)
-{
-    if (total_pixels < BTF__METRICS_THREAD_MIN_PIXELS)
-        return 1;
-    long cpus = sysconf(_SC_NPROCESSORS_ONLN);
-    int t = cpus < 1 ? 1 : (cpus > BTF__METRICS_MAX_THREADS ? BTF__METRICS_MAX_THREADS : (int)cpus);
-    return t > n_images ? n_images : t;
-}
-
-/* Runs the workers; a thread that cannot be started has its slice run here. */
-static void btf__cmp_run(const btf__cmp_job *job, int n_threads)
-{
-    btf__cmp_slice sl[BTF__METRICS_MAX_THREADS];
-    pthread_t tid[BTF__METRICS_MAX_THREADS];
-    int started[BTF__METRICS_MAX_THREADS] = {0};
-    for (int t = 0; t < n_threads; t++) {
-        sl[t].job = job;
-        sl[t].first = (int)((long long)job->n_images * t / n_threads);
-        sl[t].last = (int)((long long)job->n_images * (t + 1) / n_threads);
-    }
-    for (int t = 1; t < n_threads; t++)
-        started[t] = pthread_create(&tid[t], NULL, btf__cmp_worker, &sl[t]) == 0;
-    btf__cmp_worker(&sl[0]);
-    for (int t = 1; t < n_threads; t++) {
-        if (started[t])
-            pthread_join(tid[t], NULL);
-        else
-            btf__cmp_worker(&sl[t]);
     }
 }
 
@@ -409,7 +349,7 @@ btf_result btf_compare(const btf *ref, const btf *test, const btf_pair_subset *s
     if (!job.partial)
         return btf_fail(err, BTF_ERR_NOMEM, "btf_compare: cannot allocate %d partial sums", job.n_images);
     size_t img_pixels = (size_t)ref->width * (size_t)ref->height;
-    btf__cmp_run(&job, btf__thread_count(img_pixels * (size_t)job.n_images, job.n_images));
+    btf__cmp_run(&job, img_pixels * (size_t)job.n_images);
     btf_metrics_acc acc = {0};
     for (int i = 0; i < job.n_images; i++) {
         acc.sum_abs += job.partial[i].abs;

@@ -12,6 +12,7 @@
 #define BTF_METRICS_H
 
 #include "btf.h"
+#include "btf_color.h" /* btf_color_srgb_to_lab: the reference conversion */
 
 #ifdef __cplusplus
 extern "C" {
@@ -37,8 +38,6 @@ typedef struct btf_metrics_acc {
 void btf_metrics_add(btf_metrics_acc *acc, const float *ref_rgb, const float *test_rgb, size_t n_pixels);
 void btf_metrics_finish(const btf_metrics_acc *acc, btf_metrics *out);
 
-/* sRGB 8-bit scale colour (0..1 floats, clamped inside) to CIELab, D65. */
-void btf_srgb_to_lab(const float rgb[3], float lab[3]);
 
 /* Optional subset of (view, light) pairs; NULL compares all. Owned by the caller. */
 typedef struct btf_pair_subset {

@@ -63,6 +63,7 @@ typedef struct btf_chunk_info {
     int level;        /* spatial level (version 2, codec/btf_lod.h): texels are (W >> level) x (H >> level); 0 in version 1 */
     double contrib;   /* version 2: RMS (0..255) of this component's contribution seen at this level; 0 if absent */
     double wt8_step;  /* version 2: 8-bit weights are lo + wt8_step * step * q ("weights8_step"; 257 if absent) */
+    double rmse_full; /* version 2: RMS (0..255) of what the prefix up to this chunk still lacks at level 0 */
 } btf_chunk_info;
 
 /* A package read from disk (or just written); owned by the caller, btf_package_free. */
@@ -83,6 +84,7 @@ typedef struct btf_package {
     float **wt;             /* per loaded chunk: views * lights * 3 dequantised weights (of its component) */
     int version;            /* manifest version: 1, or 2 with spatial levels */
     int n_levels;           /* spatial levels (1 in version 1); level l has (W >> l) x (H >> l) texels */
+    double lod_threshold;   /* version 2: visibility threshold the chunk order was made for ("lod"); 0 if absent */
 } btf_package;
 
 /* Summary of a compression run (optional output of btf_package_compress). */
@@ -109,6 +111,23 @@ void btf_package_free(btf_package *p);
 void btf_package_value(const btf_package *p, int view, int light, int x, int y, int n, float rgb[3]);
 /* Whole-BTF reconstruction (BTF_F32) from the first n loaded chunks. */
 btf_result btf_package_reconstruct(const btf_package *p, int n, btf **out, btf_error *err);
+
+/* Index of the loaded chunk (among the first n; n <= 0: all loaded) of component c
+ * whose level is closest to `level` from below (finer), else the coarsest loaded
+ * level above it; -1 if c has no loaded chunk. */
+int btf_package_chunk_at(const btf_package *p, int n, int component, int level);
+
+/* Value of chunk i's texture in block b at level-0 texel (x, y): direct at level 0,
+ * bilinear (clamped to the tile) at the texel centre otherwise. */
+float btf_package_texel(const btf_package *p, int i, int b, int x, int y);
+/* The same for one level-l tile of w x h texels (w = W >> l): the value at level-0 texel (x, y). */
+float btf_package_level_sample(const float *tile, int l, int w, int h, int x, int y);
+
+/* Dequantisation, the one formula every decoder uses (float32): lo + step * q. */
+static inline float btf_package_dequant(const float range[2], unsigned q)
+{
+    return range[0] + range[1] * (float)q;
+}
 
 typedef enum btf_filter { BTF_FILTER_NEAREST = 0, BTF_FILTER_BILINEAR } btf_filter;
 

@@ -4,15 +4,16 @@
 
 #include <cJSON.h>
 #include <cblas.h>
+#include <dirent.h>
 #include <errno.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "btf_fs.h"
 #include "btf_image.h"
 #include "btf_io.h"
 
@@ -119,25 +120,7 @@ void btf_thesis_free(btf_thesis_pkg *p)
 
 static btf_result read_text(const char *path, char **out, btf_error *err)
 {
-    *out = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: cannot open (%s)", path,
-                        strerror(errno));
-    char *buf = malloc(META_MAX_BYTES + 1);
-    size_t n = buf ? fread(buf, 1, META_MAX_BYTES + 1, f) : 0;
-    int bad = ferror(f);
-    fclose(f);
-    if (!buf)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    if (bad || n > META_MAX_BYTES) {
-        free(buf);
-        return btf_fail(err, bad ? BTF_ERR_IO : BTF_ERR_RANGE, "%s: %s", path,
-                        bad ? "read error" : "larger than 1 MiB");
-    }
-    buf[n] = '\0';
-    *out = buf;
-    return BTF_OK;
+    return btf_fs_read(path, META_MAX_BYTES, out, NULL, err);
 }
 
 /* Integer field `key` (a decimal string as the thesis writes it, or a JSON integer). */
@@ -392,23 +375,45 @@ static btf_result write_meta(const char *dir, const btf_thesis_pkg *p, int r_siz
     if (!text)
         return btf_fail(err, BTF_ERR_NOMEM, "thesis write: cannot build meta.json");
     char path[PATH_MAX_LEN];
-    FILE *f = part_path(path, dir, PART_META) ? NULL : fopen(path, "wb");
-    size_t len = strlen(text);
-    int ok = f && fwrite(text, 1, len, f) == len;
-    if (f && fclose(f) != 0)
-        ok = 0;
+    btf_result r = part_path(path, dir, PART_META) ? btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir)
+                                                   : btf_fs_write_atomic(path, text, strlen(text), err);
     free(text);
-    return ok ? BTF_OK : btf_fail(err, BTF_ERR_IO, "%s: cannot write (%s)", path, strerror(errno));
+    return r;
 }
 
-/* Removes the files this writer creates in dir, then dir itself. */
-static void remove_partial(const char *dir, int C)
+/* 1 when every entry of dir is a regular file the thesis writer names (meta.json,
+ * R.png, N.png, or their temporaries); with need_meta, meta.json must be there. */
+static int btf__thesis_files_only(const char *dir, int need_meta)
 {
-    char path[PATH_MAX_LEN];
-    for (int j = PART_R; j < C; j++)
-        if (!part_path(path, dir, j))
-            unlink(path);
-    rmdir(dir);
+    char path[PATH_MAX_LEN + 256];
+    DIR *d = opendir(dir);
+    int ok = d != NULL, meta = 0;
+    for (struct dirent *e; ok && (e = readdir(d));) {
+        const char *n = e->d_name;
+        struct stat st;
+        if (!strcmp(n, ".") || !strcmp(n, ".."))
+            continue;
+        size_t digits = strspn(n, "0123456789");
+        meta |= !strcmp(n, "meta.json");
+        snprintf(path, sizeof path, "%s/%s", dir, n);
+        ok = lstat(path, &st) == 0 && S_ISREG(st.st_mode) &&
+             (!strncmp(n, "meta.json", 9) || !strncmp(n, "R.png", 5) || (digits > 0 && !strncmp(n + digits, ".png", 4)));
+    }
+    if (d)
+        closedir(d);
+    return ok && (meta || !need_meta);
+}
+
+int btf_thesis_owns_dir(const char *dir, void *ctx)
+{
+    (void)ctx;
+    return btf__thesis_files_only(dir, 1);
+}
+
+static int btf__thesis_owns_temp(const char *dir, void *ctx)
+{
+    (void)ctx;
+    return btf__thesis_files_only(dir, 0);
 }
 
 btf_result btf_thesis_write(const char *dir, const btf_thesis_pkg *p, btf_error *err)
@@ -425,21 +430,19 @@ btf_result btf_thesis_write(const char *dir, const btf_thesis_pkg *p, btf_error 
     if (stat(dir, &st) == 0 && rmdir(dir) != 0)
         return btf_fail(err, BTF_ERR_IO, "%s: exists and is not an empty directory", dir);
     char tmp[PATH_MAX_LEN - 64];
-    int n = snprintf(tmp, sizeof tmp, "%s.tmp-%ld", dir, (long)getpid());
-    if (n < 0 || (size_t)n >= sizeof tmp)
-        return btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir);
-    if (mkdir(tmp, 0777) != 0)
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp, strerror(errno));
+    r = btf_fs_temp_dir(dir, tmp, sizeof tmp, btf__thesis_owns_temp, NULL, err);
+    if (r != BTF_OK)
+        return r;
     for (int j = 0; j < p->C && r == BTF_OK; j++)
         r = write_component(tmp, p, j, err);
     if (r == BTF_OK)
         r = write_weights(tmp, p, r_size, err);
     if (r == BTF_OK)
         r = write_meta(tmp, p, r_size, err);
-    if (r == BTF_OK && rename(tmp, dir) != 0)
-        r = btf_fail(err, BTF_ERR_IO, "%s: cannot rename from %s (%s)", dir, tmp, strerror(errno));
+    if (r == BTF_OK)
+        r = btf_fs_replace_dir(tmp, dir, NULL, NULL, err); /* only an empty directory is replaced */
     if (r != BTF_OK)
-        remove_partial(tmp, p->C);
+        btf_fs_rmtree(tmp, NULL);
     return r;
 }
 
@@ -540,7 +543,7 @@ done:
 
 /* Texels per sgemm: 3N x 128 outputs (124 KB for N = 81) stay in cache for the
  * scatter, and a call this small runs single-threaded inside OpenBLAS, so the
- * RECON_THREADS workers below do not oversubscribe the cores. */
+ * OpenMP workers below do not oversubscribe the cores. */
 #define TEXEL_CHUNK 128
 
 static inline uint8_t to_u8(float v)
@@ -588,39 +591,29 @@ static void reconstruct_view(const btf_thesis_pkg *p, const float *Lb, int v, fl
     }
 }
 
-/* Views are handed out one at a time to RECON_THREADS workers (the scatter into
- * the output is memory-bound; BLAS threads alone leave it on one core). */
-#define RECON_THREADS 2
-
-/* Shared state of one reconstruction; on the caller's stack for its duration. */
-typedef struct recon_job {
-    const btf_thesis_pkg *p;
-    const float *L; /* L resampled to the output size (or p->L) */
-    btf *b;
-    int next_view, failed;
-    pthread_mutex_t mu;
-} recon_job;
-
-static void *recon_worker(void *arg)
+/* Reconstructs every view on OpenMP's threads (OMP_NUM_THREADS), one view at a time
+ * each (the scatter into the output is memory-bound; BLAS threads alone leave it on
+ * one core); 0 when out of memory. */
+static int recon_all(const btf_thesis_pkg *p, const float *L, btf *b)
 {
-    recon_job *j = arg;
-    const btf_thesis_pkg *p = j->p;
-    size_t T = (size_t)j->b->width * j->b->height;
-    float *wv = malloc(sizeof(float) * 3u * p->N * p->C);
-    float *rows = malloc(sizeof(float) * 3u * p->N * TEXEL_CHUNK);
-    for (;;) {
-        pthread_mutex_lock(&j->mu);
-        int v = j->failed ? p->N : j->next_view++;
-        if (!wv || !rows)
-            j->failed = 1, v = p->N;
-        pthread_mutex_unlock(&j->mu);
-        if (v >= p->N)
-            break;
-        reconstruct_view(p, j->L + (size_t)(v / p->k) * T * p->C, v, wv, rows, j->b);
+    size_t T = (size_t)b->width * b->height;
+    int failed = 0;
+#pragma omp parallel
+    {
+        float *wv = malloc(sizeof(float) * 3u * p->N * p->C);
+        float *rows = malloc(sizeof(float) * 3u * p->N * TEXEL_CHUNK);
+        if (!wv || !rows) {
+#pragma omp atomic write
+            failed = 1;
+        }
+#pragma omp for schedule(dynamic, 1)
+        for (int v = 0; v < p->N; v++)
+            if (wv && rows)
+                reconstruct_view(p, L + (size_t)(v / p->k) * T * p->C, v, wv, rows, b);
+        free(wv);
+        free(rows);
     }
-    free(wv);
-    free(rows);
-    return NULL;
+    return !failed;
 }
 
 btf_result btf_thesis_reconstruct(const btf_thesis_pkg *p, const btf_dirset *dirs, int width, int height,
@@ -650,17 +643,7 @@ btf_result btf_thesis_reconstruct(const btf_thesis_pkg *p, const btf_dirset *dir
         btf_free(*out), *out = NULL;
         return r;
     }
-    recon_job job = {p, L, *out, 0, 0, PTHREAD_MUTEX_INITIALIZER};
-    pthread_t th[RECON_THREADS];
-    int started = 0;
-    for (; started < RECON_THREADS - 1; started++)
-        if (pthread_create(&th[started], NULL, recon_worker, &job) != 0)
-            break;
-    recon_worker(&job); /* this thread works too */
-    for (int t = 0; t < started; t++)
-        pthread_join(th[t], NULL);
-    pthread_mutex_destroy(&job.mu);
-    if (job.failed) {
+    if (!recon_all(p, L, *out)) {
         r = btf_fail(err, BTF_ERR_NOMEM, "thesis import: out of memory");
         btf_free(*out), *out = NULL;
     }

@@ -4,7 +4,7 @@
  * angles from the last 23 characters of each image stem ("tlTTT_plPPP_tvTTT_pvPPP",
  * separators '_', ' ' or '-'), maps them to the expected sampling within 0.5 degree,
  * checks that every (light, view) pair is present exactly once, then decodes the
- * images on BTF__THREADS threads straight into the final buffer, box-filtering each
+ * images on OpenMP threads (OMP_NUM_THREADS) straight into the final buffer, box-filtering each
  * image as it is decoded when a downsampling factor is asked for.
  * Files whose names carry no angles (including a writer's "*.tmp-PID.png") are ignored.
  *
@@ -18,14 +18,12 @@
 #include <dirent.h>
 #include <errno.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
 
-#define BTF__THREADS 2
 /* File angles are whole degrees: half a degree of rounding plus float slack. */
 #define BTF__ANGLE_TOL (0.5f + 1e-3f)
 #define BTF__ANGLE_CHARS 23 /* strlen("tl000_pl000_tv000_pv000") */
@@ -247,9 +245,7 @@ typedef struct btf__decode {
     btf *b;
     int factor;
     int w0, h0; /* full-resolution size of every image */
-    pthread_mutex_t mu;
-    int next;      /* next slot to decode (under mu) */
-    btf_result rc; /* first failure (under mu) */
+    btf_result rc; /* first failure (btf__decode_fail) */
     btf_error err;
 } btf__decode;
 
@@ -329,52 +325,39 @@ static btf_result btf__decode_one(btf__decode *d, int slot, uint32_t *acc, btf_e
     return r;
 }
 
-static void *btf__decode_worker(void *arg)
+/* Records the first failure of any thread. */
+static void btf__decode_fail(btf__decode *d, btf_result r, const btf_error *err)
 {
-    btf__decode *d = arg;
-    btf_error err = {{0}};
-    uint32_t *acc = malloc((size_t)d->w0 * 4u * sizeof *acc); /* a row of up to 4 channels */
-    while (acc) {
-        pthread_mutex_lock(&d->mu);
-        int i = d->rc == BTF_OK && d->next < d->scan->n_slots ? d->next++ : -1;
-        pthread_mutex_unlock(&d->mu);
-        if (i < 0)
-            break;
-        btf_result r = btf__decode_one(d, i, acc, &err);
-        if (r != BTF_OK) {
-            pthread_mutex_lock(&d->mu);
-            if (d->rc == BTF_OK) {
-                d->rc = r;
-                d->err = err;
-            }
-            pthread_mutex_unlock(&d->mu);
-            break;
-        }
+#pragma omp critical(btf__ubo2003_fail)
+    if (d->rc == BTF_OK) {
+        d->rc = r;
+        d->err = *err;
     }
-    if (!acc) {
-        pthread_mutex_lock(&d->mu);
-        if (d->rc == BTF_OK)
-            d->rc = btf_fail(&d->err, BTF_ERR_NOMEM, "%s: out of memory", d->scan->dir);
-        pthread_mutex_unlock(&d->mu);
-    }
-    free(acc);
-    return NULL;
 }
 
-/* Runs the worker on the calling thread plus BTF__THREADS-1 more. */
+/* Decodes every slot on OpenMP's threads (OMP_NUM_THREADS), the first failure kept. */
 static btf_result btf__decode_all(btf__decode *d, btf_error *err)
 {
-    pthread_t th[BTF__THREADS];
-    int started = 0;
-    if (pthread_mutex_init(&d->mu, NULL) != 0)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot create a mutex", d->scan->dir);
-    for (int t = 1; t < BTF__THREADS; t++)
-        if (pthread_create(&th[started], NULL, btf__decode_worker, d) == 0)
-            started++;
-    btf__decode_worker(d);
-    for (int t = 0; t < started; t++)
-        pthread_join(th[t], NULL);
-    pthread_mutex_destroy(&d->mu);
+    int n = d->scan->n_slots;
+#pragma omp parallel
+    {
+        btf_error e = {{0}};
+        uint32_t *acc = malloc((size_t)d->w0 * 4u * sizeof *acc); /* a row of up to 4 channels */
+        if (!acc) {
+            btf_fail(&e, BTF_ERR_NOMEM, "%s: out of memory", d->scan->dir);
+            btf__decode_fail(d, BTF_ERR_NOMEM, &e);
+        }
+#pragma omp for schedule(dynamic, 4)
+        for (int i = 0; i < n; i++) {
+            btf_result rc;
+#pragma omp atomic read
+            rc = d->rc;
+            btf_result r = rc == BTF_OK && acc ? btf__decode_one(d, i, acc, &e) : BTF_OK;
+            if (r != BTF_OK)
+                btf__decode_fail(d, r, &e);
+        }
+        free(acc);
+    }
     if (d->rc != BTF_OK && err)
         *err = d->err;
     return d->rc;
@@ -501,9 +484,8 @@ static btf_result btf__check_roundable(const btf_dirset *d, const char *what, bt
 typedef struct btf__writer {
     const btf *b;
     const char *dir, *prefix, *ext;
-    pthread_mutex_t mu;
-    int next, total; /* under mu */
-    btf_result rc;   /* first failure (under mu) */
+    int total;     /* images to write */
+    btf_result rc; /* first failure (under the critical section) */
     btf_error err;
 } btf__writer;
 
@@ -533,46 +515,32 @@ static btf_result btf__write_one(btf__writer *w, int img, uint8_t *tmp, btf_erro
     return r;
 }
 
-static void *btf__write_worker(void *arg)
-{
-    btf__writer *w = arg;
-    btf_error err = {{0}};
-    uint8_t *tmp = w->b->storage == BTF_F32 ? malloc(btf_image_samples(w->b)) : NULL;
-    btf_result r = w->b->storage == BTF_F32 && !tmp ? btf_fail(&err, BTF_ERR_NOMEM, "%s: out of memory", w->dir)
-                                                     : BTF_OK;
-    while (r == BTF_OK) {
-        pthread_mutex_lock(&w->mu);
-        int i = w->rc == BTF_OK && w->next < w->total ? w->next++ : -1;
-        pthread_mutex_unlock(&w->mu);
-        if (i < 0)
-            break;
-        r = btf__write_one(w, i, tmp, &err);
-    }
-    if (r != BTF_OK) {
-        pthread_mutex_lock(&w->mu);
-        if (w->rc == BTF_OK) {
-            w->rc = r;
-            w->err = err;
-        }
-        pthread_mutex_unlock(&w->mu);
-    }
-    free(tmp);
-    return NULL;
-}
-
+/* Writes every image on OpenMP's threads (OMP_NUM_THREADS), the first failure kept. */
 static btf_result btf__write_all(btf__writer *w, btf_error *err)
 {
-    pthread_t th[BTF__THREADS];
-    int started = 0;
-    if (pthread_mutex_init(&w->mu, NULL) != 0)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot create a mutex", w->dir);
-    for (int t = 1; t < BTF__THREADS; t++)
-        if (pthread_create(&th[started], NULL, btf__write_worker, w) == 0)
-            started++;
-    btf__write_worker(w);
-    for (int t = 0; t < started; t++)
-        pthread_join(th[t], NULL);
-    pthread_mutex_destroy(&w->mu);
+#pragma omp parallel
+    {
+        btf_error e = {{0}};
+        uint8_t *tmp = w->b->storage == BTF_F32 ? malloc(btf_image_samples(w->b)) : NULL;
+        btf_result r = w->b->storage == BTF_F32 && !tmp ? btf_fail(&e, BTF_ERR_NOMEM, "%s: out of memory", w->dir)
+                                                         : BTF_OK;
+#pragma omp for schedule(dynamic, 4)
+        for (int i = 0; i < w->total; i++) {
+            btf_result rc;
+#pragma omp atomic read
+            rc = w->rc;
+            if (r == BTF_OK && rc == BTF_OK)
+                r = btf__write_one(w, i, tmp, &e);
+        }
+        if (r != BTF_OK) {
+#pragma omp critical(btf__ubo2003_fail)
+            if (w->rc == BTF_OK) {
+                w->rc = r;
+                w->err = e;
+            }
+        }
+        free(tmp);
+    }
     if (w->rc != BTF_OK && err)
         *err = w->err;
     return w->rc;

@@ -199,7 +199,7 @@ Test(lod, decode_selects_and_blends_levels)
             float t = p->tex[i][((size_t)b * w + y) * w + x];
             float t1 = t;
             if (l + 1 < LEVELS) { /* the level-(l+1) value at the same point, bilinear */
-                int j = btf_lod_chunk_at(p, 0, c, l + 1), w1 = w / 2;
+                int j = btf_package_chunk_at(p, 0, c, l + 1), w1 = w / 2;
                 float fx = u * w1 - 0.5f, fy = v * w1 - 0.5f;
                 int x0 = (int)floorf(fx), y0 = (int)floorf(fy);
                 float ax = fx - x0, ay = fy - y0, s = 0.0f;

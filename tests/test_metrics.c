@@ -85,7 +85,7 @@ static void ref_lab(double r8, double g8, double b8, double lab[3])
 static void expect_lab(float r, float g, float b, double L, double A, double B, double tol)
 {
     float rgb[3] = {r / 255.0f, g / 255.0f, b / 255.0f}, lab[3];
-    btf_srgb_to_lab(rgb, lab);
+    btf_color_srgb_to_lab(rgb, lab);
     cr_expect(fabs(lab[0] - L) <= tol && fabs(lab[1] - A) <= tol && fabs(lab[2] - B) <= tol,
               "(%g,%g,%g) -> Lab (%.4f, %.4f, %.4f), expected (%.4f, %.4f, %.4f) +- %g", r, g, b, lab[0], lab[1],
               lab[2], L, A, B, tol);
@@ -109,9 +109,9 @@ Test(metrics, lab_of_known_colours)
 Test(metrics, lab_clamps_out_of_range_and_nan)
 {
     float over[3] = {2.0f, 1.5f, 7.0f}, under[3] = {-1.0f, -0.5f, NAN}, lab[3];
-    btf_srgb_to_lab(over, lab);
+    btf_color_srgb_to_lab(over, lab);
     cr_expect(fabsf(lab[0] - 100.0f) < 0.01f && fabsf(lab[1]) < 0.01f && fabsf(lab[2]) < 0.01f);
-    btf_srgb_to_lab(under, lab);
+    btf_color_srgb_to_lab(under, lab);
     cr_expect(fabsf(lab[0]) < 0.01f && fabsf(lab[1]) < 0.01f && fabsf(lab[2]) < 0.01f);
 }
 
@@ -126,7 +126,7 @@ Test(metrics, lab_matches_independent_double_conversion)
             for (int b = 0; b < 256; b += 15) {
                 float rgb[3] = {r / 255.0f, g / 255.0f, b / 255.0f}, lab[3];
                 double want[3];
-                btf_srgb_to_lab(rgb, lab);
+                btf_color_srgb_to_lab(rgb, lab);
                 ref_lab(r, g, b, want);
                 for (int c = 0; c < 3; c++)
                     worst = fmax(worst, fabs(lab[c] - want[c]));
@@ -153,8 +153,8 @@ Test(metrics, fast_path_matches_reference_conversion)
                         float o = off ? 0.37f : 0.0f;
                         float c[3] = {(r + o) / 255.0f, (g + o) / 255.0f, (b + o) / 255.0f};
                         float l1[3], l2[3];
-                        btf_srgb_to_lab(c, l1);
-                        btf_srgb_to_lab(partner[p], l2);
+                        btf_color_srgb_to_lab(c, l1);
+                        btf_color_srgb_to_lab(partner[p], l2);
                         double de = sqrt(pow(l1[0] - l2[0], 2) + pow(l1[1] - l2[1], 2) + pow(l1[2] - l2[2], 2));
                         double th = (fabs(l1[0] - l2[0]) + fabs(l1[1] - l2[1]) + fabs(l1[2] - l2[2])) / 3.0;
                         btf_metrics m;

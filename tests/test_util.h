@@ -10,6 +10,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "btf_fs.h"
+
 /* Path under ../shared (BTF_SHARED, exported by the Makefile) into buf; 1 if it exists. */
 static inline int test_shared_path(char *buf, size_t n, const char *rel)
 {
@@ -30,25 +32,7 @@ static inline int test_tmpdir(char *buf, size_t n)
  * 0 on success or when path does not exist, -1 otherwise. */
 static inline int test_rmtree(const char *path)
 {
-    struct stat st;
-    if (lstat(path, &st) != 0)
-        return errno == ENOENT ? 0 : -1;
-    if (!S_ISDIR(st.st_mode))
-        return unlink(path);
-    DIR *d = opendir(path);
-    if (!d)
-        return -1;
-    int rc = 0;
-    struct dirent *e;
-    char child[4096];
-    while ((e = readdir(d)))
-        if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) {
-            int n = snprintf(child, sizeof child, "%s/%s", path, e->d_name);
-            if (n < 0 || (size_t)n >= sizeof child || test_rmtree(child) != 0)
-                rc = -1;
-        }
-    closedir(d);
-    return rmdir(path) == 0 ? rc : -1;
+    return btf_fs_rmtree(path, NULL) == BTF_OK ? 0 : -1;
 }
 
 #endif

@@ -4,6 +4,7 @@
 #include "btf_chart.h"
 
 #include "btf_export.h"
+#include "btf_fs.h"
 #include "btf_metrics.h"
 #include "btf_package.h"
 #include "btf_render.h"
@@ -11,7 +12,7 @@
 
 #include <dirent.h>
 #include <math.h>
-#include <pthread.h>
+#include <omp.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,7 +20,6 @@
 #include <time.h>
 #include <unistd.h>
 
-#define BTF__CHART_MAX_THREADS 16
 
 static double btf__chart_now(void)
 {
@@ -116,27 +116,6 @@ static btf_chart_stream_row *btf__chart_stream_add(btf_chart *c, btf_error *err)
 
 /* ---------------------------------------------------------------- temporary dirs */
 
-/* Removes dir and what is inside it, two levels deep (packages are flat). */
-static void btf__chart_rmtree(const char *dir, int depth)
-{
-    DIR *d = opendir(dir);
-    if (d) {
-        struct dirent *e;
-        char path[8192];
-        while ((e = readdir(d)) != NULL) {
-            if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-                continue;
-            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
-            struct stat st;
-            if (lstat(path, &st) == 0 && S_ISDIR(st.st_mode) && depth > 0)
-                btf__chart_rmtree(path, depth - 1);
-            else
-                unlink(path);
-        }
-        closedir(d);
-    }
-    rmdir(dir);
-}
 
 static btf_result btf__chart_tmpdir(char *buf, size_t n, btf_error *err)
 {
@@ -160,65 +139,40 @@ static long long btf__chart_file_bytes(const char *dir, const char *name)
 /* Produces one decoded (view, light) image, width*height*3 floats, byte/255 scale. */
 typedef void (*btf__chart_image_fn)(const void *ctx, const btf *src, int view, int light, float *out);
 
-/* One worker's share of the error sums; lives on btf__chart_error's stack. */
-typedef struct btf__chart_job {
-    const btf *src;
-    btf__chart_image_fn fn;
-    const void *ctx;
-    int first, step;
-    btf_metrics_acc acc;
-    int nomem;
-} btf__chart_job;
-
-static void *btf__chart_worker(void *arg)
+/* Adds b's sums into a. */
+static void btf__chart_acc_add(btf_metrics_acc *a, const btf_metrics_acc *b)
 {
-    btf__chart_job *j = arg;
-    size_t n = btf_image_samples(j->src);
-    float *ref = malloc(n * sizeof *ref), *dec = malloc(n * sizeof *dec);
-    if (!ref || !dec) {
-        j->nomem = 1;
-    } else {
-        int V = j->src->views.n_dirs, L = j->src->lights.n_dirs;
-        for (int p = j->first; p < V * L; p += j->step) {
-            btf_get_image(j->src, p / L, p % L, ref);
-            j->fn(j->ctx, j->src, p / L, p % L, dec);
-            btf_metrics_add(&j->acc, ref, dec, n / 3);
-        }
-    }
-    free(ref);
-    free(dec);
-    return NULL;
+    a->sum_abs += b->sum_abs, a->sum_sq += b->sum_sq, a->sum_lab += b->sum_lab, a->sum_de += b->sum_de;
+    a->samples += b->samples, a->pixels += b->pixels;
 }
 
-/* Error of fn's images against src over every measured (view, light) pair. */
+/* Error of fn's images against src over every (view, light) pair, on `threads`
+ * OpenMP threads (0: OpenMP's default, OMP_NUM_THREADS). */
 static btf_result btf__chart_error(const btf *src, btf__chart_image_fn fn, const void *ctx, int threads,
                                    btf_metrics *out, btf_error *err)
 {
-    if (threads < 1)
-        threads = 2;
-    if (threads > BTF__CHART_MAX_THREADS)
-        threads = BTF__CHART_MAX_THREADS;
-    btf__chart_job job[BTF__CHART_MAX_THREADS];
-    pthread_t tid[BTF__CHART_MAX_THREADS];
-    int started[BTF__CHART_MAX_THREADS] = {0};
-    for (int t = 0; t < threads; t++) {
-        memset(&job[t], 0, sizeof job[t]);
-        job[t].src = src, job[t].fn = fn, job[t].ctx = ctx, job[t].first = t, job[t].step = threads;
-    }
-    for (int t = 1; t < threads; t++)
-        started[t] = pthread_create(&tid[t], NULL, btf__chart_worker, &job[t]) == 0;
-    btf__chart_worker(&job[0]);
     btf_metrics_acc all = {0};
-    int nomem = 0;
-    for (int t = 0; t < threads; t++) {
-        if (t > 0 && started[t])
-            pthread_join(tid[t], NULL);
-        else if (t > 0) /* no thread: do its share here */
-            btf__chart_worker(&job[t]);
-        nomem |= job[t].nomem;
-        all.sum_abs += job[t].acc.sum_abs, all.sum_sq += job[t].acc.sum_sq;
-        all.sum_lab += job[t].acc.sum_lab, all.sum_de += job[t].acc.sum_de;
-        all.samples += job[t].acc.samples, all.pixels += job[t].acc.pixels;
+    int nomem = 0, V = src->views.n_dirs, L = src->lights.n_dirs;
+    size_t n = btf_image_samples(src);
+#pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads())
+    {
+        btf_metrics_acc acc = {0};
+        float *ref = malloc(n * sizeof *ref), *dec = malloc(n * sizeof *dec);
+        if (!ref || !dec) {
+#pragma omp atomic write
+            nomem = 1;
+        }
+#pragma omp for schedule(static, 1)
+        for (int p = 0; p < V * L; p++)
+            if (ref && dec) {
+                btf_get_image(src, p / L, p % L, ref);
+                fn(ctx, src, p / L, p % L, dec);
+                btf_metrics_add(&acc, ref, dec, n / 3);
+            }
+#pragma omp critical(btf__chart_sum)
+        btf__chart_acc_add(&all, &acc);
+        free(ref);
+        free(dec);
     }
     if (nomem)
         return btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for the error images");
@@ -333,7 +287,7 @@ static void btf__chart_shader_measure(btf_chart *c, const btf *src, const int *C
     if (r == BTF_OK)
         r = btf__chart_shader_time(dp, n, o, ms, &e);
     for (int i = 0; i < made; i++)
-        btf__chart_rmtree(dirs[i], 1);
+        btf_fs_rmtree(dirs[i], NULL);
     if (r != BTF_OK) {
         btf__chart_note(c->shader_note, sizeof c->shader_note, e.msg);
         btf__chart_log(o, "  shader timing failed: %s\n", e.msg);
@@ -477,7 +431,7 @@ static btf_result btf__chart_stream_package(btf_chart *c, const char *name, cons
         s->lab_manifest = p->chunk[i].lab;
     }
     btf_package_free(p);
-    btf__chart_rmtree(dir, 1);
+    btf_fs_rmtree(dir, NULL);
     return r;
 }
 
@@ -495,7 +449,7 @@ static btf_result btf__chart_stream_thesis(btf_chart *c, const char *name, const
         r = btf_thesis_read(dir, &p, &e);
     if (r != BTF_OK) { /* e.g. a non-square source: the format cannot hold it */
         btf__chart_log(o, "  thesis export skipped: %s\n", e.msg);
-        btf__chart_rmtree(dir, 1);
+        btf_fs_rmtree(dir, NULL);
         return r == BTF_ERR_NOMEM ? btf_fail(err, r, "%s", e.msg) : BTF_OK;
     }
     float *sigma = malloc((size_t)p.nb * (size_t)p.C * sizeof *sigma);
@@ -528,7 +482,7 @@ static btf_result btf__chart_stream_thesis(btf_chart *c, const char *name, const
     }
     free(sigma);
     btf_thesis_free(&p);
-    btf__chart_rmtree(dir, 1);
+    btf_fs_rmtree(dir, NULL);
     return r;
 }
 
@@ -572,7 +526,7 @@ btf_result btf_chart_add_material(btf_chart *c, const char *name, const btf *src
         r = btf__chart_stream_thesis(c, name, src, &o, tmp, err);
     if (r == BTF_OK && !o.no_stream)
         btf__chart_log(&o, "  streaming: package %.1f s, thesis format %.1f s\n", t1 - t0, btf__chart_now() - t1);
-    btf__chart_rmtree(tmp, 2);
+    btf_fs_rmtree(tmp, NULL);
     if (r == BTF_OK && !o.no_methods)
         c->n_materials++; /* materials with method rows (for the mean rows) */
     return r;
@@ -790,20 +744,19 @@ static void btf__chart_csv_time(const btf_chart *c, FILE *f)
 static btf_result btf__chart_csv_file(const btf_chart *c, const char *dir, const char *name,
                                       void (*body)(const btf_chart *, FILE *), btf_error *err)
 {
-    char path[4096], tmp[4200];
+    char path[4096], *text = NULL;
+    size_t n = 0;
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    snprintf(tmp, sizeof tmp, "%s.tmp-%d", path, (int)getpid());
-    FILE *f = fopen(tmp, "w");
+    FILE *f = open_memstream(&text, &n);
     if (!f)
-        return btf_fail(err, BTF_ERR_IO, "chart: cannot write %s", tmp);
+        return btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for %s", path);
     body(c, f);
     int bad = ferror(f);
     bad |= fclose(f) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        unlink(tmp);
-        return btf_fail(err, BTF_ERR_IO, "chart: cannot write %s", path);
-    }
-    return BTF_OK;
+    btf_result r = bad ? btf_fail(err, BTF_ERR_NOMEM, "chart: cannot format %s", path)
+                       : btf_fs_write_atomic(path, text, n, err);
+    free(text);
+    return r;
 }
 
 btf_result btf_chart_write_csv(const btf_chart *c, const char *dir, btf_error *err)

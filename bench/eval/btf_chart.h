@@ -65,7 +65,7 @@ typedef struct btf_chart_options {
     int no_methods;    /* 1: streaming rows only (e.g. the same material at another size) */
     int verify_stream; /* 1: recompute the package's per-chunk error over the whole BTF
                           (else lab = the manifest's number, written over every texel) */
-    int threads;       /* error computation threads; 0 = 2 */
+    int threads;       /* error computation threads; 0 = OpenMP's default (OMP_NUM_THREADS) */
     FILE *log;         /* progress lines, or NULL for silence */
 } btf_chart_options;
 

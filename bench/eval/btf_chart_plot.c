@@ -3,6 +3,7 @@
  * from them alone), turned into gnuplot data blocks inside one script, and gnuplot
  * draws every chart twice: SVG and PNG (pngcairo). */
 #include "btf_chart.h"
+#include "btf_fs.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -32,26 +33,12 @@ static void btf__csv_free(btf__csv *c)
 static btf_result btf__csv_read(const char *path, btf__csv *c, btf_error *err)
 {
     memset(c, 0, sizeof *c);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return btf_fail(err, BTF_ERR_IO, "chart: cannot open %s", path);
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    if (n < 0 || n > (64L << 20)) {
-        fclose(f);
-        return btf_fail(err, BTF_ERR_RANGE, "chart: %s: size %ld outside 0..64 MiB", path, n);
-    }
-    c->text = malloc((size_t)n + 1);
-    size_t got = c->text ? fread(c->text, 1, (size_t)n, f) : 0;
-    fclose(f);
-    if (!c->text || got != (size_t)n) {
-        btf__csv_free(c);
-        return btf_fail(err, BTF_ERR_IO, "chart: cannot read %s", path);
-    }
-    c->text[n] = 0;
+    size_t n;
+    btf_result rr = btf_fs_read(path, (size_t)64 << 20, &c->text, &n, err);
+    if (rr != BTF_OK)
+        return rr == BTF_ERR_MISSING ? BTF_ERR_IO : rr; /* a missing table is an I/O failure of the plot */
     int lines = 1;
-    for (long i = 0; i < n; i++)
+    for (size_t i = 0; i < n; i++)
         lines += c->text[i] == '\n';
     c->row = calloc((size_t)lines, sizeof *c->row);
     if (!c->row) {

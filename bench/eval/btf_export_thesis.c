@@ -2,6 +2,8 @@
  * (formats.md section 3). See btf_export.h. */
 #include "btf_export.h"
 
+#include "btf_fs.h"
+
 #include <dirent.h>
 #include <errno.h>
 #include <math.h>
@@ -11,6 +13,8 @@
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
+
+#include "btf_fs.h"
 
 #define BTF__H (1.0f / 255.0f) /* half a byte step over [-1, 1] */
 #define BTF__S 0.05f           /* half the 0.1 sigma step */
@@ -198,52 +202,22 @@ long long btf_dir_bytes(const char *dir)
     return total;
 }
 
-/* Removes the plain files in dir, then dir (a thesis package has no subdirectories). */
-static void btf__rm_package(const char *dir)
-{
-    DIR *d = opendir(dir);
-    if (d) {
-        struct dirent *e;
-        char path[4200];
-        while ((e = readdir(d)) != NULL) {
-            if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
-                snprintf(path, sizeof path, "%s/%s", dir, e->d_name) < (int)sizeof path)
-                unlink(path);
-        }
-        closedir(d);
-    }
-    rmdir(dir);
-}
-
-/* Writes p to dir; an existing thesis package (a directory with meta.json) is replaced
- * only after the new one is complete. */
+/* Writes p to dir; an existing thesis package (meta.json and its images, nothing
+ * else) is replaced only after the new one is complete, atomically. */
 static btf_result btf__write_replacing(const char *dir, const btf_thesis_pkg *p, btf_error *err)
 {
-    struct stat st;
-    char meta[4200], fresh[4200], old[4200];
-    snprintf(meta, sizeof meta, "%s/meta.json", dir);
-    if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode) || rmdir(dir) == 0)
-        return btf_thesis_write(dir, p, err); /* absent, empty, or not ours: the writer decides */
-    if (stat(meta, &st) != 0)
-        return btf_fail(err, BTF_ERR_IO, "%s: exists, is not empty and has no meta.json", dir);
-    snprintf(fresh, sizeof fresh, "%s.new-%ld", dir, (long)getpid());
-    snprintf(old, sizeof old, "%s.old-%ld", dir, (long)getpid());
-    btf_result r = btf_thesis_write(fresh, p, err);
+    char fresh[BTF_FS_PATH_MAX + 32];
+    btf_result r = btf_fs_replaceable(dir, btf_thesis_owns_dir, NULL, err);
     if (r != BTF_OK)
         return r;
-    if (rename(dir, old) != 0) {
-        int e = errno;
-        btf__rm_package(fresh);
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot move aside (%s)", dir, strerror(e));
-    }
-    if (rename(fresh, dir) != 0) {
-        int e = errno;
-        rename(old, dir);
-        btf__rm_package(fresh);
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot rename into place (%s)", dir, strerror(e));
-    }
-    btf__rm_package(old);
-    return BTF_OK;
+    snprintf(fresh, sizeof fresh, "%s.new-%ld", dir, (long)getpid());
+    btf_fs_rmtree(fresh, NULL); /* this pid's own leftover */
+    r = btf_thesis_write(fresh, p, err);
+    if (r == BTF_OK)
+        r = btf_fs_replace_dir(fresh, dir, btf_thesis_owns_dir, NULL, err);
+    if (r != BTF_OK)
+        btf_fs_rmtree(fresh, NULL);
+    return r;
 }
 
 btf_result btf_export_thesis(const btf *src, const btf_export_options *opt, const char *dir,

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "btf_package.h"
+#include "btf_fs.h"
 
 /* Clamps k to the view count and C to what the smallest block allows. */
 static btf_result btf__pca_opts(const btf *src, btf_method_params *p, btf_pca_options *o, btf_error *err)
@@ -97,23 +98,6 @@ const btf_method btf_method_pca = {
 
 /* ---------------------------------------------------------------- pca-q */
 
-/* Removes the plain files of dir (a directory this module created) and dir. */
-static void btf__rm_dir(const char *dir)
-{
-    DIR *d = opendir(dir);
-    if (d) {
-        struct dirent *e;
-        char path[4096];
-        while ((e = readdir(d)) != NULL) {
-            if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0)
-                continue;
-            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
-            unlink(path);
-        }
-        closedir(d);
-    }
-    rmdir(dir);
-}
 
 static void btf__pkg_free(void *impl)
 {
@@ -140,8 +124,8 @@ static btf_result btf__pkg_encode(const btf *src, btf_model *m, btf_error *err)
     r = btf_package_compress(src, &o, &ko, out, NULL, err);
     if (r == BTF_OK)
         r = btf_package_read(out, 0, &p, err);
-    btf__rm_dir(out);
-    btf__rm_dir(base);
+    btf_fs_rmtree(out, NULL);
+    btf_fs_rmtree(base, NULL);
     if (r == BTF_OK)
         m->impl = p;
     return r;

@@ -2,6 +2,8 @@
  * small numeric helpers the method implementations share. */
 #include "btf_method.h"
 
+#include "btf_color.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,18 +11,14 @@
 
 float btf__srgb_to_linear(float v)
 {
-    if (!(v > 0.0f))
-        return 0.0f;
-    return v <= 0.04045f ? v / 12.92f : powf((v + 0.055f) / 1.055f, 2.4f);
+    return v > 0.0f ? (float)btf_color_srgb_decode(v) : 0.0f; /* also NaN -> 0 */
 }
 
 float btf__linear_to_srgb(float v)
 {
     if (!(v > 0.0f))
         return 0.0f;
-    if (v > 1e6f)
-        v = 1e6f;
-    return v <= 0.0031308f ? v * 12.92f : 1.055f * powf(v, 1.0f / 2.4f) - 0.055f;
+    return (float)btf_color_srgb_encode(v > 1e6f ? 1e6f : v);
 }
 
 void btf__unit(const float in[3], float out[3])

@@ -6,6 +6,7 @@
  * (view, light, texel). btf_gen_model_eval runs the very same functions for one
  * texel, so it reproduces stored values exactly. */
 #include "btf_gen.h"
+#include "btf_color.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -20,7 +21,6 @@
 #define GEN_SHADOW_SOFT 0.08f
 #define GEN_AMBIENT 0.1f
 #define GEN_T_EPS 1e-5f      /* view march stops when transmittance falls below */
-#define GEN_MAX_THREADS 8
 
 /* Precomputed maps of one material (owned by the caller of btf_gen_model_create, freed by btf_gen_model_free). */
 struct btf_gen_model {
@@ -294,7 +294,7 @@ static void gen_srgb_init(void)
 {
     for (int i = 0; i <= GEN_SRGB_LUT; i++) {
         double x = (double)i / GEN_SRGB_LUT;
-        gen_srgb_lut[i] = (float)(x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055);
+        gen_srgb_lut[i] = (float)btf_color_srgb_encode(x);
     }
     gen_srgb_lut[GEN_SRGB_LUT + 1] = 1.0f;
 }
@@ -591,20 +591,15 @@ typedef struct gen_job {
     btf *out;
     float (*ldir)[3], (*vdir)[3]; /* prepared directions */
     float *vis;                   /* n_lights x w*h shadow table */
-    int n_threads;
-    int failed;                   /* set by a worker that ran out of memory */
+    int failed;                   /* set by a thread that ran out of memory */
 } gen_job;
 
-/* One worker's share; value on the creator's stack. */
-typedef struct gen_worker {
-    gen_job *job;
-    int tid;
-} gen_worker;
-
-static void gen_shadow_rows(gen_job *j, int tid)
+/* The shadow table, one light per iteration on OpenMP's threads (OMP_NUM_THREADS). */
+static void gen_shadow_rows(gen_job *j)
 {
     int nl = j->out->lights.n_dirs, n = j->m->w * j->m->h;
-    for (int l = tid; l < nl; l += j->n_threads)
+#pragma omp parallel for schedule(static, 1)
+    for (int l = 0; l < nl; l++)
         for (int i = 0; i < n; i++)
             j->vis[(size_t)l * (size_t)n + (size_t)i] = gen_shadow(j->m, i, j->ldir[l]);
 }
@@ -636,64 +631,28 @@ static void gen_light_image(gen_job *j, int v, int l, const gen_point *pts)
     }
 }
 
-static void gen_view_images(gen_job *j, int tid, gen_point *pts)
+/* Every view's images, one view per iteration on OpenMP's threads. */
+static void gen_view_images(gen_job *j)
 {
     const btf_gen_model *m = j->m;
     btf *b = j->out;
-    for (int v = tid; v < b->views.n_dirs; v += j->n_threads) {
-        for (int y = 0; y < m->h; y++)
-            for (int x = 0; x < m->w; x++)
-                gen_visible(m, x, y, j->vdir[v], &pts[(size_t)y * (size_t)m->w + (size_t)x]);
-        for (int l = 0; l < b->lights.n_dirs; l++)
-            gen_light_image(j, v, l, pts);
+#pragma omp parallel
+    {
+        gen_point *pts = malloc((size_t)m->w * (size_t)m->h * sizeof *pts);
+        if (!pts) {
+#pragma omp atomic write
+            j->failed = 1;
+        }
+#pragma omp for schedule(static, 1)
+        for (int v = 0; v < b->views.n_dirs; v++) {
+            for (int y = 0; pts && y < m->h; y++)
+                for (int x = 0; x < m->w; x++)
+                    gen_visible(m, x, y, j->vdir[v], &pts[(size_t)y * (size_t)m->w + (size_t)x]);
+            for (int l = 0; pts && l < b->lights.n_dirs; l++)
+                gen_light_image(j, v, l, pts);
+        }
+        free(pts);
     }
-}
-
-static void *gen_worker_run(void *arg)
-{
-    gen_worker *wk = arg;
-    gen_job *j = wk->job;
-    gen_point *pts = malloc((size_t)j->m->w * (size_t)j->m->h * sizeof *pts);
-    if (!pts) {
-        j->failed = 1; /* benign race: only ever set to 1 */
-        return NULL;
-    }
-    gen_view_images(j, wk->tid, pts);
-    free(pts);
-    return NULL;
-}
-
-static void *gen_shadow_run(void *arg)
-{
-    gen_worker *wk = arg;
-    gen_shadow_rows(wk->job, wk->tid);
-    return NULL;
-}
-
-/* Runs fn for every worker id on up to n_threads threads (falls back to this thread). */
-static void gen_parallel(gen_job *j, void *(*fn)(void *))
-{
-    pthread_t th[GEN_MAX_THREADS];
-    gen_worker wk[GEN_MAX_THREADS];
-    int started[GEN_MAX_THREADS] = {0};
-    for (int t = 0; t < j->n_threads; t++) {
-        wk[t].job = j, wk[t].tid = t;
-        if (t > 0)
-            started[t] = pthread_create(&th[t], NULL, fn, &wk[t]) == 0;
-    }
-    fn(&wk[0]);
-    for (int t = 1; t < j->n_threads; t++) {
-        if (started[t])
-            pthread_join(th[t], NULL);
-        else
-            fn(&wk[t]);
-    }
-}
-
-static int gen_thread_count(void)
-{
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n < 1 ? 1 : n > GEN_MAX_THREADS ? GEN_MAX_THREADS : (int)n;
 }
 
 static btf_result gen_prepare_dirs(const btf_dirset *d, int is_view, float (**out)[3], btf_error *err)
@@ -724,8 +683,8 @@ static btf_result gen_render(gen_job *j, btf_error *err)
     j->vis = malloc((size_t)b->lights.n_dirs * n * sizeof(float));
     if (!j->vis)
         return btf_fail(err, BTF_ERR_NOMEM, "gen: no memory for the shadow table (%d lights)", b->lights.n_dirs);
-    gen_parallel(j, gen_shadow_run);
-    gen_parallel(j, gen_worker_run);
+    gen_shadow_rows(j);
+    gen_view_images(j);
     if (j->failed)
         return btf_fail(err, BTF_ERR_NOMEM, "gen: no memory for a view's visible points");
     return BTF_OK;
@@ -745,7 +704,7 @@ btf_result btf_gen_create(const btf_gen_params *p, int w, int h, const btf_dirse
     if (r == BTF_OK)
         r = btf_create(w, h, lights, views, storage, &b, err);
     if (r == BTF_OK) {
-        gen_job j = {m, b, NULL, NULL, NULL, gen_thread_count(), 0};
+        gen_job j = {m, b, NULL, NULL, NULL, 0};
         r = gen_render(&j, err);
         free(j.ldir);
         free(j.vdir);

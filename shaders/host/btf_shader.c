@@ -1,6 +1,7 @@
 /* btf_shader.c - shader assembly from shaders/manifest.json, compile/link through
  * btf_gl, error reports against the numbered assembled source (see btf_shader.h). */
 #include "btf_shader.h"
+#include "btf_fs.h"
 
 #include <cjson/cJSON.h>
 #include <ctype.h>
@@ -68,30 +69,13 @@ static void btf__shader_dir(const btf_shader_desc *d, char *buf, size_t n)
 /* Whole file into a malloc'd NUL-terminated buffer, at most BTF__SHADER_MAX_FILE bytes. */
 static btf_result btf__read_file(const char *path, char **out, size_t *len, btf_error *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return btf_fail(err, BTF_ERR_MISSING, "shader: cannot open %s", path);
-    char *buf = malloc(BTF__SHADER_MAX_FILE + 1);
-    if (!buf) {
-        fclose(f);
-        return btf_fail(err, BTF_ERR_NOMEM, "shader: out of memory reading %s", path);
-    }
-    size_t n = fread(buf, 1, BTF__SHADER_MAX_FILE + 1, f);
-    int bad = ferror(f);
-    fclose(f);
-    if (bad || n > BTF__SHADER_MAX_FILE) {
-        free(buf);
-        return btf_fail(err, bad ? BTF_ERR_IO : BTF_ERR_RANGE, "shader: %s %s", path,
-                        bad ? "could not be read" : "is larger than 1 MiB");
-    }
-    buf[n] = '\0';
-    if (strlen(buf) != n) {
-        free(buf);
+    btf_result r = btf_fs_read(path, BTF__SHADER_MAX_FILE, out, len, err);
+    if (r == BTF_OK && strlen(*out) != *len) {
+        free(*out);
+        *out = NULL;
         return btf_fail(err, BTF_ERR_FORMAT, "shader: %s contains a NUL byte", path);
     }
-    *out = buf;
-    *len = n;
-    return BTF_OK;
+    return r;
 }
 
 static int btf__plain_name(const char *s)
