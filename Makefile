@@ -62,6 +62,7 @@ $(TOOLS_OBJ) $(BUILD)/tools/btf_main.o: INC := $(ALL_INC)
 TEST_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/*.c))
 TEST_BIN   := $(BUILD)/run_tests
 $(TEST_OBJ): INC := $(ALL_INC) -Itests
+$(TEST_OBJ): PKG_CFLAGS = $(call pkg,--cflags,libcjson)
 
 ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread
