@@ -110,6 +110,7 @@ $(TEST_BIN): $(TEST_OBJ) $(ROOM_LIBS)
 test: setup
 	$(MAKE) build
 	$(TEST_BIN) --jobs 2
+	bash tests/install_test.sh
 	$(MAKE) e2e
 
 # Browser tests: playwright-core driving Debian's chromium against a real btfd.
