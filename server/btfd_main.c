@@ -2,9 +2,9 @@
  *
  *     btfd --library DIR [--port N] [--bind ADDR] [--client DIR] [--shaders DIR]
  *
- * Serves the client page (HTTP file mount on /, shaders on /shaders/; by
- * default the installed copies when this is an installed btfd, see
- * default_dirs), the library list (GET /materials) and the btf-stream.v1 WebSocket. The protocol
+ * Serves the client page (HTTP file mount on /, shaders on /shaders/; an
+ * installed btfd defaults to the installed copies, see default_dirs), the
+ * library list (GET /materials) and the btf-stream.v1 WebSocket. The protocol
  * logic lives in btfd_protocol.c; see server/README.md and doc/protocol.md.
  */
 #include <getopt.h>
