@@ -70,7 +70,7 @@ ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread
 TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 
-.PHONY: all setup build test e2e check asan bench chart demo clean lib
+.PHONY: all setup build test e2e check asan bench chart demo clean lib install uninstall
 all: build
 build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN)
 lib: $(CODEC_LIB)
@@ -112,6 +112,7 @@ $(TEST_BIN): $(TEST_OBJ) $(ROOM_LIBS)
 test: setup
 	$(MAKE) build
 	$(TEST_BIN) --jobs 2
+	bash tests/install_test.sh
 	$(MAKE) e2e
 
 # Browser tests: playwright-core driving Debian's chromium against a real btfd.
@@ -153,6 +154,37 @@ demo: setup build
 
 clean:
 	rm -rf build build-asan codec/libbtfcodec.a
+
+# --- make install / uninstall: PREFIX (default /usr/local), DESTDIR for staging ---
+# bin/btf, bin/btfd, lib/libbtfcodec.a, include/btfcodec/ (codec/*.h),
+# lib/pkgconfig/btfcodec.pc, and under share/btf-stream/ the browser client and
+# the shader files it loads (what an installed btfd serves by default).
+PREFIX       ?= /usr/local
+DESTDIR      ?=
+PC_VERSION   := $(shell sed -n 's/.*define BTF_VERSION "\(.*\)".*/\1/p' codec/btf_version.h)
+INST_ROOT     = $(DESTDIR)$(PREFIX)
+INST_HEADERS := $(wildcard codec/*.h)
+INST_CLIENT  := $(wildcard client/*.*)
+INST_SHADERS := $(wildcard shaders/*.glsl shaders/*.vert shaders/*.frag) shaders/manifest.json
+INST_FILES    = bin/btf bin/btfd lib/libbtfcodec.a lib/pkgconfig/btfcodec.pc \
+    $(INST_HEADERS:codec/%=include/btfcodec/%) $(addprefix share/btf-stream/,$(INST_CLIENT) $(INST_SHADERS))
+
+install: $(BTF_BIN) $(BUILD)/btfd $(CODEC_LIB)
+	install -D -m 755 $(BTF_BIN) $(INST_ROOT)/bin/btf
+	install -D -m 755 $(BUILD)/btfd $(INST_ROOT)/bin/btfd
+	install -D -m 644 $(CODEC_LIB) $(INST_ROOT)/lib/libbtfcodec.a
+	install -D -m 644 -t $(INST_ROOT)/include/btfcodec $(INST_HEADERS)
+	install -D -m 644 -t $(INST_ROOT)/share/btf-stream/client $(INST_CLIENT)
+	install -D -m 644 -t $(INST_ROOT)/share/btf-stream/shaders $(INST_SHADERS)
+	install -d -m 755 $(INST_ROOT)/lib/pkgconfig
+	printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$${prefix}/lib' 'includedir=$${prefix}/include' '' \
+	    'Name: btfcodec' 'Description: BTF material compression by k-view PCA and streamable packages' \
+	    'Version: $(PC_VERSION)' 'Requires.private: $(CODEC_PKGS)' 'Cflags: -I$${includedir}/btfcodec' \
+	    'Libs: -L$${libdir} -lbtfcodec' 'Libs.private: -lstdc++ -lm -lgomp' > $(INST_ROOT)/lib/pkgconfig/btfcodec.pc
+
+uninstall:
+	rm -f $(addprefix $(INST_ROOT)/,$(INST_FILES))
+	rmdir $(addprefix $(INST_ROOT)/,share/btf-stream/client share/btf-stream/shaders share/btf-stream include/btfcodec) 2>/dev/null || true
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)
 include server/build.mk

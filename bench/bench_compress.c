@@ -1,4 +1,4 @@
-/* bench_compress.c - compressor numbers (issue 3), printed as `name value unit` lines:
+/* bench_compress.c - compressor numbers, printed as `name value unit` lines:
  *
  *   a. full-size thesis wool (256x256, 81x81): btf_package_compress at k = 3, C = 8
  *      from loaded data and from a UBO2003 JPEG directory (written once into

@@ -1,7 +1,7 @@
 // btf-gl.js - WebGL2 side of the viewer: shader files from shaders/ assembled exactly
-// as tools/btf_shader.c does (shaders/README.md), compile/link errors reported
+// as shaders/host/btf_shader.c does (shaders/README.md), compile/link errors reported
 // twgl-style against the numbered source, and the package's textures (the same
-// layout as tools/btf_gl_package.c: u_btf_tex, u_btf_wt, u_btf_range,
+// layout as shaders/host/btf_gl_package.c: u_btf_tex, u_btf_wt, u_btf_range,
 // u_btf_view_block), uploaded one chunk at a time; version-2 packages as mip levels
 // of per-component slots (shaders/README.md, "Spatial levels").
 

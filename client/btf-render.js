@@ -1,7 +1,7 @@
 // btf-render.js - draws a package on a surface with the program "render" of
 // shaders/manifest.json (btf_render.vert, btf_dirs.glsl, btf_decode.glsl,
 // btf_render.frag): the very program `btf render` draws with in the headless C
-// harness, with the same mesh, camera and uniforms (scene.js ports tools/btf_render.c).
+// harness, with the same mesh, camera and uniforms (scene.js ports shaders/host/btf_render.c).
 
 import {buildProgram} from './btf-gl.js';
 import {buildMesh, cameraMake} from './scene.js';

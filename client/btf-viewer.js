@@ -227,7 +227,7 @@ export class BtfViewer extends HTMLElement {
     return {chunks, bytes, error: -1};
   }
 
-  // Texels per device pixel of the material at the object's centre (issue 8): the
+  // Texels per device pixel of the material at the object's centre (doc/client.md, "Budgets"): the
   // object (2 units across) spans canvas height / (dist tan(fov/2)) device pixels;
   // u runs over 2 units on plane and cylinder, over 2 pi (twice) on the sphere.
   footprint() {
@@ -498,8 +498,8 @@ export class BtfViewer extends HTMLElement {
   }
 }
 
-// Chunks a viewer asks for without a budget-chunks attribute. Replaceable (issue 8:
-// scene-driven budgets from the screen footprint and the manifest's per-chunk errors);
+// Chunks a viewer asks for without a budget-chunks attribute. Replaceable (doc/client.md,
+// "Budgets": scene-driven budgets from the screen footprint and the manifest's per-chunk errors);
 // a viewer calls budgetChanged() when its inputs change.
 BtfViewer.budgetPolicy = (viewer) => autoBudget(viewer.cssWidth || 300);
 

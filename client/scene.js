@@ -1,5 +1,5 @@
 // scene.js - camera, light and surfaces of the viewer: a port of the scene
-// conventions of `btf render` (tools/btf_render.c, shaders/README.md), so the
+// conventions of `btf render` (shaders/host/btf_render.c, shaders/README.md), so the
 // browser and the headless C harness draw the same picture from the same numbers.
 //
 // World: right-handed, +z up, angles in degrees; a direction (theta, phi) is

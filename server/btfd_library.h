@@ -10,7 +10,7 @@
  *     btfd_library_free(lib);
  *
  * A package is a subdirectory holding manifest.json ("format": "btf-package",
- * "version": 1, "chunks": [{"id","files","bytes","rmse","lab"},...]) and the
+ * "version": 1 or 2, "chunks": [{"id","files","bytes","rmse","lab"},...]) and the
  * files its chunks name. Directories whose name is not a valid material name
  * (btfd_name_valid: this excludes hidden ones), contains ".tmp-" or ".old-"
  * (being written or replaced, see doc/package-format.md), or that lack

@@ -2,16 +2,20 @@
  *
  *     btfd --library DIR [--port N] [--bind ADDR] [--client DIR] [--shaders DIR]
  *
- * Serves the client page (HTTP file mount on /, shaders on /shaders/), the
+ * Serves the client page (HTTP file mount on /, shaders on /shaders/; an
+ * installed btfd defaults to the installed copies, see default_dirs), the
  * library list (GET /materials) and the btf-stream.v1 WebSocket. The protocol
  * logic lives in btfd_protocol.c; see server/README.md and doc/protocol.md.
  */
 #include <getopt.h>
+#include <limits.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "btfd.h"
 
@@ -33,8 +37,10 @@ static void usage(FILE *f)
             "  --library DIR        directory of packages (read-only)\n"
             "  --port N             TCP port (default 8080; 0 picks a free one)\n"
             "  --bind ADDR          interface address (default 127.0.0.1)\n"
-            "  --client DIR         client files served at / (default client)\n"
-            "  --shaders DIR        shader files served at /shaders/ (default shaders)\n"
+            "  --client DIR         client files served at / (default: PREFIX/share/btf-stream/client\n"
+            "                       for an installed PREFIX/bin/btfd, else client)\n"
+            "  --shaders DIR        shader files served at /shaders/ (default: the installed\n"
+            "                       PREFIX/share/btf-stream/shaders, else shaders)\n"
             "  --fragment BYTES     payload bytes per binary piece (4096..1048576, default 131072)\n"
             "  --stall-timeout S    drop a client that takes no data for S seconds (default 20)\n"
             "  --rescan-ms MS       rescan the library every MS ms (default 2000, 0 = only on request)\n"
@@ -85,6 +91,33 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         usage(stderr);
         exit(2);
     }
+}
+
+/* Defaults of --client and --shaders: PREFIX/share/btf-stream/{client,shaders}
+ * when this executable is PREFIX/bin/btfd (readlink /proc/self/exe) and that
+ * client folder exists, i.e. btfd was installed by `make install`; otherwise
+ * client/ and shaders/ of the source tree, relative to the current directory. */
+static void default_dirs(btfd_options *o)
+{
+    static char client[PATH_MAX], shaders[PATH_MAX];
+    char exe[PATH_MAX];
+    struct stat st;
+    o->client_dir = "client";
+    o->shaders_dir = "shaders";
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n <= 0)
+        return;
+    exe[n] = 0;
+    char *name = strrchr(exe, '/');
+    if (!name || name - exe < 4 || strcmp(name, "/btfd") != 0 || strncmp(name - 4, "/bin", 4) != 0)
+        return;
+    name[-4] = 0; /* exe is now PREFIX */
+    if (snprintf(client, sizeof client, "%s/share/btf-stream/client", exe) >= (int)sizeof client ||
+        snprintf(shaders, sizeof shaders, "%s/share/btf-stream/shaders", exe) >= (int)sizeof shaders ||
+        stat(client, &st) != 0 || !S_ISDIR(st.st_mode))
+        return;
+    o->client_dir = client;
+    o->shaders_dir = shaders;
 }
 
 /* More file descriptors for thousands of connections (soft limit up to the hard one). */
@@ -161,8 +194,7 @@ int main(int argc, char **argv)
     btfd_options *o = &srv.opt;
     o->port = 8080;
     o->bind = "127.0.0.1";
-    o->client_dir = "client";
-    o->shaders_dir = "shaders";
+    default_dirs(o);
     o->fragment = 131072;
     o->stall_timeout_s = 20;
     o->rescan_ms = 2000;

@@ -6,7 +6,7 @@
 //   a_tangent   xyz: object-space direction of increasing u (the BTF's local x,
 //               image columns); w = +1 when v increases with image rows, i.e.
 //               cross(normal, tangent) points towards decreasing v (the BTF's local
-//               y points towards image row 0, formats.md section 1), else -1
+//               y points towards image row 0, doc/data-model.md section 1), else -1
 //   a_uv        texture coordinate, (0, 0) = texel (0, 0) corner, v along rows
 // u_model must be rigid plus uniform scale (normals use its 3x3 part).
 layout(location = 0) in vec3 a_position;

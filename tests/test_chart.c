@@ -1,4 +1,4 @@
-/* test_chart.c - suite "chart": `btf chart` (tools/btf_chart.h, tools/cmd_chart.c).
+/* test_chart.c - suite "chart": `btf chart` (bench/eval/btf_chart.h, tools/cmd_chart.c).
  *
  * Tiny inputs (8x8 texels, 11 directions) so the whole registry runs in about a
  * second. Checked against independent computations in this file: the Pareto

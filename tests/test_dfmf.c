@@ -1,6 +1,6 @@
 /* test_dfmf.c - UBO2014 DFMF08FC `.btf`: writer/reader round trips (full rank
  * exact, truncated rank = the optimal one by an independent SVD), files built
- * byte by byte here from formats.md section 2 (versions 1..4, half/float/double,
+ * byte by byte here from the DFMF layout (versions 1..4, half/float/double,
  * colour model 11), and broken files: truncation at every offset, absurd counts,
  * foreign signatures, trailing bytes. */
 #include <criterion/criterion.h>
@@ -367,7 +367,7 @@ static void check_hand(hand_spec s)
             double ch[3], rgb[3];
             for (int c = 0; c < 3; c++)
                 ch[c] = (double)hU[c][l] * hS[c][t];
-            if (s.model == 11) { /* formats.md section 2.7 */
+            if (s.model == 11) { /* colour model 11: log(Y + 1e-5), U and V over (Y + 1e-5) */
                 double Y = exp(ch[0]) - 1e-5, U = ch[1] * (Y + 1e-5), V = ch[2] * (Y + 1e-5);
                 rgb[0] = Y + 1.13983 * V;
                 rgb[1] = Y - 0.39465 * U - 0.5806 * V;

@@ -1,4 +1,4 @@
-/* test_export.c - btf_export_thesis (codec/btf_export.h): the project's PCA written
+/* test_export.c - btf_export_thesis (bench/eval/btf_export.h): the project's PCA written
  * in the thesis's format must decode, through the thesis reader, to the float PCA
  * within the documented quantisation bound; bad k, C and sources fail cleanly. */
 #include <criterion/criterion.h>

@@ -1,4 +1,4 @@
-/* test_gen.c - the synthetic material generator (tools/btf_gen.h) and `btf gen`. */
+/* test_gen.c - the synthetic material generator (bench/gen/btf_gen.h) and `btf gen`. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdio.h>

@@ -501,7 +501,7 @@ Test(dirset_json, good_file_matches_builtin)
     char dir[256], path[320];
     cr_assert(test_tmpdir(dir, sizeof dir));
     snprintf(path, sizeof path, "%s/dome.json", dir);
-    /* written from the formats.md table, not from the library */
+    /* written from the table in doc/data-model.md section 2, not from the library */
     write_file(path, "{ \"name\": \"dome151\", \"rings\": [\n"
                      " {\"theta\": 0, \"count\": 1, \"phi_offset\": 0},\n"
                      " {\"theta\": 11, \"count\": 6, \"phi_offset\": 15},\n"

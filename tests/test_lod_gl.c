@@ -1,4 +1,4 @@
-/* test_lod_gl.c - suite `lod_gl`: spatial levels (version-2 packages, issue 8) in the
+/* test_lod_gl.c - suite `lod_gl`: spatial levels (version-2 packages, doc/package-format.md section 10) in the
  * shaders. The GPU decoder with levels against btf_decode with the same lod (both
  * headless backends), the screen-space lod of the render program, and the aliasing
  * check: a tiled plane at a grazing angle rendered with levels is closer to a

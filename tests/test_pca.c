@@ -68,7 +68,7 @@ Test(pca, grouping_consecutive_matches_thesis)
     btf_blocks *b = NULL;
     btf_error err = {0};
     cr_assert_eq(btf_group_views(&u, 3, BTF_GROUP_CONSECUTIVE, &b, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(b->n_blocks, 27); /* formats.md: 27 blocks for k = 3 */
+    cr_assert_eq(b->n_blocks, 27); /* 81 views in runs of k = 3: 27 blocks */
     for (int v = 0; v < 81; v++)
         cr_assert_eq(b->views[v], v);
     cr_assert(is_partition(b));

@@ -1,4 +1,4 @@
-/* test_render.c - suite `render`: `btf render` and its scene module (tools/btf_render.h).
+/* test_render.c - suite `render`: `btf render` and its scene module (shaders/host/btf_render.h).
  *
  * The main test renders a package of a generated material on a plane (float target)
  * and compares each pixel with the generator's ground truth at that pixel's texel,

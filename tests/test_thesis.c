@@ -1,6 +1,6 @@
 /* test_thesis.c - the thesis's package format: reader against the published
- * wool/corduroy packages (facts from formats.md section 3 and an independent
- * per-pixel decoder written here from the spec), reconstruction, writer round
+ * wool/corduroy packages (the format's facts restated here, and an independent
+ * per-pixel decoder written here from them), reconstruction, writer round
  * trip, and bad packages. */
 #include <criterion/criterion.h>
 #include <math.h>
@@ -34,7 +34,7 @@ static int material_dir(char *buf, size_t n, const char *name)
     if (!material_dir(buf, sizeof buf, name))                                                                  \
     cr_skip_test("shared thesis data absent")
 
-/* The raw bytes of a published package (C = 8, N = 81, k = 3, S = 256 as in the spec). */
+/* The raw bytes of a published package (C = 8, N = 81, k = 3, S = 256, as published). */
 typedef struct raw_pkg {
     uint8_t *comp[8]; /* j.png pixels, flat */
     uint8_t *r;       /* R.png pixels, flat */
@@ -61,7 +61,7 @@ static void raw_free(raw_pkg *raw)
     free(raw->r);
 }
 
-/* Straight from formats.md section 3, one value at a time. */
+/* The package's decoding written out independently of the library, one value at a time. */
 static double raw_decode(const raw_pkg *raw, int view, int light, int x, int y, int c)
 {
     const int C = 8, N = 81, k = 3, S = 256, nb = 27;
@@ -181,7 +181,7 @@ Test(thesis, about_one_percent_outside_unit_range)
     float *img = malloc(sizeof(float) * 256 * 256 * 3);
     size_t out = 0, n = 0;
     /* every 5th view and light: 17 x 17 images; measured 2.50% for wool (2.50% on
-     * all 6561 images too; corduroy 1.09%). The spec says "about 1%": accept
+     * all 6561 images too; corduroy 1.09%). The thesis says "about 1%": accept
      * 0.1%..5%, which still catches a wrong scale (sigma x10 or /10 changes it a lot). */
     for (int v = 0; v < 81; v += 5)
         for (int l = 0; l < 81; l += 5) {

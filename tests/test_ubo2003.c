@@ -430,7 +430,7 @@ Test(ubo2003, empty_missing_and_non_directories)
 
 Test(ubo2003, default_sampling_maps_published_names)
 {
-    /* one file named exactly as formats.md's examples: its angles lie in the UBO2003 set,
+    /* one file named as the published UBO2003 files are: its angles lie in the UBO2003 set,
      * so the load fails only because the other 6560 images are absent */
     char dir[64], path[256];
     cr_assert(test_tmpdir(dir, sizeof dir));
@@ -467,7 +467,7 @@ Test(slow_ubo2003, default_sampling_full_round_trip)
     btf_error e = {{0}};
     cr_assert_eq(btf_save_ubo2003_dir(src, dir, "WoolPKNT256", "png", &e), BTF_OK, "%s", e.msg);
     char path[256];
-    /* formats.md's example name: 84 = light 1 (15, 0) * 81 + view 3 (15, 120) */
+    /* a published-style name: 84 = light 1 (15, 0) * 81 + view 3 (15, 120) */
     snprintf(path, sizeof path, "%s/WoolPKNT256_00084_tl015_pl000_tv015_pv120.png", dir);
     cr_expect_eq(access(path, R_OK), 0, "%s", path);
     cr_assert_eq(btf_load_ubo2003_dir(dir, NULL, &m, &e), BTF_OK, "%s", e.msg);

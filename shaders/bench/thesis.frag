@@ -1,5 +1,5 @@
 // thesis.frag - BENCHMARK ONLY (bench/bench_shader.c), not a product shader: the
-// 2015 thesis's decoder (seed 003, sections 4.4 and 5.3) as a baseline, written in
+// 2015 thesis's decoder (its sections 4.4 and 5.3) as a baseline, written in
 // its WebGL1 style (texture() with normalised coordinates, nearest filtering, no
 // texelFetch) and with "8-bit everything":
 //   - direction lookup: two precomputed 512x512 RGBA8 maps per direction set,

@@ -187,7 +187,7 @@ describe('btf-stream.js budgets', () => {
   });
 });
 
-describe('scene.js (port of tools/btf_render.c conventions)', () => {
+describe('scene.js (port of shaders/host/btf_render.c conventions)', () => {
   const apply = (m, p) => [0, 1, 2, 3].map((r) => m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r]);
   it('the camera looks at the origin from dist * dir(theta, phi), +z up on screen', () => {
     const s = {...scene.sceneDefaults('plane'), geometry: 'plane', cameraTheta: 35, cameraPhi: -90, cameraDist: 3};

@@ -1,7 +1,7 @@
 // util.mjs - helpers of the browser tests: the built tools, a small material library
 // made by them, btfd on a free loopback port, Chromium (playwright-core, Debian's
-// /usr/bin/chromium with the flags of shared/docs/platform-notes.md, a fresh
-// profile), page error collection, PNG read/write (node:zlib) and image differences.
+// /usr/bin/chromium with CHROMIUM_ARGS: no sandbox, software GL through SwiftShader,
+// no network side traffic; a fresh profile), page error collection, PNG read/write (node:zlib) and image differences.
 import {spawn, spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
