@@ -193,18 +193,7 @@ static int scene_create(btf_gl *gl, scene *s)
     f->BindVertexArray(s->vao);
     f->GenBuffers(1, &s->vbo);
     f->GenBuffers(1, &s->ibo);
-    f->BindBuffer(GL_ARRAY_BUFFER, s->vbo);
-    f->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(m->n_vertices * BTF_RENDER_VERTEX_FLOATS * sizeof(float)),
-                  m->vertices, GL_STATIC_DRAW);
-    f->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, s->ibo);
-    f->BufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)(m->n_indices * sizeof(unsigned)), m->indices,
-                  GL_STATIC_DRAW);
-    static const int sizes[4] = {3, 3, 4, 2}, offs[4] = {0, 3, 6, 10};
-    for (int a = 0; a < 4; a++) {
-        f->EnableVertexAttribArray((GLuint)a);
-        f->VertexAttribPointer((GLuint)a, sizes[a], GL_FLOAT, GL_FALSE, BTF_RENDER_VERTEX_FLOATS * sizeof(float),
-                               (const void *)(size_t)(offs[a] * sizeof(float)));
-    }
+    btf_render_mesh_upload(f, m, s->vbo, s->ibo);
     s->n_indices = m->n_indices;
     btf_render_mesh_free(m);
     s->rp = btf_render_defaults(BTF_RENDER_PLANE);

@@ -14,13 +14,33 @@ using namespace OIIO;
 
 static const int kMaxSide = 1 << 15;
 
-extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
+// OpenImageIO's message on one line (its errors may span several).
+static std::string one_line(std::string e)
+{
+    for (char &c : e)
+        if (c == '\n' || c == '\r')
+            c = ' ';
+    while (!e.empty() && e.back() == ' ')
+        e.pop_back();
+    return e;
+}
+
+// Opens path for reading with alpha left unassociated; NULL with err set on failure.
+static std::unique_ptr<ImageInput> open_input(const char *path, btf_error *err)
 {
     ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
     auto in = ImageInput::open(path, &config);
     if (!in)
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, OIIO::geterror().c_str());
+        btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, one_line(OIIO::geterror()).c_str());
+    return in;
+}
+
+extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
+{
+    auto in = open_input(path, err);
+    if (!in)
+        return BTF_ERR_IO;
     const ImageSpec &s = in->spec();
     *w = s.width;
     *h = s.height;
@@ -33,11 +53,9 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
                                         btf_error *err)
 {
     *pixels = nullptr;
-    ImageSpec config;
-    config.attribute("oiio:UnassociatedAlpha", 1);
-    auto in = ImageInput::open(path, &config);
+    auto in = open_input(path, err);
     if (!in)
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, OIIO::geterror().c_str());
+        return BTF_ERR_IO;
     const ImageSpec &s = in->spec();
     if (s.width < 1 || s.height < 1 || s.width > kMaxSide || s.height > kMaxSide || s.nchannels < 1 ||
         s.nchannels > 4 || s.depth != 1)
@@ -48,7 +66,7 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
     if (!buf)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, n);
     if (!in->read_image(0, 0, 0, s.nchannels, TypeDesc::UINT8, buf)) {
-        std::string e = in->geterror();
+        std::string e = one_line(in->geterror());
         free(buf);
         return btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode image (%s)", path, e.c_str());
     }
@@ -76,11 +94,11 @@ extern "C" btf_result btf_image_write(const char *path, int w, int h, int channe
     ImageSpec spec(w, h, channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
     spec.attribute("oiio:UnassociatedAlpha", 1);
     if (!out->open(tmp, spec))
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp.c_str(), out->geterror().c_str());
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp.c_str(), one_line(out->geterror()).c_str());
     bool ok = out->write_image(bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16, pixels);
     ok = out->close() && ok;
     if (!ok) {
-        std::string e = out->geterror();
+        std::string e = one_line(out->geterror());
         std::remove(tmp.c_str());
         return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
     }

@@ -80,37 +80,40 @@ void btf_chart_free(btf_chart *c)
     free(c);
 }
 
-static btf_chart_row *btf__chart_row_add(btf_chart *c, btf_error *err)
+/* One more zeroed element of size `elem` at the end of a growing array; NULL when out of memory. */
+static void *btf__chart_grow(void **items, int *n, int *cap, size_t elem, const char *what, btf_error *err)
 {
-    if (c->n_rows == c->cap_rows) {
-        int cap = c->cap_rows ? 2 * c->cap_rows : 64;
-        btf_chart_row *r = realloc(c->rows, (size_t)cap * sizeof *r);
+    if (*n == *cap) {
+        int c = *cap ? 2 * *cap : 64;
+        void *r = realloc(*items, (size_t)c * elem);
         if (!r) {
-            btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for %d rows", cap);
+            btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for %d %s", c, what);
             return NULL;
         }
-        c->rows = r, c->cap_rows = cap;
+        *items = r, *cap = c;
     }
-    btf_chart_row *r = &c->rows[c->n_rows++];
-    memset(r, 0, sizeof *r);
-    r->shader_ms = NAN;
+    void *e = (char *)*items + (size_t)(*n)++ * elem;
+    memset(e, 0, elem);
+    return e;
+}
+
+static btf_chart_row *btf__chart_row_add(btf_chart *c, btf_error *err)
+{
+    void *items = c->rows;
+    btf_chart_row *r = btf__chart_grow(&items, &c->n_rows, &c->cap_rows, sizeof *r, "rows", err);
+    c->rows = items;
+    if (r)
+        r->shader_ms = NAN;
     return r;
 }
 
 static btf_chart_stream_row *btf__chart_stream_add(btf_chart *c, btf_error *err)
 {
-    if (c->n_stream == c->cap_stream) {
-        int cap = c->cap_stream ? 2 * c->cap_stream : 64;
-        btf_chart_stream_row *r = realloc(c->stream, (size_t)cap * sizeof *r);
-        if (!r) {
-            btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory for %d streaming rows", cap);
-            return NULL;
-        }
-        c->stream = r, c->cap_stream = cap;
-    }
-    btf_chart_stream_row *r = &c->stream[c->n_stream++];
-    memset(r, 0, sizeof *r);
-    r->lab_manifest = NAN;
+    void *items = c->stream;
+    btf_chart_stream_row *r = btf__chart_grow(&items, &c->n_stream, &c->cap_stream, sizeof *r, "streaming rows", err);
+    c->stream = items;
+    if (r)
+        r->lab_manifest = NAN;
     return r;
 }
 

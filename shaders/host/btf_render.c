@@ -310,6 +310,22 @@ void btf_renderer_free(btf_renderer *r)
     free(r);
 }
 
+void btf_render_mesh_upload(const btf_gl_api *f, const btf_render_mesh *m, GLuint vbo, GLuint ibo)
+{
+    f->BindBuffer(GL_ARRAY_BUFFER, vbo);
+    f->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)m->n_vertices * BTF_RENDER_VERTEX_FLOATS * sizeof(float)),
+                  m->vertices, GL_STATIC_DRAW);
+    f->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, ibo);
+    f->BufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)((size_t)m->n_indices * sizeof(unsigned)), m->indices,
+                  GL_STATIC_DRAW);
+    static const int sizes[4] = {3, 3, 4, 2}, offs[4] = {0, 3, 6, 10};
+    for (int a = 0; a < 4; a++) {
+        f->EnableVertexAttribArray((GLuint)a);
+        f->VertexAttribPointer((GLuint)a, sizes[a], GL_FLOAT, GL_FALSE, BTF_RENDER_VERTEX_FLOATS * sizeof(float),
+                               (const void *)(size_t)(offs[a] * sizeof(float)));
+    }
+}
+
 /* Uploads the mesh of geometry g unless it is already in the buffers. */
 static btf_result btf__renderer_mesh(btf_renderer *r, btf_render_geometry g, btf_error *err)
 {
@@ -321,18 +337,7 @@ static btf_result btf__renderer_mesh(btf_renderer *r, btf_render_geometry g, btf
     btf_result res = btf_render_mesh_create(g, 0, &m, err);
     if (res != BTF_OK)
         return res;
-    f->BindBuffer(GL_ARRAY_BUFFER, r->vbo);
-    f->BufferData(GL_ARRAY_BUFFER, (GLsizeiptr)((size_t)m->n_vertices * BTF_RENDER_VERTEX_FLOATS * sizeof(float)),
-                  m->vertices, GL_STATIC_DRAW);
-    f->BindBuffer(GL_ELEMENT_ARRAY_BUFFER, r->ibo);
-    f->BufferData(GL_ELEMENT_ARRAY_BUFFER, (GLsizeiptr)((size_t)m->n_indices * sizeof(unsigned)), m->indices,
-                  GL_STATIC_DRAW);
-    static const int sizes[4] = {3, 3, 4, 2}, offs[4] = {0, 3, 6, 10};
-    for (int a = 0; a < 4; a++) {
-        f->EnableVertexAttribArray((GLuint)a);
-        f->VertexAttribPointer((GLuint)a, sizes[a], GL_FLOAT, GL_FALSE, BTF_RENDER_VERTEX_FLOATS * sizeof(float),
-                               (const void *)(size_t)(offs[a] * sizeof(float)));
-    }
+    btf_render_mesh_upload(f, m, r->vbo, r->ibo);
     r->n_indices = m->n_indices;
     r->mesh_geometry = g;
     btf_render_mesh_free(m);

@@ -106,6 +106,9 @@ typedef struct btf_render_mesh {
 /* segments: subdivisions around (sphere, cylinder) or per side (plane); 0 = default 64. */
 btf_result btf_render_mesh_create(btf_render_geometry g, int segments, btf_render_mesh **out, btf_error *err);
 void btf_render_mesh_free(btf_render_mesh *m);
+/* Uploads m into the bound vertex array: vertices into vbo, indices into ibo, the
+ * four attributes (position, normal, tangent, uv) at locations 0..3. */
+void btf_render_mesh_upload(const btf_gl_api *f, const btf_render_mesh *m, GLuint vbo, GLuint ibo);
 
 /* A package on the GPU plus the compiled `render` program and mesh buffers, ready
  * to draw many frames. Made by btf_renderer_create with a current btf_gl, freed by

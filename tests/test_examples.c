@@ -1,0 +1,140 @@
+/* test_examples.c - suite "examples": the usage examples at the top of the codec's
+ * headers, compiled and run as written there (only paths and inputs are filled in),
+ * so an example that no longer matches the API fails to build. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "btf_base64.h"
+#include "btf_color.h"
+#include "btf_fs.h"
+#include "btf_gen.h"
+#include "btf_lod.h"
+#include "btf_manifest.h"
+#include "btf_package.h"
+#include "test_util.h"
+
+/* A small generated material for the examples. */
+static btf *example_source(void)
+{
+    btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 6, 0.0f}};
+    btf_dirset d;
+    btf_error err = {0};
+    cr_assert_eq(btf_dirset_make(r, 2, &d, &err), BTF_OK, "%s", err.msg);
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
+    btf *src = NULL;
+    cr_assert_eq(btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &src, &err), BTF_OK, "%s", err.msg);
+    return src;
+}
+
+/* codec/btf_package.h and codec/btf_lod.h */
+Test(examples, package_and_lod_headers)
+{
+    char dir[64], wool[128], wool1[128];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(wool1, sizeof wool1, "%s/wool-v1", dir);
+    snprintf(wool, sizeof wool, "%s/wool", dir);
+    btf *src = example_source();
+    btf_error err = {0};
+    float u = 0.3f, v = 0.6f, light_dir[3] = {0.2f, 0.1f, 1.0f}, view_dir[3] = {-0.1f, 0.3f, 1.0f};
+    /* btf_package.h */
+    btf_pca_options po = {0};  po.k = 3; po.components = 8;
+    btf_package_options ko = {0};  ko.bits = 8;
+    if (btf_package_compress(src, &po, &ko, wool1, NULL, &err) != BTF_OK)
+        cr_assert_fail("%s", err.msg);
+    btf_package *p;
+    btf_package_read(wool1, 2, &p, &err);        // first 2 chunks only
+    btf_decode_options d = {0};  d.filter = BTF_FILTER_BILINEAR;
+    float rgb[3];
+    btf_decode(p, u, v, light_dir, view_dir, &d, rgb); // any direction
+    cr_expect(isfinite(rgb[0]) && rgb[1] > 0.0f, "decoded %g %g %g", rgb[0], rgb[1], rgb[2]);
+    cr_expect_eq(p->n_loaded, 2);
+    /* btf_lod.h */
+    btf_lod_options o = {0};  o.levels = 4;
+    cr_assert_eq(btf_lod_build(wool1, wool, &o, NULL, &err), BTF_OK, "%s", err.msg);   // v1 -> v2 with mips
+    btf_lod_view lv = {0};
+    lv.texels_per_pixel = btf_lod_footprint(p->width, 1.0, 300.0); // 300-px thumbnail
+    lv.threshold = BTF_LOD_THRESHOLD;
+    btf_lod_selection s;
+    btf_lod_select(p, &lv, &s, NULL);  // s.limit = chunks to ask the server for
+    cr_expect_eq(s.limit, p->n_chunks, "a version-1 package needs every chunk");
+    btf_package_free(p);
+    btf_free(src);
+    test_rmtree(dir);
+}
+
+/* codec/btf_fs.h */
+Test(examples, fs_header)
+{
+    char dir[64], wool[128], notes[160];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(wool, sizeof wool, "%s/wool", dir);
+    snprintf(notes, sizeof notes, "%s/notes.txt", dir);
+    btf *src = example_source();
+    btf_error err = {0};
+    btf_pca_options po = {0};
+    po.k = 1, po.components = 2;
+    cr_assert_eq(btf_package_compress(src, &po, NULL, wool, NULL, &err), BTF_OK, "%s", err.msg);
+    char path[BTF_FS_PATH_MAX + 32];
+    snprintf(path, sizeof path, "%s/manifest.json", wool);
+    size_t n;
+    char *text;
+    if (btf_fs_read(path, 1 << 20, &text, &n, &err) != BTF_OK)
+        cr_assert_fail("%s", err.msg); // NUL-terminated
+    btf_fs_write_atomic(notes, text, n, &err);  // temp + fsync + rename + fsync dir
+    free(text);
+    cr_expect_eq(btf_fs_size(notes), (long long)n);
+    char tmp[BTF_FS_PATH_MAX];
+    btf_fs_temp_dir(wool, tmp, sizeof tmp, NULL, NULL, &err);   // "lib/wool.tmp-PID", made empty
+    snprintf(path, sizeof path, "%s/manifest.json", tmp);
+    btf_fs_write_atomic(path, "{}", 2, &err);
+    /* the example's is_package: the manifest module's test of what out holds */
+    cr_expect_eq(btf_fs_replace_dir(tmp, wool, btf_manifest_owns_dir, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(btf_fs_size(path), -1, "the temporary is still there");
+    snprintf(path, sizeof path, "%s/manifest.json", wool);
+    cr_expect_eq(btf_fs_size(path), 2, "the package was not swapped for the new tree");
+    btf_free(src);
+    test_rmtree(dir);
+}
+
+/* codec/btf_base64.h, codec/btf_color.h, codec/btf_manifest.h */
+Test(examples, base64_color_manifest_headers)
+{
+    uint8_t bytes[16];
+    for (int i = 0; i < 16; i++)
+        bytes[i] = (uint8_t)(i * 17);
+    char *s = btf_base64_encode(bytes, 16);        // malloc'd, NUL-terminated
+    uint8_t back[16];
+    int ok = btf_base64_decode(s, back, 16);       // 1: exactly 16 bytes decoded
+    free(s);
+    cr_expect(ok && !memcmp(bytes, back, 16));
+
+    float lab[3], rgb[3] = {0.5f, 0.25f, 1.0f};   // sRGB-encoded, 0..1
+    btf_color_srgb_to_lab(rgb, lab);              // D65, L in 0..100
+    double lin = btf_color_srgb_decode(0.5);      // 0.214...
+    cr_expect(fabs(lin - 0.21404) < 1e-4, "%g", lin);
+    cr_expect(lab[0] > 0.0f && lab[0] < 100.0f);
+
+    char dir[64], pkg[128], path[200], *text = NULL;
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(pkg, sizeof pkg, "%s/p", dir);
+    btf *src = example_source();
+    btf_error err = {0};
+    btf_pca_options po = {0};
+    po.k = 1, po.components = 2;
+    cr_assert_eq(btf_package_compress(src, &po, NULL, pkg, NULL, &err), BTF_OK, "%s", err.msg);
+    snprintf(path, sizeof path, "%s/manifest.json", pkg);
+    cr_assert_eq(btf_fs_read(path, BTF_MANIFEST_MAX_BYTES, &text, NULL, &err), BTF_OK);
+    btf_package p = {0};
+    if (btf_manifest_parse(text, path, &p, &err) == BTF_OK) {
+        char *again = btf_manifest_print(&p, &err);   // same manifest, p.version decides
+        cr_expect(again && strstr(again, "\"btf-package\""));
+        free(again);
+    }
+    btf_manifest_clear(&p);
+    free(text);
+    btf_free(src);
+    test_rmtree(dir);
+}
