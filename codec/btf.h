@@ -83,7 +83,7 @@ typedef struct btf_dirset {
 btf_result btf_dirset_make(const btf_ring *rings, int n_rings, btf_dirset *out, btf_error *err);
 /* UBO2003: theta 0..75 step 15, counts 1,6,12,18,20,24, offsets 0 (81 dirs). */
 btf_dirset btf_dirset_ubo2003(void);
-/* UBO2014 dome: 151 directions on 10 rings (formats.md section 2.8). */
+/* UBO2014 dome: 151 directions on 10 rings (doc/input-formats.md section 2.8). */
 btf_dirset btf_dirset_dome151(void);
 /* Reads {"rings":[{"theta":deg,"count":n,"phi_offset":deg},...]} (cJSON). */
 btf_result btf_dirset_load_json(const char *path, btf_dirset *out, btf_error *err);

@@ -1,4 +1,4 @@
-/* btf_dfmf.c - UBO2014 DFMF08FC `.btf` reader and writer (formats.md section 2).
+/* btf_dfmf.c - UBO2014 DFMF08FC `.btf` reader and writer (doc/input-formats.md section 2).
  *
  * Reader: signature "!DFMF08FC" optionally followed by "R" (rotations stored;
  * a 10th byte 'R' is taken as that flag), header versions 1..4, direction lists
@@ -399,6 +399,8 @@ static btf_result read_channel(dfmf_reader *r, const dfmf_header *h, int c, dfmf
     if (rows != want_rows || cols != want_cols)
         return btf_fail(r->err, BTF_ERR_FORMAT, "%s: channel %d is %u x %u, expected %llu x %llu", r->path, c, rows,
                         cols, (unsigned long long)want_rows, (unsigned long long)want_cols);
+    if (k == 0)
+        return btf_fail(r->err, BTF_ERR_FORMAT, "%s: channel %d has 0 components (at least 1 needed)", r->path, c);
     if (k > h->n_components)
         return btf_fail(r->err, BTF_ERR_RANGE, "%s: channel %d has %u components, header says at most %u", r->path,
                         c, k, h->n_components);
@@ -509,6 +511,24 @@ static btf_result read_header(dfmf_reader *r, dfmf_header *h, btf_dirset *views,
     return res;
 }
 
+#define BTF_DFMF_MAX_EXPANSION 65536 /* decoded bytes per file byte, at most */
+
+/* The decoded BTF may be at most BTF_DFMF_MAX_EXPANSION times the file's size (a
+ * rank-k factorisation expands by about rows*cols / (k*(rows+cols))): a small file
+ * cannot make the loader allocate gigabytes. */
+static btf_result check_expansion(const dfmf_reader *r, const dfmf_header *h, btf_storage st)
+{
+    double samples = (double)h->n_views * h->n_lights * h->width * h->height * 3.0;
+    double bytes = samples * (st == BTF_U8 ? 1.0 : 4.0), limit = (double)r->size * BTF_DFMF_MAX_EXPANSION;
+    if (bytes > limit)
+        return btf_fail(r->err, BTF_ERR_RANGE,
+                        "%s: %u x %u texels x %u x %u directions would decode to %.0f MB from a %llu-byte file "
+                        "(more than %d times its size)",
+                        r->path, h->width, h->height, h->n_views, h->n_lights, bytes / 1e6,
+                        (unsigned long long)r->size, BTF_DFMF_MAX_EXPANSION);
+    return BTF_OK;
+}
+
 static btf_result load_open(dfmf_reader *r, const btf_load_options *o, btf **out)
 {
     dfmf_header *h = calloc(1, sizeof *h);
@@ -523,6 +543,8 @@ static btf_result load_open(dfmf_reader *r, const btf_load_options *o, btf **out
         res = btf_fail(r->err, BTF_ERR_FORMAT, "%s: %llu trailing bytes after the last channel (offset %llu)",
                        r->path, (unsigned long long)(r->size - r->pos), (unsigned long long)r->pos);
     btf_storage st = o->storage == BTF_U8 ? BTF_U8 : BTF_F32;
+    if (res == BTF_OK)
+        res = check_expansion(r, h, st);
     if (res == BTF_OK)
         res = btf_create((int)h->width, (int)h->height, &lights, &views, st, out, r->err);
     if (res == BTF_OK)

@@ -6,6 +6,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <unistd.h>
@@ -62,6 +63,10 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
         return btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d)", path, s.width, s.height,
                         s.nchannels, s.depth);
     size_t n = (size_t)s.width * (size_t)s.height * (size_t)s.nchannels;
+    long long file = btf_fs_size(path);
+    if (!strcmp(in->format_name(), "png") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: a %lld-byte PNG cannot hold %dx%dx%d pixels (deflate expands at most %dx)",
+                        path, file, s.width, s.height, s.nchannels, BTF_IMAGE_MAX_PNG_RATIO);
     uint8_t *buf = (uint8_t *)malloc(n);
     if (!buf)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, n);

@@ -19,7 +19,12 @@
 extern "C" {
 #endif
 
-/* Reads an image; *pixels is malloc'd (w*h*ch bytes), caller frees. */
+/* Decoded bytes per PNG file byte, at most: deflate cannot expand further (about
+ * 1032:1), so a PNG whose header claims more pixels is refused before allocating. */
+#define BTF_IMAGE_MAX_PNG_RATIO 1100
+
+/* Reads an image; *pixels is malloc'd (w*h*ch bytes), caller frees. A PNG whose
+ * header claims more than BTF_IMAGE_MAX_PNG_RATIO bytes per file byte is refused. */
 btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels, btf_error *err);
 /* Reads only the header: size and channel count. */
 btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err);

@@ -25,18 +25,18 @@ typedef struct btf_load_options {
     const btf_dirset *sampling; /* expected direction set; NULL = UBO2003 */
 } btf_load_options;
 
-/* UBO2003 image directory (formats.md section 1): files named ..._tlTTT_plPPP_tvTTT_pvPPP.{jpg,png}
+/* UBO2003 image directory (doc/input-formats.md section 1): files named ..._tlTTT_plPPP_tvTTT_pvPPP.{jpg,png}
  * or "tvTTT_pvPPP/NNNNN tlTTT plPPP tvTTT pvPPP.jpg"; every (light, view) image exactly once. */
 btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, btf **out, btf_error *err);
 /* Writes one PNG (or .jpg, by ext) per (light, view) pair, flat layout, name prefix given. */
 btf_result btf_save_ubo2003_dir(const btf *b, const char *dir, const char *prefix, const char *ext,
                                 btf_error *err);
 
-/* The thesis's published package (formats.md section 3): full reconstruction.
+/* The thesis's published package (doc/input-formats.md section 3): full reconstruction.
  * opt->width/height choose the output size (box filter for divisors of 256, area-weighted otherwise). */
 btf_result btf_import_thesis(const char *dir, const btf_load_options *opt, btf **out, btf_error *err);
 
-/* UBO2014 DFMF08FC `.btf` file (formats.md section 2): decoded to float RGB. */
+/* UBO2014 DFMF08FC `.btf` file (doc/input-formats.md section 2): decoded to float RGB. */
 btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **out, btf_error *err);
 /* Writes b as a DFMF08FC file with `components` factors per channel (RGB colour model,
  * float32 scalars); components = 0 means full rank (exact up to float rounding). */

@@ -1,9 +1,11 @@
-/* btf_pca.h - k-view block PCA of a BTF (thesis, seed 003, chapter 4).
+/* btf_pca.h - k-view block PCA of a BTF (the 2015 thesis on streaming BTFs, chapter 4).
  *
  *     btf_pca_options o = {0};   // zero = defaults: k 3, C 8, auto method, no centring
  *     o.k = 3; o.components = 8;
  *     btf_pca_model *m;
- *     if (btf_pca_compress(src, &o, &m, &err) == BTF_OK) {
+ *     btf_error err;
+ *     // src: const btf *; no per-block callback (fn = NULL, ctx = NULL)
+ *     if (btf_pca_compress(src, &o, NULL, NULL, &m, &err) == BTF_OK) {
  *         float r = btf_pca_model_value(m, view, light, x, y, 0, m->n_comp);
  *         btf_pca_model_free(m);
  *     }

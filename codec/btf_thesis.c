@@ -1,5 +1,5 @@
 /* btf_thesis.c - reader, writer and decoder of the thesis's package format
- * (formats.md section 3); btf_import_thesis of btf_io.h. See btf_thesis.h. */
+ * (doc/input-formats.md section 3); btf_import_thesis of btf_io.h. See btf_thesis.h. */
 #include "btf_thesis.h"
 
 #include <cJSON.h>
@@ -100,8 +100,9 @@ btf_result btf_thesis_alloc(int C, int N, int k, int S, btf_thesis_pkg *p, btf_e
     p->V = calloc(v_count(p), sizeof(float));
     p->sigma = calloc((size_t)p->nb * C, sizeof(float));
     if (!p->L || !p->V || !p->sigma) {
+        size_t want = l_count(p) + v_count(p) + (size_t)p->nb * C; /* before the free clears the sizes */
         btf_thesis_free(p);
-        return btf_fail(err, BTF_ERR_NOMEM, "thesis package: cannot allocate %zu floats", l_count(p));
+        return btf_fail(err, BTF_ERR_NOMEM, "thesis package: cannot allocate %zu floats", want);
     }
     return BTF_OK;
 }
@@ -248,6 +249,32 @@ static btf_result read_weights(const char *dir, btf_thesis_pkg *p, btf_error *er
     return BTF_OK;
 }
 
+/* Every image the meta.json announces exists with the announced size in its header,
+ * and its file is large enough to hold that many pixels (BTF_IMAGE_MAX_PNG_RATIO). */
+static btf_result check_parts(const char *dir, const btf_thesis_pkg *m, btf_error *err)
+{
+    char path[PATH_MAX_LEN];
+    for (int j = PART_R; j < m->C; j++) {
+        if (j == PART_META)
+            continue;
+        int want_w = j == PART_R ? m->r_size : m->S / 2, want_h = j == PART_R ? m->r_size : (m->S / 2) * m->nb, w, h, ch;
+        if (part_path(path, dir, j))
+            return btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir);
+        long long bytes = btf_fs_size(path);
+        if (bytes < 0)
+            return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
+        btf_result r = btf_image_info(path, &w, &h, &ch, err);
+        if (r != BTF_OK)
+            return r;
+        if (w != want_w || h != want_h || ch != 4)
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: is %dx%d with %d channels, expected %dx%d RGBA", path, w, h, ch,
+                            want_w, want_h);
+        if ((double)w * h * 4.0 > (double)bytes * BTF_IMAGE_MAX_PNG_RATIO)
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes cannot hold %dx%d RGBA pixels", path, bytes, w, h);
+    }
+    return BTF_OK;
+}
+
 btf_result btf_thesis_read(const char *dir, btf_thesis_pkg *p, btf_error *err)
 {
     if (!dir || !p)
@@ -255,6 +282,8 @@ btf_result btf_thesis_read(const char *dir, btf_thesis_pkg *p, btf_error *err)
     memset(p, 0, sizeof *p);
     btf_thesis_pkg m = {0};
     btf_result r = read_meta(dir, &m, err);
+    if (r == BTF_OK)
+        r = check_parts(dir, &m, err); /* before the header's sizes are allocated */
     if (r != BTF_OK)
         return r;
     if ((r = btf_thesis_alloc(m.C, m.N, m.k, m.S, p, err)) != BTF_OK)

@@ -1,4 +1,4 @@
-/* btf_thesis.h - the 2015 thesis's published package format (formats.md section 3).
+/* btf_thesis.h - the 2015 thesis's published package format (doc/input-formats.md section 3).
  *
  *     btf_thesis_pkg p = {0};
  *     btf_error err;

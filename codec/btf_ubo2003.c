@@ -1,4 +1,4 @@
-/* btf_ubo2003.c - UBO2003 image directories (formats.md section 1): loader, writer, btf_load_any.
+/* btf_ubo2003.c - UBO2003 image directories (doc/input-formats.md section 1): loader, writer, btf_load_any.
  *
  * Loader: scans DIR (flat files and one level of "tvTTT_pvPPP" folders), takes the
  * angles from the last 23 characters of each image stem ("tlTTT_plPPP_tvTTT_pvPPP",
@@ -9,7 +9,7 @@
  * Files whose names carry no angles (including a writer's "*.tmp-PID.png") are ignored.
  *
  * Writer: "<prefix>_<NNNNN>_tlTTT_plPPP_tvTTT_pvPPP.<ext>" with NNNNN = light * n_views + view,
- * the numbering of the published UBO2003 files (formats.md: "..._00084_tl015_pl000_tv015_pv120"
+ * the numbering of the published UBO2003 files (doc/input-formats.md: "..._00084_tl015_pl000_tv015_pv120"
  * is light 1, view 3); the loader never relies on the number.
  */
 #include "btf_image.h"

@@ -1,4 +1,4 @@
-/* btf_export.h - export of a BTF into the thesis's package format (formats.md
+/* btf_export.h - export of a BTF into the thesis's package format (doc/input-formats.md
  * section 3), the baseline the project's own package is compared with.
  *
  *     btf_export_options o = {0};  o.k = 3; o.components = 8;   // zero = 3, 8, thesis scaling

@@ -1,5 +1,5 @@
 /* btf_export_thesis.c - the project's PCA written in the thesis's package format
- * (formats.md section 3). See btf_export.h. */
+ * (doc/input-formats.md section 3). See btf_export.h. */
 #include "btf_export.h"
 
 #include "btf_fs.h"

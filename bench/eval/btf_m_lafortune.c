@@ -1,4 +1,4 @@
-/* btf_m_lafortune.c - "lafortune": per texel (seed 004 section 3.1, McAllister)
+/* btf_m_lafortune.c - "lafortune": per texel (McAllister's Lafortune fitting)
  *     linear = a + max(l.z,0) (d + sum_i s_i f_i),  f_i = (n_i+2)/2 max(b_i, 0)^n_i,
  *     b_i = cxy_i (lx vx + ly vy) + lz vz,
  * a, d, s_i per colour channel (>= 0), lobe shapes (cxy_i in [-1, 1], n_i in [1, 256])

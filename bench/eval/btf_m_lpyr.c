@@ -1,4 +1,4 @@
-/* btf_m_lpyr.c - "lpyr": Laplacian-pyramid PCA (seed 000).
+/* btf_m_lpyr.c - "lpyr": Laplacian-pyramid PCA (Ma et al.'s Laplacian-pyramid BTF compression).
  *
  * Every (view, light) image F_0 is reduced to F_{i+1} = 2x2 box average of F_i
  * (edge texels repeated for odd sizes); level i < top holds the Laplacian

@@ -1,4 +1,4 @@
-/* btf_method.h - method families side by side (issue 7): one small interface that
+/* btf_method.h - method families side by side: one small interface that
  * every compression method implements, and a registry of method settings a chart
  * or a test can iterate over.
  *
@@ -17,8 +17,8 @@
  * - "phong": lit texture, per texel ambient + Lambert + one normalised Blinn-Phong
  *   lobe; non-negative linear least squares per exponent of a fixed grid, best kept
  *   (the thesis section 6.3 "flat" baseline).
- * - "lafortune": per texel ambient + diffuse + 1-2 Lafortune lobes (seed 004 section
- *   3.1); lobe shapes by Levenberg-Marquardt (GSL) on luminance with bounded
+ * - "lafortune": per texel ambient + diffuse + 1-2 Lafortune lobes (McAllister's
+ *   Lafortune fitting); lobe shapes by Levenberg-Marquardt (GSL) on luminance with bounded
  *   parameters, colours by non-negative least squares. A fit that fails (solver error),
  *   produces a non-finite value, peaks out of bounds or is worse than its grid start
  *   falls back to the
@@ -26,8 +26,9 @@
  *   iteration cap is validated the same way (counted in btf_model.n_unconverged).
  * - "pca": the project's k-view block PCA (btf_pca.h), float model; "pca-q": the same
  *   written as a package (btf_package.h, 8-bit) and read back.
- * - "lpyr": Laplacian-pyramid PCA (seed 000): per level, PCA of the Laplacian
- *   coefficients over k-view blocks; decoding may stop after the coarsest levels.
+ * - "lpyr": Laplacian-pyramid PCA (Ma et al.'s Laplacian-pyramid BTF compression):
+ *   per level, PCA of the Laplacian coefficients over k-view blocks; decoding may
+ *   stop after the coarsest levels.
  *
  * Conventions: sample values are on the byte/255 scale of btf_get (sRGB-encoded).
  * The analytic methods (phong, lafortune) fit in linear light (sRGB decoded) and

@@ -11,7 +11,7 @@
  *
  * Details (what a user of the ground truth may rely on):
  * - Frame: local directions with z = surface normal, x = +column, y = towards
- *   image row 0 (formats.md section 1). The pattern is defined on the unit square
+ *   image row 0 (doc/input-formats.md section 1). The pattern is defined on the unit square
  *   and tiles (texel x wraps modulo w), so a 256x256 material looks like a 64x64
  *   one at 4x the resolution; height_scale is in texels of a 64x64 material and
  *   scales with sqrt(w*h)/64.
