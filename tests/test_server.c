@@ -13,7 +13,7 @@
  * when BTF_BUILD is set (by the Makefile) a missing binary is a failure.
  */
 #include <criterion/criterion.h>
-#include <cJSON.h>
+#include <cjson/cJSON.h>
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <math.h>
