@@ -1,7 +1,7 @@
 /* cmd_chart.c - `btf chart MATERIAL...`: every method setting on every material,
  * CSV files and gnuplot charts (bench/eval/btf_chart.h).
  *
- *     btf chart gen:knit:64 gen:stone:64 ../shared/data/thesis-ubo2003/wool --size 64 --out doc
+ *     btf chart gen:knit:64 gen:stone:64 wool/ --size 64 --out doc/figures   # wool/: a thesis package
  *     btf chart gen:tiles:16 --quick --no-shader --out /tmp/c
  */
 #include "btf_chart.h"

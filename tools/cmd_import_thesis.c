@@ -3,7 +3,7 @@
  * (btf_import_thesis) and writes it as a UBO2003-named image directory, or as a
  * DFMF08FC file when OUT ends in `.btf` (full rank).
  *
- *     btf import-thesis ../shared/data/thesis-ubo2003/wool out/wool64 --size 64
+ *     btf import-thesis wool/ out/wool64 --size 64    # wool/: a thesis package (meta.json, j.png, R.png)
  */
 #include "btf_args.h"
 #include "btf_cli.h"
