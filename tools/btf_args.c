@@ -2,6 +2,7 @@
 #include "btf_args.h"
 
 #include <errno.h>
+#include <getopt.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
@@ -69,6 +70,19 @@ int btf_args_enum(const btf_args *a, const char *val, const char *const *names, 
     return btf_args_bad(a, val, "%s", list);
 }
 
+int btf_args_pca(const btf_args *a, int c, const char *val, const btf_args_pca_dst *d)
+{
+    static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
+    int e = 0, rc = 1;
+    switch (c) {
+    case 'k': rc = btf_args_int(a, val, 1, BTF_MAX_DIRS, d->k); break;
+    case 'C': rc = btf_args_int(a, val, 1, d->max_components, d->components); break;
+    case 'm': rc = btf_args_enum(a, val, methods, 4, &e), *d->method = (btf_pca_method)e; break;
+    case 'd': rc = btf_args_int(a, val, 1, 256, d->downsample); break;
+    }
+    return rc;
+}
+
 /* getopt_long's complaint ('?' or ':') about argv[optind-1] as our message; returns 2. */
 static int btf__args_complaint(const btf_args *a, int c, char **argv)
 {
@@ -97,14 +111,34 @@ static int btf__args_pos(btf_args *a, const char *val, btf_args_fn fn, void *ctx
     return rc;
 }
 
+/* getopt_long's table from spec->opts; the names point into names (a copy). */
+static void btf__args_table(const char *spec, char *names, size_t n, struct option *t)
+{
+    snprintf(names, n, "%s", spec);
+    int k = 0;
+    t[k++] = (struct option){"help", no_argument, NULL, 'h'};
+    char *save = NULL;
+    for (char *s = strtok_r(names, " ", &save); s && k < BTF_ARGS_MAX; s = strtok_r(NULL, " ", &save)) {
+        size_t len = strcspn(s, ":!");
+        if (!s[len] || !s[len + 1])
+            continue; /* malformed entry: no code */
+        t[k++] = (struct option){s, s[len] == ':' ? required_argument : no_argument, NULL, s[len + 1]};
+        s[len] = '\0';
+    }
+    t[k] = (struct option){NULL, 0, NULL, 0};
+}
+
 int btf_args_parse(const btf_args_spec *spec, int argc, char **argv, btf_args_fn fn, void *ctx)
 {
     btf_args a = {spec, "", 0};
+    struct option opts[BTF_ARGS_MAX + 1];
+    char names[1024];
+    btf__args_table(spec->opts, names, sizeof names, opts);
     int c, li, rc = 0;
     optind = 0; /* GNU: re-initialise (commands run one after another in one process) */
     opterr = 0;
     /* "-": positionals come back in order as code 1; ":": a missing value is ':' */
-    while (rc == 0 && (li = -1, c = getopt_long(argc, argv, "-:h", spec->opts, &li)) != -1) {
+    while (rc == 0 && (li = -1, c = getopt_long(argc, argv, "-:h", opts, &li)) != -1) {
         if (c == 'h') {
             spec->usage(stdout);
             return -1;
@@ -115,7 +149,7 @@ int btf_args_parse(const btf_args_spec *spec, int argc, char **argv, btf_args_fn
             rc = btf__args_pos(&a, optarg, fn, ctx);
             continue;
         }
-        snprintf(a.opt, sizeof a.opt, "--%s", li >= 0 ? spec->opts[li].name : "?");
+        snprintf(a.opt, sizeof a.opt, "--%s", li >= 0 ? opts[li].name : "?");
         rc = fn(ctx, &a, c, optarg);
     }
     for (int i = optind; rc == 0 && i < argc; i++) /* after "--" */

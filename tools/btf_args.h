@@ -2,8 +2,7 @@
  * over argv (so `--k 3` and `--k=3` both work, positionals anywhere), option
  * value checks, and the one form of their error messages.
  *
- *     static const struct option opts[] = {BTF_ARGS_HELP, {"k", required_argument, NULL, 'k'}, {0}};
- *     static const btf_args_spec spec = {"compress", opts, compress_usage, 2};
+ *     static const btf_args_spec spec = {"compress", "k:k components:C quiet!q", compress_usage, 2};
  *     int rc = btf_args_parse(&spec, argc, argv, compress_option, &o);
  *
  * Exit codes of every command (tools/btf_cli.h): 0 ok, 1 failure, 2 usage error.
@@ -11,20 +10,22 @@
 #ifndef BTF_ARGS_H
 #define BTF_ARGS_H
 
-#include <getopt.h>
+#include "btf_pca.h"
+
 #include <stdio.h>
 
 /* Option code of a positional argument (val = the argument). */
 #define BTF_ARG_POS 1
-/* The --help / -h entry every option table starts with. */
-#define BTF_ARGS_HELP {"help", no_argument, NULL, 'h'}
+/* Most options one command may have (--help included). */
+#define BTF_ARGS_MAX 32
 
 /* One command's options; static const value in its cmd_NAME.c. */
 typedef struct btf_args_spec {
-    const char *cmd;             /* "compress": messages read "btf compress: ..." */
-    const struct option *opts;   /* getopt_long table, {0}-terminated, BTF_ARGS_HELP included */
-    void (*usage)(FILE *f);      /* the command's --help text */
-    int n_pos;                   /* positionals wanted, exactly; -1: any number */
+    const char *cmd;        /* "compress": messages read "btf compress: ..." */
+    const char *opts;       /* space-separated "NAME:C" (takes a value) or "NAME!C" (a flag), C the
+                             * code passed to the callback; -h and --help are always there */
+    void (*usage)(FILE *f); /* the command's --help text */
+    int n_pos;              /* positionals wanted, exactly; -1: any number */
 } btf_args_spec;
 
 /* Where the parse is; stack value of btf_args_parse, valid during a callback. */
@@ -50,6 +51,16 @@ int btf_args_bad(const btf_args *a, const char *val, const char *what, ...) __at
 int btf_args_int(const btf_args *a, const char *val, long lo, long hi, int *v);
 /* Index of val in names[0..n-1] into *v: 0, or 2 after btf_args_bad listing the names. */
 int btf_args_enum(const btf_args *a, const char *val, const char *const *names, int n, int *v);
+/* Where btf_args_pca stores; stack value of the caller, pointing into its option struct. */
+typedef struct btf_args_pca_dst {
+    int *k, *components, *downsample;
+    btf_pca_method *method;
+    int max_components;
+} btf_args_pca_dst;
+/* The PCA options of compress and export-thesis: codes k (--k 1..BTF_MAX_DIRS), C
+ * (--components 1..max_components), m (--method auto|gram|randomized|svd), d
+ * (--downsample 1..256). 0 ok, 2 usage error, 1 when c is none of them. */
+int btf_args_pca(const btf_args *a, int c, const char *val, const btf_args_pca_dst *d);
 /* The exit-code lines every --help ends with. */
 void btf_args_exit_codes(FILE *f);
 

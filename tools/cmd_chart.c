@@ -76,15 +76,10 @@ static int chart_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error, -1 help printed. */
 static int chart_parse(int argc, char **argv, chart_opts *c)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"out", required_argument, NULL, 'o'},     {"size", required_argument, NULL, 's'},
-        {"stream-size", required_argument, NULL, 'S'}, {"threads", required_argument, NULL, 't'},
-        {"quick", no_argument, NULL, 'q'},         {"no-shader", no_argument, NULL, 'G'},
-        {"no-stream", no_argument, NULL, 'T'},     {"no-plot", no_argument, NULL, 'P'},
-        {"plot-only", no_argument, NULL, 'p'},     {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"chart", opts, chart_usage, -1};
+    static const btf_args_spec spec = {"chart",
+                                       "out:o size:s stream-size:S threads:t "
+                                       "quick!q no-shader!G no-stream!T no-plot!P plot-only!p",
+                                       chart_usage, -1};
     memset(c, 0, sizeof *c);
     c->out = ".";
     c->o.shader = 1;

@@ -59,29 +59,30 @@ static void compress_usage(FILE *f)
     btf_args_exit_codes(f);
 }
 
+static const btf_args_spec compress_spec = {
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n quiet!q json!j",
+    compress_usage, 2};
+
 /* One option or positional of `btf compress` (btf_args_fn). */
 static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
 {
     static const char *const groupings[] = {"consecutive", "spatial"};
     static const char *const centers[] = {"none", "row"};
-    static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
     compress_opts *o = ctx;
+    btf_args_pca_dst pca = {&o->pca.k, &o->pca.components, &o->downsample, &o->pca.method, BTF_PACKAGE_MAX_CHUNKS};
     int e = 0, rc = 0;
     switch (c) {
     case BTF_ARG_POS: *(a->npos ? &o->out : &o->in) = v; break;
-    case 'k': rc = btf_args_int(a, v, 1, BTF_MAX_DIRS, &o->pca.k); break;
-    case 'C': rc = btf_args_int(a, v, 1, BTF_PACKAGE_MAX_CHUNKS, &o->pca.components); break;
     case 'b':
         rc = btf_arg_int(v, 8, 16, &o->pkg.bits) && o->pkg.bits % 8 == 0 ? 0 : btf_args_bad(a, v, "8 or 16");
         break;
     case 'g': rc = btf_args_enum(a, v, groupings, 2, &e), o->pca.grouping = (btf_grouping)(e + 1); break;
     case 'c': rc = btf_args_enum(a, v, centers, 2, &e), o->pca.center = (btf_center)(e + 1); break;
-    case 'm': rc = btf_args_enum(a, v, methods, 4, &e), o->pca.method = (btf_pca_method)e; break;
-    case 'd': rc = btf_args_int(a, v, 1, 256, &o->downsample); break;
     case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels); break;
     case 'n': o->name = v; break;
     case 'q': o->quiet = 1; break;
     case 'j': o->json = 1; break;
+    default: rc = btf_args_pca(a, c, v, &pca);
     }
     return rc;
 }
@@ -89,19 +90,9 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int compress_parse(int argc, char **argv, compress_opts *o)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"k", required_argument, NULL, 'k'},        {"components", required_argument, NULL, 'C'},
-        {"bits", required_argument, NULL, 'b'},     {"grouping", required_argument, NULL, 'g'},
-        {"center", required_argument, NULL, 'c'},   {"method", required_argument, NULL, 'm'},
-        {"downsample", required_argument, NULL, 'd'}, {"levels", required_argument, NULL, 'l'},
-        {"name", required_argument, NULL, 'n'},     {"quiet", no_argument, NULL, 'q'},
-        {"json", no_argument, NULL, 'j'},           {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"compress", opts, compress_usage, 2};
     memset(o, 0, sizeof *o);
     o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8;
-    int rc = btf_args_parse(&spec, argc, argv, compress_option, o);
+    int rc = btf_args_parse(&compress_spec, argc, argv, compress_option, o);
     o->pkg.name = o->name;
     return rc;
 }

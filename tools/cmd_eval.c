@@ -78,13 +78,7 @@ static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error, -1 help printed. */
 static int eval_parse(int argc, char **argv, eval_opts *o)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"pairs", required_argument, NULL, 'p'}, {"downsample", required_argument, NULL, 'd'},
-        {"csv", no_argument, NULL, 'c'},         {"json", no_argument, NULL, 'j'},
-        {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"eval", opts, eval_usage, 2};
+    static const btf_args_spec spec = {"eval", "pairs:p downsample:d csv!c json!j", eval_usage, 2};
     memset(o, 0, sizeof *o);
     o->pairs = "all";
     int rc = btf_args_parse(&spec, argc, argv, eval_option, o);

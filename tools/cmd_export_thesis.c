@@ -45,22 +45,24 @@ static void export_usage(FILE *f)
     btf_args_exit_codes(f);
 }
 
+static const btf_args_spec export_spec = {
+    "export-thesis", "k:k components:C method:m downsample:d scale:s quiet!q eval!e", export_usage, 2};
+
 /* One option or positional of `btf export-thesis` (btf_args_fn). */
 static int export_option(void *ctx, const btf_args *a, int c, const char *v)
 {
     static const char *const scales[] = {"thesis", "fit"};
-    static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
     export_opts *o = ctx;
     int e = 0, rc = 0;
-    switch (c) {
-    case BTF_ARG_POS: *(a->npos ? &o->out : &o->in) = v; break;
-    case 'k': rc = btf_args_int(a, v, 1, BTF_MAX_DIRS, &o->ex.k); break;
-    case 'C': rc = btf_args_int(a, v, 1, BTF_THESIS_MAX_C, &o->ex.components); break;
-    case 's': rc = btf_args_enum(a, v, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1); break;
-    case 'm': rc = btf_args_enum(a, v, methods, 4, &e), o->ex.method = (btf_pca_method)e; break;
-    case 'd': rc = btf_args_int(a, v, 1, 256, &o->downsample); break;
-    case 'q': o->quiet = 1; break;
-    case 'e': o->eval = 1; break;
+    if (c == BTF_ARG_POS) {
+        *(a->npos ? &o->out : &o->in) = v;
+    } else if (c == 's') {
+        rc = btf_args_enum(a, v, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
+    } else if (c == 'q' || c == 'e') {
+        *(c == 'q' ? &o->quiet : &o->eval) = 1;
+    } else {
+        btf_args_pca_dst pca = {&o->ex.k, &o->ex.components, &o->downsample, &o->ex.method, BTF_THESIS_MAX_C};
+        rc = btf_args_pca(a, c, v, &pca);
     }
     return rc;
 }
@@ -68,17 +70,9 @@ static int export_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int export_parse(int argc, char **argv, export_opts *o)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"k", required_argument, NULL, 'k'},      {"components", required_argument, NULL, 'C'},
-        {"scale", required_argument, NULL, 's'},  {"method", required_argument, NULL, 'm'},
-        {"downsample", required_argument, NULL, 'd'}, {"quiet", no_argument, NULL, 'q'},
-        {"eval", no_argument, NULL, 'e'},         {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"export-thesis", opts, export_usage, 2};
     memset(o, 0, sizeof *o);
     o->ex.k = 3, o->ex.components = 8;
-    return btf_args_parse(&spec, argc, argv, export_option, o);
+    return btf_args_parse(&export_spec, argc, argv, export_option, o);
 }
 
 /* Reads OUT back (unclamped float decode) and prints its error against src; 0 ok, 1 failure. */

@@ -85,13 +85,7 @@ static int gen_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error, -1 help printed. */
 static int gen_parse(int argc, char **argv, gen_opts *o)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"size", required_argument, NULL, 'n'},       {"seed", required_argument, NULL, 'r'},
-        {"sampling", required_argument, NULL, 's'},   {"components", required_argument, NULL, 'C'},
-        {"format", required_argument, NULL, 'f'},     {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"gen", opts, gen_usage, 2};
+    static const btf_args_spec spec = {"gen", "size:n seed:r sampling:s components:C format:f", gen_usage, 2};
     memset(o, 0, sizeof *o);
     o->kind = -1, o->size = 256, o->seed = 1u, o->sampling = "ubo2003";
     int rc = btf_args_parse(&spec, argc, argv, gen_option, o);

@@ -50,13 +50,7 @@ static int import_thesis_option(void *ctx, const btf_args *a, int c, const char 
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int import_thesis_parse(int argc, char **argv, import_thesis_opts *o)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"size", required_argument, NULL, 's'},
-        {"ext", required_argument, NULL, 'e'},
-        {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"import-thesis", opts, import_thesis_usage, 2};
+    static const btf_args_spec spec = {"import-thesis", "size:s ext:e", import_thesis_usage, 2};
     memset(o, 0, sizeof *o);
     o->ext = "png";
     return btf_args_parse(&spec, argc, argv, import_thesis_option, o);

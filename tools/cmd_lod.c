@@ -62,13 +62,7 @@ static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int lod_parse(int argc, char **argv, lod_opts *o)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"levels", required_argument, NULL, 'l'}, {"threshold", required_argument, NULL, 't'},
-        {"quiet", no_argument, NULL, 'q'},        {"json", no_argument, NULL, 'j'},
-        {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"lod", opts, lod_usage, 2};
+    static const btf_args_spec spec = {"lod", "levels:l threshold:t quiet!q json!j", lod_usage, 2};
     memset(o, 0, sizeof *o);
     return btf_args_parse(&spec, argc, argv, lod_option, o);
 }

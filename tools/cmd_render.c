@@ -147,16 +147,10 @@ static int render_geometry(void *ctx, const btf_args *a, int c, const char *val)
  * defaults the other options then change). */
 static int render_parse(int argc, char **argv, render_opts *o)
 {
-    static const struct option opts[] = {
-        BTF_ARGS_HELP,
-        {"chunks", required_argument, NULL, 'n'},     {"geometry", required_argument, NULL, 'g'},
-        {"size", required_argument, NULL, 's'},       {"camera", required_argument, NULL, 'c'},
-        {"light", required_argument, NULL, 'l'},      {"fov", required_argument, NULL, 'F'},
-        {"repeat", required_argument, NULL, 'r'},     {"filter", required_argument, NULL, 'f'},
-        {"backend", required_argument, NULL, 'b'},    {"background", required_argument, NULL, 'B'},
-        {"no-horizon-fade", no_argument, NULL, 'H'},  {NULL, 0, NULL, 0},
-    };
-    static const btf_args_spec spec = {"render", opts, render_usage, 2};
+    static const btf_args_spec spec = {"render",
+                                       "chunks:n geometry:g size:s camera:c light:l "
+                                       "fov:F repeat:r filter:f backend:b background:B no-horizon-fade!H",
+                                       render_usage, 2};
     memset(o, 0, sizeof *o);
     btf_render_geometry g = BTF_RENDER_PLANE;
     int rc = btf_args_parse(&spec, argc, argv, render_geometry, &g);
