@@ -73,7 +73,7 @@ int btf_args_enum(const btf_args *a, const char *val, const char *const *names, 
 int btf_args_pca(const btf_args *a, int c, const char *val, const btf_args_pca_dst *d)
 {
     static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
-    int e = 0, rc = 1;
+    int e = 0, rc = 0;
     switch (c) {
     case 'k': rc = btf_args_int(a, val, 1, BTF_MAX_DIRS, d->k); break;
     case 'C': rc = btf_args_int(a, val, 1, d->max_components, d->components); break;

@@ -59,7 +59,7 @@ typedef struct btf_args_pca_dst {
 } btf_args_pca_dst;
 /* The PCA options of compress and export-thesis: codes k (--k 1..BTF_MAX_DIRS), C
  * (--components 1..max_components), m (--method auto|gram|randomized|svd), d
- * (--downsample 1..256). 0 ok, 2 usage error, 1 when c is none of them. */
+ * (--downsample 1..256); other codes are ignored. 0 ok, 2 usage error. */
 int btf_args_pca(const btf_args *a, int c, const char *val, const btf_args_pca_dst *d);
 /* The exit-code lines every --help ends with. */
 void btf_args_exit_codes(FILE *f);
