@@ -629,6 +629,8 @@ btf_result btf_pca_compress(const btf *src, const btf_pca_options *opt, btf_pca_
                                       o.center, &m->block[b], err);
         if (r == BTF_OK && fn)
             r = fn(ctx, b, A, &m->block[b], err);
+        if (r == BTF_OK && o.progress)
+            o.progress(o.progress_ctx, b + 1, m->blocks->n_blocks);
     }
     free(A);
     if (r != BTF_OK) {

@@ -55,6 +55,10 @@ typedef struct btf_pca_options {
     btf_grouping grouping;
     btf_pca_method method;
     btf_center center;
+    /* Optional: called after each block with blocks done and the total (progress
+     * display); NULL = none. progress_ctx is passed through, owned by the caller. */
+    void (*progress)(void *ctx, int done, int total);
+    void *progress_ctx;
 } btf_pca_options;
 
 /* View blocks; heap struct owned by whoever made it (btf_blocks_free). */

@@ -17,6 +17,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "btf_version.h"
 #include "btfd.h"
 
 static volatile sig_atomic_t interrupted;
@@ -45,7 +46,9 @@ static void usage(FILE *f)
             "  --stall-timeout S    drop a client that takes no data for S seconds (default 20)\n"
             "  --rescan-ms MS       rescan the library every MS ms (default 2000, 0 = only on request)\n"
             "  --no-csp             do not add the security headers (CSP) to HTTP replies\n"
-            "  -v, --verbose        log library changes and lws warnings\n");
+            "  -v, --verbose        log library changes and lws warnings\n"
+            "  --version            print \"btfd VERSION\" and exit\n"
+            "Exit status: 0 ok, 1 failure, 2 usage error.\n");
 }
 
 /* Integer option value in [lo, hi]; exits 2 when it is not one. */
@@ -66,7 +69,8 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         {"library", 1, 0, 'l'},  {"port", 1, 0, 'p'},      {"bind", 1, 0, 'b'},
         {"client", 1, 0, 'c'},   {"shaders", 1, 0, 's'},   {"fragment", 1, 0, 'f'},
         {"stall-timeout", 1, 0, 't'}, {"rescan-ms", 1, 0, 'r'}, {"no-csp", 0, 0, 'n'},
-        {"verbose", 0, 0, 'v'},  {"help", 0, 0, 'h'},      {0, 0, 0, 0},
+        {"verbose", 0, 0, 'v'},  {"help", 0, 0, 'h'},      {"version", 0, 0, 'V'},
+        {0, 0, 0, 0},
     };
     int ch;
     while ((ch = getopt_long(argc, argv, "vh", longs, NULL)) != -1) {
@@ -82,6 +86,7 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         case 'n': *csp = 0; break;
         case 'v': o->verbose = 1; break;
         case 'h': usage(stdout); exit(0);
+        case 'V': printf("btfd %s\n", BTF_VERSION); exit(0);
         default: usage(stderr); exit(2);
         }
     }

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "btf_version.h"
 #include "btfd.h"
 
 /* ------------------------------------------------------------------ state */
@@ -616,6 +617,7 @@ static void on_established(btfd_server *srv, btfd_conn *c, struct lws *wsi)
     cJSON *o = reply("hello", NULL);
     cJSON_AddStringToObject(o, "protocol", BTFD_SUBPROTOCOL);
     cJSON_AddStringToObject(o, "server", "btfd");
+    cJSON_AddStringToObject(o, "version", BTF_VERSION);
     cJSON_AddNumberToObject(o, "header_bytes", BTFD_HEADER_BYTES);
     cJSON_AddNumberToObject(o, "fragment", (double)srv->opt.fragment);
     cJSON_AddNumberToObject(o, "max_message", BTFD_MSG_MAX);

@@ -70,7 +70,8 @@ static void check_round_trip(const btf *src, int k, int C, btf_thesis_scale scal
     cr_assert_eq(btf_thesis_read(dir, &back, &err), BTF_OK, "%s", err.msg);
     cr_assert(back.C == C && back.k == k && back.N == src->views.n_dirs && back.S == src->width);
 
-    btf_pca_options po = {k, C, BTF_GROUP_CONSECUTIVE, BTF_PCA_GRAM, BTF_CENTER_ROW};
+    btf_pca_options po = {.k = k, .components = C, .grouping = BTF_GROUP_CONSECUTIVE, .method = BTF_PCA_GRAM,
+                          .center = BTF_CENTER_ROW};
     btf_pca_model *pm = NULL;
     cr_assert_eq(btf_pca_compress(src, &po, NULL, NULL, &pm, &err), BTF_OK, "%s", err.msg);
 
@@ -332,7 +333,7 @@ Test(export, package_equal_noise_steps_save_bytes_within_noise)
     char tmp[64], dir[128];
     cr_assert(test_tmpdir(tmp, sizeof tmp));
     snprintf(dir, sizeof dir, "%s/pkg", tmp);
-    btf_pca_options po = {3, 12, 0, 0, 0};
+    btf_pca_options po = {.k = 3, .components = 12};
     btf_compress_stats st[2];
     for (int v = 0; v < 2; v++) {
         btf_package_options ko = {0};
@@ -361,7 +362,7 @@ Test(export, eval_on_package)
     snprintf(pkg, sizeof pkg, "%s/pkg", tmp);
     btf_error err = {0};
     cr_assert_eq(btf_save_dfmf(m, ref, 0, &err), BTF_OK, "%s", err.msg);
-    btf_pca_options po = {3, 4, 0, 0, 0};
+    btf_pca_options po = {.k = 3, .components = 4};
     cr_assert_eq(btf_package_compress(m, &po, NULL, pkg, NULL, &err), BTF_OK, "%s", err.msg);
     char *argv[] = {"eval", ref, pkg, "--csv", NULL};
     cr_assert_eq(cmd_eval(4, argv), 0);

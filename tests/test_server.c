@@ -13,7 +13,7 @@
  * when BTF_BUILD is set (by the Makefile) a missing binary is a failure.
  */
 #include <criterion/criterion.h>
-#include <cJSON.h>
+#include <cjson/cJSON.h>
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <math.h>
@@ -30,6 +30,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "btf_version.h"
 #include "test_util.h"
 #include "ws_client.h"
 
@@ -654,6 +655,7 @@ Test(server, list_over_http_and_websocket_skips_non_packages)
     open_ws(&c, &s);
     cJSON *hello = expect_type(&c, "hello");
     cr_expect_str_eq(jstr(hello, "protocol"), "btf-stream.v1");
+    cr_expect_str_eq(jstr(hello, "version"), BTF_VERSION);
     cr_expect_eq(jnum(hello, "header_bytes"), 20);
     cJSON_Delete(hello);
     wsc_send_text(&c, "{\"type\":\"list\",\"seq\":7}");

@@ -1,5 +1,7 @@
 /* btf_main.c - the `btf` command: dispatches to one tools/cmd_*.c per subcommand. */
+#include "btf_args.h"
 #include "btf_cli.h"
+#include "btf_version.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -26,10 +28,11 @@ static const btf_command commands[] = {
 
 static void usage(FILE *f)
 {
-    fprintf(f, "usage: btf COMMAND [ARGS...]\n\ncommands:\n");
+    fprintf(f, "usage: btf COMMAND [ARGS...]\n       btf --version | --help\n\ncommands:\n");
     for (const btf_command *c = commands; c->name; c++)
         fprintf(f, "  %-14s %s\n", c->name, c->help);
     fprintf(f, "\n`btf COMMAND --help` describes one command.\n");
+    btf_args_exit_codes(f);
 }
 
 int main(int argc, char **argv)
@@ -37,6 +40,10 @@ int main(int argc, char **argv)
     if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
         usage(argc < 2 ? stderr : stdout);
         return argc < 2 ? 2 : 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("btf %s\n", BTF_VERSION);
+        return 0;
     }
     for (const btf_command *c = commands; c->name; c++)
         if (!strcmp(c->name, argv[1]))

@@ -1,7 +1,7 @@
 /* cmd_chart.c - `btf chart MATERIAL...`: every method setting on every material,
- * CSV files and gnuplot charts (tools/btf_chart.h).
+ * CSV files and gnuplot charts (bench/eval/btf_chart.h).
  *
- *     btf chart gen:knit:64 gen:stone:64 ../shared/data/thesis-ubo2003/wool --size 64 --out doc
+ *     btf chart gen:knit:64 gen:stone:64 wool/ --size 64 --out doc/figures   # wool/: a thesis package
  *     btf chart gen:tiles:16 --quick --no-shader --out /tmp/c
  */
 #include "btf_chart.h"
@@ -22,7 +22,7 @@ typedef struct chart_opts {
     int no_plot, csv_only_plot;
     btf_chart_options o;
     int n_inputs;
-    char **inputs;
+    const char **inputs; /* n_inputs positionals (calloc'd, argc entries) */
 } chart_opts;
 
 static void chart_usage(FILE *f)
@@ -31,7 +31,7 @@ static void chart_usage(FILE *f)
                "                 [--no-shader] [--no-stream] [--no-plot] [--threads N]\n"
                "       btf chart --plot-only [--out DIR]\n"
                "\n"
-               "Runs every method setting of the registry (codec/btf_method.h) on each MATERIAL\n"
+               "Runs every method setting of the registry (bench/eval/btf_method.h) on each MATERIAL\n"
                "(gen:KIND[:SIZE[:SEED]] or anything btf_load_any reads) and writes\n"
                "  DIR/chart-speed-accuracy.csv   per material and setting (plus \"mean\" rows): encode\n"
                "                                 time, bytes, CIELab error over the whole BTF, decode\n"
@@ -51,11 +51,35 @@ static void chart_usage(FILE *f)
                "  --no-plot      CSV files only\n"
                "  --plot-only    redraw the charts from DIR's CSV files\n"
                "  --threads N    threads for the error sums (default 2)\n");
+    btf_args_exit_codes(f);
+}
+
+/* One option or positional of `btf chart` (btf_args_fn). */
+static int chart_option(void *ctx, const btf_args *a, int c, const char *v)
+{
+    chart_opts *o = ctx;
+    switch (c) {
+    case BTF_ARG_POS: o->inputs[o->n_inputs++] = v; break;
+    case 'o': o->out = v; break;
+    case 's': return btf_args_int(a, v, 1, BTF_MAX_SIDE, &o->size);
+    case 'S': return btf_args_int(a, v, 1, BTF_MAX_SIDE, &o->stream_size);
+    case 't': return btf_args_int(a, v, 1, 16, &o->o.threads);
+    case 'q': o->o.quick = 1; break;
+    case 'G': o->o.shader = 0; break;
+    case 'T': o->o.no_stream = 1; break;
+    case 'P': o->no_plot = 1; break;
+    case 'p': o->csv_only_plot = 1; break;
+    }
+    return 0;
 }
 
 /* 0 ok, 2 usage error, -1 help printed. */
 static int chart_parse(int argc, char **argv, chart_opts *c)
 {
+    static const btf_args_spec spec = {"chart",
+                                       "out:o size:s stream-size:S threads:t "
+                                       "quick!q no-shader!G no-stream!T no-plot!P plot-only!p",
+                                       chart_usage, -1};
     memset(c, 0, sizeof *c);
     c->out = ".";
     c->o.shader = 1;
@@ -63,52 +87,13 @@ static int chart_parse(int argc, char **argv, chart_opts *c)
     c->inputs = calloc((size_t)argc, sizeof *c->inputs);
     if (!c->inputs)
         return 2;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        int has = i + 1 < argc;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            chart_usage(stdout);
-            return -1;
-        } else if (!strcmp(a, "--out") && has) {
-            c->out = argv[++i];
-        } else if (!strcmp(a, "--size") && has) {
-            if (!btf_arg_int(argv[++i], 1, BTF_MAX_SIDE, &c->size)) {
-                fprintf(stderr, "btf chart: --size %s: expected 1..%d\n", argv[i], BTF_MAX_SIDE);
-                return 2;
-            }
-        } else if (!strcmp(a, "--stream-size") && has) {
-            if (!btf_arg_int(argv[++i], 1, BTF_MAX_SIDE, &c->stream_size)) {
-                fprintf(stderr, "btf chart: --stream-size %s: expected 1..%d\n", argv[i], BTF_MAX_SIDE);
-                return 2;
-            }
-        } else if (!strcmp(a, "--threads") && has) {
-            if (!btf_arg_int(argv[++i], 1, 16, &c->o.threads)) {
-                fprintf(stderr, "btf chart: --threads %s: expected 1..16\n", argv[i]);
-                return 2;
-            }
-        } else if (!strcmp(a, "--quick")) {
-            c->o.quick = 1;
-        } else if (!strcmp(a, "--no-shader")) {
-            c->o.shader = 0;
-        } else if (!strcmp(a, "--no-stream")) {
-            c->o.no_stream = 1;
-        } else if (!strcmp(a, "--no-plot")) {
-            c->no_plot = 1;
-        } else if (!strcmp(a, "--plot-only")) {
-            c->csv_only_plot = 1;
-        } else if (a[0] == '-' && a[1] == '-') {
-            fprintf(stderr, "btf chart: unknown or incomplete option %s\n", a);
-            return 2;
-        } else {
-            c->inputs[c->n_inputs++] = argv[i];
-        }
-    }
-    if (c->n_inputs == 0 && !c->csv_only_plot) {
+    int rc = btf_args_parse(&spec, argc, argv, chart_option, c);
+    if (rc == 0 && c->n_inputs == 0 && !c->csv_only_plot) {
         fprintf(stderr, "btf chart: no MATERIAL given\n");
         chart_usage(stderr);
         return 2;
     }
-    return 0;
+    return rc;
 }
 
 /* Row label of an input: the kind of gen:KIND..., else the last path element. */

@@ -10,12 +10,11 @@
 #include "btf_source.h"
 #include "btf_package.h"
 #include "btf_lod.h"
+#include "btf_output.h"
 
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 /* Parsed command line; stack value of cmd_compress, strings point into argv. */
@@ -23,7 +22,7 @@ typedef struct compress_opts {
     const char *in, *out, *name;
     btf_pca_options pca;
     btf_package_options pkg;
-    int downsample, quiet;
+    int downsample, quiet, json;
     int levels; /* > 0: write package version 2 with this many spatial levels (codec/btf_lod.h) */
 } compress_opts;
 
@@ -33,12 +32,14 @@ static void compress_usage(FILE *f)
             "usage: btf compress IN OUT [--k K] [--components C] [--bits 8|16]\n"
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
-            "                           [--name NAME] [--levels N] [--quiet]\n"
+            "                           [--name NAME] [--levels N] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
             "blocks of K neighbouring views into the package directory OUT (written as\n"
             "OUT.tmp-PID, renamed when complete). Prints the error after each chunk.\n"
+            "Options take their value as --k 3 or --k=3. On a terminal, stderr shows the\n"
+            "blocks done, the time elapsed and an estimate of the time left.\n"
             "  --k K            views per block, 1..views (default 3; 1 = PCA-RF, all = PCA-BTF)\n"
             "  --components C   components per block, component 0 included (default 8)\n"
             "  --bits B         texture quantisation, 8 or 16 bits (default 8; weights are 16)\n"
@@ -48,76 +49,52 @@ static void compress_usage(FILE *f)
             "  --method M       PCA route (default auto: Gram up to 2048 columns, else randomized)\n"
             "  --downsample F   box-filter the input by F on load\n"
             "  --name NAME      material name in the manifest (default: last element of OUT)\n"
-            "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n");
+            "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n"
+            "  --quiet          print nothing on success\n"
+            "  --json           print one JSON object on stdout instead of the text:\n"
+            "                   path (OUT), bytes (all chunk files), chunks, seconds_load,\n"
+            "                   seconds_pca, seconds_write, and chunk: one entry per chunk in\n"
+            "                   stream order {index, component, level, bytes, cumulative, rmse,\n"
+            "                   rmse_float, lab, psnr, delta_e76} (errors after chunks 0..index)\n");
+    btf_args_exit_codes(f);
+}
+
+static const btf_args_spec compress_spec = {
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n quiet!q json!j",
+    compress_usage, 2};
+
+/* One option or positional of `btf compress` (btf_args_fn). */
+static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
+{
+    static const char *const groupings[] = {"consecutive", "spatial"};
+    static const char *const centers[] = {"none", "row"};
+    compress_opts *o = ctx;
+    btf_args_pca_dst pca = {&o->pca.k, &o->pca.components, &o->downsample, &o->pca.method, BTF_PACKAGE_MAX_CHUNKS};
+    int e = 0, rc = 0;
+    switch (c) {
+    case BTF_ARG_POS: *(a->npos ? &o->out : &o->in) = v; break;
+    case 'b':
+        rc = btf_arg_int(v, 8, 16, &o->pkg.bits) && o->pkg.bits % 8 == 0 ? 0 : btf_args_bad(a, v, "8 or 16");
+        break;
+    case 'g': rc = btf_args_enum(a, v, groupings, 2, &e), o->pca.grouping = (btf_grouping)(e + 1); break;
+    case 'c': rc = btf_args_enum(a, v, centers, 2, &e), o->pca.center = (btf_center)(e + 1); break;
+    case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels); break;
+    case 'n': o->name = v; break;
+    case 'q': o->quiet = 1; break;
+    case 'j': o->json = 1; break;
+    default: rc = btf_args_pca(a, c, v, &pca);
+    }
+    return rc;
 }
 
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int compress_parse(int argc, char **argv, compress_opts *o)
 {
-    static const char *const groupings[] = {"default", "consecutive", "spatial"};
-    static const char *const centers[] = {"default", "none", "row"};
-    static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
     memset(o, 0, sizeof *o);
     o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8;
-    int npos = 0, e = 0;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
-        int ok = 1, used = 1;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            compress_usage(stdout);
-            return -1;
-        } else if (!strcmp(a, "--quiet")) {
-            o->quiet = 1, used = 0;
-        } else if (a[0] == '-' && a[1] == '-' && !val) {
-            ok = 0;
-        } else if (!strcmp(a, "--k")) {
-            ok = btf_arg_int(val, 1, BTF_MAX_DIRS, &o->pca.k);
-        } else if (!strcmp(a, "--components")) {
-            ok = btf_arg_int(val, 1, BTF_PACKAGE_MAX_CHUNKS, &o->pca.components);
-        } else if (!strcmp(a, "--bits")) {
-            ok = btf_arg_int(val, 8, 16, &o->pkg.bits) && (o->pkg.bits == 8 || o->pkg.bits == 16);
-        } else if (!strcmp(a, "--grouping")) {
-            ok = btf_arg_enum(val, groupings + 1, 2, &e), o->pca.grouping = (btf_grouping)(e + 1);
-        } else if (!strcmp(a, "--center")) {
-            ok = btf_arg_enum(val, centers + 1, 2, &e), o->pca.center = (btf_center)(e + 1);
-        } else if (!strcmp(a, "--method")) {
-            ok = btf_arg_enum(val, methods, 4, &e), o->pca.method = (btf_pca_method)e;
-        } else if (!strcmp(a, "--downsample")) {
-            ok = btf_arg_int(val, 1, 256, &o->downsample);
-        } else if (!strcmp(a, "--levels")) {
-            ok = btf_arg_int(val, 1, BTF_LOD_MAX_LEVELS, &o->levels);
-        } else if (!strcmp(a, "--name")) {
-            o->name = val;
-        } else if (a[0] == '-' && a[1] == '-') {
-            fprintf(stderr, "btf compress: unknown option '%s'\n", a);
-            return 2;
-        } else {
-            used = 0;
-            if (npos == 0)
-                o->in = a;
-            else if (npos == 1)
-                o->out = a;
-            npos++;
-        }
-        if (!ok) {
-            fprintf(stderr, "btf compress: bad or missing value for %s%s%s\n", a, val ? ": " : "", val ? val : "");
-            return 2;
-        }
-        i += used;
-    }
-    if (npos != 2) {
-        compress_usage(stderr);
-        return 2;
-    }
+    int rc = btf_args_parse(&compress_spec, argc, argv, compress_option, o);
     o->pkg.name = o->name;
-    return 0;
-}
-
-static double compress_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+    return rc;
 }
 
 static void compress_report(const char *out)
@@ -137,6 +114,18 @@ static void compress_report(const char *out)
                c->rmse_float, c->lab);
     }
     btf_package_free(p);
+}
+
+/* --json: the package as written plus the timings; 0 ok, 1 failure. */
+static int compress_json(const char *out, const btf_compress_stats *st, double seconds_load)
+{
+    cJSON *o = btf_json_package("compress", out);
+    if (!o)
+        return 1;
+    cJSON_AddNumberToObject(o, "seconds_load", seconds_load);
+    cJSON_AddNumberToObject(o, "seconds_pca", st->seconds_pca);
+    cJSON_AddNumberToObject(o, "seconds_write", st->seconds_write);
+    return btf_json_print(o);
 }
 
 /* Removes the listed files of package dir, its manifest and the directory. */
@@ -182,6 +171,18 @@ static btf_result compress_v2(const btf *src, compress_opts *o, btf_compress_sta
     return r;
 }
 
+/* Compresses src as o says, with the progress line on a terminal. */
+static btf_result compress_run(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
+{
+    btf_progress pr;
+    btf_progress_start(&pr, "compress", "blocks");
+    o->pca.progress = btf_progress_update, o->pca.progress_ctx = &pr;
+    btf_result r = o->levels > 0 ? compress_v2(src, o, st, err)
+                                 : btf_package_compress(src, &o->pca, &o->pkg, o->out, st, err);
+    btf_progress_end(&pr);
+    return r;
+}
+
 int cmd_compress(int argc, char **argv)
 {
     compress_opts o;
@@ -192,20 +193,21 @@ int cmd_compress(int argc, char **argv)
     btf_load_options lo = {0};
     lo.downsample = o.downsample;
     btf *src = NULL;
-    double t0 = compress_now();
+    double t0 = btf_now();
     if (btf_source_load(o.in, &lo, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;
     }
-    double t1 = compress_now();
+    double t1 = btf_now();
     btf_compress_stats st = {0};
-    btf_result r = o.levels > 0 ? compress_v2(src, &o, &st, &err)
-                                : btf_package_compress(src, &o.pca, &o.pkg, o.out, &st, &err);
+    btf_result r = compress_run(src, &o, &st, &err);
     btf_free(src);
     if (r != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;
     }
+    if (o.json)
+        return compress_json(o.out, &st, t1 - t0);
     if (!o.quiet) {
         printf("%s: %d chunks, %lld bytes; load %.2f s, PCA %.2f s, write %.2f s\n", o.out, st.n_chunks, st.bytes,
                t1 - t0, st.seconds_pca, st.seconds_write);

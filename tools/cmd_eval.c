@@ -8,8 +8,10 @@
  * btf_compare: RGB MAE/RMSE (0..255), PSNR, CIELab MAE as the thesis computes
  * it and mean CIE76 Delta E (codec/btf_metrics.h).
  */
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_io.h"
+#include "btf_output.h"
 #include "btf_source.h"
 #include "btf_metrics.h"
 #include "btf_package.h"
@@ -24,7 +26,7 @@
 typedef struct eval_opts {
     const char *ref_path, *test_path;
     const char *pairs; /* "all", "measured" or "V:L[,V:L...]" */
-    int csv;
+    int csv, json;
     int downsample;
 } eval_opts;
 
@@ -36,59 +38,55 @@ typedef struct eval_pairs {
 
 static void eval_usage(FILE *f)
 {
-    fprintf(f, "usage: btf eval REF TEST [--pairs all|measured|V:L[,V:L...]] [--csv] [--downsample N]\n"
+    fprintf(f, "usage: btf eval REF TEST [--pairs all|measured|V:L[,V:L...]] [--csv | --json]\n"
+               "                [--downsample N]\n"
                "\n"
                "Error of TEST against REF (anything btf_load_any reads; same size and\n"
-               "direction sets). Values are treated as sRGB-encoded 8-bit, D65.\n"
+               "direction sets). Values are treated as sRGB-encoded 8-bit, D65. When TEST is\n"
+               "a package directory, also the error after each chunk (the curve versus bytes).\n"
                "  --pairs all        every (view, light) pair (default)\n"
                "  --pairs measured   the pairs measured in REF: the same as all for two BTFs\n"
                "                     (differs for packages, decodable between directions)\n"
                "  --pairs V:L,...    only these (view, light) canonical indices\n"
                "  --csv              print metric,value,unit rows\n"
+               "  --json             print one JSON object on stdout instead: ref, test, path\n"
+               "                     (= TEST), pairs, pairs_total, pixels and the metrics below;\n"
+               "                     for a package also bytes, chunks and chunk: one entry per\n"
+               "                     chunk {index, component, cumulative_bytes, rgb_rmse,\n"
+               "                     lab_mae, delta_e76} (the error after chunks 0..index)\n"
                "  --downsample N     box-filter both inputs by N on load\n"
                "Metrics: rgb_mae, rgb_rmse (0..255 scale), psnr (dB; 999 = identical),\n"
                "lab_mae (thesis: mean of |dL|,|da|,|db| over pixels and channels),\n"
                "delta_e76 (mean CIE 1976 Delta E).\n");
+    btf_args_exit_codes(f);
+}
+
+/* One option or positional of `btf eval` (btf_args_fn). */
+static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
+{
+    eval_opts *o = ctx;
+    switch (c) {
+    case BTF_ARG_POS: *(a->npos ? &o->test_path : &o->ref_path) = v; break;
+    case 'p': o->pairs = v; break;
+    case 'c': o->csv = 1; break;
+    case 'j': o->json = 1; break;
+    case 'd': return btf_args_int(a, v, 1, 64, &o->downsample);
+    }
+    return 0;
 }
 
 /* 0 ok, 2 usage error, -1 help printed. */
 static int eval_parse(int argc, char **argv, eval_opts *o)
 {
+    static const btf_args_spec spec = {"eval", "pairs:p downsample:d csv!c json!j", eval_usage, 2};
     memset(o, 0, sizeof *o);
     o->pairs = "all";
-    int npos = 0;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            eval_usage(stdout);
-            return -1;
-        } else if (!strcmp(a, "--csv")) {
-            o->csv = 1;
-        } else if (!strcmp(a, "--pairs") && i + 1 < argc) {
-            o->pairs = argv[++i];
-        } else if (!strcmp(a, "--downsample") && i + 1 < argc) {
-            char *end;
-            long v = strtol(argv[++i], &end, 10);
-            if (*end || v < 1 || v > 64) {
-                fprintf(stderr, "btf eval: --downsample wants an integer 1..64, got '%s'\n", argv[i]);
-                return 2;
-            }
-            o->downsample = (int)v;
-        } else if (a[0] == '-' && a[1]) {
-            fprintf(stderr, "btf eval: unknown or incomplete option '%s'\n", a);
-            return 2;
-        } else if (npos < 2) {
-            *(npos++ ? &o->test_path : &o->ref_path) = a;
-        } else {
-            fprintf(stderr, "btf eval: unexpected argument '%s'\n", a);
-            return 2;
-        }
-    }
-    if (npos != 2) {
-        eval_usage(stderr);
+    int rc = btf_args_parse(&spec, argc, argv, eval_option, o);
+    if (rc == 0 && o->csv && o->json) {
+        fprintf(stderr, "btf eval: --csv and --json exclude each other\n");
         return 2;
     }
-    return 0;
+    return rc;
 }
 
 /* Parses "V:L,V:L"; 0 ok, 2 on a syntax error (message printed). */
@@ -146,8 +144,26 @@ static int eval_load(const char *path, const eval_opts *o, btf **out)
     return 0;
 }
 
-static void eval_print(const eval_opts *o, const btf_metrics *m, int n_pairs, int all_pairs)
+/* The metrics as JSON fields of j. */
+static void eval_json_metrics(cJSON *j, const btf_metrics *m, int n_pairs, int all_pairs)
 {
+    cJSON_AddNumberToObject(j, "pairs", n_pairs);
+    cJSON_AddNumberToObject(j, "pairs_total", all_pairs);
+    cJSON_AddNumberToObject(j, "pixels", (double)m->pixels);
+    cJSON_AddNumberToObject(j, "rgb_mae", m->mae);
+    cJSON_AddNumberToObject(j, "rgb_rmse", m->rmse);
+    cJSON_AddNumberToObject(j, "psnr", m->psnr);
+    cJSON_AddNumberToObject(j, "lab_mae", m->lab_thesis);
+    cJSON_AddNumberToObject(j, "delta_e76", m->delta_e76);
+}
+
+/* The metrics: into j (--json), as CSV rows or as text. */
+static void eval_print(const eval_opts *o, cJSON *j, const btf_metrics *m, int n_pairs, int all_pairs)
+{
+    if (j) {
+        eval_json_metrics(j, m, n_pairs, all_pairs);
+        return;
+    }
     if (o->csv) {
         printf("metric,value,unit\n");
         printf("pairs,%d,count\n", n_pairs);
@@ -171,7 +187,7 @@ static void eval_print(const eval_opts *o, const btf_metrics *m, int n_pairs, in
 }
 
 /* TEST is a BTF: load, compare over all pairs or the listed ones (pl->n > 0), print. */
-static int eval_btf(const eval_opts *o, const eval_pairs *pl, const btf *ref)
+static int eval_btf(const eval_opts *o, const eval_pairs *pl, const btf *ref, cJSON *j)
 {
     btf *test = NULL;
     int rc = eval_load(o->test_path, o, &test);
@@ -182,7 +198,7 @@ static int eval_btf(const eval_opts *o, const eval_pairs *pl, const btf *ref)
         btf_result r = btf_compare(ref, test, pl->n ? &sub : NULL, &m, &err);
         int total = ref->views.n_dirs * ref->lights.n_dirs;
         if (r == BTF_OK)
-            eval_print(o, &m, pl->n ? pl->n : total, total);
+            eval_print(o, j, &m, pl->n ? pl->n : total, total);
         else {
             fprintf(stderr, "btf eval: %s vs %s: %s\n", o->ref_path, o->test_path, err.msg);
             rc = 1;
@@ -219,37 +235,87 @@ static btf_result eval_package_prefix(const eval_opts *o, const eval_pairs *pl, 
     return r;
 }
 
-/* TEST is a package: metrics of the whole package, then the error curve versus
- * bytes received, one line per chunk (each prefix decoded at the measured pairs). */
-static int eval_package(const eval_opts *o, const eval_pairs *pl, const btf *ref)
+/* One point of the error curve: an entry of list (--json), a CSV row or a text line. */
+static void eval_chunk_out(const eval_opts *o, cJSON *list, int i, int component, long long bytes,
+                           const btf_metrics *m)
+{
+    if (!list) {
+        printf(o->csv ? "%d,%d,%lld,%.6f,%.6f,%.6f\n" : "%5d %9d %16lld %9.4f %8.4f %10.4f\n", i, component,
+               bytes, m->rmse, m->lab_thesis, m->delta_e76);
+        return;
+    }
+    cJSON *c = cJSON_CreateObject();
+    cJSON_AddNumberToObject(c, "index", i);
+    cJSON_AddNumberToObject(c, "component", component);
+    cJSON_AddNumberToObject(c, "cumulative_bytes", (double)bytes);
+    cJSON_AddNumberToObject(c, "rgb_rmse", m->rmse);
+    cJSON_AddNumberToObject(c, "lab_mae", m->lab_thesis);
+    cJSON_AddNumberToObject(c, "delta_e76", m->delta_e76);
+    cJSON_AddItemToArray(list, c);
+}
+
+/* The error after each chunk of p (each prefix decoded at the measured pairs) into
+ * list or on stdout; the last metrics into *last, the bytes of all chunks into *bytes. */
+static btf_result eval_curve(const eval_opts *o, const eval_pairs *pl, const btf *ref, const btf_package *p,
+                             cJSON *list, btf_metrics *last, long long *bytes, btf_error *err)
+{
+    btf_progress pr;
+    btf_progress_start(&pr, "eval", "chunks");
+    btf_result r = BTF_OK;
+    for (int n = 1; r == BTF_OK && n <= p->n_chunks; n++) {
+        btf_metrics m;
+        r = eval_package_prefix(o, pl, ref, p, n, &m, err);
+        if (r != BTF_OK)
+            break;
+        *bytes += p->chunk[n - 1].bytes;
+        btf_progress_update(&pr, n, p->n_chunks);
+        eval_chunk_out(o, list, n - 1, p->chunk[n - 1].component, *bytes, &m);
+        *last = m;
+    }
+    btf_progress_end(&pr);
+    return r;
+}
+
+/* TEST is a package: the error curve versus bytes received, then the metrics of the
+ * whole package; into j with --json. */
+static int eval_package(const eval_opts *o, const eval_pairs *pl, const btf *ref, cJSON *j)
 {
     btf_package *p = NULL;
     btf_error err = {0};
-    btf_metrics m, last = {0};
+    btf_metrics last = {0};
     btf_result r = btf_package_read(o->test_path, 0, &p, &err);
     int total = ref->views.n_dirs * ref->lights.n_dirs;
-    if (r == BTF_OK && o->csv)
-        printf("chunk,component,cumulative_bytes,rgb_rmse,lab_mae,delta_e76\n");
-    else if (r == BTF_OK)
-        printf("chunk component cumulative_bytes  rgb_rmse  lab_mae  delta_e76\n");
+    if (r == BTF_OK && !j)
+        printf(o->csv ? "chunk,component,cumulative_bytes,rgb_rmse,lab_mae,delta_e76\n"
+                      : "chunk component cumulative_bytes  rgb_rmse  lab_mae  delta_e76\n");
     long long bytes = 0;
-    for (int n = 1; r == BTF_OK && n <= p->n_chunks; n++) {
-        r = eval_package_prefix(o, pl, ref, p, n, &m, &err);
-        if (r != BTF_OK)
-            break;
-        bytes += p->chunk[n - 1].bytes;
-        printf(o->csv ? "%d,%d,%lld,%.6f,%.6f,%.6f\n" : "%5d %9d %16lld %9.4f %8.4f %10.4f\n", n - 1,
-               p->chunk[n - 1].component, bytes, m.rmse, m.lab_thesis, m.delta_e76);
-        last = m;
-    }
-    if (r == BTF_OK) {
+    cJSON *list = j ? cJSON_AddArrayToObject(j, "chunk") : NULL;
+    if (r == BTF_OK)
+        r = eval_curve(o, pl, ref, p, list, &last, &bytes, &err);
+    if (r == BTF_OK && j) {
+        cJSON_AddNumberToObject(j, "bytes", (double)bytes);
+        cJSON_AddNumberToObject(j, "chunks", p->n_chunks);
+    } else if (r == BTF_OK) {
         printf(o->csv ? "\n" : "\npackage    %d chunks, %lld bytes\n", p->n_chunks, bytes);
-        eval_print(o, &last, pl->n ? pl->n : total, total);
-    } else {
-        fprintf(stderr, "btf eval: %s vs %s: %s\n", o->ref_path, o->test_path, err.msg);
     }
+    if (r == BTF_OK)
+        eval_print(o, j, &last, pl->n ? pl->n : total, total);
+    else
+        fprintf(stderr, "btf eval: %s vs %s: %s\n", o->ref_path, o->test_path, err.msg);
     btf_package_free(p);
     return r == BTF_OK ? 0 : 1;
+}
+
+/* --json: the object naming the inputs (the metrics follow); NULL otherwise. */
+static cJSON *eval_json_start(const eval_opts *o)
+{
+    if (!o->json)
+        return NULL;
+    cJSON *j = cJSON_CreateObject();
+    cJSON_AddStringToObject(j, "ref", o->ref_path);
+    cJSON_AddStringToObject(j, "test", o->test_path);
+    cJSON_AddStringToObject(j, "path", o->test_path);
+    return j;
 }
 
 int cmd_eval(int argc, char **argv)
@@ -264,11 +330,15 @@ int cmd_eval(int argc, char **argv)
     btf *ref = NULL;
     if (rc == 0)
         rc = eval_load(o.ref_path, &o, &ref);
-    /* ---- PACKAGE EVALUATION (issue 3): TEST is a package directory ---- */
-    if (rc == 0 && eval_is_package(o.test_path))
-        rc = eval_package(&o, &pl, ref);
+    cJSON *j = eval_json_start(&o);
+    if (rc == 0 && eval_is_package(o.test_path)) /* TEST is a package directory */
+        rc = eval_package(&o, &pl, ref, j);
     else if (rc == 0)
-        rc = eval_btf(&o, &pl, ref);
+        rc = eval_btf(&o, &pl, ref, j);
+    if (j && rc == 0)
+        rc = btf_json_print(j);
+    else
+        cJSON_Delete(j);
     btf_free(ref);
     free(pl.views);
     free(pl.lights);

@@ -1,5 +1,5 @@
 /* cmd_export_thesis.c - `btf export-thesis IN OUT`: the project's k-view PCA written
- * in the thesis's package format (formats.md section 3; codec/btf_export.h), the
+ * in the thesis's package format (codec/btf_thesis.h; bench/eval/btf_export.h), the
  * baseline for comparisons at equal bytes.
  *
  *     btf export-thesis knit/ out/knit-thesis --k 3 --components 8
@@ -11,7 +11,6 @@
 #include "btf_io.h"
 #include "btf_metrics.h"
 
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,7 +30,7 @@ static void export_usage(FILE *f)
             "                                [--eval] [--quiet]\n"
             "\n"
             "Writes IN (anything the loaders read) as a thesis package OUT (meta.json, J.png,\n"
-            "R.png; formats.md section 3): K consecutive views per block, component 0 = the\n"
+            "R.png; codec/btf_thesis.h): K consecutive views per block, component 0 = the\n"
             "texel mean, components 1..C-1 = row-centred PCA, 8-bit U and V, sigma in 0.1 steps.\n"
             "Needs the same light and view directions and a square texture of even side.\n"
             "  --k K            views per block, 1..views (default 3)\n"
@@ -40,59 +39,40 @@ static void export_usage(FILE *f)
             "  --scale fit      per block and component scales minimising the quantisation error\n"
             "  --method M       PCA route (default auto)\n"
             "  --downsample F   box-filter the input by F on load\n"
-            "  --eval           read OUT back and print its error against IN\n",
+            "  --eval           read OUT back and print its error against IN\n"
+            "  --quiet          no summary line\n",
             BTF_THESIS_MAX_C);
+    btf_args_exit_codes(f);
+}
+
+static const btf_args_spec export_spec = {
+    "export-thesis", "k:k components:C method:m downsample:d scale:s quiet!q eval!e", export_usage, 2};
+
+/* One option or positional of `btf export-thesis` (btf_args_fn). */
+static int export_option(void *ctx, const btf_args *a, int c, const char *v)
+{
+    static const char *const scales[] = {"thesis", "fit"};
+    export_opts *o = ctx;
+    int e = 0, rc = 0;
+    if (c == BTF_ARG_POS) {
+        *(a->npos ? &o->out : &o->in) = v;
+    } else if (c == 's') {
+        rc = btf_args_enum(a, v, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
+    } else if (c == 'q' || c == 'e') {
+        *(c == 'q' ? &o->quiet : &o->eval) = 1;
+    } else {
+        btf_args_pca_dst pca = {&o->ex.k, &o->ex.components, &o->downsample, &o->ex.method, BTF_THESIS_MAX_C};
+        rc = btf_args_pca(a, c, v, &pca);
+    }
+    return rc;
 }
 
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int export_parse(int argc, char **argv, export_opts *o)
 {
-    static const char *const scales[] = {"thesis", "fit"};
-    static const char *const methods[] = {"auto", "gram", "randomized", "svd"};
     memset(o, 0, sizeof *o);
     o->ex.k = 3, o->ex.components = 8;
-    int npos = 0, e = 0;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
-        int ok = 1, used = 1;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            export_usage(stdout);
-            return -1;
-        } else if (!strcmp(a, "--quiet") || !strcmp(a, "--eval")) {
-            *(a[2] == 'q' ? &o->quiet : &o->eval) = 1, used = 0;
-        } else if (!strcmp(a, "--k")) {
-            ok = btf_arg_int(val, 1, BTF_MAX_DIRS, &o->ex.k);
-        } else if (!strcmp(a, "--components")) {
-            ok = btf_arg_int(val, 1, BTF_THESIS_MAX_C, &o->ex.components);
-        } else if (!strcmp(a, "--scale")) {
-            ok = btf_arg_enum(val, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
-        } else if (!strcmp(a, "--method")) {
-            ok = btf_arg_enum(val, methods, 4, &e), o->ex.method = (btf_pca_method)e;
-        } else if (!strcmp(a, "--downsample")) {
-            ok = btf_arg_int(val, 1, 256, &o->downsample);
-        } else if (a[0] == '-' && a[1] == '-') {
-            fprintf(stderr, "btf export-thesis: unknown option '%s'\n", a);
-            return 2;
-        } else {
-            used = 0;
-            if (npos == 0)
-                o->in = a;
-            else if (npos == 1)
-                o->out = a;
-            npos++;
-        }
-        if (!ok) {
-            fprintf(stderr, "btf export-thesis: bad or missing value for %s%s%s\n", a, val ? ": " : "",
-                    val ? val : "");
-            return 2;
-        }
-        i += used;
-    }
-    if (npos != 2) {
-        export_usage(stderr);
-        return 2;
-    }
-    return 0;
+    return btf_args_parse(&export_spec, argc, argv, export_option, o);
 }
 
 /* Reads OUT back (unclamped float decode) and prints its error against src; 0 ok, 1 failure. */

@@ -1,4 +1,4 @@
-/* cmd_gen.c - `btf gen KIND OUT`: writes a synthetic material (tools/btf_gen.h).
+/* cmd_gen.c - `btf gen KIND OUT`: writes a synthetic material (bench/gen/btf_gen.h).
  *
  *     btf gen knit out/knit64 --size 64
  *     btf gen tiles tiles.btf --sampling dome151 --format btf
@@ -12,13 +12,12 @@
 #include "btf_cli.h"
 #include "btf_gen.h"
 #include "btf_io.h"
+#include "btf_output.h"
 
 #include <ctype.h>
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 /* Parsed command line; stack value of cmd_gen, strings point into argv. */
 typedef struct gen_opts {
@@ -46,7 +45,8 @@ static void gen_usage(FILE *f)
                "                    btf if OUT ends in .btf); btf: DFMF08FC file\n"
                "  --components C    DFMF factors per channel (default 0 = full rank, exact but\n"
                "                    large: about 4 * min(views*lights, N*N) * (views*lights + N*N) * 3 bytes)\n"
-               "Images hold round(255 * value); the model is documented in tools/btf_gen.h.\n");
+               "Images hold round(255 * value); the model is documented in bench/gen/btf_gen.h.\n");
+    btf_args_exit_codes(f);
 }
 
 static int gen_ends_with(const char *s, const char *suffix)
@@ -55,50 +55,42 @@ static int gen_ends_with(const char *s, const char *suffix)
     return n >= m && !strcmp(s + n - m, suffix);
 }
 
+/* One option or positional of `btf gen` (btf_args_fn). */
+static int gen_option(void *ctx, const btf_args *a, int c, const char *v)
+{
+    gen_opts *o = ctx;
+    long seed;
+    switch (c) {
+    case BTF_ARG_POS:
+        if (a->npos == 1)
+            o->out = v;
+        else if ((o->kind = btf_gen_kind_from_name(v)) < 0) {
+            fprintf(stderr, "btf gen: unknown kind '%s' (knit, tiles, stone)\n", v);
+            return 2;
+        }
+        break;
+    case 'n': return btf_args_int(a, v, 1, 4096, &o->size);
+    case 'r':
+        if (!btf_arg_long(v, 0, 4294967295L, &seed))
+            return btf_args_bad(a, v, "an integer 0..4294967295");
+        o->seed = (unsigned)seed;
+        break;
+    case 's': o->sampling = v; break;
+    case 'C': return btf_args_int(a, v, 0, 1000000, &o->components);
+    case 'f': o->format = v; break;
+    }
+    return 0;
+}
+
 /* 0 ok, 2 usage error, -1 help printed. */
 static int gen_parse(int argc, char **argv, gen_opts *o)
 {
+    static const btf_args_spec spec = {"gen", "size:n seed:r sampling:s components:C format:f", gen_usage, 2};
     memset(o, 0, sizeof *o);
     o->kind = -1, o->size = 256, o->seed = 1u, o->sampling = "ubo2003";
-    int npos = 0;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        long v;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            gen_usage(stdout);
-            return -1;
-        }
-        int has = i + 1 < argc;
-        if (!strcmp(a, "--size") && has && btf_arg_long(argv[i + 1], 1, 4096, &v))
-            o->size = (int)v, i++;
-        else if (!strcmp(a, "--seed") && has && btf_arg_long(argv[i + 1], 0, 4294967295L, &v))
-            o->seed = (unsigned)v, i++;
-        else if (!strcmp(a, "--sampling") && has)
-            o->sampling = argv[++i];
-        else if (!strcmp(a, "--components") && has && btf_arg_long(argv[i + 1], 0, 1000000, &v))
-            o->components = (int)v, i++;
-        else if (!strcmp(a, "--format") && has)
-            o->format = argv[++i];
-        else if (a[0] == '-' && a[1]) {
-            fprintf(stderr, "btf gen: bad option or value: %s%s%s\n", a, has ? " " : "", has ? argv[i + 1] : "");
-            return 2;
-        } else if (npos == 0) {
-            o->kind = btf_gen_kind_from_name(a), npos++;
-            if (o->kind < 0) {
-                fprintf(stderr, "btf gen: unknown kind '%s' (knit, tiles, stone)\n", a);
-                return 2;
-            }
-        } else if (npos == 1)
-            o->out = a, npos++;
-        else {
-            fprintf(stderr, "btf gen: unexpected argument '%s'\n", a);
-            return 2;
-        }
-    }
-    if (npos < 2) {
-        gen_usage(stderr);
-        return 2;
-    }
+    int rc = btf_args_parse(&spec, argc, argv, gen_option, o);
+    if (rc)
+        return rc;
     if (!o->format)
         o->format = gen_ends_with(o->out, ".btf") ? "btf" : "png";
     if (strcmp(o->format, "png") && strcmp(o->format, "jpg") && strcmp(o->format, "btf")) {
@@ -117,13 +109,6 @@ static btf_result gen_sampling(const char *s, btf_dirset *d, btf_error *err)
     else
         return btf_dirset_load_json(s, d, err);
     return BTF_OK;
-}
-
-static double gen_now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
 static btf_result gen_write(const btf *b, const gen_opts *o, btf_error *err)
@@ -151,12 +136,12 @@ int cmd_gen(int argc, char **argv)
     btf_gen_params p = btf_gen_defaults((btf_gen_kind)o.kind);
     p.seed = o.seed;
     btf *b = NULL;
-    double t0 = gen_now();
+    double t0 = btf_now();
     btf_result r = btf_gen_create(&p, o.size, o.size, &d, &d, BTF_U8, &b, &err);
-    double t1 = gen_now();
+    double t1 = btf_now();
     if (r == BTF_OK)
         r = gen_write(b, &o, &err);
-    double t2 = gen_now();
+    double t2 = btf_now();
     if (r != BTF_OK) {
         fprintf(stderr, "btf gen: %s\n", err.msg);
         btf_free(b);

@@ -3,12 +3,12 @@
  * (btf_import_thesis) and writes it as a UBO2003-named image directory, or as a
  * DFMF08FC file when OUT ends in `.btf` (full rank).
  *
- *     btf import-thesis ../shared/data/thesis-ubo2003/wool out/wool64 --size 64
+ *     btf import-thesis wool/ out/wool64 --size 64    # wool/: a thesis package (meta.json, j.png, R.png)
  */
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_io.h"
 
-#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -24,6 +24,36 @@ static void import_thesis_usage(FILE *f)
                "  --size N     N x N texels (default 256, the package's own size); sizes that\n"
                "               divide 256 are box-filtered, others area-weighted\n"
                "  --ext E      image format for a directory OUT: png (default) or jpg\n");
+    btf_args_exit_codes(f);
+}
+
+/* Parsed command line; stack value of cmd_import_thesis, strings point into argv. */
+typedef struct import_thesis_opts {
+    const char *in, *out, *ext;
+    int size; /* 0 = the package's own */
+} import_thesis_opts;
+
+/* One option or positional of `btf import-thesis` (btf_args_fn). */
+static int import_thesis_option(void *ctx, const btf_args *a, int c, const char *v)
+{
+    static const char *const exts[] = {"png", "jpg"};
+    import_thesis_opts *o = ctx;
+    int e = 0, rc = 0;
+    switch (c) {
+    case BTF_ARG_POS: *(a->npos ? &o->out : &o->in) = v; break;
+    case 's': rc = btf_args_int(a, v, 1, 4096, &o->size); break;
+    case 'e': rc = btf_args_enum(a, v, exts, 2, &e), o->ext = exts[e]; break;
+    }
+    return rc;
+}
+
+/* 0 ok, 2 usage error (message printed), -1 help printed. */
+static int import_thesis_parse(int argc, char **argv, import_thesis_opts *o)
+{
+    static const btf_args_spec spec = {"import-thesis", "size:s ext:e", import_thesis_usage, 2};
+    memset(o, 0, sizeof *o);
+    o->ext = "png";
+    return btf_args_parse(&spec, argc, argv, import_thesis_option, o);
 }
 
 static int import_thesis_ends_with(const char *s, const char *suffix)
@@ -50,56 +80,27 @@ static void import_thesis_prefix(const char *dir, char *buf, size_t n)
 
 int cmd_import_thesis(int argc, char **argv)
 {
-    const char *pos[2] = {NULL, NULL}, *ext = "png";
-    long size = 0;
-    int npos = 0;
-    for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-            import_thesis_usage(stdout);
-            return 0;
-        } else if (!strcmp(argv[i], "--size") && i + 1 < argc) {
-            char *end;
-            errno = 0;
-            size = strtol(argv[++i], &end, 10);
-            if (errno || *end || end == argv[i] || size < 1 || size > 4096) {
-                fprintf(stderr, "btf import-thesis: --size must be 1..4096, got '%s'\n", argv[i]);
-                return 2;
-            }
-        } else if (!strcmp(argv[i], "--ext") && i + 1 < argc) {
-            ext = argv[++i];
-            if (strcmp(ext, "png") && strcmp(ext, "jpg")) {
-                fprintf(stderr, "btf import-thesis: --ext must be png or jpg, got '%s'\n", ext);
-                return 2;
-            }
-        } else if (argv[i][0] == '-' || npos == 2) {
-            fprintf(stderr, "btf import-thesis: unexpected argument '%s'\n", argv[i]);
-            import_thesis_usage(stderr);
-            return 2;
-        } else {
-            pos[npos++] = argv[i];
-        }
-    }
-    if (npos != 2) {
-        import_thesis_usage(stderr);
-        return 2;
-    }
+    import_thesis_opts a;
+    int rc = import_thesis_parse(argc, argv, &a);
+    if (rc)
+        return rc < 0 ? 0 : rc;
     btf_load_options o = {0};
-    o.width = o.height = (int)size;
+    o.width = o.height = a.size;
     btf *b = NULL;
     btf_error e = {0};
-    btf_result r = btf_import_thesis(pos[0], &o, &b, &e);
+    btf_result r = btf_import_thesis(a.in, &o, &b, &e);
     if (r == BTF_OK) {
-        if (import_thesis_ends_with(pos[1], ".btf")) {
-            r = btf_save_dfmf(b, pos[1], 0, &e);
+        if (import_thesis_ends_with(a.out, ".btf")) {
+            r = btf_save_dfmf(b, a.out, 0, &e);
         } else {
             char prefix[256];
-            import_thesis_prefix(pos[0], prefix, sizeof prefix);
-            r = btf_save_ubo2003_dir(b, pos[1], prefix, ext, &e);
+            import_thesis_prefix(a.in, prefix, sizeof prefix);
+            r = btf_save_ubo2003_dir(b, a.out, prefix, a.ext, &e);
         }
     }
     if (r == BTF_OK)
-        printf("%s: %dx%d texels, %d lights x %d views -> %s\n", pos[0], b->width, b->height, b->lights.n_dirs,
-               b->views.n_dirs, pos[1]);
+        printf("%s: %dx%d texels, %d lights x %d views -> %s\n", a.in, b->width, b->height, b->lights.n_dirs,
+               b->views.n_dirs, a.out);
     btf_free(b);
     if (r != BTF_OK) {
         fprintf(stderr, "btf import-thesis: %s (%s)\n", e.msg, btf_result_string(r));

@@ -3,74 +3,98 @@
  *
  *     btf lod lib/wool-v1 lib/wool --levels 4
  */
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_lod.h"
+#include "btf_output.h"
 
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+/* Parsed command line; stack value of cmd_lod, strings point into argv. */
+typedef struct lod_opts {
+    const char *in, *out;
+    btf_lod_options lod;
+    int quiet, json;
+} lod_opts;
+
 static void lod_usage(FILE *f)
 {
-    fprintf(f, "usage: btf lod IN_PKG OUT_PKG [--levels N] [--threshold T] [--quiet]\n"
+    fprintf(f, "usage: btf lod IN_PKG OUT_PKG [--levels N] [--threshold T] [--quiet] [--json]\n"
                "\n"
                "Writes OUT_PKG (a different directory) as package version 2: the version-1\n"
                "package IN_PKG plus per-component mip levels, chunks ordered coarse first.\n"
                "  --levels N      levels including level 0, 1..%d (default: as many as keep\n"
                "                  tiles >= 8 texels, at most 4); W and H must divide by 2^(N-1)\n"
-               "  --threshold T   visibility threshold (RMS on 0..255) of the chunk order (default %.1f)\n",
+               "  --threshold T   visibility threshold (RMS on 0..255) of the chunk order (default %.1f)\n"
+               "  --quiet         print nothing on success\n"
+               "  --json          print one JSON object on stdout instead of the text: path\n"
+               "                  (OUT_PKG), bytes, chunks, levels, bytes_v1 (IN_PKG's chunk files),\n"
+               "                  first_chunk_bytes, and chunk: one entry per chunk in stream order\n"
+               "                  {index, component, level, bytes, cumulative, rmse, rmse_float,\n"
+               "                  lab, psnr, delta_e76} as the manifest records them\n",
             BTF_LOD_MAX_LEVELS, BTF_LOD_THRESHOLD);
+    btf_args_exit_codes(f);
 }
 
-/* Parses argv into o; 0 on a usage error. */
-static int lod_args(int argc, char **argv, const char **in, const char **out, btf_lod_options *o, int *quiet)
+/* One option or positional of `btf lod` (btf_args_fn). */
+static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
 {
-    int npos = 0;
-    for (int i = 1; i < argc; i++) {
-        char *end = NULL;
+    lod_opts *o = ctx;
+    char *end = NULL;
+    switch (c) {
+    case BTF_ARG_POS: *(a->npos ? &o->out : &o->in) = v; break;
+    case 'l': return btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->lod.levels);
+    case 't':
         errno = 0;
-        if (!strcmp(argv[i], "--levels") && i + 1 < argc) {
-            long x = strtol(argv[++i], &end, 10);
-            if (errno || *end || x < 1 || x > BTF_LOD_MAX_LEVELS)
-                return 0;
-            o->levels = (int)x;
-        } else if (!strcmp(argv[i], "--threshold") && i + 1 < argc) {
-            o->threshold = strtod(argv[++i], &end);
-            if (errno || *end || !(o->threshold > 0.0) || o->threshold > 1e6)
-                return 0;
-        } else if (!strcmp(argv[i], "--quiet")) {
-            *quiet = 1;
-        } else if (argv[i][0] == '-' || npos == 2) {
-            return 0;
-        } else {
-            *(npos++ ? out : in) = argv[i];
-        }
+        o->lod.threshold = strtod(v, &end);
+        if (errno || end == v || *end || !(o->lod.threshold > 0.0) || o->lod.threshold > 1e6)
+            return btf_args_bad(a, v, "a number > 0 and <= 1e6");
+        break;
+    case 'q': o->quiet = 1; break;
+    case 'j': o->json = 1; break;
     }
-    return npos == 2;
+    return 0;
+}
+
+/* 0 ok, 2 usage error (message printed), -1 help printed. */
+static int lod_parse(int argc, char **argv, lod_opts *o)
+{
+    static const btf_args_spec spec = {"lod", "levels:l threshold:t quiet!q json!j", lod_usage, 2};
+    memset(o, 0, sizeof *o);
+    return btf_args_parse(&spec, argc, argv, lod_option, o);
+}
+
+/* --json: the package as written plus the level statistics; 0 ok, 1 failure. */
+static int lod_json(const char *out, const btf_lod_stats *st)
+{
+    cJSON *o = btf_json_package("lod", out);
+    if (!o)
+        return 1;
+    cJSON_AddNumberToObject(o, "levels", st->levels);
+    cJSON_AddNumberToObject(o, "bytes_v1", (double)st->bytes_v1);
+    cJSON_AddNumberToObject(o, "first_chunk_bytes", (double)st->first_chunk);
+    return btf_json_print(o);
 }
 
 int cmd_lod(int argc, char **argv)
 {
-    const char *in = NULL, *out = NULL;
-    btf_lod_options o = {0};
-    int quiet = 0;
-    if (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
-        lod_usage(stdout);
-        return 0;
-    }
-    if (!lod_args(argc, argv, &in, &out, &o, &quiet)) {
-        lod_usage(stderr);
-        return 2;
-    }
+    lod_opts o;
+    int rc = lod_parse(argc, argv, &o);
+    if (rc)
+        return rc < 0 ? 0 : rc;
     btf_lod_stats st = {0};
     btf_error err = {0};
-    if (btf_lod_build(in, out, &o, &st, &err) != BTF_OK) {
+    if (btf_lod_build(o.in, o.out, &o.lod, &st, &err) != BTF_OK) {
         fprintf(stderr, "btf lod: %s\n", err.msg);
         return 1;
     }
-    if (!quiet)
-        printf("%s: %d levels, %d chunks, %lld bytes (version 1: %lld), first chunk %lld bytes\n", out, st.levels,
+    if (o.json)
+        return lod_json(o.out, &st);
+    if (!o.quiet)
+        printf("%s: %d levels, %d chunks, %lld bytes (version 1: %lld), first chunk %lld bytes\n", o.out, st.levels,
                st.n_chunks, st.bytes, st.bytes_v1, st.first_chunk);
     return 0;
 }

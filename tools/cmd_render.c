@@ -4,9 +4,10 @@
  *     btf render lib/wool wool.png --geometry cylinder --size 640x480
  *     btf render lib/knit knit-2.png --chunks 2 --camera 60,-90,3.5 --light 30,0
  *
- * Scene conventions (camera and light angles, objects, uv): tools/btf_render.h and
+ * Scene conventions (camera and light angles, objects, uv): shaders/host/btf_render.h and
  * shaders/README.md ("Scene conventions").
  */
+#include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_render.h"
 
@@ -49,6 +50,7 @@ static void render_usage(FILE *f)
                "  --no-horizon-fade    keep the decoder's value for lights below the measured range\n"
                "  --backend B          egl or osmesa (default $BTF_GL_BACKEND, else egl, else osmesa)\n"
                "  --background R,G,B   0..1 each (default 0.12,0.12,0.12)\n");
+    btf_args_exit_codes(f);
 }
 
 /* Parses n_min..n comma-separated finite floats, the whole string. */
@@ -91,50 +93,53 @@ static int render_size(const char *s, int *w, int *h)
     return 1;
 }
 
-/* One option with its value; 0 ok, 2 usage error. */
-static int render_option(render_opts *o, const char *a, const char *val)
+/* One option with its value of the second pass (btf_args_fn); 0 ok, 2 usage error. */
+static int render_option(void *ctx, const btf_args *a, int c, const char *val)
 {
+    render_opts *o = ctx;
     btf_render_params *p = &o->p;
+    float v[3] = {0, 0, p->camera_dist};
+    btf_error e = {{0}};
     int ok = 1;
-    if (!strcmp(a, "--chunks")) {
-        char *end;
-        errno = 0;
-        long n = strtol(val, &end, 10);
-        ok = !errno && end != val && !*end && n >= 1 && n <= 1024;
-        p->n_chunks = (int)n;
-    } else if (!strcmp(a, "--size")) {
-        ok = render_size(val, &p->width, &p->height);
-    } else if (!strcmp(a, "--camera")) {
-        float v[3] = {0, 0, p->camera_dist};
-        ok = render_floats(val, v, 2, 3);
-        p->camera_theta = v[0];
-        p->camera_phi = v[1];
-        p->camera_dist = v[2];
-    } else if (!strcmp(a, "--light")) {
-        float v[2];
-        ok = render_floats(val, v, 2, 2);
-        p->light_theta = v[0];
-        p->light_phi = v[1];
-    } else if (!strcmp(a, "--fov")) {
-        ok = render_floats(val, &p->fov_deg, 1, 1);
-    } else if (!strcmp(a, "--repeat")) {
-        ok = render_floats(val, &p->repeat, 1, 1);
-    } else if (!strcmp(a, "--background")) {
-        ok = render_floats(val, p->background, 3, 3);
-    } else if (!strcmp(a, "--filter")) {
+    const char *want = "";
+    switch (c) {
+    case BTF_ARG_POS: *(a->npos ? &o->out : &o->pkg) = val; break;
+    case 'n': return btf_args_int(a, val, 1, 1024, &p->n_chunks);
+    case 's': ok = render_size(val, &p->width, &p->height), want = "W or WxH, 1..8192 each"; break;
+    case 'c':
+        ok = render_floats(val, v, 2, 3), want = "THETA,PHI[,DIST]";
+        p->camera_theta = v[0], p->camera_phi = v[1], p->camera_dist = v[2];
+        break;
+    case 'l':
+        ok = render_floats(val, v, 2, 2), want = "THETA,PHI";
+        p->light_theta = v[0], p->light_phi = v[1];
+        break;
+    case 'F': ok = render_floats(val, &p->fov_deg, 1, 1), want = "degrees"; break;
+    case 'r': ok = render_floats(val, &p->repeat, 1, 1), want = "a number"; break;
+    case 'B': ok = render_floats(val, p->background, 3, 3), want = "R,G,B"; break;
+    case 'f':
         ok = !strcmp(val, "nearest") || !strcmp(val, "bilinear");
-        p->filter = !strcmp(val, "bilinear");
-    } else if (!strcmp(a, "--backend")) {
-        btf_error e = {{0}};
+        p->filter = !strcmp(val, "bilinear"), want = "nearest|bilinear";
+        break;
+    case 'b':
         ok = btf_gl_backend_parse(val, &o->backend, &e) == BTF_OK && o->backend != BTF_GL_DEFAULT;
-    } else {
-        fprintf(stderr, "btf render: unknown option '%s'\n", a);
-        return 2;
+        want = "egl|osmesa";
+        break;
+    case 'H': p->horizon_fade = 0; break;
     }
-    if (!ok) {
-        fprintf(stderr, "btf render: bad value '%s' for %s (see btf render --help)\n", val, a);
-        return 2;
-    }
+    return ok ? 0 : btf_args_bad(a, val, "%s", want);
+}
+
+/* --geometry, the first pass (btf_args_fn): it sets the defaults the others change. */
+static int render_geometry(void *ctx, const btf_args *a, int c, const char *val)
+{
+    btf_render_geometry *g = ctx;
+    if (c != 'g')
+        return 0;
+    int k = btf_render_geometry_from_name(val);
+    if (k < 0)
+        return btf_args_bad(a, val, "plane, sphere or cylinder");
+    *g = (btf_render_geometry)k;
     return 0;
 }
 
@@ -142,52 +147,19 @@ static int render_option(render_opts *o, const char *a, const char *val)
  * defaults the other options then change). */
 static int render_parse(int argc, char **argv, render_opts *o)
 {
+    static const btf_args_spec spec = {"render",
+                                       "chunks:n geometry:g size:s camera:c light:l "
+                                       "fov:F repeat:r filter:f backend:b background:B no-horizon-fade!H",
+                                       render_usage, 2};
     memset(o, 0, sizeof *o);
     btf_render_geometry g = BTF_RENDER_PLANE;
-    for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-            render_usage(stdout);
-            return -1;
-        }
-        if (!strcmp(argv[i], "--geometry") && i + 1 < argc) {
-            int k = btf_render_geometry_from_name(argv[i + 1]);
-            if (k < 0) {
-                fprintf(stderr, "btf render: unknown geometry '%s' (plane, sphere, cylinder)\n", argv[i + 1]);
-                return 2;
-            }
-            g = (btf_render_geometry)k;
-        }
-    }
+    int rc = btf_args_parse(&spec, argc, argv, render_geometry, &g);
+    if (rc)
+        return rc;
     o->p = btf_render_defaults(g);
-    int npos = 0;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--no-horizon-fade")) {
-            o->p.horizon_fade = 0;
-        } else if (!strcmp(a, "--geometry") && i + 1 < argc) {
-            i++;
-        } else if (a[0] == '-' && a[1] == '-') {
-            if (i + 1 >= argc) {
-                fprintf(stderr, "btf render: option '%s' needs a value\n", a);
-                return 2;
-            }
-            int rc = render_option(o, a, argv[++i]);
-            if (rc)
-                return rc;
-        } else if (npos < 2) {
-            if (npos++ == 0)
-                o->pkg = a;
-            else
-                o->out = a;
-        } else {
-            fprintf(stderr, "btf render: unexpected argument '%s'\n", a);
-            return 2;
-        }
-    }
-    if (npos != 2) {
-        render_usage(stderr);
-        return 2;
-    }
+    rc = btf_args_parse(&spec, argc, argv, render_option, o);
+    if (rc)
+        return rc;
     btf_error err = {{0}};
     if (btf_render_check_params(&o->p, &err) != BTF_OK) {
         fprintf(stderr, "btf render: %s\n", err.msg);

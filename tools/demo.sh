@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # make demo: prepares a sample library (generated materials, plus the thesis
-# materials when ../shared/data is present), starts btfd and prints the URL.
+# materials when $BTF_SHARED/data holds them, see README.md), starts btfd and prints the URL.
 # Env: BUILD (build dir), LIBRARY (default library/), PORT (default 8080), BIND.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,0 +1,104 @@
+/* btf_output.c - progress line and --json output of the `btf` commands (btf_output.h). */
+#include "btf_output.h"
+
+#include <stdio.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+double btf_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void btf_progress_start(btf_progress *p, const char *what, const char *unit)
+{
+    memset(p, 0, sizeof *p);
+    p->what = what, p->unit = unit;
+    p->on = isatty(STDERR_FILENO);
+    p->t0 = p->last = btf_now();
+}
+
+void btf_progress_format(char *buf, size_t n, const char *what, const char *unit, int done, int total,
+                         double elapsed)
+{
+    int len = snprintf(buf, n, "btf %s: %d/%d %s, %.1f s elapsed", what, done, total, unit, elapsed);
+    if (done > 0 && done < total && len > 0 && (size_t)len < n)
+        snprintf(buf + len, n - (size_t)len, ", about %.1f s left", elapsed * (total - done) / done);
+}
+
+void btf_progress_update(void *ctx, int done, int total)
+{
+    btf_progress *p = ctx;
+    double t = btf_now();
+    if (!p->on || (done < total && t - p->last < 0.1))
+        return;
+    char line[160];
+    btf_progress_format(line, sizeof line, p->what, p->unit, done, total, t - p->t0);
+    int w = (int)strlen(line);
+    fprintf(stderr, "\r%s%*s", line, p->width > w ? p->width - w : 0, "");
+    fflush(stderr);
+    p->width = w > p->width ? w : p->width;
+    p->last = t;
+}
+
+void btf_progress_end(btf_progress *p)
+{
+    if (p->on && p->width > 0)
+        fprintf(stderr, "\r%*s\r", p->width, "");
+    p->width = 0;
+}
+
+/* One chunk's entry; cumulative = bytes of chunks 0..i. */
+static cJSON *btf__json_chunk(const btf_chunk_info *c, int i, long long cumulative)
+{
+    cJSON *j = cJSON_CreateObject();
+    cJSON_AddNumberToObject(j, "index", i);
+    cJSON_AddNumberToObject(j, "component", c->component);
+    cJSON_AddNumberToObject(j, "level", c->level);
+    cJSON_AddNumberToObject(j, "bytes", (double)c->bytes);
+    cJSON_AddNumberToObject(j, "cumulative", (double)cumulative);
+    cJSON_AddNumberToObject(j, "rmse", c->rmse);
+    cJSON_AddNumberToObject(j, "rmse_float", c->rmse_float);
+    cJSON_AddNumberToObject(j, "lab", c->lab);
+    cJSON_AddNumberToObject(j, "psnr", c->psnr);
+    cJSON_AddNumberToObject(j, "delta_e76", c->delta_e76);
+    return j;
+}
+
+cJSON *btf_json_package(const char *cmd, const char *dir)
+{
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    if (btf_package_read(dir, 1, &p, &err) != BTF_OK) {
+        fprintf(stderr, "btf %s: cannot re-read %s: %s\n", cmd, dir, err.msg);
+        return NULL;
+    }
+    cJSON *o = cJSON_CreateObject(), *list = cJSON_CreateArray();
+    long long total = 0;
+    for (int i = 0; i < p->n_chunks; i++) {
+        total += p->chunk[i].bytes;
+        cJSON_AddItemToArray(list, btf__json_chunk(&p->chunk[i], i, total));
+    }
+    cJSON_AddStringToObject(o, "path", dir);
+    cJSON_AddNumberToObject(o, "bytes", (double)total);
+    cJSON_AddNumberToObject(o, "chunks", p->n_chunks);
+    cJSON_AddItemToObject(o, "chunk", list);
+    btf_package_free(p);
+    return o;
+}
+
+int btf_json_print(cJSON *o)
+{
+    char *s = o ? cJSON_PrintUnformatted(o) : NULL;
+    cJSON_Delete(o);
+    if (!s) {
+        fprintf(stderr, "btf: cannot format the JSON output\n");
+        return 1;
+    }
+    printf("%s\n", s);
+    cJSON_free(s);
+    return 0;
+}
