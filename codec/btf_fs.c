@@ -189,7 +189,7 @@ static int btf__fs_is_empty_dir(const char *dir)
     return empty;
 }
 
-/* Removes the leftovers "OUT.tmp-PID" of writers that are no longer running. */
+/* Removes the leftovers "OUT.tmp-PID[-SUFFIX]" of writers that are no longer running. */
 static void btf__fs_clean_stale(const char *out, btf_fs_owned_fn owned, void *ctx)
 {
     char dir[BTF_FS_PATH_MAX], path[2 * BTF_FS_PATH_MAX + 8];
@@ -202,7 +202,7 @@ static void btf__fs_clean_stale(const char *out, btf_fs_owned_fn owned, void *ct
         if (strncmp(e->d_name, base, bl) || strncmp(e->d_name + bl, ".tmp-", 5))
             continue;
         long pid = strtol(e->d_name + bl + 5, &end, 10);
-        if (!end || *end || pid <= 0 || pid == (long)getpid() || kill((pid_t)pid, 0) == 0 || errno != ESRCH)
+        if (!end || (*end && *end != '-') || pid <= 0 || pid == (long)getpid() || kill((pid_t)pid, 0) == 0 || errno != ESRCH)
             continue;
         snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
         if (btf__fs_is_empty_dir(path) || (owned && owned(path, ctx)))

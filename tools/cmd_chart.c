@@ -50,7 +50,7 @@ static void chart_usage(FILE *f)
                "  --no-stream    skip the streaming comparison\n"
                "  --no-plot      CSV files only\n"
                "  --plot-only    redraw the charts from DIR's CSV files\n"
-               "  --threads N    threads for the error sums (default 2)\n");
+               "  --threads N    threads for the error sums (default: OMP_NUM_THREADS or all cores)\n");
     btf_args_exit_codes(f);
 }
 

@@ -6,6 +6,7 @@
  */
 #include "btf_args.h"
 #include "btf_cli.h"
+#include "btf_fs.h"
 #include "btf_io.h"
 #include "btf_source.h"
 #include "btf_package.h"
@@ -128,31 +129,13 @@ static int compress_json(const char *out, const btf_compress_stats *st, double s
     return btf_json_print(o);
 }
 
-/* Removes the listed files of package dir, its manifest and the directory. */
-static void compress_remove(const char *dir)
-{
-    btf_package *p = NULL;
-    char path[8400];
-    if (btf_package_read(dir, 1, &p, NULL) == BTF_OK) {
-        for (int i = 0; i < p->n_chunks; i++)
-            for (int f = 0; f < p->chunk[i].n_files; f++) {
-                snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
-                remove(path);
-            }
-        btf_package_free(p);
-    }
-    snprintf(path, sizeof path, "%s/manifest.json", dir);
-    remove(path);
-    rmdir(dir);
-}
-
-/* --levels: compress into OUT.tmp-v1-PID (not a package name), add levels into OUT. */
+/* --levels: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
 static btf_result compress_v2(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
 {
     char tmp[4200], name[BTF_PACKAGE_NAME_MAX];
     if (strlen(o->out) > 4000)
         return btf_fail(err, BTF_ERR_ARG, "output path too long");
-    snprintf(tmp, sizeof tmp, "%s.tmp-v1-%ld", o->out, (long)getpid());
+    snprintf(tmp, sizeof tmp, "%s.tmp-%ld-v1", o->out, (long)getpid());
     if (!o->pkg.name) {
         const char *b = strrchr(o->out, '/');
         b = b && b[1] ? b + 1 : o->out;
@@ -166,7 +149,7 @@ static btf_result compress_v2(const btf *src, compress_opts *o, btf_compress_sta
     lo.levels = o->levels;
     btf_lod_stats ls = {0};
     r = btf_lod_build(tmp, o->out, &lo, &ls, err);
-    compress_remove(tmp);
+    btf_fs_rmtree(tmp, NULL);
     st->bytes = ls.bytes, st->n_chunks = ls.n_chunks;
     return r;
 }
