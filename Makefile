@@ -188,3 +188,4 @@ uninstall:
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)
 include server/build.mk
+include fuzz/build.mk

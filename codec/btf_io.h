@@ -25,6 +25,11 @@ typedef struct btf_load_options {
     const btf_dirset *sampling; /* expected direction set; NULL = UBO2003 */
 } btf_load_options;
 
+/* Angles tl, pl, tv, pv (whole degrees, 0..999) of a UBO2003 image file name
+ * (basename): 1 if it is a .png/.jpg/.jpeg whose stem ends in the angle pattern
+ * "tlTTT_plPPP_tvTTT_pvPPP" (doc/input-formats.md section 1), 0 otherwise. */
+int btf_ubo2003_name_angles(const char *name, int a[4]);
+
 /* UBO2003 image directory (doc/input-formats.md section 1): files named ..._tlTTT_plPPP_tvTTT_pvPPP.{jpg,png}
  * or "tvTTT_pvPPP/NNNNN tlTTT plPPP tvTTT pvPPP.jpg"; every (light, view) image exactly once. */
 btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, btf **out, btf_error *err);

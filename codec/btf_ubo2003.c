@@ -51,7 +51,7 @@ static int btf__tag3(const char *s, char t0, char t1, int *v)
 
 /* Angles tl, pl, tv, pv of an image file name (basename); 1 if it is a
  * .png/.jpg/.jpeg whose stem ends in the angle pattern, 0 otherwise. */
-static int btf__parse_name(const char *name, int a[4])
+int btf_ubo2003_name_angles(const char *name, int a[4])
 {
     const char *dot = strrchr(name, '.');
     if (!dot || !btf__is_image_ext(dot + 1))
@@ -180,7 +180,7 @@ static btf_result btf__scan_dir(btf__scan *s, const char *dirpath, int top, int 
         if (e->d_name[0] == '.')
             continue;
         int kind = btf__kind(dirpath, e);
-        if (kind == 0 && btf__parse_name(e->d_name, a))
+        if (kind == 0 && btf_ubo2003_name_angles(e->d_name, a))
             r = btf__scan_add(s, dirpath, e->d_name, a, ftv, fpv, err);
         else if (kind == 1 && top && btf__parse_folder(e->d_name, &tv, &pv)) {
             char *sub = btf__join(dirpath, e->d_name);

@@ -5,8 +5,8 @@
 # Targets:
 #   $(BUILD)/btfd                 the server (server/*.c + $(CODEC_LIB), libwebsockets, cJSON)
 #   $(BUILD)/fuzz_request_replay  replays fuzz/corpus/request/* through the parser (cc)
-#   fuzz-replay                   runs that replay binary on the saved corpus
-#   fuzz                          libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
+#   fuzz-request                  libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
+# (fuzz/build.mk runs it with the codec targets as `make fuzz`, and replays every corpus)
 # server/ uses codec/ only (btf.h for direction sets and package metadata).
 # `build` gains btfd and the replay binary, so `make test` runs the server tests
 # (tests/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
@@ -25,7 +25,7 @@ FUZZ_SRC     := fuzz/fuzz_request.c server/btfd_request.c
 
 export BTF_BUILD := $(abspath $(BUILD))
 
-.PHONY: server fuzz fuzz-replay
+.PHONY: server fuzz-request
 server: $(BTFD_BIN)
 build: $(BTFD_BIN) $(FUZZ_REPLAY)
 
@@ -40,11 +40,8 @@ $(FUZZ_REPLAY): $(FUZZ_SRC) fuzz/replay_main.c server/btfd_request.h
 	$(CC) $(CFLAGS) -MF /dev/null -Iserver $(SERVER_CFLAGS) -o $@ $(FUZZ_SRC) fuzz/replay_main.c \
 	    $(LDFLAGS) $(FUZZ_LIBS) -lm
 
-fuzz-replay: $(FUZZ_REPLAY)
-	$(FUZZ_REPLAY) fuzz/corpus/request
-
 # libFuzzer + ASan/UBSan; new interesting inputs land in fuzz/corpus/request.
-fuzz:
+fuzz-request:
 	@mkdir -p $(BUILD)
 	clang -std=c11 -g -O1 -D_DEFAULT_SOURCE -fsanitize=fuzzer,address,undefined -Iserver \
 	    $(SERVER_CFLAGS) -o $(FUZZ_BIN) $(FUZZ_SRC) $(FUZZ_LIBS) -lm
