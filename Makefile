@@ -27,7 +27,7 @@ pkg__or_stop = $(if $(filter PKG-CONFIG-FAILED,$(1)),$(error pkg-config $(2): $(
 
 # --- Rooms: each folder one archive, one include path, dependencies one way ---
 # codec/        product library: formats, PCA, decoder, levels, metrics, file helpers
-CODEC_PKGS := OpenImageIO libcjson lapacke openblas
+CODEC_PKGS := OpenImageIO libcjson lapacke openblas zlib
 CODEC_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/*.c)) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/*.cpp))
 CODEC_LIB  := $(BUILD)/codec/libbtfcodec.a
 $(CODEC_OBJ): INC := -Icodec
@@ -126,7 +126,10 @@ check: build
 asan: setup
 	$(MAKE) BUILD=build-asan OPT='-O1 -g -fno-omit-frame-pointer' \
 	    SAN='-fsanitize=address,undefined -fno-sanitize-recover=undefined' build
-	ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 build-asan/run_tests --jobs 2
+	ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 \
+	    BTF_BUILD=$(CURDIR)/build-asan build-asan/run_tests --jobs 2
+	ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 \
+	    $(MAKE) BUILD=build-asan e2e
 
 # bench/        benchmark programs (one per bench/bench_*.c) and scripts
 BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/*.c))

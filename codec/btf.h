@@ -50,7 +50,8 @@ typedef struct btf_error {
     char msg[512];
 } btf_error;
 
-/* Formats into err (if non-NULL) and returns code: for use by library modules. */
+/* Formats into err (if non-NULL; control characters become ?, so the message is one
+ * line) and returns code: for use by library modules. */
 btf_result btf_fail(btf_error *err, btf_result code, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 3, 4)))

@@ -30,6 +30,9 @@ btf_result btf_fail(btf_error *err, btf_result code, const char *fmt, ...)
         va_start(ap, fmt);
         vsnprintf(err->msg, sizeof err->msg, fmt, ap);
         va_end(ap);
+        for (char *c = err->msg; *c; c++) /* one line: names and text from files may hold control bytes */
+            if ((unsigned char)*c < 0x20 || *c == 0x7f)
+                *c = '?';
     }
     return code;
 }

@@ -1,6 +1,7 @@
 // btf_image.cpp - the one C++ file: OpenImageIO behind the C API of btf_image.h.
 #include "btf_image.h"
 #include "btf_fs.h"
+#include "btf_png.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -26,22 +27,39 @@ static std::string one_line(std::string e)
     return e;
 }
 
-// Opens path for reading with alpha left unassociated; NULL with err set on failure.
-static std::unique_ptr<ImageInput> open_input(const char *path, btf_error *err)
+// A PNG must pass btf_png_check before OpenImageIO sees it (no decoder messages on
+// stderr, one clear error); other formats go straight to OpenImageIO.
+static btf_result check_file(const char *path, btf_error *err)
 {
+    char *data = nullptr;
+    size_t n = 0;
+    btf_result r = btf_fs_read(path, (size_t)1 << 30, &data, &n, err);
+    if (r == BTF_OK && btf_png_is_png((const uint8_t *)data, n))
+        r = btf_png_check((const uint8_t *)data, n, path, err);
+    free(data);
+    return r == BTF_ERR_MISSING ? BTF_ERR_IO : r;
+}
+
+// Opens path for reading with alpha left unassociated, after check_file; NULL with
+// *r and err set on failure.
+static std::unique_ptr<ImageInput> open_input(const char *path, btf_result *r, btf_error *err)
+{
+    if ((*r = check_file(path, err)) != BTF_OK)
+        return nullptr;
     ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
     auto in = ImageInput::open(path, &config);
     if (!in)
-        btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, one_line(OIIO::geterror()).c_str());
+        *r = btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, one_line(OIIO::geterror()).c_str());
     return in;
 }
 
 extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
 {
-    auto in = open_input(path, err);
+    btf_result r = BTF_OK;
+    auto in = open_input(path, &r, err);
     if (!in)
-        return BTF_ERR_IO;
+        return r;
     const ImageSpec &s = in->spec();
     *w = s.width;
     *h = s.height;
@@ -54,9 +72,10 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
                                         btf_error *err)
 {
     *pixels = nullptr;
-    auto in = open_input(path, err);
+    btf_result r = BTF_OK;
+    auto in = open_input(path, &r, err);
     if (!in)
-        return BTF_ERR_IO;
+        return r;
     const ImageSpec &s = in->spec();
     if (s.width < 1 || s.height < 1 || s.width > kMaxSide || s.height > kMaxSide || s.nchannels < 1 ||
         s.nchannels > 4 || s.depth != 1)

@@ -45,11 +45,7 @@ void btf_blocks_free(btf_blocks *b)
 {
     if (!b)
         return;
-    free(b->start);
-    free(b->views);
-    free(b->block_of_view);
-    free(b->pos_in_block);
-    free(b);
+    free(b->start), free(b->views), free(b->block_of_view), free(b->pos_in_block), free(b);
 }
 
 static btf_result btf__blocks_alloc(int n_views, int n_blocks, btf_blocks **out, btf_error *err)
@@ -268,9 +264,7 @@ void btf_pca_block_clear(btf_pca_block *blk)
 {
     if (!blk)
         return;
-    free(blk->t);
-    free(blk->w);
-    free(blk->sigma);
+    free(blk->t), free(blk->w), free(blk->sigma);
     memset(blk, 0, sizeof *blk);
 }
 

@@ -111,9 +111,7 @@ void btf_thesis_free(btf_thesis_pkg *p)
 {
     if (!p)
         return;
-    free(p->L);
-    free(p->V);
-    free(p->sigma);
+    free(p->L), free(p->V), free(p->sigma);
     memset(p, 0, sizeof *p);
 }
 
@@ -559,9 +557,7 @@ static btf_result resample_l(const btf_thesis_pkg *p, int w, int h, float **out,
                             dst + (size_t)y * rowlen, 1);
     }
 done:
-    free(fx);
-    free(wx);
-    free(tmp);
+    free(fx), free(wx), free(tmp);
     if (r != BTF_OK)
         free(res), res = NULL;
     *out = res;

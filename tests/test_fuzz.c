@@ -105,7 +105,7 @@ Test(fuzz, png_header_larger_than_the_file_can_hold_is_refused)
     uint8_t *px = NULL;
     btf_error err = {0};
     cr_expect_eq(btf_image_read_u8(path, &w, &h, &ch, &px, &err), BTF_ERR_FORMAT, "%s", err.msg);
-    cr_expect(strstr(err.msg, "cannot hold"), "%s", err.msg);
+    cr_expect(strstr(err.msg, "cannot hold") || strstr(err.msg, "holds 4096 of"), "%s", err.msg);
     cr_expect_null(px);
     test_rmtree(dir);
 }

@@ -160,3 +160,8 @@ int btf_args_parse(const btf_args_spec *spec, int argc, char **argv, btf_args_fn
     }
     return rc;
 }
+
+int btf_args_finish(int rc, int (*run)(void *opts), void *opts)
+{
+    return rc < 0 ? 0 : rc > 0 ? rc : run(opts);
+}

@@ -44,6 +44,9 @@ typedef int (*btf_args_fn)(void *ctx, const btf_args *a, int code, const char *v
  * stdout and returns -1; an unknown option, a missing value, too many or too few
  * positionals print a message and return 2; else fn's first nonzero value, or 0. */
 int btf_args_parse(const btf_args_spec *spec, int argc, char **argv, btf_args_fn fn, void *ctx);
+/* A command's exit code from its parse result: rc < 0 (--help shown) 0, rc > 0
+ * that usage error, 0 run(opts). The one entry shape of every cmd_NAME. */
+int btf_args_finish(int rc, int (*run)(void *opts), void *opts);
 
 /* Prints "btf CMD: --opt VALUE: expected WHAT" (WHAT printf-style) to stderr; returns 2. */
 int btf_args_bad(const btf_args *a, const char *val, const char *what, ...) __attribute__((format(printf, 3, 4)));

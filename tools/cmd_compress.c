@@ -166,35 +166,39 @@ static btf_result compress_run(const btf *src, compress_opts *o, btf_compress_st
     return r;
 }
 
-int cmd_compress(int argc, char **argv)
+/* The command once its options are parsed; the exit code. */
+static int compress_main(void *opts)
 {
-    compress_opts o;
-    int rc = compress_parse(argc, argv, &o);
-    if (rc)
-        return rc < 0 ? 0 : rc;
+    compress_opts *o = opts;
     btf_error err = {0};
     btf_load_options lo = {0};
-    lo.downsample = o.downsample;
+    lo.downsample = o->downsample;
     btf *src = NULL;
     double t0 = btf_now();
-    if (btf_source_load(o.in, &lo, &src, &err) != BTF_OK) {
+    if (btf_source_load(o->in, &lo, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;
     }
     double t1 = btf_now();
     btf_compress_stats st = {0};
-    btf_result r = compress_run(src, &o, &st, &err);
+    btf_result r = compress_run(src, o, &st, &err);
     btf_free(src);
     if (r != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;
     }
-    if (o.json)
-        return compress_json(o.out, &st, t1 - t0);
-    if (!o.quiet) {
-        printf("%s: %d chunks, %lld bytes; load %.2f s, PCA %.2f s, write %.2f s\n", o.out, st.n_chunks, st.bytes,
+    if (o->json)
+        return compress_json(o->out, &st, t1 - t0);
+    if (!o->quiet) {
+        printf("%s: %d chunks, %lld bytes; load %.2f s, PCA %.2f s, write %.2f s\n", o->out, st.n_chunks, st.bytes,
                t1 - t0, st.seconds_pca, st.seconds_write);
-        compress_report(o.out);
+        compress_report(o->out);
     }
     return 0;
+}
+
+int cmd_compress(int argc, char **argv)
+{
+    compress_opts o;
+    return btf_args_finish(compress_parse(argc, argv, &o), compress_main, &o);
 }

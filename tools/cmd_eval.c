@@ -318,23 +318,22 @@ static cJSON *eval_json_start(const eval_opts *o)
     return j;
 }
 
-int cmd_eval(int argc, char **argv)
+/* The command once its options are parsed; the exit code. */
+static int eval_main(void *opts)
 {
-    eval_opts o;
-    int rc = eval_parse(argc, argv, &o);
-    if (rc)
-        return rc < 0 ? 0 : rc;
+    eval_opts *o = opts;
+    int rc = 0;
     eval_pairs pl = {0};
-    if (strcmp(o.pairs, "all") && strcmp(o.pairs, "measured"))
-        rc = eval_parse_pairs(o.pairs, &pl);
+    if (strcmp(o->pairs, "all") && strcmp(o->pairs, "measured"))
+        rc = eval_parse_pairs(o->pairs, &pl);
     btf *ref = NULL;
     if (rc == 0)
-        rc = eval_load(o.ref_path, &o, &ref);
-    cJSON *j = eval_json_start(&o);
-    if (rc == 0 && eval_is_package(o.test_path)) /* TEST is a package directory */
-        rc = eval_package(&o, &pl, ref, j);
+        rc = eval_load(o->ref_path, o, &ref);
+    cJSON *j = eval_json_start(o);
+    if (rc == 0 && eval_is_package(o->test_path)) /* TEST is a package directory */
+        rc = eval_package(o, &pl, ref, j);
     else if (rc == 0)
-        rc = eval_btf(&o, &pl, ref, j);
+        rc = eval_btf(o, &pl, ref, j);
     if (j && rc == 0)
         rc = btf_json_print(j);
     else
@@ -343,4 +342,10 @@ int cmd_eval(int argc, char **argv)
     free(pl.views);
     free(pl.lights);
     return rc;
+}
+
+int cmd_eval(int argc, char **argv)
+{
+    eval_opts o;
+    return btf_args_finish(eval_parse(argc, argv, &o), eval_main, &o);
 }

@@ -99,31 +99,36 @@ static int export_eval(const char *out, const btf *src)
     return 0;
 }
 
-int cmd_export_thesis(int argc, char **argv)
+/* The command once its options are parsed; the exit code. */
+static int export_thesis_main(void *opts)
 {
-    export_opts o;
-    int rc = export_parse(argc, argv, &o);
-    if (rc)
-        return rc < 0 ? 0 : rc;
+    export_opts *o = opts;
+    int rc = 0;
     btf_error err = {0};
     btf_load_options lo = {0};
-    lo.downsample = o.downsample;
+    lo.downsample = o->downsample;
     btf *src = NULL;
-    if (btf_load_any(o.in, &lo, &src, &err) != BTF_OK) {
+    if (btf_load_any(o->in, &lo, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf export-thesis: %s\n", err.msg);
         return 1;
     }
     btf_export_stats st = {0};
-    if (btf_export_thesis(src, &o.ex, o.out, &st, &err) != BTF_OK) {
+    if (btf_export_thesis(src, &o->ex, o->out, &st, &err) != BTF_OK) {
         fprintf(stderr, "btf export-thesis: %s\n", err.msg);
         btf_free(src);
         return 1;
     }
-    if (!o.quiet)
-        printf("%s: thesis package, k %d, C %d, scale %s, %lld bytes; PCA %.2f s, write %.2f s\n", o.out, o.ex.k,
-               o.ex.components, btf_thesis_scale_name(o.ex.scale), st.bytes, st.seconds_pca, st.seconds_write);
-    if (o.eval)
-        rc = export_eval(o.out, src);
+    if (!o->quiet)
+        printf("%s: thesis package, k %d, C %d, scale %s, %lld bytes; PCA %.2f s, write %.2f s\n", o->out, o->ex.k,
+               o->ex.components, btf_thesis_scale_name(o->ex.scale), st.bytes, st.seconds_pca, st.seconds_write);
+    if (o->eval)
+        rc = export_eval(o->out, src);
     btf_free(src);
     return rc;
+}
+
+int cmd_export_thesis(int argc, char **argv)
+{
+    export_opts o;
+    return btf_args_finish(export_parse(argc, argv, &o), export_thesis_main, &o);
 }

@@ -121,26 +121,24 @@ static btf_result gen_write(const btf *b, const gen_opts *o, btf_error *err)
     return btf_save_ubo2003_dir(b, o->out, prefix, o->format, err);
 }
 
-int cmd_gen(int argc, char **argv)
+/* The command once its options are parsed; the exit code. */
+static int gen_main(void *opts)
 {
-    gen_opts o;
-    int rc = gen_parse(argc, argv, &o);
-    if (rc)
-        return rc < 0 ? 0 : rc;
+    gen_opts *o = opts;
     btf_error err = {{0}};
     btf_dirset d;
-    if (gen_sampling(o.sampling, &d, &err) != BTF_OK) {
+    if (gen_sampling(o->sampling, &d, &err) != BTF_OK) {
         fprintf(stderr, "btf gen: %s\n", err.msg);
         return 1;
     }
-    btf_gen_params p = btf_gen_defaults((btf_gen_kind)o.kind);
-    p.seed = o.seed;
+    btf_gen_params p = btf_gen_defaults((btf_gen_kind)o->kind);
+    p.seed = o->seed;
     btf *b = NULL;
     double t0 = btf_now();
-    btf_result r = btf_gen_create(&p, o.size, o.size, &d, &d, BTF_U8, &b, &err);
+    btf_result r = btf_gen_create(&p, o->size, o->size, &d, &d, BTF_U8, &b, &err);
     double t1 = btf_now();
     if (r == BTF_OK)
-        r = gen_write(b, &o, &err);
+        r = gen_write(b, o, &err);
     double t2 = btf_now();
     if (r != BTF_OK) {
         fprintf(stderr, "btf gen: %s\n", err.msg);
@@ -149,8 +147,14 @@ int cmd_gen(int argc, char **argv)
     }
     printf("%s: %s %dx%d, %d lights x %d views (%s), seed %u, %zu bytes of samples; "
            "generated in %.2f s, written (%s) in %.2f s\n",
-           o.out, btf_gen_kind_name((btf_gen_kind)o.kind), o.size, o.size, d.n_dirs, d.n_dirs, o.sampling, o.seed,
-           b->count, t1 - t0, o.format, t2 - t1);
+           o->out, btf_gen_kind_name((btf_gen_kind)o->kind), o->size, o->size, d.n_dirs, d.n_dirs, o->sampling, o->seed,
+           b->count, t1 - t0, o->format, t2 - t1);
     btf_free(b);
     return 0;
+}
+
+int cmd_gen(int argc, char **argv)
+{
+    gen_opts o;
+    return btf_args_finish(gen_parse(argc, argv, &o), gen_main, &o);
 }

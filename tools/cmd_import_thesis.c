@@ -78,33 +78,37 @@ static void import_thesis_prefix(const char *dir, char *buf, size_t n)
         snprintf(buf, n, "thesis");
 }
 
-int cmd_import_thesis(int argc, char **argv)
+/* The command once its options are parsed; the exit code. */
+static int import_thesis_main(void *opts)
 {
-    import_thesis_opts a;
-    int rc = import_thesis_parse(argc, argv, &a);
-    if (rc)
-        return rc < 0 ? 0 : rc;
+    import_thesis_opts *a = opts;
     btf_load_options o = {0};
-    o.width = o.height = a.size;
+    o.width = o.height = a->size;
     btf *b = NULL;
     btf_error e = {0};
-    btf_result r = btf_import_thesis(a.in, &o, &b, &e);
+    btf_result r = btf_import_thesis(a->in, &o, &b, &e);
     if (r == BTF_OK) {
-        if (import_thesis_ends_with(a.out, ".btf")) {
-            r = btf_save_dfmf(b, a.out, 0, &e);
+        if (import_thesis_ends_with(a->out, ".btf")) {
+            r = btf_save_dfmf(b, a->out, 0, &e);
         } else {
             char prefix[256];
-            import_thesis_prefix(a.in, prefix, sizeof prefix);
-            r = btf_save_ubo2003_dir(b, a.out, prefix, a.ext, &e);
+            import_thesis_prefix(a->in, prefix, sizeof prefix);
+            r = btf_save_ubo2003_dir(b, a->out, prefix, a->ext, &e);
         }
     }
     if (r == BTF_OK)
-        printf("%s: %dx%d texels, %d lights x %d views -> %s\n", a.in, b->width, b->height, b->lights.n_dirs,
-               b->views.n_dirs, a.out);
+        printf("%s: %dx%d texels, %d lights x %d views -> %s\n", a->in, b->width, b->height, b->lights.n_dirs,
+               b->views.n_dirs, a->out);
     btf_free(b);
     if (r != BTF_OK) {
         fprintf(stderr, "btf import-thesis: %s (%s)\n", e.msg, btf_result_string(r));
         return 1;
     }
     return 0;
+}
+
+int cmd_import_thesis(int argc, char **argv)
+{
+    import_thesis_opts a;
+    return btf_args_finish(import_thesis_parse(argc, argv, &a), import_thesis_main, &a);
 }

@@ -79,22 +79,26 @@ static int lod_json(const char *out, const btf_lod_stats *st)
     return btf_json_print(o);
 }
 
-int cmd_lod(int argc, char **argv)
+/* The command once its options are parsed; the exit code. */
+static int lod_main(void *opts)
 {
-    lod_opts o;
-    int rc = lod_parse(argc, argv, &o);
-    if (rc)
-        return rc < 0 ? 0 : rc;
+    lod_opts *o = opts;
     btf_lod_stats st = {0};
     btf_error err = {0};
-    if (btf_lod_build(o.in, o.out, &o.lod, &st, &err) != BTF_OK) {
+    if (btf_lod_build(o->in, o->out, &o->lod, &st, &err) != BTF_OK) {
         fprintf(stderr, "btf lod: %s\n", err.msg);
         return 1;
     }
-    if (o.json)
-        return lod_json(o.out, &st);
-    if (!o.quiet)
-        printf("%s: %d levels, %d chunks, %lld bytes (version 1: %lld), first chunk %lld bytes\n", o.out, st.levels,
+    if (o->json)
+        return lod_json(o->out, &st);
+    if (!o->quiet)
+        printf("%s: %d levels, %d chunks, %lld bytes (version 1: %lld), first chunk %lld bytes\n", o->out, st.levels,
                st.n_chunks, st.bytes, st.bytes_v1, st.first_chunk);
     return 0;
+}
+
+int cmd_lod(int argc, char **argv)
+{
+    lod_opts o;
+    return btf_args_finish(lod_parse(argc, argv, &o), lod_main, &o);
 }

@@ -192,17 +192,21 @@ static void render_find_shaders(void)
     }
 }
 
-int cmd_render(int argc, char **argv)
+/* The command once its options are parsed; the exit code. */
+static int render_main(void *opts)
 {
-    render_opts o;
-    int rc = render_parse(argc, argv, &o);
-    if (rc)
-        return rc < 0 ? 0 : rc;
+    render_opts *o = opts;
     render_find_shaders();
     btf_error err = {{0}};
-    if (btf_render_png(o.pkg, &o.p, o.backend, o.out, &err) != BTF_OK) {
+    if (btf_render_png(o->pkg, &o->p, o->backend, o->out, &err) != BTF_OK) {
         fprintf(stderr, "btf render: %s\n", err.msg);
         return 1;
     }
     return 0;
+}
+
+int cmd_render(int argc, char **argv)
+{
+    render_opts o;
+    return btf_args_finish(render_parse(argc, argv, &o), render_main, &o);
 }

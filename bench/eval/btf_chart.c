@@ -75,9 +75,7 @@ void btf_chart_free(btf_chart *c)
 {
     if (!c)
         return;
-    free(c->rows);
-    free(c->stream);
-    free(c);
+    free(c->rows), free(c->stream), free(c);
 }
 
 /* One more zeroed element of size `elem` at the end of a growing array; NULL when out of memory. */

@@ -25,8 +25,7 @@ static void btf__csv_free(btf__csv *c)
         return;
     for (int i = 0; i < c->n_rows; i++)
         free(c->row[i]);
-    free(c->row);
-    free(c->text);
+    free(c->row), free(c->text);
     memset(c, 0, sizeof *c);
 }
 

@@ -305,12 +305,7 @@ void btf_gen_model_free(btf_gen_model *m)
 {
     if (!m)
         return;
-    free(m->height);
-    free(m->albedo);
-    free(m->normal);
-    free(m->expo);
-    free(m->ks);
-    free(m);
+    free(m->height), free(m->albedo), free(m->normal), free(m->expo), free(m->ks), free(m);
 }
 
 /* Fills height (0..1 for now), albedo, expo, ks from the kind's pattern. */

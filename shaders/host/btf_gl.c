@@ -269,12 +269,10 @@ btf_result btf_gl_target_create(btf_gl *gl, int w, int h, btf_gl_format fmt, int
     t->format = fmt;
     t->n_color = n_color;
     r = btf__gl_target_attach(gl, t, err);
-    if (r != BTF_OK) {
-        btf_gl_target_free(gl, t);
-        return r;
-    }
+    if (r != BTF_OK)
+        btf_gl_target_free(gl, t), t = NULL;
     *out = t;
-    return BTF_OK;
+    return r;
 }
 
 void btf_gl_target_free(btf_gl *gl, btf_gl_target *t)

@@ -208,12 +208,10 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
         r = btf__upload_weights(gl, g, p, err);
     if (r == BTF_OK)
         r = btf__upload_tables(gl, g, p, err);
-    if (r != BTF_OK) {
-        btf_gl_package_free(gl, g);
-        return r;
-    }
+    if (r != BTF_OK)
+        btf_gl_package_free(gl, g), g = NULL;
     *out = g;
-    return BTF_OK;
+    return r;
 }
 
 void btf_gl_package_free(btf_gl *gl, btf_gl_package *g)

@@ -247,9 +247,7 @@ void btf_render_mesh_free(btf_render_mesh *m)
 {
     if (!m)
         return;
-    free(m->vertices);
-    free(m->indices);
-    free(m);
+    free(m->vertices), free(m->indices), free(m);
 }
 
 /* ---------------------------------------------------------------- renderer */

@@ -425,12 +425,10 @@ btf_result btf_shader_build(btf_gl *gl, const btf_shader_desc *desc, btf_shader_
         f->DeleteShader(vs);
     if (fs)
         f->DeleteShader(fs);
-    if (r != BTF_OK) {
-        btf_shader_program_free(gl, p);
-        return r;
-    }
+    if (r != BTF_OK)
+        btf_shader_program_free(gl, p), p = NULL;
     *out = p;
-    return BTF_OK;
+    return r;
 }
 
 void btf_shader_program_free(btf_gl *gl, btf_shader_program *p)
