@@ -102,8 +102,10 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
     return BTF_OK;
 }
 
-extern "C" btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
-                                      btf_error *err)
+// Writes through "PATH.tmp-PID.EXT" and renames; sync: fsync the file before and the
+// directory after (btf_fs_commit_file).
+static btf_result write_image(const char *path, int w, int h, int channels, int bits, const void *pixels, int sync,
+                              btf_error *err)
 {
     if (w < 1 || h < 1 || w > kMaxSide || h > kMaxSide || channels < 1 || channels > 4 || (bits != 8 && bits != 16))
         return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%dx%d/%d", path, w, h, channels, bits);
@@ -126,5 +128,23 @@ extern "C" btf_result btf_image_write(const char *path, int w, int h, int channe
         std::remove(tmp.c_str());
         return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
     }
-    return btf_fs_commit_file(tmp.c_str(), path, err); // fsync, rename, fsync of the directory
+    if (sync)
+        return btf_fs_commit_file(tmp.c_str(), path, err); // fsync, rename, fsync of the directory
+    if (std::rename(tmp.c_str(), path) != 0) {
+        std::remove(tmp.c_str());
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot rename temporary file", path);
+    }
+    return BTF_OK;
+}
+
+extern "C" btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
+                                      btf_error *err)
+{
+    return write_image(path, w, h, channels, bits, pixels, 1, err);
+}
+
+extern "C" btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels, int bits,
+                                               const void *pixels, btf_error *err)
+{
+    return write_image(path, w, h, channels, bits, pixels, 0, err);
 }

@@ -5,7 +5,7 @@
  *
  * Reads any format OpenImageIO reads (PNG, JPEG, ...) as 8-bit, interleaved,
  * row 0 first, with alpha left unassociated (never premultiplied).
- * Writes go to "<path>.tmp-<pid>" and are renamed into place on success.
+ * Writes go to "<path>.tmp-<pid>", are fsynced and renamed into place on success.
  */
 #ifndef BTF_IMAGE_H
 #define BTF_IMAGE_H
@@ -31,6 +31,11 @@ btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_e
 /* Writes w*h*channels samples, bits 8 (uint8_t) or 16 (uint16_t), format from the extension. */
 btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
                            btf_error *err);
+/* The same without the fsyncs, for writers of many files into one directory that
+ * sync the directory once at the end (image directories: one fsync per image
+ * would cost ten times the encoding). */
+btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels, int bits, const void *pixels,
+                                    btf_error *err);
 
 #ifdef __cplusplus
 }

@@ -12,6 +12,7 @@
  * the numbering of the published UBO2003 files (doc/input-formats.md: "..._00084_tl015_pl000_tv015_pv120"
  * is light 1, view 3); the loader never relies on the number.
  */
+#include "btf_fs.h"
 #include "btf_image.h"
 #include "btf_io.h"
 
@@ -77,6 +78,7 @@ static int btf__parse_folder(const char *name, int *tv, int *pv)
 /* One image file found by the scan; path malloc'd, owned by the btf__scan. */
 typedef struct btf__file {
     char *path;
+    int a[4]; /* tl, pl, tv, pv of its name */
 } btf__file;
 
 /* Everything the scan found; lives for one load call, freed by btf__scan_free.
@@ -136,23 +138,14 @@ static btf_result btf__scan_add(btf__scan *s, const char *dirpath, const char *n
     if (!path)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dirpath);
     btf_result r = BTF_OK;
-    int light = btf_dirset_find(s->set, (float)a[0], (float)a[1], BTF__ANGLE_TOL);
-    int view = btf_dirset_find(s->set, (float)a[2], (float)a[3], BTF__ANGLE_TOL);
     if (folder_tv >= 0 && (folder_tv != a[2] || folder_pv != a[3]))
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: view angles tv%03d pv%03d differ from its folder tv%03d_pv%03d", path,
                      a[2], a[3], folder_tv, folder_pv);
-    else if (light < 0 || view < 0)
-        r = btf_fail(err, BTF_ERR_RANGE, "%s: %s direction (theta %d, phi %d) is not in the expected sampling (%d directions)",
-                     path, light < 0 ? "light" : "view", light < 0 ? a[0] : a[2], light < 0 ? a[1] : a[3],
-                     s->set->n_dirs);
-    else if (s->slot[view * s->set->n_dirs + light] >= 0)
-        r = btf_fail(err, BTF_ERR_FORMAT, "%s: duplicate angles (light %d, view %d) also in %s", path, light, view,
-                     s->files[s->slot[view * s->set->n_dirs + light]].path);
     else if (s->n_files == s->cap) {
         int cap = s->cap ? s->cap * 2 : 256;
-        btf__file *f = realloc(s->files, (size_t)cap * sizeof *f);
+        btf__file *f = cap <= 4 * BTF_MAX_DIRS * BTF_MAX_DIRS ? realloc(s->files, (size_t)cap * sizeof *f) : NULL;
         if (!f)
-            r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+            r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (or more images than any sampling has)", path);
         else {
             s->files = f;
             s->cap = cap;
@@ -162,8 +155,8 @@ static btf_result btf__scan_add(btf__scan *s, const char *dirpath, const char *n
         free(path);
         return r;
     }
-    s->slot[view * s->set->n_dirs + light] = s->n_files;
-    s->files[s->n_files++].path = path;
+    s->files[s->n_files].path = path;
+    memcpy(s->files[s->n_files++].a, a, sizeof s->files[0].a);
     return BTF_OK;
 }
 
@@ -222,19 +215,73 @@ static btf_result btf__scan_check_complete(const btf__scan *s, btf_error *err)
                     s->dir, first % n, first / n, tl, pl, tv, pv, missing, s->n_slots);
 }
 
-static btf_result btf__scan_run(btf__scan *s, const char *dir, const btf_dirset *set, btf_error *err)
+/* Index of the direction of d whose whole-degree name angles (as the writer rounds
+ * them) are (t, p); else the direction within half a degree; -1 if none. names
+ * holds d's rounded angles, 2 per direction. */
+static int btf__match(const btf_dirset *d, const int *names, int t, int p)
+{
+    for (int i = 0; i < d->n_dirs; i++)
+        if (names[2 * i] == t && (names[2 * i + 1] == p % 360 || (t == 0 && names[2 * i] == 0)))
+            return i;
+    return btf_dirset_find(d, (float)t, (float)p, BTF__ANGLE_TOL);
+}
+
+/* Puts every scanned file in its (view, light) slot of set; the first file that
+ * does not fit, a duplicate or a gap is the error. */
+static btf_result btf__scan_assign(btf__scan *s, const btf_dirset *set, btf_error *err)
+{
+    int n = set->n_dirs, *names = malloc((size_t)n * 2 * sizeof *names);
+    free(s->slot);
+    s->set = set, s->n_slots = n * n;
+    s->slot = malloc((size_t)s->n_slots * sizeof *s->slot);
+    if (!names || !s->slot) {
+        free(names);
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", s->dir);
+    }
+    for (int i = 0; i < n; i++)
+        btf__round_angles(set, i, &names[2 * i], &names[2 * i + 1]);
+    for (int i = 0; i < s->n_slots; i++)
+        s->slot[i] = -1;
+    btf_result r = BTF_OK;
+    for (int f = 0; r == BTF_OK && f < s->n_files; f++) {
+        const int *a = s->files[f].a;
+        int light = btf__match(set, names, a[0], a[1]), view = btf__match(set, names, a[2], a[3]);
+        if (light < 0 || view < 0)
+            r = btf_fail(err, BTF_ERR_RANGE,
+                         "%s: %s direction (theta %d, phi %d) is not in the expected sampling (%d directions)",
+                         s->files[f].path, light < 0 ? "light" : "view", light < 0 ? a[0] : a[2],
+                         light < 0 ? a[1] : a[3], n);
+        else if (s->slot[view * n + light] >= 0)
+            r = btf_fail(err, BTF_ERR_FORMAT, "%s: duplicate angles (light %d, view %d) also in %s", s->files[f].path,
+                         light, view, s->files[s->slot[view * n + light]].path);
+        else
+            s->slot[view * n + light] = f;
+    }
+    free(names);
+    return r != BTF_OK ? r : btf__scan_check_complete(s, err);
+}
+
+/* Scans dir; with set NULL the sampling is inferred: the one built-in set
+ * (UBO2003, then the 151-direction dome) every file fits. *chosen = the set used. */
+static btf_result btf__scan_run(btf__scan *s, const char *dir, const btf_dirset *set, btf_dirset *chosen,
+                                btf_error *err)
 {
     memset(s, 0, sizeof *s);
     s->dir = dir;
-    s->set = set;
-    s->n_slots = set->n_dirs * set->n_dirs;
-    s->slot = malloc((size_t)s->n_slots * sizeof *s->slot);
-    if (!s->slot)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
-    for (int i = 0; i < s->n_slots; i++)
-        s->slot[i] = -1;
     btf_result r = btf__scan_dir(s, dir, 1, -1, -1, err);
-    return r != BTF_OK ? r : btf__scan_check_complete(s, err);
+    if (r != BTF_OK || set) {
+        if (set)
+            *chosen = *set;
+        return r != BTF_OK ? r : btf__scan_assign(s, chosen, err);
+    }
+    btf_dirset known[2] = {btf_dirset_ubo2003(), btf_dirset_dome151()};
+    for (int k = 1; k >= 0; k--) { /* UBO2003 last, so its message is the one kept */
+        *chosen = known[k];
+        r = btf__scan_assign(s, chosen, err);
+        if (r == BTF_OK)
+            return r;
+    }
+    return r;
 }
 
 /* ------------------------------------------------------------------ decode */
@@ -401,20 +448,20 @@ btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, bt
     if (!dir || !out)
         return btf_fail(err, BTF_ERR_ARG, "btf_load_ubo2003_dir: NULL argument");
     *out = NULL;
-    btf_dirset ubo = btf_dirset_ubo2003();
-    const btf_dirset *set = opt && opt->sampling ? opt->sampling : &ubo;
+    const btf_dirset *want = opt ? opt->sampling : NULL;
     btf_storage storage = opt && opt->storage ? opt->storage : BTF_U8;
     if (storage != BTF_U8 && storage != BTF_F32)
         return btf_fail(err, BTF_ERR_ARG, "%s: unknown storage %d", dir, (int)storage);
     if (opt && opt->downsample < 0)
         return btf_fail(err, BTF_ERR_ARG, "%s: downsample factor %d is negative", dir, opt->downsample);
-    if (set->n_dirs < 1 || set->n_dirs > BTF_MAX_DIRS)
-        return btf_fail(err, BTF_ERR_ARG, "%s: sampling has %d directions", dir, set->n_dirs);
+    if (want && (want->n_dirs < 1 || want->n_dirs > BTF_MAX_DIRS))
+        return btf_fail(err, BTF_ERR_ARG, "%s: sampling has %d directions", dir, want->n_dirs);
     btf_result r = btf__check_dir(dir, err);
     if (r != BTF_OK)
         return r;
     btf__scan scan;
-    r = btf__scan_run(&scan, dir, set, err);
+    btf_dirset set_used, *set = &set_used;
+    r = btf__scan_run(&scan, dir, want, set, err);
     btf__decode d;
     memset(&d, 0, sizeof d);
     d.scan = &scan;
@@ -510,7 +557,7 @@ static btf_result btf__write_one(btf__writer *w, int img, uint8_t *tmp, btf_erro
         }
         px = tmp;
     }
-    btf_result r = btf_image_write(path, b->width, b->height, 3, 8, px, err);
+    btf_result r = btf_image_write_unsynced(path, b->width, b->height, 3, 8, px, err);
     free(path);
     return r;
 }
@@ -574,7 +621,8 @@ btf_result btf_save_ubo2003_dir(const btf *b, const char *dir, const char *prefi
     w.prefix = prefix;
     w.ext = ext;
     w.total = b->lights.n_dirs * b->views.n_dirs;
-    return btf__write_all(&w, err);
+    r = btf__write_all(&w, err);
+    return r == BTF_OK ? btf_fs_sync_dir(dir, err) : r; /* the images were written unsynced */
 }
 
 /* ------------------------------------------------------------------ any */

@@ -63,3 +63,25 @@ btf_result btf_source_load(const char *spec, const btf_load_options *opt, btf **
         return source_gen(spec, opt, out, err);
     return btf_load_any(spec, opt, out, err);
 }
+
+btf_result btf_source_sampling(const char *name, btf_dirset *d, btf_error *err)
+{
+    if (!strcmp(name, "ubo2003"))
+        *d = btf_dirset_ubo2003();
+    else if (!strcmp(name, "dome151"))
+        *d = btf_dirset_dome151();
+    else
+        return btf_dirset_load_json(name, d, err);
+    return BTF_OK;
+}
+
+btf_result btf_source_options(int downsample, const char *sampling, btf_dirset *set, btf_load_options *lo,
+                              btf_error *err)
+{
+    memset(lo, 0, sizeof *lo);
+    lo->downsample = downsample;
+    if (!sampling)
+        return BTF_OK;
+    lo->sampling = set;
+    return btf_source_sampling(sampling, set, err);
+}

@@ -5,7 +5,9 @@
  *
  * "gen:KIND[:SIZE[:SEED]]" generates KIND (knit, tiles, stone) at SIZE x SIZE
  * texels (default 64), seed SEED (default the kind's), sampled at opt->sampling
- * (default UBO2003) for lights and views, without writing any file.
+ * (default UBO2003) for lights and views, without writing any file. An image
+ * directory in another sampling is read with opt->sampling set (--sampling), or
+ * without it when the names fit exactly one built-in set.
  */
 #ifndef BTF_SOURCE_H
 #define BTF_SOURCE_H
@@ -13,5 +15,14 @@
 #include "btf_io.h"
 
 btf_result btf_source_load(const char *spec, const btf_load_options *opt, btf **out, btf_error *err);
+
+/* The direction set a --sampling value names: "ubo2003", "dome151" or a JSON file
+ * (doc/data-model.md section 2). */
+btf_result btf_source_sampling(const char *name, btf_dirset *d, btf_error *err);
+
+/* Load options for --downsample F and --sampling S (NULL: inferred from the input,
+ * see btf_load_ubo2003_dir); *set is where the named set is kept. */
+btf_result btf_source_options(int downsample, const char *sampling, btf_dirset *set, btf_load_options *lo,
+                              btf_error *err);
 
 #endif

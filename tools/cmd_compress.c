@@ -20,7 +20,7 @@
 
 /* Parsed command line; stack value of cmd_compress, strings point into argv. */
 typedef struct compress_opts {
-    const char *in, *out, *name;
+    const char *in, *out, *name, *sampling;
     btf_pca_options pca;
     btf_package_options pkg;
     int downsample, quiet, json;
@@ -33,7 +33,7 @@ static void compress_usage(FILE *f)
             "usage: btf compress IN OUT [--k K] [--components C] [--bits 8|16]\n"
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
-            "                           [--name NAME] [--levels N] [--quiet] [--json]\n"
+            "                           [--name NAME] [--levels N] [--sampling S] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -49,6 +49,8 @@ static void compress_usage(FILE *f)
             "  --center M       none: best rank-C blocks (default); row: thesis, component 0 = mean\n"
             "  --method M       PCA route (default auto: Gram up to 2048 columns, else randomized)\n"
             "  --downsample F   box-filter the input by F on load\n"
+            "  --sampling S     direction set of an image-directory input: ubo2003, dome151 or a\n"
+            "                   JSON file (default: the built-in set the file names fit)\n"
             "  --name NAME      material name in the manifest (default: last element of OUT)\n"
             "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n"
             "  --quiet          print nothing on success\n"
@@ -61,7 +63,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -81,6 +83,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'c': rc = btf_args_enum(a, v, centers, 2, &e), o->pca.center = (btf_center)(e + 1); break;
     case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels); break;
     case 'n': o->name = v; break;
+    case 's': o->sampling = v; break;
     case 'q': o->quiet = 1; break;
     case 'j': o->json = 1; break;
     default: rc = btf_args_pca(a, c, v, &pca);
@@ -171,11 +174,12 @@ static int compress_main(void *opts)
 {
     compress_opts *o = opts;
     btf_error err = {0};
-    btf_load_options lo = {0};
-    lo.downsample = o->downsample;
+    btf_load_options lo;
+    btf_dirset set;
     btf *src = NULL;
     double t0 = btf_now();
-    if (btf_source_load(o->in, &lo, &src, &err) != BTF_OK) {
+    if (btf_source_options(o->downsample, o->sampling, &set, &lo, &err) != BTF_OK ||
+        btf_source_load(o->in, &lo, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;
     }

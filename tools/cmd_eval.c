@@ -26,6 +26,7 @@
 typedef struct eval_opts {
     const char *ref_path, *test_path;
     const char *pairs; /* "all", "measured" or "V:L[,V:L...]" */
+    const char *sampling; /* --sampling: direction set of image-directory inputs; NULL = inferred */
     int csv, json;
     int downsample;
 } eval_opts;
@@ -39,7 +40,7 @@ typedef struct eval_pairs {
 static void eval_usage(FILE *f)
 {
     fprintf(f, "usage: btf eval REF TEST [--pairs all|measured|V:L[,V:L...]] [--csv | --json]\n"
-               "                [--downsample N]\n"
+               "                [--downsample N] [--sampling S]\n"
                "\n"
                "Error of TEST against REF (anything btf_load_any reads; same size and\n"
                "direction sets). Values are treated as sRGB-encoded 8-bit, D65. When TEST is\n"
@@ -55,6 +56,8 @@ static void eval_usage(FILE *f)
                "                     chunk {index, component, cumulative_bytes, rgb_rmse,\n"
                "                     lab_mae, delta_e76} (the error after chunks 0..index)\n"
                "  --downsample N     box-filter both inputs by N on load\n"
+               "  --sampling S       direction set of image-directory inputs: ubo2003, dome151 or a\n"
+               "                     JSON file (default: the built-in set the file names fit)\n"
                "Metrics: rgb_mae, rgb_rmse (0..255 scale), psnr (dB; 999 = identical),\n"
                "lab_mae (thesis: mean of |dL|,|da|,|db| over pixels and channels),\n"
                "delta_e76 (mean CIE 1976 Delta E).\n");
@@ -68,6 +71,7 @@ static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
     switch (c) {
     case BTF_ARG_POS: *(a->npos ? &o->test_path : &o->ref_path) = v; break;
     case 'p': o->pairs = v; break;
+    case 's': o->sampling = v; break;
     case 'c': o->csv = 1; break;
     case 'j': o->json = 1; break;
     case 'd': return btf_args_int(a, v, 1, 64, &o->downsample);
@@ -78,7 +82,7 @@ static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error, -1 help printed. */
 static int eval_parse(int argc, char **argv, eval_opts *o)
 {
-    static const btf_args_spec spec = {"eval", "pairs:p downsample:d csv!c json!j", eval_usage, 2};
+    static const btf_args_spec spec = {"eval", "pairs:p downsample:d sampling:s csv!c json!j", eval_usage, 2};
     memset(o, 0, sizeof *o);
     o->pairs = "all";
     int rc = btf_args_parse(&spec, argc, argv, eval_option, o);
@@ -126,10 +130,12 @@ bad:
 /* Loads path into *out; 0 ok, 1 failure (message printed). */
 static int eval_load(const char *path, const eval_opts *o, btf **out)
 {
-    btf_load_options lo = {0};
-    lo.downsample = o->downsample;
+    btf_load_options lo;
+    btf_dirset set;
     btf_error err = {0};
-    btf_result r = btf_source_load(path, &lo, out, &err);
+    btf_result r = btf_source_options(o->downsample, o->sampling, &set, &lo, &err);
+    if (r == BTF_OK)
+        r = btf_source_load(path, &lo, out, &err);
     if (r == BTF_OK)
         r = btf_check_finite(*out, &err);
     if (r != BTF_OK) {

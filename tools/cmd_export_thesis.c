@@ -9,6 +9,7 @@
 #include "btf_cli.h"
 #include "btf_export.h"
 #include "btf_io.h"
+#include "btf_source.h"
 #include "btf_metrics.h"
 
 #include <stdio.h>
@@ -17,7 +18,7 @@
 
 /* Parsed command line; stack value of cmd_export_thesis, strings point into argv. */
 typedef struct export_opts {
-    const char *in, *out;
+    const char *in, *out, *sampling;
     btf_export_options ex;
     int downsample, quiet, eval;
 } export_opts;
@@ -27,7 +28,7 @@ static void export_usage(FILE *f)
     fprintf(f,
             "usage: btf export-thesis IN OUT [--k K] [--components C] [--scale thesis|fit]\n"
             "                                [--method auto|gram|randomized|svd] [--downsample F]\n"
-            "                                [--eval] [--quiet]\n"
+            "                                [--sampling S] [--eval] [--quiet]\n"
             "\n"
             "Writes IN (anything the loaders read) as a thesis package OUT (meta.json, J.png,\n"
             "R.png; codec/btf_thesis.h): K consecutive views per block, component 0 = the\n"
@@ -39,6 +40,7 @@ static void export_usage(FILE *f)
             "  --scale fit      per block and component scales minimising the quantisation error\n"
             "  --method M       PCA route (default auto)\n"
             "  --downsample F   box-filter the input by F on load\n"
+            "  --sampling S     direction set of an image-directory input: ubo2003, dome151 or JSON\n"
             "  --eval           read OUT back and print its error against IN\n"
             "  --quiet          no summary line\n",
             BTF_THESIS_MAX_C);
@@ -46,7 +48,7 @@ static void export_usage(FILE *f)
 }
 
 static const btf_args_spec export_spec = {
-    "export-thesis", "k:k components:C method:m downsample:d scale:s quiet!q eval!e", export_usage, 2};
+    "export-thesis", "k:k components:C method:m downsample:d scale:s sampling:S quiet!q eval!e", export_usage, 2};
 
 /* One option or positional of `btf export-thesis` (btf_args_fn). */
 static int export_option(void *ctx, const btf_args *a, int c, const char *v)
@@ -56,6 +58,8 @@ static int export_option(void *ctx, const btf_args *a, int c, const char *v)
     int e = 0, rc = 0;
     if (c == BTF_ARG_POS) {
         *(a->npos ? &o->out : &o->in) = v;
+    } else if (c == 'S') {
+        o->sampling = v;
     } else if (c == 's') {
         rc = btf_args_enum(a, v, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
     } else if (c == 'q' || c == 'e') {
@@ -105,10 +109,11 @@ static int export_thesis_main(void *opts)
     export_opts *o = opts;
     int rc = 0;
     btf_error err = {0};
-    btf_load_options lo = {0};
-    lo.downsample = o->downsample;
+    btf_load_options lo;
+    btf_dirset set;
     btf *src = NULL;
-    if (btf_load_any(o->in, &lo, &src, &err) != BTF_OK) {
+    if (btf_source_options(o->downsample, o->sampling, &set, &lo, &err) != BTF_OK ||
+        btf_load_any(o->in, &lo, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf export-thesis: %s\n", err.msg);
         return 1;
     }

@@ -12,6 +12,7 @@
 #include "btf_cli.h"
 #include "btf_gen.h"
 #include "btf_io.h"
+#include "btf_source.h"
 #include "btf_output.h"
 
 #include <ctype.h>
@@ -100,17 +101,6 @@ static int gen_parse(int argc, char **argv, gen_opts *o)
     return 0;
 }
 
-static btf_result gen_sampling(const char *s, btf_dirset *d, btf_error *err)
-{
-    if (!strcmp(s, "ubo2003"))
-        *d = btf_dirset_ubo2003();
-    else if (!strcmp(s, "dome151"))
-        *d = btf_dirset_dome151();
-    else
-        return btf_dirset_load_json(s, d, err);
-    return BTF_OK;
-}
-
 static btf_result gen_write(const btf *b, const gen_opts *o, btf_error *err)
 {
     if (!strcmp(o->format, "btf"))
@@ -127,7 +117,7 @@ static int gen_main(void *opts)
     gen_opts *o = opts;
     btf_error err = {{0}};
     btf_dirset d;
-    if (gen_sampling(o->sampling, &d, &err) != BTF_OK) {
+    if (btf_source_sampling(o->sampling, &d, &err) != BTF_OK) {
         fprintf(stderr, "btf gen: %s\n", err.msg);
         return 1;
     }
