@@ -23,6 +23,9 @@ typedef struct btf_load_options {
     int width, height;  /* requested output size where a loader can resample (thesis import); 0 = native */
     btf_storage storage;/* 0 = loader's natural storage */
     const btf_dirset *sampling; /* expected direction set; NULL = UBO2003 */
+    int fill_missing;   /* image directories: a missing (light, view) image is interpolated from the
+                         * view's nearest present lights instead of failing the load */
+    int *n_filled;      /* optional out: how many images were interpolated (warn the user when > 0) */
 } btf_load_options;
 
 /* Angles tl, pl, tv, pv (whole degrees, 0..999) of a UBO2003 image file name

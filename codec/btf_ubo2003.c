@@ -90,6 +90,7 @@ typedef struct btf__scan {
     int n_files, cap;
     int *slot; /* malloc'd, n_slots entries */
     int n_slots;
+    int fill; /* missing images may be interpolated (btf_load_options.fill_missing) */
 } btf__scan;
 
 static void btf__scan_free(btf__scan *s)
@@ -194,6 +195,20 @@ static void btf__round_angles(const btf_dirset *d, int i, int *theta, int *phi)
     *phi = (int)(lroundf(p) % 360);
 }
 
+/* 1 when every view has at least one image (what interpolation over lights needs). */
+static int btf__views_covered(const btf__scan *s)
+{
+    int n = s->set->n_dirs;
+    for (int v = 0; v < n; v++) {
+        int any = 0;
+        for (int l = 0; l < n && !any; l++)
+            any = s->slot[v * n + l] >= 0;
+        if (!any)
+            return 0;
+    }
+    return 1;
+}
+
 /* Every (light, view) pair must have exactly one file. */
 static btf_result btf__scan_check_complete(const btf__scan *s, btf_error *err)
 {
@@ -204,7 +219,7 @@ static btf_result btf__scan_check_complete(const btf__scan *s, btf_error *err)
     if (s->n_files == 0)
         return btf_fail(err, BTF_ERR_MISSING,
                         "%s: no UBO2003 images found (names ending in tlTTT_plPPP_tvTTT_pvPPP.jpg or .png)", s->dir);
-    if (!missing)
+    if (!missing || (s->fill && btf__views_covered(s)))
         return BTF_OK;
     int tl, pl, tv, pv;
     btf__round_angles(s->set, first % n, &tl, &pl);
@@ -263,11 +278,12 @@ static btf_result btf__scan_assign(btf__scan *s, const btf_dirset *set, btf_erro
 
 /* Scans dir; with set NULL the sampling is inferred: the one built-in set
  * (UBO2003, then the 151-direction dome) every file fits. *chosen = the set used. */
-static btf_result btf__scan_run(btf__scan *s, const char *dir, const btf_dirset *set, btf_dirset *chosen,
+static btf_result btf__scan_run(btf__scan *s, const char *dir, const btf_dirset *set, int fill, btf_dirset *chosen,
                                 btf_error *err)
 {
     memset(s, 0, sizeof *s);
     s->dir = dir;
+    s->fill = fill;
     btf_result r = btf__scan_dir(s, dir, 1, -1, -1, err);
     if (r != BTF_OK || set) {
         if (set)
@@ -365,7 +381,7 @@ static btf_result btf__decode_one(btf__decode *d, int slot, uint32_t *acc, btf_e
         return r;
     if (w != d->w0 || h != d->h0)
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: image is %dx%d, expected %dx%d like %s", path, w, h, d->w0, d->h0,
-                     d->scan->files[d->scan->slot[0]].path);
+                     d->scan->files[0].path);
     else
         btf__put_image(d->b, (size_t)slot, px, ch, d->factor, acc);
     free(px);
@@ -399,7 +415,7 @@ static btf_result btf__decode_all(btf__decode *d, btf_error *err)
             btf_result rc;
 #pragma omp atomic read
             rc = d->rc;
-            btf_result r = rc == BTF_OK && acc ? btf__decode_one(d, i, acc, &e) : BTF_OK;
+            btf_result r = rc == BTF_OK && acc && d->scan->slot[i] >= 0 ? btf__decode_one(d, i, acc, &e) : BTF_OK;
             if (r != BTF_OK)
                 btf__decode_fail(d, r, &e);
         }
@@ -443,6 +459,63 @@ static btf_result btf__check_dir(const char *dir, btf_error *err)
     return BTF_OK;
 }
 
+/* Missing image (view v, light l) as the inverse-angle-weighted mean of the view's
+ * (up to) 3 nearest present lights. */
+static void btf__fill_one(const btf__scan *s, btf *b, int v, int l, float *acc, float *img)
+{
+    int n = s->set->n_dirs, best[3] = {-1, -1, -1};
+    float dl[3], best_d[3] = {1e9f, 1e9f, 1e9f};
+    btf_dirset_vector(s->set, l, dl);
+    for (int k = 0; k < n; k++) {
+        float dk[3];
+        if (s->slot[v * n + k] < 0)
+            continue;
+        btf_dirset_vector(s->set, k, dk);
+        float c = dl[0] * dk[0] + dl[1] * dk[1] + dl[2] * dk[2], d = acosf(c > 1.0f ? 1.0f : c < -1.0f ? -1.0f : c);
+        for (int j = 0; j < 3; j++)
+            if (d < best_d[j]) {
+                for (int m = 2; m > j; m--)
+                    best_d[m] = best_d[m - 1], best[m] = best[m - 1];
+                best_d[j] = d, best[j] = k;
+                break;
+            }
+    }
+    size_t ns = btf_image_samples(b);
+    double wsum = 0.0;
+    memset(acc, 0, ns * sizeof *acc);
+    for (int j = 0; j < 3 && best[j] >= 0; j++) {
+        float w = 1.0f / (best_d[j] + 1e-3f);
+        btf_get_image(b, v, best[j], img);
+        for (size_t i = 0; i < ns; i++)
+            acc[i] += w * img[i];
+        wsum += w;
+    }
+    for (size_t i = 0; i < ns; i++) {
+        float x = (float)(acc[i] / wsum);
+        size_t at = btf_index(b, v, l, 0, 0, 0) + i;
+        if (b->storage == BTF_F32)
+            ((float *)b->data)[at] = x;
+        else
+            ((uint8_t *)b->data)[at] = (uint8_t)(x <= 0.0f ? 0 : x >= 1.0f ? 255 : lroundf(x * 255.0f));
+    }
+}
+
+/* Interpolates every missing image; returns how many. */
+static int btf__fill_missing(const btf__scan *s, btf *b, btf_error *err, btf_result *r)
+{
+    int n = s->set->n_dirs, filled = 0;
+    size_t ns = btf_image_samples(b);
+    float *acc = malloc(ns * sizeof *acc), *img = malloc(ns * sizeof *img);
+    *r = acc && img ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", s->dir);
+    for (int i = 0; *r == BTF_OK && i < s->n_slots; i++)
+        if (s->slot[i] < 0) {
+            btf__fill_one(s, b, i / n, i % n, acc, img);
+            filled++;
+        }
+    free(acc), free(img);
+    return filled;
+}
+
 btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, btf **out, btf_error *err)
 {
     if (!dir || !out)
@@ -461,11 +534,11 @@ btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, bt
         return r;
     btf__scan scan;
     btf_dirset set_used, *set = &set_used;
-    r = btf__scan_run(&scan, dir, want, set, err);
+    r = btf__scan_run(&scan, dir, want, opt && opt->fill_missing, set, err);
     btf__decode d;
     memset(&d, 0, sizeof d);
     d.scan = &scan;
-    const char *first = r == BTF_OK ? scan.files[scan.slot[0]].path : NULL;
+    const char *first = r == BTF_OK ? scan.files[0].path : NULL;
     int ch;
     if (r == BTF_OK)
         r = btf_image_info(first, &d.w0, &d.h0, &ch, err);
@@ -475,6 +548,9 @@ btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, bt
         r = btf_create(d.w0 / d.factor, d.h0 / d.factor, set, set, storage, &d.b, err);
     if (r == BTF_OK)
         r = btf__decode_all(&d, err);
+    int filled = r == BTF_OK ? btf__fill_missing(&scan, d.b, err, &r) : 0;
+    if (opt && opt->n_filled)
+        *opt->n_filled = filled;
     btf__scan_free(&scan);
     if (r != BTF_OK) {
         btf_free(d.b);

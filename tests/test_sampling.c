@@ -6,6 +6,7 @@
 #include <criterion/criterion.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <math.h>
 #include <string.h>
 
 #include "btf_cli.h"
@@ -111,5 +112,58 @@ Test(slow_sampling, dome151_is_inferred_from_the_names, .timeout = 240)
     cr_expect_eq(btf_load_ubo2003_dir(img, &o, &b, &err), BTF_ERR_MISSING);
     cr_expect(strstr(err.msg, "tl000_pl000_tv000_pv000"), "%s", err.msg);
     btf_free(ref);
+    test_rmtree(dir);
+}
+
+/* Mean absolute difference of image (v, l) of two BTFs, 0..255 scale; and image's mean. */
+static double image_diff(const btf *a, const btf *b, int v, int l, double *mean)
+{
+    size_t n = btf_image_samples(a), at = btf_index(a, v, l, 0, 0, 0);
+    double s = 0.0, m = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        int x = ((const uint8_t *)a->data)[at + i], y = ((const uint8_t *)b->data)[at + i];
+        s += abs(x - y), m += x;
+    }
+    *mean = m / (double)n;
+    return s / (double)n;
+}
+
+/* Missing images: a clear error naming one, or with fill_missing an interpolation
+ * from the view's nearest lights that is close to the truth, never a zero image. */
+Test(sampling, missing_images_are_refused_or_interpolated)
+{
+    char dir[64], img[128], victim[512];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(img, sizeof img, "%s/img", dir);
+    btf_dirset d = half_degree_set();
+    btf *ref = write_dir(&d, 8, img, "png");
+    int lights[2] = {3, 9}, views[2] = {2, 10}; /* (view, light) pairs removed */
+    for (int k = 0; k < 2; k++) {
+        int tl, pl, tv, pv;
+        float t, p;
+        btf_dirset_angles(&d, lights[k], &t, &p), tl = (int)lroundf(t), pl = (int)lroundf(p) % 360;
+        btf_dirset_angles(&d, views[k], &t, &p), tv = (int)lroundf(t), pv = (int)lroundf(p) % 360;
+        snprintf(victim, sizeof victim, "%s/Knit_%05d_tl%03d_pl%03d_tv%03d_pv%03d.png", img,
+                 lights[k] * d.n_dirs + views[k], tl, pl, tv, pv);
+        cr_assert_eq(remove(victim), 0, "%s", victim);
+    }
+    btf_load_options o = {0};
+    o.sampling = &d;
+    btf *b = NULL;
+    btf_error err = {0};
+    cr_expect_eq(btf_load_ubo2003_dir(img, &o, &b, &err), BTF_ERR_MISSING);
+    cr_expect(strstr(err.msg, "missing image") && strstr(err.msg, "2 of"), "%s", err.msg);
+    int filled = -1;
+    o.fill_missing = 1, o.n_filled = &filled;
+    cr_assert_eq(btf_load_ubo2003_dir(img, &o, &b, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(filled, 2);
+    for (int k = 0; k < 2; k++) {
+        double mean, e = image_diff(ref, b, views[k], lights[k], &mean);
+        cr_expect_lt(e, 0.5 * mean, "view %d light %d: interpolated image off by %.1f (mean %.1f)", views[k],
+                     lights[k], e, mean);
+    }
+    double mean, e = image_diff(ref, b, 0, 0, &mean);
+    cr_expect_eq(e, 0.0, "a present image changed");
+    btf_free(b), btf_free(ref);
     test_rmtree(dir);
 }

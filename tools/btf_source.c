@@ -4,6 +4,7 @@
 #include "btf_gen.h"
 
 #include <errno.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -75,13 +76,22 @@ btf_result btf_source_sampling(const char *name, btf_dirset *d, btf_error *err)
     return BTF_OK;
 }
 
-btf_result btf_source_options(int downsample, const char *sampling, btf_dirset *set, btf_load_options *lo,
-                              btf_error *err)
+btf_result btf_source_load_args(const char *cmd, const char *spec, const btf_source_args *a, btf **out,
+                                btf_error *err)
 {
-    memset(lo, 0, sizeof *lo);
-    lo->downsample = downsample;
-    if (!sampling)
-        return BTF_OK;
-    lo->sampling = set;
-    return btf_source_sampling(sampling, set, err);
+    btf_load_options lo = {0};
+    btf_dirset set;
+    int filled = 0;
+    lo.downsample = a->downsample, lo.fill_missing = a->fill_missing, lo.n_filled = &filled;
+    if (a->sampling) {
+        btf_result r = btf_source_sampling(a->sampling, &set, err);
+        if (r != BTF_OK)
+            return r;
+        lo.sampling = &set;
+    }
+    btf_result r = btf_source_load(spec, &lo, out, err);
+    if (r == BTF_OK && filled > 0)
+        fprintf(stderr, "btf %s: warning: %s: %d of %d images missing, interpolated from each view's nearest lights\n",
+                cmd, spec, filled, (*out)->views.n_dirs * (*out)->lights.n_dirs);
+    return r;
 }

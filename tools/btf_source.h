@@ -20,9 +20,17 @@ btf_result btf_source_load(const char *spec, const btf_load_options *opt, btf **
  * (doc/data-model.md section 2). */
 btf_result btf_source_sampling(const char *name, btf_dirset *d, btf_error *err);
 
-/* Load options for --downsample F and --sampling S (NULL: inferred from the input,
- * see btf_load_ubo2003_dir); *set is where the named set is kept. */
-btf_result btf_source_options(int downsample, const char *sampling, btf_dirset *set, btf_load_options *lo,
-                              btf_error *err);
+/* The input options every command that reads a BTF takes; plain value, strings
+ * point into argv. */
+typedef struct btf_source_args {
+    int downsample;       /* --downsample F */
+    const char *sampling; /* --sampling S; NULL: inferred from the input (btf_load_ubo2003_dir) */
+    int fill_missing;     /* --fill-missing: interpolate missing images, with a warning */
+} btf_source_args;
+
+/* Loads spec as the input options say; on success warns on stderr ("btf CMD:
+ * warning: ...") when images were interpolated. */
+btf_result btf_source_load_args(const char *cmd, const char *spec, const btf_source_args *a, btf **out,
+                                btf_error *err);
 
 #endif

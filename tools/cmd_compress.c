@@ -20,10 +20,11 @@
 
 /* Parsed command line; stack value of cmd_compress, strings point into argv. */
 typedef struct compress_opts {
-    const char *in, *out, *name, *sampling;
+    const char *in, *out, *name;
+    btf_source_args src; /* --downsample, --sampling, --fill-missing */
     btf_pca_options pca;
     btf_package_options pkg;
-    int downsample, quiet, json;
+    int quiet, json;
     int levels; /* > 0: write package version 2 with this many spatial levels (codec/btf_lod.h) */
 } compress_opts;
 
@@ -33,7 +34,8 @@ static void compress_usage(FILE *f)
             "usage: btf compress IN OUT [--k K] [--components C] [--bits 8|16]\n"
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
-            "                           [--name NAME] [--levels N] [--sampling S] [--quiet] [--json]\n"
+            "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
+            "                           [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -51,6 +53,8 @@ static void compress_usage(FILE *f)
             "  --downsample F   box-filter the input by F on load\n"
             "  --sampling S     direction set of an image-directory input: ubo2003, dome151 or a\n"
             "                   JSON file (default: the built-in set the file names fit)\n"
+            "  --fill-missing   interpolate missing images of an image directory from each\n"
+            "                   view's nearest lights, with a warning (default: refuse)\n"
             "  --name NAME      material name in the manifest (default: last element of OUT)\n"
             "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n"
             "  --quiet          print nothing on success\n"
@@ -63,7 +67,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -72,7 +76,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     static const char *const groupings[] = {"consecutive", "spatial"};
     static const char *const centers[] = {"none", "row"};
     compress_opts *o = ctx;
-    btf_args_pca_dst pca = {&o->pca.k, &o->pca.components, &o->downsample, &o->pca.method, BTF_PACKAGE_MAX_CHUNKS};
+    btf_args_pca_dst pca = {&o->pca.k, &o->pca.components, &o->src.downsample, &o->pca.method, BTF_PACKAGE_MAX_CHUNKS};
     int e = 0, rc = 0;
     switch (c) {
     case BTF_ARG_POS: *(a->npos ? &o->out : &o->in) = v; break;
@@ -83,7 +87,8 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'c': rc = btf_args_enum(a, v, centers, 2, &e), o->pca.center = (btf_center)(e + 1); break;
     case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels); break;
     case 'n': o->name = v; break;
-    case 's': o->sampling = v; break;
+    case 's': o->src.sampling = v; break;
+    case 'F': o->src.fill_missing = 1; break;
     case 'q': o->quiet = 1; break;
     case 'j': o->json = 1; break;
     default: rc = btf_args_pca(a, c, v, &pca);
@@ -174,12 +179,9 @@ static int compress_main(void *opts)
 {
     compress_opts *o = opts;
     btf_error err = {0};
-    btf_load_options lo;
-    btf_dirset set;
     btf *src = NULL;
     double t0 = btf_now();
-    if (btf_source_options(o->downsample, o->sampling, &set, &lo, &err) != BTF_OK ||
-        btf_source_load(o->in, &lo, &src, &err) != BTF_OK) {
+    if (btf_source_load_args("compress", o->in, &o->src, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;
     }

@@ -26,9 +26,8 @@
 typedef struct eval_opts {
     const char *ref_path, *test_path;
     const char *pairs; /* "all", "measured" or "V:L[,V:L...]" */
-    const char *sampling; /* --sampling: direction set of image-directory inputs; NULL = inferred */
+    btf_source_args src; /* --downsample, --sampling, --fill-missing (both inputs) */
     int csv, json;
-    int downsample;
 } eval_opts;
 
 /* Explicit pair list from --pairs V:L,...; malloc'd arrays owned by the caller. */
@@ -40,7 +39,7 @@ typedef struct eval_pairs {
 static void eval_usage(FILE *f)
 {
     fprintf(f, "usage: btf eval REF TEST [--pairs all|measured|V:L[,V:L...]] [--csv | --json]\n"
-               "                [--downsample N] [--sampling S]\n"
+               "                [--downsample N] [--sampling S] [--fill-missing]\n"
                "\n"
                "Error of TEST against REF (anything btf_load_any reads; same size and\n"
                "direction sets). Values are treated as sRGB-encoded 8-bit, D65. When TEST is\n"
@@ -58,6 +57,7 @@ static void eval_usage(FILE *f)
                "  --downsample N     box-filter both inputs by N on load\n"
                "  --sampling S       direction set of image-directory inputs: ubo2003, dome151 or a\n"
                "                     JSON file (default: the built-in set the file names fit)\n"
+               "  --fill-missing     interpolate missing images of image directories, with a warning\n"
                "Metrics: rgb_mae, rgb_rmse (0..255 scale), psnr (dB; 999 = identical),\n"
                "lab_mae (thesis: mean of |dL|,|da|,|db| over pixels and channels),\n"
                "delta_e76 (mean CIE 1976 Delta E).\n");
@@ -71,10 +71,11 @@ static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
     switch (c) {
     case BTF_ARG_POS: *(a->npos ? &o->test_path : &o->ref_path) = v; break;
     case 'p': o->pairs = v; break;
-    case 's': o->sampling = v; break;
+    case 's': o->src.sampling = v; break;
+    case 'F': o->src.fill_missing = 1; break;
     case 'c': o->csv = 1; break;
     case 'j': o->json = 1; break;
-    case 'd': return btf_args_int(a, v, 1, 64, &o->downsample);
+    case 'd': return btf_args_int(a, v, 1, 64, &o->src.downsample);
     }
     return 0;
 }
@@ -82,7 +83,7 @@ static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error, -1 help printed. */
 static int eval_parse(int argc, char **argv, eval_opts *o)
 {
-    static const btf_args_spec spec = {"eval", "pairs:p downsample:d sampling:s csv!c json!j", eval_usage, 2};
+    static const btf_args_spec spec = {"eval", "pairs:p downsample:d sampling:s fill-missing!F csv!c json!j", eval_usage, 2};
     memset(o, 0, sizeof *o);
     o->pairs = "all";
     int rc = btf_args_parse(&spec, argc, argv, eval_option, o);
@@ -130,12 +131,8 @@ bad:
 /* Loads path into *out; 0 ok, 1 failure (message printed). */
 static int eval_load(const char *path, const eval_opts *o, btf **out)
 {
-    btf_load_options lo;
-    btf_dirset set;
     btf_error err = {0};
-    btf_result r = btf_source_options(o->downsample, o->sampling, &set, &lo, &err);
-    if (r == BTF_OK)
-        r = btf_source_load(path, &lo, out, &err);
+    btf_result r = btf_source_load_args("eval", path, &o->src, out, &err);
     if (r == BTF_OK)
         r = btf_check_finite(*out, &err);
     if (r != BTF_OK) {
@@ -229,8 +226,8 @@ static btf_result eval_package_prefix(const eval_opts *o, const eval_pairs *pl, 
 {
     btf *rec = NULL, *small = NULL;
     btf_result r = btf_package_reconstruct(p, n, &rec, err);
-    if (r == BTF_OK && o->downsample > 1) {
-        r = btf_downsample(rec, o->downsample, &small, err);
+    if (r == BTF_OK && o->src.downsample > 1) {
+        r = btf_downsample(rec, o->src.downsample, &small, err);
         btf_free(rec);
         rec = small;
     }

@@ -18,9 +18,10 @@
 
 /* Parsed command line; stack value of cmd_export_thesis, strings point into argv. */
 typedef struct export_opts {
-    const char *in, *out, *sampling;
+    const char *in, *out;
+    btf_source_args src; /* --downsample, --sampling, --fill-missing */
     btf_export_options ex;
-    int downsample, quiet, eval;
+    int quiet, eval;
 } export_opts;
 
 static void export_usage(FILE *f)
@@ -28,7 +29,7 @@ static void export_usage(FILE *f)
     fprintf(f,
             "usage: btf export-thesis IN OUT [--k K] [--components C] [--scale thesis|fit]\n"
             "                                [--method auto|gram|randomized|svd] [--downsample F]\n"
-            "                                [--sampling S] [--eval] [--quiet]\n"
+            "                                [--sampling S] [--fill-missing] [--eval] [--quiet]\n"
             "\n"
             "Writes IN (anything the loaders read) as a thesis package OUT (meta.json, J.png,\n"
             "R.png; codec/btf_thesis.h): K consecutive views per block, component 0 = the\n"
@@ -41,6 +42,7 @@ static void export_usage(FILE *f)
             "  --method M       PCA route (default auto)\n"
             "  --downsample F   box-filter the input by F on load\n"
             "  --sampling S     direction set of an image-directory input: ubo2003, dome151 or JSON\n"
+            "  --fill-missing   interpolate missing images of an image directory, with a warning\n"
             "  --eval           read OUT back and print its error against IN\n"
             "  --quiet          no summary line\n",
             BTF_THESIS_MAX_C);
@@ -48,7 +50,7 @@ static void export_usage(FILE *f)
 }
 
 static const btf_args_spec export_spec = {
-    "export-thesis", "k:k components:C method:m downsample:d scale:s sampling:S quiet!q eval!e", export_usage, 2};
+    "export-thesis", "k:k components:C method:m downsample:d scale:s sampling:S fill-missing!F quiet!q eval!e", export_usage, 2};
 
 /* One option or positional of `btf export-thesis` (btf_args_fn). */
 static int export_option(void *ctx, const btf_args *a, int c, const char *v)
@@ -59,13 +61,15 @@ static int export_option(void *ctx, const btf_args *a, int c, const char *v)
     if (c == BTF_ARG_POS) {
         *(a->npos ? &o->out : &o->in) = v;
     } else if (c == 'S') {
-        o->sampling = v;
+        o->src.sampling = v;
+    } else if (c == 'F') {
+        o->src.fill_missing = 1;
     } else if (c == 's') {
         rc = btf_args_enum(a, v, scales, 2, &e), o->ex.scale = (btf_thesis_scale)(e + 1);
     } else if (c == 'q' || c == 'e') {
         *(c == 'q' ? &o->quiet : &o->eval) = 1;
     } else {
-        btf_args_pca_dst pca = {&o->ex.k, &o->ex.components, &o->downsample, &o->ex.method, BTF_THESIS_MAX_C};
+        btf_args_pca_dst pca = {&o->ex.k, &o->ex.components, &o->src.downsample, &o->ex.method, BTF_THESIS_MAX_C};
         rc = btf_args_pca(a, c, v, &pca);
     }
     return rc;
@@ -109,11 +113,8 @@ static int export_thesis_main(void *opts)
     export_opts *o = opts;
     int rc = 0;
     btf_error err = {0};
-    btf_load_options lo;
-    btf_dirset set;
     btf *src = NULL;
-    if (btf_source_options(o->downsample, o->sampling, &set, &lo, &err) != BTF_OK ||
-        btf_load_any(o->in, &lo, &src, &err) != BTF_OK) {
+    if (btf_source_load_args("export-thesis", o->in, &o->src, &src, &err) != BTF_OK) {
         fprintf(stderr, "btf export-thesis: %s\n", err.msg);
         return 1;
     }
