@@ -788,6 +788,23 @@ done:
 }
 
 
+/* An existing path may be replaced only when it is a .btf file (its signature says
+ * so): the writer never overwrites a file it did not write. */
+static btf_result check_replaceable(const char *path, btf_error *err)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0)
+        return BTF_OK;
+    char sig[9] = {0};
+    FILE *f = S_ISREG(st.st_mode) ? fopen(path, "rb") : NULL;
+    size_t n = f ? fread(sig, 1, sizeof sig, f) : 0;
+    if (f)
+        fclose(f);
+    if (st.st_size == 0 || (n == sizeof sig && !memcmp(sig, "!DFMF08FC", 9)))
+        return BTF_OK;
+    return btf_fail(err, BTF_ERR_IO, "%s: exists and is not a DFMF .btf file; not replaced", path);
+}
+
 btf_result btf_save_dfmf(const btf *b, const char *path, int components, btf_error *err)
 {
     if (!b || !path || !b->data)
@@ -799,6 +816,9 @@ btf_result btf_save_dfmf(const btf *b, const char *path, int components, btf_err
     if (rows > UINT32_MAX || cols > UINT32_MAX || rows * cols > ((size_t)1 << 31))
         return btf_fail(err, BTF_ERR_RANGE, "%s: %zu x %zu matrix too large for the writer", path, rows, cols);
     int k = components == 0 || (size_t)components >= full ? (int)full : components;
+    btf_result ours = check_replaceable(path, err);
+    if (ours != BTF_OK)
+        return ours;
     char tmp[4200];
     int n = snprintf(tmp, sizeof tmp, "%s.tmp-%ld", path, (long)getpid());
     if (n < 0 || (size_t)n >= sizeof tmp)

@@ -14,6 +14,7 @@
 #include "btf_base64.h"
 #include "btf_fs.h"
 #include "btf_gen.h"
+#include "btf_io.h"
 #include "btf_lod.h"
 #include "btf_manifest.h"
 #include "btf_package.h"
@@ -321,6 +322,25 @@ Test(fs, manifest_numbers_out_of_range_are_refused)
     cr_expect_eq(btf_manifest_parse(mod, "mod", &p, &err), BTF_ERR_FORMAT, "block index 1e10 accepted");
     btf_manifest_clear(&p);
     free(mod), free(text);
+    btf_free(b);
+    test_rmtree(dir);
+}
+
+/* The .btf writer replaces a .btf file, never another file at that path. */
+Test(fs, dfmf_writer_never_overwrites_a_file_that_is_not_a_btf)
+{
+    char dir[64], path[128];
+    btf_error err = {0};
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    put(dir, "thesis.btf", "my thesis, not a BTF");
+    snprintf(path, sizeof path, "%s/thesis.btf", dir);
+    btf *b = knit(4);
+    cr_expect_eq(btf_save_dfmf(b, path, 2, &err), BTF_ERR_IO);
+    cr_expect(strstr(err.msg, "not replaced"), "%s", err.msg);
+    cr_expect_eq(btf_fs_size(path), 20, "the user's file changed");
+    snprintf(path, sizeof path, "%s/a.btf", dir);
+    cr_assert_eq(btf_save_dfmf(b, path, 2, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(btf_save_dfmf(b, path, 2, &err), BTF_OK, "replacing its own .btf: %s", err.msg);
     btf_free(b);
     test_rmtree(dir);
 }
