@@ -42,6 +42,10 @@ typedef enum btf_result {
     BTF_ERR_MISSING      /* an expected file or entry is absent */
 } btf_result;
 
+/* Index of name in names[0..n-1] (exact match), -1 if absent or NULL: the one
+ * name-to-enum lookup of every module with named values. */
+int btf_name_index(const char *const *names, int n, const char *name);
+
 /* Short constant description of a result code. */
 const char *btf_result_string(btf_result r);
 

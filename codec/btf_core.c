@@ -23,6 +23,14 @@ const char *btf_result_string(btf_result r)
     return "unknown error";
 }
 
+int btf_name_index(const char *const *names, int n, const char *name)
+{
+    for (int i = 0; name && i < n; i++)
+        if (!strcmp(name, names[i]))
+            return i;
+    return -1;
+}
+
 btf_result btf_fail(btf_error *err, btf_result code, const char *fmt, ...)
 {
     if (err) {
@@ -35,6 +43,12 @@ btf_result btf_fail(btf_error *err, btf_result code, const char *fmt, ...)
                 *c = '?';
     }
     return code;
+}
+
+void btf_free(btf *b)
+{
+    if (b)
+        free(b->data), free(b);
 }
 
 btf_result btf_create(int width, int height, const btf_dirset *lights, const btf_dirset *views,
@@ -70,14 +84,6 @@ btf_result btf_create(int width, int height, const btf_dirset *lights, const btf
     b->count = count;
     *out = b;
     return BTF_OK;
-}
-
-void btf_free(btf *b)
-{
-    if (!b)
-        return;
-    free(b->data);
-    free(b);
 }
 
 float btf_get(const btf *b, int view, int light, int x, int y, int c)

@@ -553,8 +553,7 @@ static btf_result load_open(dfmf_reader *r, const btf_load_options *o, btf **out
         btf_free(*out), *out = NULL;
     for (int c = 0; c < 3; c++)
         free(ch[c].U), free(ch[c].SxV);
-    free(h);
-    free(map);
+    free(h), free(map);
     return res;
 }
 
@@ -563,9 +562,7 @@ btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **ou
     if (!path || !out)
         return btf_fail(err, BTF_ERR_ARG, "btf_load_dfmf: NULL argument");
     *out = NULL;
-    btf_load_options o = {0};
-    if (opt)
-        o = *opt;
+    btf_load_options o = opt ? *opt : (btf_load_options){0};
     FILE *f = fopen(path, "rb");
     if (!f)
         return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: cannot open (%s)", path,

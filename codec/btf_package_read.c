@@ -170,6 +170,18 @@ static int btf__chunk_present(const btf_package *p, const char *dir, int i)
 }
 
 
+void btf_package_free(btf_package *p)
+{
+    if (!p)
+        return;
+    for (int i = 0; i < p->n_loaded; i++) {
+        free(p->tex[i]);
+        free(p->wt[i]);
+    }
+    btf_manifest_clear(p);
+    free(p);
+}
+
 btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error *err)
 {
     *out = NULL;
@@ -203,19 +215,6 @@ btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error
     }
     *out = p;
     return BTF_OK;
-}
-
-
-void btf_package_free(btf_package *p)
-{
-    if (!p)
-        return;
-    for (int i = 0; i < p->n_loaded; i++) {
-        free(p->tex[i]);
-        free(p->wt[i]);
-    }
-    btf_manifest_clear(p);
-    free(p);
 }
 
 

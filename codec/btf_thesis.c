@@ -109,10 +109,8 @@ btf_result btf_thesis_alloc(int C, int N, int k, int S, btf_thesis_pkg *p, btf_e
 
 void btf_thesis_free(btf_thesis_pkg *p)
 {
-    if (!p)
-        return;
-    free(p->L), free(p->V), free(p->sigma);
-    memset(p, 0, sizeof *p);
+    if (p)
+        free(p->L), free(p->V), free(p->sigma), memset(p, 0, sizeof *p);
 }
 
 /* ------------------------------------------------------------ meta.json */
@@ -682,9 +680,7 @@ btf_result btf_import_thesis(const char *dir, const btf_load_options *opt, btf *
     if (!dir || !out)
         return btf_fail(err, BTF_ERR_ARG, "btf_import_thesis: NULL argument");
     *out = NULL;
-    btf_load_options o = {0};
-    if (opt)
-        o = *opt;
+    btf_load_options o = opt ? *opt : (btf_load_options){0};
     btf_thesis_pkg p;
     btf_result r = btf_thesis_read(dir, &p, err);
     if (r != BTF_OK)

@@ -31,12 +31,10 @@ int btf_arg_int(const char *s, long lo, long hi, int *v)
 
 int btf_arg_enum(const char *s, const char *const *names, int n, int *v)
 {
-    for (int i = 0; s && i < n; i++)
-        if (!strcmp(s, names[i])) {
-            *v = i;
-            return 1;
-        }
-    return 0;
+    int i = btf_name_index(names, n, s);
+    if (i >= 0)
+        *v = i;
+    return i >= 0;
 }
 
 void btf_args_exit_codes(FILE *f)

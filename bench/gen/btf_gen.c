@@ -70,10 +70,7 @@ const char *btf_gen_kind_name(btf_gen_kind kind)
 
 int btf_gen_kind_from_name(const char *name)
 {
-    for (int k = 0; name && k < BTF_GEN_KIND_COUNT; k++)
-        if (!strcmp(name, gen_names[k]))
-            return k;
-    return -1;
+    return btf_name_index(gen_names, BTF_GEN_KIND_COUNT, name);
 }
 
 btf_gen_params btf_gen_defaults(btf_gen_kind kind)

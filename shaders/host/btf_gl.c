@@ -101,6 +101,18 @@ static btf_result btf__gl_open(btf_gl *gl, btf_gl_backend backend, btf_error *er
     return r;
 }
 
+void btf_gl_free(btf_gl *gl)
+{
+    if (!gl)
+        return;
+    if (gl->native) {
+        if (gl->vt->make_current(gl->native, NULL) == BTF_OK && gl->vao)
+            gl->fn.DeleteVertexArrays(1, &gl->vao);
+        gl->vt->close(gl->native);
+    }
+    free(gl);
+}
+
 btf_result btf_gl_create(const btf_gl_desc *desc, btf_gl **out, btf_error *err)
 {
     if (!out)
@@ -135,18 +147,6 @@ btf_result btf_gl_create(const btf_gl_desc *desc, btf_gl **out, btf_error *err)
     }
     *out = gl;
     return BTF_OK;
-}
-
-void btf_gl_free(btf_gl *gl)
-{
-    if (!gl)
-        return;
-    if (gl->native) {
-        if (gl->vt->make_current(gl->native, NULL) == BTF_OK && gl->vao)
-            gl->fn.DeleteVertexArrays(1, &gl->vao);
-        gl->vt->close(gl->native);
-    }
-    free(gl);
 }
 
 btf_result btf_gl_make_current(btf_gl *gl, btf_error *err)
@@ -248,6 +248,20 @@ static btf_result btf__gl_target_attach(btf_gl *gl, btf_gl_target *t, btf_error 
     return btf_gl_check(gl, "creating a framebuffer", err);
 }
 
+void btf_gl_target_free(btf_gl *gl, btf_gl_target *t)
+{
+    if (!t)
+        return;
+    if (gl) {
+        for (int i = 0; i < t->n_color; i++)
+            if (t->color[i])
+                gl->fn.DeleteTextures(1, &t->color[i]);
+        if (t->fbo)
+            gl->fn.DeleteFramebuffers(1, &t->fbo);
+    }
+    free(t);
+}
+
 btf_result btf_gl_target_create(btf_gl *gl, int w, int h, btf_gl_format fmt, int n_color, btf_gl_target **out,
                                 btf_error *err)
 {
@@ -273,20 +287,6 @@ btf_result btf_gl_target_create(btf_gl *gl, int w, int h, btf_gl_format fmt, int
         btf_gl_target_free(gl, t), t = NULL;
     *out = t;
     return r;
-}
-
-void btf_gl_target_free(btf_gl *gl, btf_gl_target *t)
-{
-    if (!t)
-        return;
-    if (gl) {
-        for (int i = 0; i < t->n_color; i++)
-            if (t->color[i])
-                gl->fn.DeleteTextures(1, &t->color[i]);
-        if (t->fbo)
-            gl->fn.DeleteFramebuffers(1, &t->fbo);
-    }
-    free(t);
 }
 
 void btf_gl_target_bind(btf_gl *gl, const btf_gl_target *t)

@@ -177,6 +177,20 @@ static btf_result btf__make_slots(btf_gl_package *g, const btf_package *p, const
     return BTF_OK;
 }
 
+void btf_gl_package_free(btf_gl *gl, btf_gl_package *g)
+{
+    if (!g)
+        return;
+    btf_gl_texture_free(gl, g->tex);
+    btf_gl_texture_free(gl, g->wt);
+    btf_gl_texture_free(gl, g->range);
+    btf_gl_texture_free(gl, g->view_block);
+    free(g->chunk_slot);
+    free(g->chunk_level);
+    free(g->range_host);
+    free(g);
+}
+
 btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *dir, btf_gl_package **out,
                                  btf_error *err)
 {
@@ -212,20 +226,6 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
         btf_gl_package_free(gl, g), g = NULL;
     *out = g;
     return r;
-}
-
-void btf_gl_package_free(btf_gl *gl, btf_gl_package *g)
-{
-    if (!g)
-        return;
-    btf_gl_texture_free(gl, g->tex);
-    btf_gl_texture_free(gl, g->wt);
-    btf_gl_texture_free(gl, g->range);
-    btf_gl_texture_free(gl, g->view_block);
-    free(g->chunk_slot);
-    free(g->chunk_level);
-    free(g->range_host);
-    free(g);
 }
 
 static void btf__set_int(const btf_gl_api *f, const btf_shader_program *prog, const char *name, int v)

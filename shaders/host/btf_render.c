@@ -21,10 +21,7 @@ const char *btf_render_geometry_name(btf_render_geometry g)
 
 int btf_render_geometry_from_name(const char *name)
 {
-    for (int i = 0; name && i < BTF_RENDER_GEOMETRY_COUNT; i++)
-        if (!strcmp(name, btf__geometry_names[i]))
-            return i;
-    return -1;
+    return btf_name_index(btf__geometry_names, BTF_RENDER_GEOMETRY_COUNT, name);
 }
 
 btf_render_params btf_render_defaults(btf_render_geometry g)

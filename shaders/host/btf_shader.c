@@ -201,6 +201,14 @@ static btf_result btf__assemble(const cJSON *manifest, const char *dir, const bt
     return r;
 }
 
+void btf_shader_source_free(btf_shader_source *s)
+{
+    if (!s)
+        return;
+    free(s->text);
+    free(s);
+}
+
 btf_result btf_shader_assemble(const btf_shader_desc *desc, btf_shader_stage stage, btf_shader_source **out,
                                btf_error *err)
 {
@@ -233,14 +241,6 @@ btf_result btf_shader_assemble(const btf_shader_desc *desc, btf_shader_stage sta
     src->n_lines = btf__count_lines(s.p, s.len);
     *out = src;
     return BTF_OK;
-}
-
-void btf_shader_source_free(btf_shader_source *s)
-{
-    if (!s)
-        return;
-    free(s->text);
-    free(s);
 }
 
 int btf_shader_source_line(const btf_shader_source *s, int line, const char **file)
@@ -394,6 +394,15 @@ static btf_result btf__link(btf_gl *gl, btf_shader_program *p, GLuint vs, GLuint
     return btf_fail(err, BTF_ERR_FORMAT, "shader '%s': link failed: %s", p->name, first);
 }
 
+void btf_shader_program_free(btf_gl *gl, btf_shader_program *p)
+{
+    if (!p)
+        return;
+    if (gl && p->id)
+        btf_gl_fn(gl)->DeleteProgram(p->id);
+    free(p);
+}
+
 btf_result btf_shader_build(btf_gl *gl, const btf_shader_desc *desc, btf_shader_program **out, char **report,
                             btf_error *err)
 {
@@ -429,15 +438,6 @@ btf_result btf_shader_build(btf_gl *gl, const btf_shader_desc *desc, btf_shader_
         btf_shader_program_free(gl, p), p = NULL;
     *out = p;
     return r;
-}
-
-void btf_shader_program_free(btf_gl *gl, btf_shader_program *p)
-{
-    if (!p)
-        return;
-    if (gl && p->id)
-        btf_gl_fn(gl)->DeleteProgram(p->id);
-    free(p);
 }
 
 btf_result btf_shader_set_dirset(btf_gl *gl, const btf_shader_program *p, const char *name, const btf_dirset *d,
