@@ -308,6 +308,9 @@ btf_result btf_manifest_parse(const char *text, const char *path, btf_package *p
     }
     for (int i = 0; r == BTF_OK && i < nc; i++)
         r = btf__parse_chunk(cJSON_GetArrayItem(chunks, i), m, p, i, path, err);
+    const cJSON *budget = cJSON_GetObjectItemCaseSensitive(m, "budget");
+    if (r == BTF_OK && cJSON_IsObject(budget))
+        p->budget = cJSON_PrintUnformatted(budget);
     cJSON_Delete(m);
     return r;
 }
@@ -318,9 +321,9 @@ void btf_manifest_clear(btf_package *p)
         free(p->chunk[i].tex_range);
         free(p->chunk[i].wt_range);
     }
-    free(p->chunk), free(p->tex), free(p->wt);
+    free(p->chunk), free(p->tex), free(p->wt), free(p->budget);
     btf_blocks_free(p->blocks);
-    p->chunk = NULL, p->tex = NULL, p->wt = NULL, p->blocks = NULL, p->n_chunks = 0;
+    p->chunk = NULL, p->tex = NULL, p->wt = NULL, p->blocks = NULL, p->budget = NULL, p->n_chunks = 0;
 }
 
 /* ---------------------------------------------------------------- serializer */
@@ -499,6 +502,9 @@ char *btf_manifest_print(const btf_package *p, btf_error *err)
         btf__print_header(p, m);
         if (p->version >= 2)
             btf__print_levels(p, m);
+        cJSON *budget = p->budget ? cJSON_Parse(p->budget) : NULL;
+        if (budget)
+            cJSON_AddItemToObject(m, "budget", budget);
         cJSON *chunks = cJSON_AddArrayToObject(m, "chunks");
         for (int a = 0; a < p->n_chunks; a++)
             cJSON_AddItemToArray(chunks, btf__print_chunk(p, a));

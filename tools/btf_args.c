@@ -58,6 +58,26 @@ int btf_args_int(const btf_args *a, const char *val, long lo, long hi, int *v)
     return btf_arg_int(val, lo, hi, v) ? 0 : btf_args_bad(a, val, "an integer %ld..%ld", lo, hi);
 }
 
+int btf_args_long(const btf_args *a, const char *val, long lo, long hi, long long *v)
+{
+    long x;
+    if (!btf_arg_long(val, lo, hi, &x))
+        return btf_args_bad(a, val, "an integer %ld..%ld", lo, hi);
+    *v = x;
+    return 0;
+}
+
+int btf_args_double(const btf_args *a, const char *val, double lo, double hi, double *v)
+{
+    char *end = NULL;
+    errno = 0;
+    double x = val ? strtod(val, &end) : 0.0;
+    if (!val || errno || end == val || *end || !(x >= lo && x <= hi))
+        return btf_args_bad(a, val, "a number %g..%g", lo, hi);
+    *v = x;
+    return 0;
+}
+
 int btf_args_enum(const btf_args *a, const char *val, const char *const *names, int n, int *v)
 {
     if (btf_arg_enum(val, names, n, v))

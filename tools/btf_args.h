@@ -52,6 +52,9 @@ int btf_args_finish(int rc, int (*run)(void *opts), void *opts);
 int btf_args_bad(const btf_args *a, const char *val, const char *what, ...) __attribute__((format(printf, 3, 4)));
 /* Integer lo..hi into *v: 0, or 2 after btf_args_bad. */
 int btf_args_int(const btf_args *a, const char *val, long lo, long hi, int *v);
+/* The same into a long long, and a finite number lo..hi into a double. */
+int btf_args_long(const btf_args *a, const char *val, long lo, long hi, long long *v);
+int btf_args_double(const btf_args *a, const char *val, double lo, double hi, double *v);
 /* Index of val in names[0..n-1] into *v: 0, or 2 after btf_args_bad listing the names. */
 int btf_args_enum(const btf_args *a, const char *val, const char *const *names, int n, int *v);
 /* Where btf_args_pca stores; stack value of the caller, pointing into its option struct. */

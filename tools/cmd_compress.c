@@ -10,6 +10,7 @@
 #include "btf_io.h"
 #include "btf_source.h"
 #include "btf_package.h"
+#include "btf_budget.h"
 #include "btf_lod.h"
 #include "btf_output.h"
 
@@ -25,6 +26,8 @@ typedef struct compress_opts {
     btf_pca_options pca;
     btf_package_options pkg;
     int quiet, json;
+    btf_budget budget; /* --max-bytes / --max-error (codec/btf_budget.h); both 0 = none */
+    int k_set;         /* --k given: the only candidate of a budget */
     int levels; /* > 0: write package version 2 with this many spatial levels (codec/btf_lod.h) */
 } compress_opts;
 
@@ -35,7 +38,7 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--quiet] [--json]\n"
+            "                           [--max-bytes N | --max-error E] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -57,6 +60,11 @@ static void compress_usage(FILE *f)
             "                   view's nearest lights, with a warning (default: refuse)\n"
             "  --name NAME      material name in the manifest (default: last element of OUT)\n"
             "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n"
+            "  --max-bytes N    the least CIELab error within N bytes (manifest and chunk files):\n"
+            "                   k from 1, 3, 9 (or --k) and the chunk count are chosen by\n"
+            "                   compressing each k once with up to 16 components (or --components);\n"
+            "                   the choice and every candidate are recorded in the manifest (\"budget\")\n"
+            "  --max-error E    the fewest bytes whose CIELab error is <= E (as btf eval reports it)\n"
             "  --quiet          print nothing on success\n"
             "  --json           print one JSON object on stdout instead of the text:\n"
             "                   path (OUT), bytes (all chunk files), chunks, seconds_load,\n"
@@ -67,7 +75,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F max-bytes:B max-error:E quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -91,7 +99,9 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'F': o->src.fill_missing = 1; break;
     case 'q': o->quiet = 1; break;
     case 'j': o->json = 1; break;
-    default: rc = btf_args_pca(a, c, v, &pca);
+    case 'B': rc = btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes); break;
+    case 'E': rc = btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error); break;
+    default: rc = btf_args_pca(a, c, v, &pca), o->k_set |= c == 'k';
     }
     return rc;
 }
@@ -162,14 +172,38 @@ static btf_result compress_v2(const btf *src, compress_opts *o, btf_compress_sta
     return r;
 }
 
+/* --max-bytes / --max-error: the k and chunk count chosen by measuring (codec/btf_budget.h). */
+static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
+{
+    if (o->levels > 0)
+        return btf_fail(err, BTF_ERR_ARG, "--levels with --max-bytes or --max-error: add levels with btf lod afterwards");
+    if (o->k_set)
+        o->budget.k[0] = o->pca.k, o->budget.n_k = 1;
+    o->budget.max_components = o->pca.components > 8 ? o->pca.components : 16;
+    btf_budget_result res;
+    btf_result r = btf_budget_compress(src, &o->pca, &o->pkg, &o->budget, o->out, &res, err);
+    if (r != BTF_OK)
+        return r;
+    st->bytes = res.bytes, st->n_chunks = res.n_chunks, st->lab = res.lab, st->rmse = res.rmse;
+    if (!o->quiet && !o->json) {
+        for (int i = 0; i < res.n_candidates; i++)
+            fprintf(stderr, "btf compress: k %-3d %2d chunks %10lld bytes  Lab %.3f\n", res.candidate[i].k,
+                    res.candidate[i].n_chunks, res.candidate[i].bytes, res.candidate[i].lab);
+        fprintf(stderr, "btf compress: chose k %d, %d chunks, %lld bytes, Lab %.3f%s\n", res.k, res.n_chunks,
+                res.bytes, res.lab, res.met ? "" : " (the error target is not reached: the lowest error)");
+    }
+    return BTF_OK;
+}
+
 /* Compresses src as o says, with the progress line on a terminal. */
 static btf_result compress_run(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
 {
     btf_progress pr;
     btf_progress_start(&pr, "compress", "blocks");
     o->pca.progress = btf_progress_update, o->pca.progress_ctx = &pr;
-    btf_result r = o->levels > 0 ? compress_v2(src, o, st, err)
-                                 : btf_package_compress(src, &o->pca, &o->pkg, o->out, st, err);
+    btf_result r = o->budget.max_bytes > 0 || o->budget.max_error > 0 ? compress_budget(src, o, st, err)
+                   : o->levels > 0                                      ? compress_v2(src, o, st, err)
+                                   : btf_package_compress(src, &o->pca, &o->pkg, o->out, st, err);
     btf_progress_end(&pr);
     return r;
 }

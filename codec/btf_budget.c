@@ -1,0 +1,237 @@
+/* btf_budget.c - compression to a byte budget or a CIELab target: one compression
+ * per candidate k, every prefix measured from its manifest, the best cut and kept. */
+#include "btf_budget.h"
+
+#include <cjson/cJSON.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "btf_fs.h"
+#include "btf_manifest.h"
+
+/* The candidate k values: the budget's, else 1, 3 and 9, within 1..views. */
+static int btf__budget_ks(const btf_budget *b, int views, int *ks)
+{
+    static const int dflt[3] = {1, 3, 9};
+    const int *src = b->n_k > 0 ? b->k : dflt;
+    int n = 0, m = b->n_k > 0 ? b->n_k : 3;
+    for (int i = 0; i < m && i < BTF_BUDGET_MAX_K; i++)
+        if (src[i] >= 1 && src[i] <= views)
+            ks[n++] = src[i];
+    return n;
+}
+
+/* Bytes of the package made of the first n chunks of p: its manifest and files. */
+static long long btf__prefix_bytes(btf_package *p, int n)
+{
+    int all = p->n_chunks;
+    p->n_chunks = n;
+    char *text = btf_manifest_print(p, NULL);
+    p->n_chunks = all;
+    long long bytes = text ? (long long)strlen(text) : 0;
+    free(text);
+    for (int i = 0; i < n; i++)
+        bytes += p->chunk[i].bytes;
+    return bytes;
+}
+
+/* The best prefix of p under b (see btf_budget); n_chunks 0 when none fits. */
+static btf_budget_choice btf__best_prefix(btf_package *p, const btf_budget *b, int *met)
+{
+    btf_budget_choice c = {p->k, 0, btf__prefix_bytes(p, 1), 0.0, 0.0}, low = c; /* none: what one chunk needs */
+    *met = 0;
+    for (int n = 1; n <= p->n_chunks; n++) {
+        btf_budget_choice t = {p->k, n, btf__prefix_bytes(p, n), p->chunk[n - 1].lab, p->chunk[n - 1].rmse};
+        if (low.n_chunks == 0 || t.lab < low.lab)
+            low = t;
+        if (b->max_bytes > 0 && t.bytes <= b->max_bytes && (c.n_chunks == 0 || t.lab < c.lab))
+            c = t, *met = 1;
+        if (b->max_error > 0 && t.lab <= b->max_error && c.n_chunks == 0)
+            c = t, *met = 1;
+    }
+    return b->max_error > 0 && !*met ? low : c; /* an unreachable target: the lowest error, reported as unmet */
+}
+
+/* Reads dir's manifest into p (no chunk data). */
+static btf_result btf__budget_manifest(const char *dir, btf_package *p, btf_error *err)
+{
+    char path[BTF_FS_PATH_MAX + 32], *text = NULL;
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    memset(p, 0, sizeof *p);
+    btf_result r = btf_fs_read(path, BTF_MANIFEST_MAX_BYTES, &text, NULL, err);
+    if (r == BTF_OK)
+        r = btf_manifest_parse(text, path, p, err);
+    free(text);
+    return r;
+}
+
+/* The "budget" record of the manifest: what was asked, chosen and measured. */
+static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
+{
+    cJSON *o = cJSON_CreateObject(), *cands = NULL;
+    if (b->max_bytes > 0)
+        cJSON_AddNumberToObject(o, "max_bytes", (double)b->max_bytes);
+    else
+        cJSON_AddNumberToObject(o, "max_error", b->max_error);
+    cJSON_AddBoolToObject(o, "met", res->met);
+    cJSON_AddNumberToObject(o, "k", res->k);
+    cJSON_AddNumberToObject(o, "chunks", res->n_chunks);
+    cJSON_AddNumberToObject(o, "bytes", (double)res->bytes);
+    cJSON_AddNumberToObject(o, "lab", res->lab);
+    cands = cJSON_AddArrayToObject(o, "candidates");
+    for (int i = 0; cands && i < res->n_candidates; i++) {
+        const btf_budget_choice *c = &res->candidate[i];
+        cJSON *e = cJSON_CreateObject();
+        cJSON_AddNumberToObject(e, "k", c->k);
+        cJSON_AddNumberToObject(e, "chunks", c->n_chunks);
+        cJSON_AddNumberToObject(e, "bytes", (double)c->bytes);
+        cJSON_AddNumberToObject(e, "lab", c->lab);
+        cJSON_AddItemToArray(cands, e);
+    }
+    char *s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return s;
+}
+
+/* Cuts the package in dir to its first n chunks and records the budget. */
+static btf_result btf__budget_cut(const char *dir, int n, char *budget_json, btf_error *err)
+{
+    btf_package p;
+    btf_result r = btf__budget_manifest(dir, &p, err);
+    char path[BTF_FS_PATH_MAX + 80];
+    for (int i = n; r == BTF_OK && i < p.n_chunks; i++)
+        for (int f = 0; f < p.chunk[i].n_files; f++) {
+            snprintf(path, sizeof path, "%s/%s", dir, p.chunk[i].files[f]);
+            unlink(path); /* a file of a dropped chunk, named by our own manifest */
+        }
+    char *text = NULL;
+    if (r == BTF_OK) {
+        p.n_chunks = n, p.budget = budget_json;
+        text = btf_manifest_print(&p, err);
+        p.budget = NULL;
+        r = text ? BTF_OK : BTF_ERR_NOMEM;
+    }
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(path, text, strlen(text), err);
+    free(text);
+    btf_manifest_clear(&p);
+    return r;
+}
+
+/* Bytes of the package in dir as written: its manifest and the files it lists. */
+static long long btf__package_bytes(const char *dir)
+{
+    btf_package p;
+    char path[BTF_FS_PATH_MAX + 80];
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    long long n = btf_fs_size(path);
+    if (btf__budget_manifest(dir, &p, NULL) != BTF_OK)
+        return -1;
+    for (int i = 0; i < p.n_chunks; i++)
+        for (int f = 0; f < p.chunk[i].n_files; f++) {
+            snprintf(path, sizeof path, "%s/%s", dir, p.chunk[i].files[f]);
+            n += btf_fs_size(path);
+        }
+    btf_manifest_clear(&p);
+    return n;
+}
+
+/* Cuts the chosen package and records the budget; the record itself takes bytes, so
+ * under a byte budget the cut drops chunks until the package as written fits. */
+static btf_result btf__budget_finish(const char *dir, const btf_budget *b, btf_budget_result *rs, btf_error *err)
+{
+    btf_result r = BTF_OK;
+    for (int round = 0; round < 4 * BTF_PACKAGE_MAX_CHUNKS; round++) { /* ends: chunks only decrease */
+        char *json = btf__budget_json(b, rs);
+        r = json ? btf__budget_cut(dir, rs->n_chunks, json, err) : btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
+        free(json);
+        long long real = r == BTF_OK ? btf__package_bytes(dir) : -1;
+        if (r != BTF_OK || real < 0 || b->max_bytes <= 0 || real <= b->max_bytes || rs->n_chunks <= 1) {
+            if (r != BTF_OK || real < 0 || real == rs->bytes || round > 2 * BTF_PACKAGE_MAX_CHUNKS)
+                return r;
+            rs->bytes = real; /* once more, so the record states the bytes as written */
+            continue;
+        }
+        btf_package p; /* one chunk fewer: its error from the manifest */
+        if ((r = btf__budget_manifest(dir, &p, err)) != BTF_OK)
+            return r;
+        rs->n_chunks--;
+        rs->lab = p.chunk[rs->n_chunks - 1].lab, rs->rmse = p.chunk[rs->n_chunks - 1].rmse;
+        btf_manifest_clear(&p);
+    }
+    return r;
+}
+
+/* Compresses candidate k into dir and reads off its best prefix. */
+static btf_result btf__budget_try(const btf *src, btf_pca_options po, const btf_package_options *opt, int k,
+                                  const btf_budget *b, const char *dir, btf_budget_choice *c, int *met,
+                                  btf_error *err)
+{
+    po.k = k;
+    po.components = b->max_components > 0 ? b->max_components : 16;
+    while (po.components > 1 && btf_pca_check(src, &po, NULL) != BTF_OK)
+        po.components--; /* small blocks hold fewer components */
+    btf_fs_rmtree(dir, NULL);
+    btf_result r = btf_package_compress(src, &po, opt, dir, NULL, err);
+    btf_package p;
+    if (r == BTF_OK && (r = btf__budget_manifest(dir, &p, err)) == BTF_OK) {
+        *c = btf__best_prefix(&p, b, met);
+        btf_manifest_clear(&p);
+    }
+    return r;
+}
+
+btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                               const btf_budget *budget, const char *out, btf_budget_result *res, btf_error *err)
+{
+    btf_budget_result rs;
+    memset(&rs, 0, sizeof rs);
+    if (!src || !budget || !out || strlen(out) > 4000 || (budget->max_bytes > 0) == (budget->max_error > 0))
+        return btf_fail(err, BTF_ERR_ARG, "budget: give exactly one of a byte budget and an error target");
+    btf_result r = btf_fs_replaceable(out, btf_manifest_owns_dir, NULL, err);
+    btf_package_options po = opt ? *opt : (btf_package_options){0};
+    char name[BTF_PACKAGE_NAME_MAX];
+    if (!po.name) { /* the material is OUT's, not its temporaries' */
+        const char *slash = strrchr(out, '/');
+        snprintf(name, sizeof name, "%s", slash && slash[1] ? slash + 1 : out);
+        po.name = name;
+    }
+    int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), best = -1, best_met = 0;
+    char dir[BTF_BUDGET_MAX_K][BTF_FS_PATH_MAX];
+    for (int i = 0; r == BTF_OK && i < nk; i++) {
+        int met = 0;
+        snprintf(dir[i], sizeof dir[i], "%s.tmp-%ld-k%d", out, (long)getpid(), ks[i]);
+        r = btf__budget_try(src, pca ? *pca : (btf_pca_options){0}, &po, ks[i], budget, dir[i], &rs.candidate[i], &met,
+                            err);
+        rs.n_candidates = i + 1;
+        const btf_budget_choice *c = &rs.candidate[i], *bc = best >= 0 ? &rs.candidate[best] : NULL;
+        int better = c->n_chunks > 0 && (!bc || met > best_met ||
+                                         (met == best_met && (budget->max_bytes > 0 || !met ? c->lab < bc->lab
+                                                                                            : c->bytes < bc->bytes)));
+        if (r == BTF_OK && better)
+            best = i, best_met = met;
+    }
+    if (r == BTF_OK && best < 0) {
+        long long need = rs.candidate[0].bytes;
+        for (int i = 1; i < rs.n_candidates; i++)
+            need = rs.candidate[i].bytes < need ? rs.candidate[i].bytes : need;
+        r = btf_fail(err, BTF_ERR_RANGE, "budget: %lld bytes cannot hold even the first chunk (the smallest needs %lld)",
+                     budget->max_bytes, need);
+    }
+    if (r == BTF_OK) {
+        const btf_budget_choice *c = &rs.candidate[best];
+        rs.k = c->k, rs.n_chunks = c->n_chunks, rs.bytes = c->bytes, rs.lab = c->lab, rs.rmse = c->rmse;
+        rs.met = best_met;
+        r = btf__budget_finish(dir[best], budget, &rs, err);
+        if (r == BTF_OK)
+            r = btf_fs_replace_dir(dir[best], out, btf_manifest_owns_dir, NULL, err);
+    }
+    for (int i = 0; i < rs.n_candidates; i++)
+        btf_fs_rmtree(dir[i], NULL);
+    if (res)
+        *res = rs;
+    return r;
+}

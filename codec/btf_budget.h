@@ -1,0 +1,59 @@
+/* btf_budget.h - compression to a byte budget or an error target: the settings
+ * (views per block k, number of chunks) chosen by measuring, not guessed.
+ *
+ *     btf_budget b = {0};  b.max_bytes = 400000;          // or b.max_error = 1.0 (CIELab)
+ *     btf_budget_result res;
+ *     if (btf_budget_compress(src, NULL, NULL, &b, "lib/wool", &res, &err) == BTF_OK)
+ *         printf("k %d, %d chunks, %lld bytes, Lab %.3f\n", res.k, res.n_chunks, res.bytes, res.lab);
+ *
+ * Each candidate k is compressed once with the largest component count; its
+ * manifest gives the bytes and the measured CIELab error of every chunk prefix
+ * (the chunk order is by error drop per byte, doc/package-format.md section 7),
+ * so every budget of that k is read off one compression. The best candidate's
+ * package is cut to the chosen prefix and replaces OUT like btf_package_compress.
+ */
+#ifndef BTF_BUDGET_H
+#define BTF_BUDGET_H
+
+#include "btf_package.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BTF_BUDGET_MAX_K 8 /* candidate k values at most */
+
+/* What to meet; plain value. Exactly one of max_bytes, max_error is set. */
+typedef struct btf_budget {
+    long long max_bytes; /* > 0: the least error within this many bytes (manifest + chunk files) */
+    double max_error;    /* > 0: the fewest bytes whose CIELab error (as btf eval reports) is <= this */
+    int max_components;  /* components compressed per candidate; 0 = 16 */
+    int k[BTF_BUDGET_MAX_K], n_k; /* candidate k; n_k = 0: 1, 3 and 9 (those the views allow) */
+} btf_budget;
+
+/* One candidate's best prefix; plain value. */
+typedef struct btf_budget_choice {
+    int k, n_chunks; /* n_chunks 0: no prefix of this k meets the budget */
+    long long bytes;
+    double lab, rmse;
+} btf_budget_choice;
+
+/* What was chosen and what each candidate measured; plain value. */
+typedef struct btf_budget_result {
+    int k, n_chunks;
+    long long bytes;
+    double lab, rmse;
+    int met;         /* 1: the budget is met (0 with max_error: the lowest error reached is reported) */
+    int n_candidates;
+    btf_budget_choice candidate[BTF_BUDGET_MAX_K];
+} btf_budget_result;
+
+/* Compresses src into the package OUT under the budget. pca and opt give the other
+ * settings (k and components are the budget's to choose; NULL = defaults). */
+btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                               const btf_budget *budget, const char *out, btf_budget_result *res, btf_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
