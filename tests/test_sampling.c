@@ -90,7 +90,7 @@ Test(sampling, commands_take_sampling_json)
 }
 
 /* A dome directory is recognised without --sampling; a missing image is named. */
-Test(slow_sampling, dome151_is_inferred_from_the_names, .timeout = 240)
+Test(slow_sampling, dome151_is_inferred_from_the_names, .timeout = 900)
 {
     char dir[64], img[128];
     cr_assert(test_tmpdir(dir, sizeof dir));
