@@ -1581,3 +1581,176 @@ Test(server, one_timestamped_log_line_per_connection_and_error)
     cr_expect_eq(errors, 1, "one line per error");
     free(text);
 }
+
+/* ================================================================ HTTP caching: immutable package files */
+
+/* Value of response header name (lower case, with the colon) into buf; "" if absent. */
+static const char *resp_header(const char *head, const char *name, char *buf, size_t n)
+{
+    const char *h = find_nocase(head, name);
+    buf[0] = 0;
+    if (h) {
+        h += strlen(name);
+        while (*h == ' ')
+            h++;
+        snprintf(buf, n, "%.*s", (int)strcspn(h, "\r\n"), h);
+    }
+    return buf;
+}
+
+/* The list's "files" base of material name ("/materials/NAME/ETAG/"). */
+static void files_base(int port, const char *name, char *base, size_t n)
+{
+    uint8_t *body;
+    size_t len;
+    cr_assert_eq(http_get(port, "/materials", &body, &len), 200);
+    cJSON *j = cJSON_Parse((char *)body);
+    free(body);
+    const cJSON *m;
+    base[0] = 0;
+    cJSON_ArrayForEach(m, cJSON_GetObjectItem(j, "materials"))
+        if (!strcmp(jstr(m, "name"), name))
+            snprintf(base, n, "%s", jstr(m, "files"));
+    cJSON_Delete(j);
+    cr_assert(base[0], "no files base for %s", name);
+}
+
+Test(server, package_files_are_immutable_with_strong_etags_and_byte_ranges)
+{
+    const size_t sizes[] = {150000, 7000, 0};
+    const double lab[] = {9, 5, 3};
+    make_pkg(g_lib, "alpha", 3, 1, sizes, lab);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    char base[300], url[400], head[4096], v[200], etag[200], hdr[300];
+    files_base(s.port, "alpha", base, sizeof base);
+    uint8_t *body, *disk;
+    size_t n, dn;
+    for (int c = 0; c < 3; c++) {
+        snprintf(url, sizeof url, "%sc%d_f0.bin", base, c);
+        cr_assert_eq(http_req(s.port, url, NULL, head, sizeof head, &body, &n), 200, "%s", url);
+        char path[700];
+        snprintf(path, sizeof path, "%s/alpha/c%d_f0.bin", g_lib, c);
+        disk = read_whole(path, &dn);
+        cr_expect(n == dn && !memcmp(body, disk, n), "%s: %zu bytes, file has %zu", url, n, dn);
+        free(disk);
+        free(body);
+        cr_expect_str_eq(resp_header(head, "cache-control:", v, sizeof v), "public, max-age=31536000, immutable");
+        resp_header(head, "etag:", etag, sizeof etag);
+        cr_expect(etag[0] == '"' && etag[strlen(etag) - 1] == '"' && strncmp(etag, "W/", 2), "strong etag: %s", etag);
+        snprintf(hdr, sizeof hdr, "If-None-Match: %s\r\n", etag);
+        cr_expect_eq(http_req(s.port, url, hdr, head, sizeof head, &body, &n), 304, "revalidation of %s", url);
+        cr_expect_eq(n, 0);
+        free(body);
+    }
+    /* the manifest too, byte for byte */
+    snprintf(url, sizeof url, "%smanifest.json", base);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 200);
+    char mpath[700];
+    snprintf(mpath, sizeof mpath, "%s/alpha/manifest.json", g_lib);
+    disk = read_whole(mpath, &dn);
+    cr_expect(n == dn && !memcmp(body, disk, n), "manifest differs");
+    free(disk);
+    free(body);
+    /* byte ranges: a middle, a suffix, an open end; beyond the end 416; If-Range of another version: all */
+    snprintf(url, sizeof url, "%sc0_f0.bin", base);
+    char path0[700];
+    snprintf(path0, sizeof path0, "%s/alpha/c0_f0.bin", g_lib);
+    disk = read_whole(path0, &dn);
+    struct { const char *range; size_t a, b; } rs[] = {{"bytes=100-199", 100, 199}, {"bytes=-10", 149990, 149999},
+                                                       {"bytes=149000-", 149000, 149999}, {"bytes=0-999999", 0, 149999}};
+    for (size_t i = 0; i < sizeof rs / sizeof rs[0]; i++) {
+        snprintf(hdr, sizeof hdr, "Range: %s\r\n", rs[i].range);
+        cr_expect_eq(http_req(s.port, url, hdr, head, sizeof head, &body, &n), 206, "%s", rs[i].range);
+        char want[80];
+        snprintf(want, sizeof want, "bytes %zu-%zu/150000", rs[i].a, rs[i].b);
+        cr_expect_str_eq(resp_header(head, "content-range:", v, sizeof v), want);
+        cr_expect(n == rs[i].b - rs[i].a + 1 && !memcmp(body, disk + rs[i].a, n), "%s: bytes differ", rs[i].range);
+        free(body);
+    }
+    cr_expect_eq(http_req(s.port, url, "Range: bytes=150000-\r\n", head, sizeof head, &body, &n), 416);
+    cr_expect_str_eq(resp_header(head, "content-range:", v, sizeof v), "bytes */150000");
+    free(body);
+    cr_expect_eq(http_req(s.port, url, "Range: bytes=0-9\r\nIf-Range: \"other\"\r\n", head, sizeof head, &body, &n), 200);
+    cr_expect_eq(n, 150000);
+    free(body);
+    free(disk);
+    /* not this package's current etag, not its file, not a name in the index: 404 */
+    const char *bad[] = {"/materials/alpha/0123456789abcdef/c0_f0.bin", "/materials/alpha/c0_f0.bin", "/materials/nosuch/x/y"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        cr_expect_eq(http_get(s.port, bad[i], &body, &n), 404, "%s", bad[i]);
+        free(body);
+    }
+    const char *tails[] = {"nosuch.bin", "..%2fbeta%2fc0_f0.bin", "../../alpha/manifest.json", ".hidden"};
+    for (size_t i = 0; i < sizeof tails / sizeof tails[0]; i++) {
+        snprintf(url, sizeof url, "%s%s", base, tails[i]);
+        int st = http_get(s.port, url, &body, &n);
+        cr_expect(st == 404 || st == 400 || st == 403 || (st == 200 && strstr(tails[i], "manifest")), "%s gave %d", url, st);
+        free(body);
+    }
+    /* a replaced package: the old URLs are gone, the new ones work */
+    char old[400];
+    snprintf(old, sizeof old, "%sc1_f0.bin", base);
+    char dir[600];
+    snprintf(dir, sizeof dir, "%s/alpha", g_lib);
+    cr_assert_eq(test_rmtree(dir), 0);
+    const double lab2[] = {8, 4, 2};
+    make_pkg(g_lib, "alpha", 3, 1, sizes, lab2);
+    usleep(250000);
+    char base2[300];
+    files_base(s.port, "alpha", base2, sizeof base2);
+    cr_expect_str_neq(base, base2);
+    cr_expect_eq(http_get(s.port, old, &body, &n), 404, "old etag still served");
+    free(body);
+    snprintf(url, sizeof url, "%sc1_f0.bin", base2);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 200);
+    free(body);
+    srv_stop(&s);
+}
+
+Test(server, list_thumbnails_and_client_files_revalidate_by_etag)
+{
+    make_simple(g_lib, "alpha", 2, 100);
+    char p[600];
+    snprintf(p, sizeof p, "%s/alpha/thumbnail.png", g_lib);
+    write_file(p, "not really a png", 16);
+    char client[300];
+    snprintf(client, sizeof client, "%s/client", g_root);
+    cr_assert_eq(mkdir(client, 0755), 0);
+    snprintf(p, sizeof p, "%s/index.html", client);
+    write_file(p, "<p>hi</p>\n", 10);
+    srv s;
+    const char *extra[] = {"--client", client, NULL};
+    srv_start(&s, g_lib, extra);
+    const char *urls[] = {"/materials", "/materials/alpha/thumbnail.png", "/"};
+    for (size_t i = 0; i < 3; i++) {
+        char head[4096], etag[200], cc[200], hdr[300];
+        uint8_t *body;
+        size_t n;
+        cr_assert_eq(http_req(s.port, urls[i], NULL, head, sizeof head, &body, &n), 200, "%s", urls[i]);
+        free(body);
+        resp_header(head, "etag:", etag, sizeof etag);
+        resp_header(head, "cache-control:", cc, sizeof cc);
+        cr_expect(etag[0], "%s has no etag", urls[i]);
+        cr_expect(!strstr(cc, "no-store") && !strstr(cc, "immutable") && strstr(cc, "max-age="), "%s: %s", urls[i], cc);
+        snprintf(hdr, sizeof hdr, "If-None-Match: %s\r\n", etag);
+        cr_expect_eq(http_req(s.port, urls[i], hdr, head, sizeof head, &body, &n), 304, "%s", urls[i]);
+        free(body);
+        cr_expect_eq(http_req(s.port, urls[i], "If-None-Match: \"other\"\r\n", head, sizeof head, &body, &n), 200);
+        free(body);
+    }
+    /* a new package changes the list's etag */
+    char head[4096], e1[200], e2[200];
+    uint8_t *body;
+    size_t n;
+    http_req(s.port, "/materials", NULL, head, sizeof head, &body, &n);
+    free(body);
+    resp_header(head, "etag:", e1, sizeof e1);
+    make_simple(g_lib, "beta", 1, 100);
+    usleep(250000);
+    http_req(s.port, "/materials", NULL, head, sizeof head, &body, &n);
+    free(body);
+    cr_expect_str_neq(e1, resp_header(head, "etag:", e2, sizeof e2));
+    cr_expect_gt(metric(&s, "btfd_http_not_modified_total"), 0);
+    srv_stop(&s);
+}
