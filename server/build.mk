@@ -7,6 +7,7 @@
 #   $(BUILD)/fuzz_request_replay  replays fuzz/corpus/request/* through the parser (cc)
 #   fuzz-replay                   runs that replay binary on the saved corpus
 #   fuzz                          libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
+#   $(BUILD)/resume_clients       the reconnecting load client of tests/deploy_test.sh (nginx + 2 btfd)
 # server/ uses codec/ only (btf.h for direction sets and package metadata).
 # `build` gains btfd and the replay binary, so `make test` runs the server tests
 # (tests/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
@@ -25,9 +26,11 @@ FUZZ_SRC     := fuzz/fuzz_request.c server/btfd_request.c
 
 export BTF_BUILD := $(abspath $(BUILD))
 
+RESUME_BIN   := $(BUILD)/resume_clients
+
 .PHONY: server fuzz fuzz-replay
 server: $(BTFD_BIN)
-build: $(BTFD_BIN) $(FUZZ_REPLAY)
+build: $(BTFD_BIN) $(FUZZ_REPLAY) $(RESUME_BIN)
 
 $(SERVER_OBJ): INC := -Icodec -Iserver
 $(SERVER_OBJ): PKG_CFLAGS = $(SERVER_CFLAGS)
@@ -39,6 +42,10 @@ $(FUZZ_REPLAY): $(FUZZ_SRC) fuzz/replay_main.c server/btfd_request.h
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -MF /dev/null -Iserver $(SERVER_CFLAGS) -o $@ $(FUZZ_SRC) fuzz/replay_main.c \
 	    $(LDFLAGS) $(FUZZ_LIBS) -lm
+
+$(RESUME_BIN): tests/deploy/resume_clients.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE $(SERVER_CFLAGS) -o $@ $< $(LDFLAGS) $(SERVER_LIBS)
 
 fuzz-replay: $(FUZZ_REPLAY)
 	$(FUZZ_REPLAY) fuzz/corpus/request
