@@ -640,7 +640,6 @@ static void on_established(btfd_server *srv, btfd_conn *c, struct lws *wsi)
     c->tokens_us = c->opened_us = lws_now_usecs();
     c->id = ++srv->stats.connections_total;
     srv->stats.connections++;
-    record_peer(c, wsi);
     btfd_log(srv, BTFD_LOG_DEBUG, "conn %llu: open from %s", (unsigned long long)c->id, c->peer);
     cJSON *o = reply("hello", NULL);
     cJSON_AddStringToObject(o, "protocol", BTFD_SUBPROTOCOL);
@@ -687,6 +686,9 @@ static int callback_stream(struct lws *wsi, enum lws_callback_reasons reason, vo
     btfd_conn *c = user;
     btfd_server *srv = server_of(wsi);
     switch (reason) {
+    case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:
+        record_peer(c, wsi); /* the handshake's headers are gone by ESTABLISHED */
+        return 0;
     case LWS_CALLBACK_ESTABLISHED:
         on_established(srv, c, wsi);
         return 0;

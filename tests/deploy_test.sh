@@ -118,6 +118,7 @@ check "byte range through nginx: 206, right bytes" range_ok
 check "unknown etag: 404" old_etag_404
 check "200 clients, one btfd SIGKILLed mid-way: all complete, none twice, resumed" failover KILL
 check "package file still served by the cache after the kill" cached_after_kill
+check "btfd logs the client address nginx forwards" grep -q ' from 127.0.0.1 via 127.0.0.1: ' "$work/cluster-a/btfd-1.log"
 check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-a"
 
 check "cluster: a fresh nginx + 2 btfd (drain run)" up b
