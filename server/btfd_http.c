@@ -72,15 +72,6 @@ static void set_mapped(btfd_http *h, btfd_material *m, const void *data, size_t 
     h->mime = mime;
 }
 
-static char *dup_text(const char *s)
-{
-    size_t n = strlen(s) + 1;
-    char *d = malloc(n);
-    if (d)
-        memcpy(d, s, n);
-    return d;
-}
-
 static void route_list(btfd_server *srv, btfd_http *h)
 {
     btfd_server_rescan(srv, 0);
@@ -160,7 +151,7 @@ static int route(btfd_server *srv, btfd_http *h, const char *uri)
 {
     h->cache = CACHE_NONE;
     if (!strcmp(uri, "/healthz")) {
-        set_body(h, dup_text(srv->draining ? "draining\n" : "ok\n"), "text/plain");
+        set_body(h, strdup(srv->draining ? "draining\n" : "ok\n"), "text/plain");
         return srv->draining ? HTTP_STATUS_SERVICE_UNAVAILABLE : h->status;
     }
     if (!strcmp(uri, "/metrics")) {

@@ -43,9 +43,10 @@ $(FUZZ_REPLAY): $(FUZZ_SRC) fuzz/replay_main.c server/btfd_request.h
 	$(CC) $(CFLAGS) -MF /dev/null -Iserver $(SERVER_CFLAGS) -o $@ $(FUZZ_SRC) fuzz/replay_main.c \
 	    $(LDFLAGS) $(FUZZ_LIBS) -lm
 
-$(RESUME_BIN): tests/deploy/resume_clients.c
+$(RESUME_BIN): tests/deploy/resume_clients.c tests/lws_connect.h $(CODEC_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE $(SERVER_CFLAGS) -o $@ $< $(LDFLAGS) $(SERVER_LIBS)
+	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE -Icodec -Itests $(SERVER_CFLAGS) -o $@ $< $(CODEC_LIB) \
+	    $(LDFLAGS) $(SERVER_LIBS) -lm
 
 fuzz-replay: $(FUZZ_REPLAY)
 	$(FUZZ_REPLAY) fuzz/corpus/request

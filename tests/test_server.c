@@ -221,22 +221,30 @@ static void srv_start(srv *s, const char *lib, const char *const *extra)
     cr_assert_gt(s->port, 0);
 }
 
-/* SIGTERM, then expects a clean exit (status 0) within the timeout. */
-static void srv_stop(srv *s)
+/* Waits up to ms for btfd to exit by itself; its exit status, or -1 (then it is killed). */
+static int srv_wait_exit(srv *s, int ms)
 {
-    kill(s->pid, SIGTERM);
     int status = 0;
-    long long deadline = wsc_now_ms() + TMO;
+    long long deadline = wsc_now_ms() + ms;
     pid_t r;
     while ((r = waitpid(s->pid, &status, WNOHANG)) == 0 && wsc_now_ms() < deadline)
         usleep(10000);
     if (r == 0) {
         kill(s->pid, SIGKILL);
         waitpid(s->pid, &status, 0);
-        cr_assert_fail("btfd did not stop on SIGTERM");
+        return -1;
     }
     g_pid = 0;
-    cr_expect(WIFEXITED(status) && WEXITSTATUS(status) == 0, "btfd exit status %d", status);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+/* SIGTERM, then expects a clean exit (status 0) within the timeout. */
+static void srv_stop(srv *s)
+{
+    kill(s->pid, SIGTERM);
+    int rc = srv_wait_exit(s, TMO);
+    cr_assert_neq(rc, -1, "btfd did not stop on SIGTERM");
+    cr_expect_eq(rc, 0, "btfd exit status %d", rc);
 }
 
 static void open_ws(wsc *c, const srv *s)
@@ -1118,6 +1126,34 @@ static int wait_close(wsc *c, char *reason, size_t n)
     }
 }
 
+/* A client with a 128 KiB receive buffer subscribed to material, which the
+ * test then does not read (nothing services its lws context meanwhile). */
+static void open_slow(wsc *c, const srv *s, const char *material)
+{
+    char st[128], msg[200];
+    cr_assert_eq(wsc_open(c, s->port, "btf-stream.v1", 131072, st, sizeof st), 0, "%s", st);
+    snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"%s\"}", material);
+    wsc_send_text(c, msg);
+}
+
+/* Reads what a connection still gets until it ends (close frame or EOF);
+ * returns the payload bytes of the binary pieces. Fails if it stays open. */
+static size_t read_until_closed(wsc *c)
+{
+    size_t got = 0;
+    for (;;) {
+        wsc_msg m;
+        int r = wsc_recv(c, &m, TMO);
+        cr_assert_neq(r, 0, "the connection was not closed");
+        if (r < 0 || m.op == 8)
+            break;
+        if (m.op == 2)
+            got += m.len - 20;
+        wsc_msg_free(&m);
+    }
+    return got;
+}
+
 static void expect_healthy(const srv *s)
 {
     wsc c;
@@ -1233,9 +1269,7 @@ Test(server, stalled_client_is_dropped_and_others_keep_streaming)
      * the 24 MiB package), yet above the loopback MSS so the drain is not
      * held up by small-window avoidance. */
     wsc slow;
-    char st[128];
-    cr_assert_eq(wsc_open(&slow, s.port, "btf-stream.v1", 131072, st, sizeof st), 0, "%s", st);
-    wsc_send_text(&slow, "{\"type\":\"subscribe\",\"material\":\"big\"}");
+    open_slow(&slow, &s, "big");
     usleep(300000);
     /* meanwhile another client gets the whole package */
     wsc fast;
@@ -1250,17 +1284,7 @@ Test(server, stalled_client_is_dropped_and_others_keep_streaming)
     wsc_close(&fast);
     sleep(3); /* > stall timeout + lws's 1 s timer granularity */
     /* now drain: the connection must end before the package is complete */
-    size_t got = 0;
-    for (;;) {
-        wsc_msg m;
-        int r = wsc_recv(&slow, &m, TMO);
-        cr_assert_neq(r, 0, "stalled client was not dropped");
-        if (r < 0 || m.op == 8)
-            break;
-        if (m.op == 2)
-            got += m.len - 20;
-        wsc_msg_free(&m);
-    }
+    size_t got = read_until_closed(&slow);
     cr_expect_lt(got, total, "received %zu of %zu bytes", got, total);
     wsc_close(&slow);
     expect_healthy(&s);
@@ -1375,23 +1399,6 @@ Test(server, fuzz_corpus_replays_through_the_request_parser)
 
 /* ================================================================ operations: health, metrics, signals, log */
 
-/* Waits up to ms for btfd to exit by itself; its exit status, or -1 (then it is killed). */
-static int srv_wait_exit(srv *s, int ms)
-{
-    int status = 0;
-    long long deadline = wsc_now_ms() + ms;
-    pid_t r;
-    while ((r = waitpid(s->pid, &status, WNOHANG)) == 0 && wsc_now_ms() < deadline)
-        usleep(10000);
-    if (r == 0) {
-        kill(s->pid, SIGKILL);
-        waitpid(s->pid, &status, 0);
-        return -1;
-    }
-    g_pid = 0;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-}
-
 /* Polls metric name until it equals want (TMO); returns the last value. */
 static double metric_becomes(const srv *s, const char *name, double want)
 {
@@ -1502,26 +1509,14 @@ Test(server, drain_deadline_closes_streams_that_do_not_finish)
     const char *extra[] = {"--drain-seconds", "1", NULL};
     srv_start(&s, g_lib, extra);
     wsc slow;
-    char st_[128];
-    cr_assert_eq(wsc_open(&slow, s.port, "btf-stream.v1", 131072, st_, sizeof st_), 0, "%s", st_);
-    wsc_send_text(&slow, "{\"type\":\"subscribe\",\"material\":\"big\"}");
+    open_slow(&slow, &s, "big");
     usleep(200000);
     long long t0 = wsc_now_ms();
     kill(s.pid, SIGTERM);
     cr_expect_eq(srv_wait_exit(&s, TMO), 0);
     long long dt = wsc_now_ms() - t0;
     cr_expect(dt >= 900 && dt < 4000, "stopped %lld ms after SIGTERM (drain 1 s)", dt);
-    size_t got = 0;
-    for (;;) {
-        wsc_msg m;
-        int r = wsc_recv(&slow, &m, TMO);
-        cr_assert_neq(r, 0, "the connection was not closed");
-        if (r < 0 || m.op == 8)
-            break;
-        if (m.op == 2)
-            got += m.len - 20;
-        wsc_msg_free(&m);
-    }
+    size_t got = read_until_closed(&slow);
     cr_expect_lt(got, total);
     wsc_close(&slow);
 }

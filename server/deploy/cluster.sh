@@ -39,25 +39,26 @@ start_btfd() {
     return 1
 }
 
-# render DIR PORT UPSTREAM_LINES: DIR/nginx.conf from the template.
+# render DIR PORT: DIR/nginx.conf from the template, upstreams from $ups.
 render() {
     local user=""
     ((EUID == 0)) && user="user root root;  # as root the workers would be nobody, who cannot read DIR"
-    awk -v prefix="$1" -v listen="127.0.0.1:$2" -v ups="$3" -v user="$user" '
+    awk -v prefix="$1" -v listen="127.0.0.1:$2" -v ups="$ups" -v user="$user" '
         /^#/ { print; next }
         { gsub(/@PREFIX@/, prefix); gsub(/@LISTEN@/, listen); gsub(/@USER@/, user) }
         /^[ \t]*@UPSTREAMS@[ \t]*$/ { printf "%s", ups; next }
         { print }' "$here/nginx.conf.in" >"$1/nginx.conf"
 }
 
-# start_nginx DIR UPSTREAM_LINES [PORT]: sets nginx_pid, nginx_port.
-start_nginx() {
+# nginx_free_port DIR RENDER [PORT]: RENDER DIR P writes DIR/nginx.conf for port P;
+# tries up to 5 free-looking ports (only PORT when given) until nginx listens.
+# Sets nginx_pid, nginx_port. (Also used by bench/bench_server.sh.)
+nginx_free_port() {
     local d=$1 tries=5
     [[ -n ${3:-} ]] && tries=1
-    mkdir -p "$d/logs" "$d/tmp" "$d/cache"
     for _ in $(seq $tries); do
         nginx_port=${3:-$((20000 + RANDOM % 30000))}
-        render "$d" "$nginx_port" "$2"
+        "$2" "$d" "$nginx_port"
         "$NGINX" -t -q -p "$d" -c "$d/nginx.conf" -e "$d/logs/error.log" 2>>"$d/logs/start.log" || {
             echo "cluster: nginx rejects $d/nginx.conf: $(cat "$d/logs/start.log")" >&2
             return 1
@@ -107,7 +108,8 @@ start() {
         ports+=("$port")
         ups+="        server 127.0.0.1:$port max_fails=1 fail_timeout=10s;"$'\n'
     done
-    if ! start_nginx "$d" "$ups" "$want"; then
+    mkdir -p "$d/logs" "$d/tmp" "$d/cache"
+    if ! nginx_free_port "$d" render "$want"; then
         for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
         return 1
     fi
@@ -119,6 +121,8 @@ start() {
     } >"$d/cluster.env"
     echo "cluster: http://127.0.0.1:$nginx_port/ -> btfd$(printf ' 127.0.0.1:%s' "${ports[@]}")"
 }
+
+[[ ${BASH_SOURCE[0]} != "$0" ]] && return 0 # sourced: the functions only
 
 case ${1:-} in
 start) (($# >= 3 && $# <= 5)) || usage; start "$2" "$3" "${4:-2}" "${5:-}" ;;

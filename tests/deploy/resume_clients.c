@@ -23,6 +23,9 @@
  */
 #include <cJSON.h>
 #include <libwebsockets.h>
+
+#include "btf_fs.h"
+#include "lws_connect.h"
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -82,20 +85,11 @@ static uint32_t le32(const uint8_t *p)
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
 
+/* Whole file (codec/btf_fs.h), NULL if unreadable. */
 static uint8_t *slurp(const char *path, size_t *n)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long len = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    uint8_t *b = malloc((size_t)len + 1);
-    *n = b ? fread(b, 1, (size_t)len, f) : 0;
-    if (b)
-        b[*n] = 0;
-    fclose(f);
-    return b;
+    char *text = NULL;
+    return btf_fs_read(path, (size_t)1 << 31, &text, n, NULL) == BTF_OK ? (uint8_t *)text : NULL;
 }
 
 /* Reads LIBDIR/MATERIAL: the manifest and every file its chunks name. */
@@ -359,19 +353,7 @@ static const struct lws_protocols protocols[] = {
 
 static void connect_client(client *c)
 {
-    struct lws_client_connect_info ci;
-    memset(&ci, 0, sizeof ci);
-    ci.context = g_ctx;
-    ci.address = "127.0.0.1";
-    ci.port = g_port;
-    ci.path = "/stream";
-    ci.host = "127.0.0.1";
-    ci.origin = "127.0.0.1";
-    ci.protocol = "btf-stream.v1";
-    ci.local_protocol_name = protocols[0].name;
-    ci.opaque_user_data = c;
-    ci.pwsi = &c->wsi;
-    if (!lws_client_connect_via_info(&ci) && !c->wsi)
+    if (!btf_lws_connect(g_ctx, g_port, protocols[0].name, c, &c->wsi) && !c->wsi)
         lost(c);
 }
 
