@@ -99,7 +99,7 @@ cached_after_kill() { [[ $(cache_status wt-01.bin) == HIT ]] && cmp "$work/got" 
 old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.bin") == 404 ]]; }
 # failover SIG: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
 failover() {
-    "$clients" "$port" knit "$lib" 200 "${pids[0]}" 0.4 30 "$1" >"$work/clients-$1.txt" || { cat "$work/clients-$1.txt"; return 1; }
+    timeout 100 "$clients" "$port" knit "$lib" 200 "${pids[0]}" 0.4 30 "$1" >"$work/clients-$1.txt" || { cat "$work/clients-$1.txt"; return 1; }
     cat "$work/clients-$1.txt"
     [[ $(awk '$1 == "clients_resumed" {print $2}' "$work/clients-$1.txt") -gt 0 ]]
 }

@@ -252,11 +252,13 @@ static void piece_end(client *c)
         return;
     if ((int)file != g_pkg.n_files[chunk] - 1 || off + c->pos != total)
         return;
-    if (c->have[chunk])
-        g_dups++;
+    c->cur_chunk = -1;
+    if (c->have[chunk]) {
+        g_dups++; /* counted once more, not held twice */
+        return;
+    }
     c->have[chunk] = 1;
     c->held++;
-    c->cur_chunk = -1;
     if (chunk == 0 && !c->t_first)
         c->t_first = now_s();
     g_delivered++;
