@@ -115,14 +115,26 @@ int btfd_ops_tick(btfd_server *srv)
     return !srv->stop;
 }
 
-/* Appends one metric (HELP, TYPE, value) to the buffer; the buffer is big enough. */
-static size_t metric(char *b, size_t at, size_t cap, const char *name, const char *type, const char *help,
-                     double v)
+/* One sample of /metrics; a table local to btfd_ops_metrics, lives for the call. */
+typedef struct metric_row {
+    const char *name, *type, *help;
+    double v;
+} metric_row;
+
+/* Appends the rows as "# HELP", "# TYPE" and sample lines; NULL if out of memory. */
+static char *format_rows(const metric_row *rows, size_t n)
 {
-    int n = snprintf(b + at, cap - at, v == (double)(long long)v ? "# HELP %s %s\n# TYPE %s %s\n%s %.0f\n"
-                                                              : "# HELP %s %s\n# TYPE %s %s\n%s %.3f\n",
-                     name, help, name, type, name, v);
-    return n > 0 && (size_t)n < cap - at ? at + (size_t)n : at;
+    size_t cap = 256 * n + 1, at = 0;
+    char *b = malloc(cap);
+    for (size_t i = 0; b && i < n; i++) {
+        const metric_row *r = &rows[i];
+        const char *fmt = r->v == (double)(long long)r->v ? "# HELP %s %s\n# TYPE %s %s\n%s %.0f\n"
+                                                         : "# HELP %s %s\n# TYPE %s %s\n%s %.3f\n";
+        int k = snprintf(b + at, cap - at, fmt, r->name, r->help, r->name, r->type, r->name, r->v);
+        if (k > 0 && (size_t)k < cap - at)
+            at += (size_t)k;
+    }
+    return b;
 }
 
 char *btfd_ops_metrics(const btfd_server *srv)
@@ -131,37 +143,26 @@ char *btfd_ops_metrics(const btfd_server *srv)
     uint64_t lib_bytes = 0;
     for (int i = 0; i < srv->lib->n; i++)
         lib_bytes += srv->lib->items[i]->total_bytes;
-    size_t cap = 4096, at = 0;
-    char *b = malloc(cap);
-    if (!b)
-        return NULL;
-    b[0] = 0;
-    double up = (double)(lws_now_usecs() - s->started_us) * 1e-6;
-    at = metric(b, at, cap, "btfd_up_seconds", "gauge", "Seconds since the server started.", up);
-    at = metric(b, at, cap, "btfd_draining", "gauge", "1 while the server drains (SIGTERM), else 0.", srv->draining);
-    at = metric(b, at, cap, "btfd_connections", "gauge", "Stream connections open now.", s->connections);
-    at = metric(b, at, cap, "btfd_connections_total", "counter", "Stream connections accepted.",
-                (double)s->connections_total);
-    at = metric(b, at, cap, "btfd_refused_total", "counter", "Stream handshakes refused while draining.",
-                (double)s->refused);
-    at = metric(b, at, cap, "btfd_subscriptions", "gauge", "Subscriptions open now.", s->subscriptions);
-    at = metric(b, at, cap, "btfd_subscriptions_total", "counter", "Subscriptions accepted.",
-                (double)s->subscriptions_total);
-    at = metric(b, at, cap, "btfd_sent_bytes_total", "counter", "Payload bytes of binary pieces sent.",
-                (double)s->bytes_sent);
-    at = metric(b, at, cap, "btfd_sent_chunks_total", "counter", "Whole chunks sent.", (double)s->chunks_sent);
-    at = metric(b, at, cap, "btfd_stalled_drops_total", "counter", "Connections dropped by --stall-timeout.",
-                (double)s->stalls);
-    at = metric(b, at, cap, "btfd_library_materials", "gauge", "Packages in the library index.", srv->lib->n);
-    at = metric(b, at, cap, "btfd_library_bytes", "gauge", "Sum of the indexed packages' file sizes.",
-                (double)lib_bytes);
-    at = metric(b, at, cap, "btfd_library_generation", "gauge", "Changes of the set of packages.",
-                (double)srv->lib->generation);
-    at = metric(b, at, cap, "btfd_scan_errors_total", "counter", "Packages skipped by library scans.",
-                (double)s->scan_errors);
-    at = metric(b, at, cap, "btfd_http_requests_total", "counter", "Requests on /materials, /healthz, /metrics.",
-                (double)s->http_requests);
-    metric(b, at, cap, "btfd_http_not_modified_total", "counter", "Of those, answered 304 Not Modified.",
-           (double)s->http_not_modified);
-    return b;
+    const metric_row rows[] = {
+        {"btfd_up_seconds", "gauge", "Seconds since the server started.",
+         (double)(lws_now_usecs() - s->started_us) * 1e-6},
+        {"btfd_draining", "gauge", "1 while the server drains (SIGTERM), else 0.", srv->draining},
+        {"btfd_connections", "gauge", "Stream connections open now.", s->connections},
+        {"btfd_connections_total", "counter", "Stream connections accepted.", (double)s->connections_total},
+        {"btfd_refused_total", "counter", "Stream handshakes refused while draining.", (double)s->refused},
+        {"btfd_subscriptions", "gauge", "Subscriptions open now.", s->subscriptions},
+        {"btfd_subscriptions_total", "counter", "Subscriptions accepted.", (double)s->subscriptions_total},
+        {"btfd_sent_bytes_total", "counter", "Payload bytes of binary pieces sent.", (double)s->bytes_sent},
+        {"btfd_sent_chunks_total", "counter", "Whole chunks sent.", (double)s->chunks_sent},
+        {"btfd_stalled_drops_total", "counter", "Connections dropped by --stall-timeout.", (double)s->stalls},
+        {"btfd_library_materials", "gauge", "Packages in the library index.", srv->lib->n},
+        {"btfd_library_bytes", "gauge", "Sum of the indexed packages' file sizes.", (double)lib_bytes},
+        {"btfd_library_generation", "gauge", "Changes of the set of packages.", (double)srv->lib->generation},
+        {"btfd_scan_errors_total", "counter", "Packages skipped by library scans.", (double)s->scan_errors},
+        {"btfd_http_requests_total", "counter", "Requests on /materials, /healthz, /metrics.",
+         (double)s->http_requests},
+        {"btfd_http_not_modified_total", "counter", "Of those, answered 304 Not Modified.",
+         (double)s->http_not_modified},
+    };
+    return format_rows(rows, sizeof rows / sizeof rows[0]);
 }
