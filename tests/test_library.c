@@ -189,3 +189,30 @@ Test(library, usage_errors_exit_2)
     char *help[] = {"library", "build", "--help", NULL};
     cr_expect_eq(cmd_library(3, help), 0);
 }
+
+/* "version" of LIB/name/manifest.json. */
+static int version_of(const char *name)
+{
+    char p[600], *text = NULL;
+    snprintf(p, sizeof p, "%s/%s/manifest.json", g_lib, name);
+    cr_assert_eq(btf_fs_read(p, 1 << 22, &text, NULL, NULL), BTF_OK, "%s", p);
+    cJSON *j = cJSON_Parse(text);
+    free(text);
+    int v = (int)cJSON_GetNumberValue(cJSON_GetObjectItem(j, "version"));
+    cJSON_Delete(j);
+    return v;
+}
+
+Test(library, levels_write_version_2_and_are_part_of_the_settings)
+{
+    const char *two[] = {"gen:knit:16", "--components", "3", "--levels", "2", NULL};
+    cr_assert_eq(build(two), 0);
+    cr_expect_eq(version_of("gen-knit-16"), 2);
+    cr_expect_eq(entries_with(".tmp-"), 0, "the v1 temporary is gone");
+    long long a = identity("gen-knit-16");
+    cr_assert_eq(build(two), 0);
+    cr_expect_eq(identity("gen-knit-16"), a);
+    const char *one[] = {"gen:knit:16", "--components", "3", NULL};
+    cr_assert_eq(build(one), 0);
+    cr_expect_eq(version_of("gen-knit-16"), 1, "dropping --levels did not rebuild");
+}

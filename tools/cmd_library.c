@@ -23,8 +23,10 @@
  */
 #define _XOPEN_SOURCE 700
 #include "btf_args.h"
+#include "btf_build.h"
 #include "btf_cli.h"
 #include "btf_fs.h"
+#include "btf_lod.h"
 #include "btf_output.h"
 #include "btf_package.h"
 #include "btf_source.h"
@@ -48,7 +50,7 @@ typedef struct library_opts {
     int n_src;
     btf_pca_options pca;
     btf_package_options pkg;
-    int downsample, jobs, force, quiet;
+    int downsample, levels, jobs, force, quiet;
 } library_opts;
 
 /* One material to build; array owned by cmd_library, lives for the command. */
@@ -63,7 +65,7 @@ static void library_usage(FILE *f)
 {
     fprintf(f,
             "usage: btf library build SRC... --out LIB [-j N] [--k K] [--components C] [--bits 8|16]\n"
-            "                         [--method M] [--downsample F] [--force] [--quiet]\n"
+            "                         [--method M] [--downsample F] [--levels N] [--force] [--quiet]\n"
             "\n"
             "Builds one package per SRC into the library directory LIB (what btfd serves), one job\n"
             "per material, at most N at once (default 1). SRC is anything `btf compress` reads\n"
@@ -76,15 +78,15 @@ static void library_usage(FILE *f)
             "per material.\n"
             "  --out LIB        library directory (created if missing)\n"
             "  -j, --jobs N     jobs at once, 1..256 (default 1)\n"
-            "  --k, --components, --bits, --method, --downsample   as for `btf compress`\n"
+            "  --k, --components, --bits, --method, --downsample, --levels   as for `btf compress`\n"
             "  --force          rebuild even when up to date\n"
             "  --quiet          print only failures\n");
     btf_args_exit_codes(f);
 }
 
 static const btf_args_spec library_spec = {
-    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b force!f quiet!q", library_usage,
-    -1};
+    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l force!f quiet!q",
+    library_usage, -1};
 
 /* One option or positional of `btf library build` (btf_args_fn). */
 static int library_option(void *ctx, const btf_args *a, int c, const char *v)
@@ -96,6 +98,7 @@ static int library_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'o': o->out = v; return 0;
     case 'j': return btf_args_int(a, v, 1, LIB_JOBS_MAX, &o->jobs);
     case 'b': return btf_arg_int(v, 8, 16, &o->pkg.bits) && o->pkg.bits % 8 == 0 ? 0 : btf_args_bad(a, v, "8 or 16");
+    case 'l': return btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels);
     case 'f': o->force = 1; return 0;
     case 'q': o->quiet = 1; return 0;
     default: return btf_args_pca(a, c, v, &pca);
@@ -169,9 +172,10 @@ static int stamp_text(const library_opts *o, const library_job *j, char *buf, si
     source_identity(j->spec, id, sizeof id);
     snprintf(buf, n,
              "{\"source\": \"%s\", \"source_mtime_size\": \"%s\", \"btf\": \"%s\",\n"
-             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d\",\n"
+             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d\",\n"
              " \"manifest_mtime_size\": \"%lld %lld\"}\n",
              j->spec, id, BTF_VERSION, o->pca.k, o->pca.components, o->pkg.bits, (int)o->pca.method, o->downsample,
+             o->levels,
              (long long)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec, (long long)st.st_size);
     return 0;
 }
@@ -206,7 +210,7 @@ static int build_one(const library_opts *o, const library_job *j)
     pkg.name = j->name;
     btf_result r = btf_source_load(j->spec, &lo, &src, &err);
     if (r == BTF_OK)
-        r = btf_package_compress(src, &o->pca, &pkg, out, NULL, &err);
+        r = btf_build_package(src, &o->pca, &pkg, o->levels, out, NULL, &err);
     btf_free(src);
     stamp_path(o, j, path, sizeof path);
     if (r == BTF_OK && stamp_text(o, j, stamp, sizeof stamp) == 0)

@@ -8,7 +8,8 @@
  * streams MATERIAL one chunk at a time (budget {"chunks": held + 1}, raised
  * STEP_MS after each "complete", default 20), so every stream is still
  * running when KILL_PID gets SIGKILL (or SIGTERM: a draining btfd, whose
- * clients get 1001), once KILL_AT (0..1) of all chunks have arrived. A client whose connection ends before it holds every chunk drops
+ * clients get 1001), once KILL_AT (0..1) of all chunks have arrived. A client
+ * whose connection ends before it holds every chunk drops
  * its partial chunk and reconnects after a backoff (50 ms doubling up to 1 s,
  * plus up to as much again of random jitter), then subscribes with its etag
  * and the list of chunks it holds ("have").
@@ -400,7 +401,8 @@ static int report(double secs)
 int main(int argc, char **argv)
 {
     if (argc != 5 && (argc < 7 || argc > 9)) {
-        fprintf(stderr, "usage: resume_clients PORT MATERIAL LIBDIR CLIENTS [KILL_PID KILL_AT [STEP_MS [KILL|TERM]]]\n");
+        fprintf(stderr, "usage: resume_clients PORT MATERIAL LIBDIR CLIENTS\n"
+                        "                      [KILL_PID KILL_AT [STEP_MS [KILL|TERM]]]\n");
         return 2;
     }
     g_port = atoi(argv[1]);
