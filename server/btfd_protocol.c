@@ -46,7 +46,7 @@ typedef struct btfd_sub {
 typedef struct btfd_conn {
     struct lws *wsi;
     uint64_t id;                  /* connection number, for the log */
-    char peer[80];                /* address (and X-Forwarded-For), for the log */
+    char peer[100];               /* address (and X-Forwarded-For), for the log */
     lws_usec_t opened_us;
     lws_usec_t armed_us;          /* when the stall timeout was last armed */
     uint64_t chunks_sent, bytes_sent;
