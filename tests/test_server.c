@@ -519,15 +519,17 @@ static const char *find_nocase(const char *h, const char *n)
 /* GET path with HTTP/1.1 (Connection: close; the paths are deliberately odd,
  * so they are sent verbatim) and extra request header lines (each ending in
  * \r\n, or NULL); returns the status (0: no reply), body malloc'd into *body
- * (*blen bytes), and the response head into head (if not NULL). */
+ * (*blen bytes), and the response head into head (if not NULL). A path
+ * "HEAD /x" sends HEAD /x. */
 static int http_req(int port, const char *path, const char *extra, char *head, size_t hn, uint8_t **body,
                     size_t *blen)
 {
     int fd = tcp_connect(port);
     cr_assert_geq(fd, 0);
     char req[1024];
-    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n%s\r\n", path,
-                     extra ? extra : "");
+    int head_only = !strncmp(path, "HEAD ", 5); /* "HEAD /path": a HEAD request */
+    int n = snprintf(req, sizeof req, "%s %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n%s\r\n",
+                     head_only ? "HEAD" : "GET", path + (head_only ? 5 : 0), extra ? extra : "");
     cr_assert_eq(send(fd, req, (size_t)n, MSG_NOSIGNAL), n);
     long long deadline = wsc_now_ms() + TMO;
     size_t len = 0, cap = 65536, h = 0, clen = (size_t)-1; /* h: header length, 0 until seen */
@@ -1638,6 +1640,13 @@ Test(server, package_files_are_immutable_with_strong_etags_and_byte_ranges)
         cr_expect_eq(n, 0);
         free(body);
     }
+    /* HEAD: the headers of a GET, no body */
+    snprintf(url, sizeof url, "HEAD %sc0_f0.bin", base);
+    cr_expect_eq(http_req(s.port, url, NULL, head, sizeof head, &body, &n), 200);
+    cr_expect_str_eq(resp_header(head, "content-length:", v, sizeof v), "150000");
+    cr_expect_str_eq(resp_header(head, "cache-control:", v, sizeof v), "public, max-age=31536000, immutable");
+    cr_expect_eq(n, 0, "HEAD sent a body");
+    free(body);
     /* the manifest too, byte for byte */
     snprintf(url, sizeof url, "%smanifest.json", base);
     cr_expect_eq(http_get(s.port, url, &body, &n), 200);
