@@ -199,11 +199,9 @@ static struct lws_context *make_context(btfd_server *srv, const struct lws_http_
     return lws_create_context(&info);
 }
 
-int main(int argc, char **argv)
+/* The defaults of every option (usage() lists them). */
+static void default_options(btfd_options *o)
 {
-    btfd_server srv;
-    memset(&srv, 0, sizeof srv);
-    btfd_options *o = &srv.opt;
     o->port = 8080;
     o->bind = "127.0.0.1";
     default_dirs(o);
@@ -211,6 +209,14 @@ int main(int argc, char **argv)
     o->stall_timeout_s = 20;
     o->rescan_ms = 2000;
     o->drain_s = 10;
+}
+
+int main(int argc, char **argv)
+{
+    btfd_server srv;
+    memset(&srv, 0, sizeof srv);
+    btfd_options *o = &srv.opt;
+    default_options(o);
     int csp = 1;
     parse_args(argc, argv, o, &csp);
     lws_set_log_level(o->verbose >= 2 ? LLL_ERR | LLL_WARN | LLL_NOTICE : LLL_ERR, NULL);

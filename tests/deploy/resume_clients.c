@@ -398,7 +398,8 @@ static int report(double secs)
     return done;
 }
 
-int main(int argc, char **argv)
+/* The command line into the globals; 0, or 2 on a usage error. */
+static int parse_args(int argc, char **argv)
 {
     if (argc != 5 && (argc < 7 || argc > 9)) {
         fprintf(stderr, "usage: resume_clients PORT MATERIAL LIBDIR CLIENTS\n"
@@ -416,21 +417,16 @@ int main(int argc, char **argv)
         g_step_ms = atoi(argv[7]);
     if (argc == 9)
         g_kill_sig = strcmp(argv[8], "TERM") ? SIGKILL : SIGTERM;
-    if (g_n < 1 || load_pkg(argv[3], g_mat)) {
+    if (g_n < 1 || g_n >= 1000000 || load_pkg(argv[3], g_mat)) {
         fprintf(stderr, "resume_clients: cannot read %s/%s or bad CLIENTS\n", argv[3], g_mat);
         return 2;
     }
-    lws_set_log_level(LLL_ERR, NULL);
-    struct lws_context_creation_info info;
-    memset(&info, 0, sizeof info);
-    info.port = CONTEXT_PORT_NO_LISTEN;
-    info.protocols = protocols;
-    info.options = LWS_SERVER_OPTION_DISABLE_IPV6;
-    if (!(g_ctx = lws_create_context(&info)))
-        return 1;
-    g_cl = calloc(g_n < 1000000 ? (size_t)g_n : 1, sizeof *g_cl);
-    if (!g_cl || g_n >= 1000000)
-        return 2;
+    return 0;
+}
+
+/* Starts every client and services them until all hold every chunk or RUN_LIMIT_S. */
+static double run_clients(void)
+{
     double t0 = now_s();
     for (int i = 0; i < g_n; i++) {
         g_cl[i].idx = i;
@@ -445,8 +441,23 @@ int main(int argc, char **argv)
         for (int i = 0; i < g_n; i++)
             done += g_cl[i].held == g_pkg.n_chunks;
     }
-    int complete = report(now_s() - t0);
-    int moved = 0;
+    return now_s() - t0;
+}
+
+int main(int argc, char **argv)
+{
+    if (parse_args(argc, argv))
+        return 2;
+    lws_set_log_level(LLL_ERR, NULL);
+    struct lws_context_creation_info info;
+    memset(&info, 0, sizeof info);
+    info.port = CONTEXT_PORT_NO_LISTEN;
+    info.protocols = protocols;
+    info.options = LWS_SERVER_OPTION_DISABLE_IPV6;
+    g_cl = calloc((size_t)g_n, sizeof *g_cl);
+    if (!g_cl || !(g_ctx = lws_create_context(&info)))
+        return 1;
+    int complete = report(run_clients()), moved = 0;
     for (int i = 0; i < g_n; i++)
         moved += g_cl[i].resumes > 0;
     lws_context_destroy(g_ctx);
