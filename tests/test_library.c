@@ -70,8 +70,8 @@ static long long identity(const char *name)
     return (long long)st.st_ino * 1000003 + st.st_mtim.tv_nsec + st.st_mtim.tv_sec;
 }
 
-/* Chunks listed by LIB/name/manifest.json (read as JSON: no codec code, which may use OpenMP). */
-static int chunks_of(const char *name)
+/* LIB/name/manifest.json parsed (read as JSON: no codec code, which may use OpenMP); cJSON_Delete it. */
+static cJSON *manifest_of(const char *name)
 {
     char p[600], *text = NULL;
     snprintf(p, sizeof p, "%s/%s/manifest.json", g_lib, name);
@@ -79,6 +79,13 @@ static int chunks_of(const char *name)
     cJSON *j = cJSON_Parse(text);
     free(text);
     cr_assert_not_null(j);
+    return j;
+}
+
+/* Chunks listed by the package's manifest, whose name must be the package's. */
+static int chunks_of(const char *name)
+{
+    cJSON *j = manifest_of(name);
     cr_expect_str_eq(cJSON_GetStringValue(cJSON_GetObjectItem(j, "name")), name);
     int n = cJSON_GetArraySize(cJSON_GetObjectItem(j, "chunks"));
     cJSON_Delete(j);
@@ -193,11 +200,7 @@ Test(library, usage_errors_exit_2)
 /* "version" of LIB/name/manifest.json. */
 static int version_of(const char *name)
 {
-    char p[600], *text = NULL;
-    snprintf(p, sizeof p, "%s/%s/manifest.json", g_lib, name);
-    cr_assert_eq(btf_fs_read(p, 1 << 22, &text, NULL, NULL), BTF_OK, "%s", p);
-    cJSON *j = cJSON_Parse(text);
-    free(text);
+    cJSON *j = manifest_of(name);
     int v = (int)cJSON_GetNumberValue(cJSON_GetObjectItem(j, "version"));
     cJSON_Delete(j);
     return v;
