@@ -39,6 +39,9 @@ static void usage(FILE *f)
             "  -v, --verbose        debug log lines (subscriptions, skipped packages on rescans);\n"
             "                       -vv also libwebsockets' warnings and notices\n"
             "  --version            print \"btfd VERSION\" and exit\n"
+            "Signals: SIGTERM drains (see --drain-seconds), SIGHUP rescans the library, SIGINT stops.\n"
+            "Routes: / (client), /shaders/, /materials, /materials/NAME/ETAG/FILE, /healthz, /metrics,\n"
+            "and the btf-stream.v1 WebSocket (doc/protocol.md).\n"
             "Exit status: 0 ok, 1 failure, 2 usage error.\n");
 }
 
