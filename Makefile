@@ -113,6 +113,7 @@ test: setup
 	$(MAKE) build
 	$(TEST_BIN) --jobs 2
 	bash tests/install_test.sh
+	BUILD=$(BUILD) bash tests/deploy_test.sh
 	$(MAKE) e2e
 
 # Browser tests: playwright-core driving Debian's chromium against a real btfd.

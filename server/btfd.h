@@ -11,6 +11,7 @@
 #include <stdint.h>
 
 #include "btfd_library.h"
+#include "btfd_ops.h"
 #include "btfd_request.h"
 
 #define BTFD_SUBPROTOCOL "btf-stream.v1"
@@ -30,7 +31,8 @@ typedef struct btfd_options {
     size_t fragment;         /* payload bytes per binary piece */
     int stall_timeout_s;     /* a client with pending data and no progress this long is dropped */
     int rescan_ms;           /* periodic library rescan; 0 disables */
-    int verbose;
+    int drain_s;             /* SIGTERM: streams may finish this long before 1001 */
+    int verbose;             /* -v count: 1 debug lines, 2 also lws notices */
 } btfd_options;
 
 /* The server: one per process, owned by main, lives for the whole event loop. */
@@ -42,9 +44,17 @@ typedef struct btfd_server {
     size_t scratch_len;
     lws_usec_t last_scan_us;   /* rate limit of on-demand rescans */
     lws_sorted_usec_list_t sul_rescan;
-    uint64_t connections;      /* WebSocket connections so far */
-    uint64_t bytes_sent;       /* payload bytes of binary pieces */
+    btfd_stats stats;          /* what /metrics reports */
+    int draining;              /* SIGTERM arrived: refuse new streams, close idle ones */
+    int drain_expired;         /* --drain-seconds passed: close every stream */
+    int stop;                  /* end the event loop */
+    lws_sorted_usec_list_t sul_drain;
 } btfd_server;
+
+/* The HTTP callback (btfd_http.c): /materials, /healthz, /metrics, upgrade checks. */
+int btfd_callback_http(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in, size_t len);
+/* Per-transaction size of its user data. */
+extern const size_t btfd_http_user_size;
 
 /* http, btf-stream.v1, terminator; main sets the stream's tx_packet_size before use. */
 extern struct lws_protocols btfd_protocols[];

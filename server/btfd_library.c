@@ -28,7 +28,7 @@ static char *dup_str(const char *s)
     return d;
 }
 
-static uint64_t fnv1a64(const void *p, size_t n)
+uint64_t btfd_hash64(const void *p, size_t n)
 {
     const uint8_t *b = p;
     uint64_t h = 1469598103934665603ull;
@@ -138,7 +138,7 @@ static btf_result read_manifest(const char *dir, btfd_material *m, btf_error *er
         m->mtime_ns = (int64_t)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec;
         m->msize = st.st_size;
         snprintf(m->etag, sizeof m->etag, "%016llx",
-                 (unsigned long long)fnv1a64(m->manifest, m->manifest_len));
+                 (unsigned long long)btfd_hash64(m->manifest, m->manifest_len));
     }
     fclose(f);
     return r;
@@ -212,6 +212,9 @@ static btf_result make_summary(const cJSON *root, btfd_material *m, btf_error *e
         if (v)
             cJSON_AddItemToObject(s, summary_keys[i], cJSON_Duplicate(v, 1));
     }
+    char base[BTFD_NAME_MAX + 48];
+    snprintf(base, sizeof base, "/materials/%s/%s/", m->name, m->etag);
+    cJSON_AddStringToObject(s, "files", base); /* immutable package files: base + file name */
     if (m->thumb) {
         char url[BTFD_NAME_MAX + 40];
         snprintf(url, sizeof url, "/materials/%s/thumbnail.png", m->name);
@@ -437,5 +440,14 @@ btfd_material *btfd_library_find(const btfd_library *lib, const char *name)
         else
             lo = mid + 1;
     }
+    return NULL;
+}
+
+const btfd_file *btfd_material_file(const btfd_material *m, const char *name)
+{
+    for (int c = 0; c < m->n_chunks; c++)
+        for (int f = 0; f < m->chunks[c].n_files; f++)
+            if (!strcmp(m->chunks[c].files[f].name, name))
+                return &m->chunks[c].files[f];
     return NULL;
 }

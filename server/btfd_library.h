@@ -98,6 +98,10 @@ btfd_material *btfd_library_find(const btfd_library *lib, const char *name);
 /* Loads one package directory (path) under the given name. */
 btf_result btfd_material_load(const char *path, const char *name, btfd_material **out, btf_error *err);
 void btfd_material_ref(btfd_material *m);
+/* The file of m called name (any chunk), or NULL; names are compared, never opened. */
+const btfd_file *btfd_material_file(const btfd_material *m, const char *name);
+/* 64-bit FNV-1a: the etags of manifests and of the list. */
+uint64_t btfd_hash64(const void *p, size_t n);
 void btfd_material_unref(btfd_material *m);
 
 #endif

@@ -9,7 +9,6 @@
  */
 #include <getopt.h>
 #include <limits.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,17 +18,6 @@
 
 #include "btf_version.h"
 #include "btfd.h"
-
-static volatile sig_atomic_t interrupted;
-static struct lws_context *g_ctx; /* only for the signal handler */
-
-static void on_signal(int sig)
-{
-    (void)sig;
-    interrupted = 1;
-    if (g_ctx)
-        lws_cancel_service(g_ctx);
-}
 
 static void usage(FILE *f)
 {
@@ -45,9 +33,15 @@ static void usage(FILE *f)
             "  --fragment BYTES     payload bytes per binary piece (4096..1048576, default 131072)\n"
             "  --stall-timeout S    drop a client that takes no data for S seconds (default 20)\n"
             "  --rescan-ms MS       rescan the library every MS ms (default 2000, 0 = only on request)\n"
+            "  --drain-seconds S    on SIGTERM let streams finish for S seconds, then close them\n"
+            "                       with 1001 going-away (default 10)\n"
             "  --no-csp             do not add the security headers (CSP) to HTTP replies\n"
-            "  -v, --verbose        log library changes and lws warnings\n"
+            "  -v, --verbose        debug log lines (subscriptions, skipped packages on rescans);\n"
+            "                       -vv also libwebsockets' warnings and notices\n"
             "  --version            print \"btfd VERSION\" and exit\n"
+            "Signals: SIGTERM drains (see --drain-seconds), SIGHUP rescans the library, SIGINT stops.\n"
+            "Routes: / (client), /shaders/, /materials, /materials/NAME/ETAG/FILE, /healthz, /metrics,\n"
+            "and the btf-stream.v1 WebSocket (doc/protocol.md).\n"
             "Exit status: 0 ok, 1 failure, 2 usage error.\n");
 }
 
@@ -69,7 +63,7 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         {"library", 1, 0, 'l'},  {"port", 1, 0, 'p'},      {"bind", 1, 0, 'b'},
         {"client", 1, 0, 'c'},   {"shaders", 1, 0, 's'},   {"fragment", 1, 0, 'f'},
         {"stall-timeout", 1, 0, 't'}, {"rescan-ms", 1, 0, 'r'}, {"no-csp", 0, 0, 'n'},
-        {"verbose", 0, 0, 'v'},  {"help", 0, 0, 'h'},      {"version", 0, 0, 'V'},
+        {"drain-seconds", 1, 0, 'd'}, {"verbose", 0, 0, 'v'},  {"help", 0, 0, 'h'},      {"version", 0, 0, 'V'},
         {0, 0, 0, 0},
     };
     int ch;
@@ -84,7 +78,8 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         case 't': o->stall_timeout_s = (int)int_arg("--stall-timeout", optarg, 1, 3600); break;
         case 'r': o->rescan_ms = (int)int_arg("--rescan-ms", optarg, 0, 3600000); break;
         case 'n': *csp = 0; break;
-        case 'v': o->verbose = 1; break;
+        case 'd': o->drain_s = (int)int_arg("--drain-seconds", optarg, 0, 3600); break;
+        case 'v': o->verbose++; break;
         case 'h': usage(stdout); exit(0);
         case 'V': printf("btfd %s\n", BTF_VERSION); exit(0);
         default: usage(stderr); exit(2);
@@ -153,27 +148,42 @@ static const struct lws_protocol_vhost_options mime_extra[] = {
     {NULL, NULL, ".wasm", "application/wasm"},
 };
 
-/* Mounts: /materials (callback), /shaders/ and / (files). */
-static void make_mounts(const btfd_options *o, struct lws_http_mount m[3])
+#define N_MOUNTS 5
+
+/* A callback mount of the "http" protocol (btfd_http.c routes by the full URI). */
+static void callback_mount(struct lws_http_mount *m, const char *point)
 {
-    memset(m, 0, 3 * sizeof *m);
-    m[0].mountpoint = "/materials";
-    m[0].mountpoint_len = 10;
-    m[0].protocol = "http";
-    m[0].origin_protocol = LWSMPRO_CALLBACK;
-    m[0].mount_next = &m[1];
-    m[1].mountpoint = "/shaders";
-    m[1].mountpoint_len = 8;
-    m[1].origin = o->shaders_dir;
-    m[1].origin_protocol = LWSMPRO_FILE;
-    m[1].extra_mimetypes = mime_extra;
-    m[1].mount_next = &m[2];
-    m[2].mountpoint = "/";
-    m[2].mountpoint_len = 1;
-    m[2].origin = o->client_dir;
-    m[2].def = "index.html";
-    m[2].origin_protocol = LWSMPRO_FILE;
-    m[2].extra_mimetypes = mime_extra;
+    m->mountpoint = point;
+    m->mountpoint_len = (unsigned char)strlen(point);
+    m->protocol = "http";
+    m->origin_protocol = LWSMPRO_CALLBACK;
+}
+
+/* A file mount whose files are revalidated by ETag (lws: If-None-Match -> 304). */
+static void file_mount(struct lws_http_mount *m, const char *point, const char *dir)
+{
+    m->mountpoint = point;
+    m->mountpoint_len = (unsigned char)strlen(point);
+    m->origin = dir;
+    m->origin_protocol = LWSMPRO_FILE;
+    m->extra_mimetypes = mime_extra;
+    m->cache_max_age = 1;
+    m->cache_reusable = 1;
+    m->cache_revalidate = 1;
+}
+
+/* Mounts: /materials, /healthz, /metrics (callbacks), /shaders/ and / (files). */
+static void make_mounts(const btfd_options *o, struct lws_http_mount m[N_MOUNTS])
+{
+    memset(m, 0, N_MOUNTS * sizeof *m);
+    callback_mount(&m[0], "/materials");
+    callback_mount(&m[1], "/healthz");
+    callback_mount(&m[2], "/metrics");
+    file_mount(&m[3], "/shaders", o->shaders_dir);
+    file_mount(&m[4], "/", o->client_dir);
+    m[4].def = "index.html";
+    for (int i = 0; i + 1 < N_MOUNTS; i++)
+        m[i].mount_next = &m[i + 1];
 }
 
 static struct lws_context *make_context(btfd_server *srv, const struct lws_http_mount *mounts, int csp)
@@ -192,20 +202,28 @@ static struct lws_context *make_context(btfd_server *srv, const struct lws_http_
     return lws_create_context(&info);
 }
 
-int main(int argc, char **argv)
+/* The defaults of every option (usage() lists them). */
+static void default_options(btfd_options *o)
 {
-    btfd_server srv;
-    memset(&srv, 0, sizeof srv);
-    btfd_options *o = &srv.opt;
     o->port = 8080;
     o->bind = "127.0.0.1";
     default_dirs(o);
     o->fragment = 131072;
     o->stall_timeout_s = 20;
     o->rescan_ms = 2000;
+    o->drain_s = 10;
+}
+
+int main(int argc, char **argv)
+{
+    btfd_server srv;
+    memset(&srv, 0, sizeof srv);
+    btfd_options *o = &srv.opt;
+    default_options(o);
     int csp = 1;
     parse_args(argc, argv, o, &csp);
-    lws_set_log_level(o->verbose ? LLL_ERR | LLL_WARN : LLL_ERR, NULL);
+    lws_set_log_level(o->verbose >= 2 ? LLL_ERR | LLL_WARN | LLL_NOTICE : LLL_ERR, NULL);
+    srv.stats.started_us = lws_now_usecs();
     raise_fd_limit();
 
     btf_error err = {0};
@@ -216,8 +234,9 @@ int main(int argc, char **argv)
     btfd_server_rescan(&srv, 1);
     srv.scratch_len = LWS_PRE + BTFD_HEADER_BYTES + o->fragment;
     srv.scratch = malloc(srv.scratch_len);
+    btfd_protocols[0].per_session_data_size = btfd_http_user_size;
     btfd_protocols[1].tx_packet_size = BTFD_HEADER_BYTES + o->fragment + 16;
-    struct lws_http_mount mounts[3];
+    struct lws_http_mount mounts[N_MOUNTS];
     make_mounts(o, mounts);
     if (srv.scratch)
         srv.ctx = make_context(&srv, mounts, csp);
@@ -227,9 +246,7 @@ int main(int argc, char **argv)
         btfd_library_free(srv.lib);
         return 1;
     }
-    g_ctx = srv.ctx;
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
+    btfd_ops_signals(srv.ctx);
     int port = lws_get_vhost_listen_port(lws_get_vhost_by_name(srv.ctx, "default"));
     printf("btfd: listening on http://%s:%d/ (%d materials from %s)\n", o->bind, port, srv.lib->n,
            o->library_dir);
@@ -237,12 +254,12 @@ int main(int argc, char **argv)
     if (o->rescan_ms > 0)
         lws_sul_schedule(srv.ctx, 0, &srv.sul_rescan, rescan_timer, (lws_usec_t)o->rescan_ms * 1000);
 
-    while (!interrupted && lws_service(srv.ctx, 0) >= 0)
+    while (btfd_ops_tick(&srv) && lws_service(srv.ctx, 0) >= 0)
         ;
 
     lws_context_destroy(srv.ctx);
-    fprintf(stderr, "btfd: stopped after %llu connections, %llu payload bytes sent\n",
-            (unsigned long long)srv.connections, (unsigned long long)srv.bytes_sent);
+    btfd_log(&srv, BTFD_LOG_INFO, "stopped after %llu connections, %llu payload bytes sent",
+             (unsigned long long)srv.stats.connections_total, (unsigned long long)srv.stats.bytes_sent);
     btfd_library_free(srv.lib);
     free(srv.scratch);
     return 0;

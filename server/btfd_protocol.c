@@ -45,6 +45,11 @@ typedef struct btfd_sub {
  * connection and it lives until LWS_CALLBACK_CLOSED. */
 typedef struct btfd_conn {
     struct lws *wsi;
+    uint64_t id;                  /* connection number, for the log */
+    char peer[100];               /* address (and X-Forwarded-For), for the log */
+    lws_usec_t opened_us;
+    lws_usec_t armed_us;          /* when the stall timeout was last armed */
+    uint64_t chunks_sent, bytes_sent;
     btfd_sub subs[BTFD_MAX_SUBS]; /* in subscription order */
     int n_subs;
     int next_mid;
@@ -63,14 +68,6 @@ typedef struct btfd_conn {
     char close_reason[96];
 } btfd_conn;
 
-/* One per HTTP transaction on /materials; lws allocates it zeroed. */
-typedef struct btfd_http {
-    char *body;            /* malloc'd JSON, or NULL */
-    btfd_material *thumb;  /* reference held while a thumbnail is sent */
-    const uint8_t *data;
-    size_t len, off;
-} btfd_http;
-
 static btfd_server *server_of(struct lws *wsi)
 {
     return (btfd_server *)lws_context_user(lws_get_context(wsi));
@@ -78,23 +75,17 @@ static btfd_server *server_of(struct lws *wsi)
 
 /* ------------------------------------------------------------------ rescans */
 
-static void log_skip(void *ud, const char *msg)
-{
-    btfd_server *srv = ud;
-    if (srv->opt.verbose || srv->last_scan_us == 0)
-        fprintf(stderr, "btfd: skipped package: %s\n", msg);
-}
-
 void btfd_server_rescan(btfd_server *srv, int force)
 {
     lws_usec_t now = lws_now_usecs();
     if (!force && srv->last_scan_us && now - srv->last_scan_us < 200000)
         return;
     uint64_t gen = srv->lib->generation;
-    btfd_library_scan(srv->lib, log_skip, srv);
+    btfd_library_scan(srv->lib, btfd_ops_scan_error, srv);
+    if (gen != srv->lib->generation && srv->last_scan_us)
+        btfd_log(srv, BTFD_LOG_INFO, "library now has %d materials (generation %llu)", srv->lib->n,
+                 (unsigned long long)srv->lib->generation);
     srv->last_scan_us = now;
-    if (srv->opt.verbose && gen != srv->lib->generation)
-        fprintf(stderr, "btfd: library now has %d materials\n", srv->lib->n);
 }
 
 /* ------------------------------------------------------------------ text queue */
@@ -112,6 +103,7 @@ static void want_write(btfd_server *srv, btfd_conn *c)
 {
     lws_callback_on_writable(c->wsi);
     lws_set_timeout(c->wsi, PENDING_TIMEOUT_USER_OK, srv->opt.stall_timeout_s);
+    c->armed_us = lws_now_usecs();
 }
 
 /* Queues head (malloc'd, ownership taken) and an optional manifest body. */
@@ -165,6 +157,7 @@ static void send_error(btfd_server *srv, btfd_conn *c, const btfd_request *rq, c
     if (rq && rq->material[0])
         cJSON_AddStringToObject(o, "material", rq->material);
     queue_json(srv, c, o);
+    btfd_log(srv, BTFD_LOG_INFO, "conn %llu: error %s: %s", (unsigned long long)c->id, code, msg);
 }
 
 static void free_queue(btfd_conn *c)
@@ -347,6 +340,9 @@ static void piece_sent(btfd_server *srv, btfd_conn *c, btfd_sub *s)
     s->n_have++;
     s->chunks_sent++;
     s->bytes_sent += ch->bytes;
+    c->chunks_sent++;
+    c->bytes_sent += ch->bytes;
+    srv->stats.chunks_sent++;
     c->cur_mid = 0;
     check_complete(srv, c, s);
 }
@@ -374,26 +370,37 @@ static int send_piece(btfd_server *srv, btfd_conn *c)
     size_t len = BTFD_HEADER_BYTES + n;
     if (lws_write(c->wsi, p, len, LWS_WRITE_BINARY) < (int)len)
         return -1;
-    srv->bytes_sent += n;
+    srv->stats.bytes_sent += n;
     c->cur_off += n;
     piece_sent(srv, c, s);
     return 0;
 }
 
+/* Closes with the recorded (or given) code and reason; returns -1 for lws. */
+static int close_now(btfd_conn *c, int code, const char *reason)
+{
+    conn_close_later(c, code, reason);
+    lws_close_reason(c->wsi, (enum lws_close_status)c->close_code, (unsigned char *)c->close_reason,
+                     strlen(c->close_reason));
+    return -1;
+}
+
 static int on_writeable(btfd_server *srv, btfd_conn *c)
 {
-    if (c->close_code) {
-        lws_close_reason(c->wsi, (enum lws_close_status)c->close_code,
-                         (unsigned char *)c->close_reason, strlen(c->close_reason));
-        return -1;
-    }
+    if (c->close_code)
+        return close_now(c, c->close_code, c->close_reason);
+    if (btfd_ops_going_away(srv, 0))
+        return close_now(c, LWS_CLOSE_STATUS_GOINGAWAY, "server draining");
     int r;
     if (c->q_head)
         r = send_text(srv, c);
     else if (c->cur_mid || pick_chunk(c))
         r = send_piece(srv, c);
+    else if (btfd_ops_going_away(srv, 1))
+        return close_now(c, LWS_CLOSE_STATUS_GOINGAWAY, "server draining");
     else {
         lws_set_timeout(c->wsi, NO_PENDING_TIMEOUT, 0); /* idle: nothing to stall on */
+        c->armed_us = 0;
         return 0;
     }
     if (r)
@@ -404,8 +411,10 @@ static int on_writeable(btfd_server *srv, btfd_conn *c)
 
 /* ------------------------------------------------------------------ requests */
 
-static void sub_free(btfd_sub *s)
+static void sub_free(btfd_server *srv, btfd_sub *s)
 {
+    if (s->mat)
+        srv->stats.subscriptions--;
     btfd_material_unref(s->mat);
     free(s->have);
     memset(s, 0, sizeof *s);
@@ -475,15 +484,19 @@ static void do_subscribe(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
         return send_error(srv, c, rq, "internal", "out of memory");
     s->mat = m;
     btfd_material_ref(m);
+    srv->stats.subscriptions++;
     int resumed = apply_have(s, rq);
     if (resumed < 0) {
-        sub_free(s);
+        sub_free(srv, s);
         return send_error(srv, c, rq, "bad_field", "\"have\" names a chunk the material does not have");
     }
     s->mid = ++c->next_mid;
     s->budget = rq->budget;
     s->limit = budget_limit(m, &s->budget);
     c->n_subs++;
+    srv->stats.subscriptions_total++;
+    btfd_log(srv, BTFD_LOG_DEBUG, "conn %llu: subscribe %s (mid %d, limit %d, %s)", (unsigned long long)c->id,
+             m->name, s->mid, s->limit, resumed ? "resumed" : "new");
     queue_text(srv, c, manifest_head(s, rq, resumed), m);
     check_complete(srv, c, s);
 }
@@ -514,7 +527,7 @@ static void do_unsubscribe(btfd_server *srv, btfd_conn *c, const btfd_request *r
     cJSON_AddStringToObject(o, "material", s->mat->name);
     if (c->cur_mid == s->mid)
         c->cur_mid = 0; /* the partial chunk is abandoned */
-    sub_free(s);
+    sub_free(srv, s);
     int k = (int)(s - c->subs);
     memmove(&c->subs[k], &c->subs[k + 1], (size_t)(c->n_subs - k - 1) * sizeof *s);
     c->n_subs--;
@@ -608,12 +621,26 @@ static int on_receive(btfd_server *srv, btfd_conn *c, const char *in, size_t len
     return 0;
 }
 
+/* "ADDR" or "ADDR via X-Forwarded-For" into c->peer. */
+static void record_peer(btfd_conn *c, struct lws *wsi)
+{
+    char addr[48] = "?", xff[40] = "";
+    lws_get_peer_simple(wsi, addr, sizeof addr);
+    int n = lws_hdr_total_length(wsi, WSI_TOKEN_X_FORWARDED_FOR);
+    if (n > 0 && n < (int)sizeof xff && lws_hdr_copy(wsi, xff, sizeof xff, WSI_TOKEN_X_FORWARDED_FOR) > 0)
+        snprintf(c->peer, sizeof c->peer, "%s via %s", xff, addr);
+    else
+        snprintf(c->peer, sizeof c->peer, "%s", addr);
+}
+
 static void on_established(btfd_server *srv, btfd_conn *c, struct lws *wsi)
 {
     c->wsi = wsi;
     c->tokens = BTFD_RATE_BURST;
-    c->tokens_us = lws_now_usecs();
-    srv->connections++;
+    c->tokens_us = c->opened_us = lws_now_usecs();
+    c->id = ++srv->stats.connections_total;
+    srv->stats.connections++;
+    btfd_log(srv, BTFD_LOG_DEBUG, "conn %llu: open from %s", (unsigned long long)c->id, c->peer);
     cJSON *o = reply("hello", NULL);
     cJSON_AddStringToObject(o, "protocol", BTFD_SUBPROTOCOL);
     cJSON_AddStringToObject(o, "server", "btfd");
@@ -625,10 +652,28 @@ static void on_established(btfd_server *srv, btfd_conn *c, struct lws *wsi)
     queue_json(srv, c, o);
 }
 
-static void on_closed(btfd_conn *c)
+/* Why a connection ended, for its log line; counts stall drops. */
+static const char *close_cause(btfd_server *srv, const btfd_conn *c, lws_usec_t now)
 {
+    if (c->close_code)
+        return c->close_reason;
+    /* the stall timeout fired: armed with data pending and no write since */
+    if (c->armed_us && now - c->armed_us >= (lws_usec_t)srv->opt.stall_timeout_s * 1000000 - 100000) {
+        srv->stats.stalls++;
+        return "stalled: dropped";
+    }
+    return "closed by the client";
+}
+
+static void on_closed(btfd_server *srv, btfd_conn *c)
+{
+    lws_usec_t now = lws_now_usecs();
+    btfd_log(srv, BTFD_LOG_INFO, "conn %llu from %s: %.1f s, %d subscriptions, %llu chunks, %llu bytes; %s",
+             (unsigned long long)c->id, c->peer, (double)(now - c->opened_us) * 1e-6, c->next_mid,
+             (unsigned long long)c->chunks_sent, (unsigned long long)c->bytes_sent, close_cause(srv, c, now));
+    srv->stats.connections--;
     for (int i = 0; i < c->n_subs; i++)
-        sub_free(&c->subs[i]);
+        sub_free(srv, &c->subs[i]);
     c->n_subs = 0;
     free_queue(c);
     free(c->rx);
@@ -641,6 +686,9 @@ static int callback_stream(struct lws *wsi, enum lws_callback_reasons reason, vo
     btfd_conn *c = user;
     btfd_server *srv = server_of(wsi);
     switch (reason) {
+    case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:
+        record_peer(c, wsi); /* the handshake's headers are gone by ESTABLISHED */
+        return 0;
     case LWS_CALLBACK_ESTABLISHED:
         on_established(srv, c, wsi);
         return 0;
@@ -649,129 +697,16 @@ static int callback_stream(struct lws *wsi, enum lws_callback_reasons reason, vo
     case LWS_CALLBACK_RECEIVE:
         return on_receive(srv, c, in, len);
     case LWS_CALLBACK_CLOSED:
-        on_closed(c);
+        on_closed(srv, c);
         return 0;
     default:
         return 0;
     }
-}
-
-/* ------------------------------------------------------------------ HTTP /materials */
-
-static void http_clear(btfd_http *h)
-{
-    free(h->body);
-    btfd_material_unref(h->thumb);
-    memset(h, 0, sizeof *h);
-}
-
-/* Resolves the path after /materials into h; returns the HTTP status. */
-static int http_route(btfd_server *srv, btfd_http *h, const char *path, const char **mime)
-{
-    if (!path[0] || !strcmp(path, "/")) {
-        btfd_server_rescan(srv, 0);
-        size_t n = strlen(srv->lib->list_json) + 64;
-        if (!(h->body = malloc(n)))
-            return HTTP_STATUS_INTERNAL_SERVER_ERROR;
-        snprintf(h->body, n, "{\"generation\":%llu,\"materials\":%s}\n",
-                 (unsigned long long)srv->lib->generation, srv->lib->list_json);
-        h->data = (const uint8_t *)h->body;
-        h->len = strlen(h->body);
-        *mime = "application/json";
-        return HTTP_STATUS_OK;
-    }
-    /* /NAME/thumbnail.png: NAME looked up in the index, never used as a path */
-    const char *slash = strchr(path + 1, '/');
-    if (path[0] != '/' || !slash || strcmp(slash, "/thumbnail.png"))
-        return HTTP_STATUS_NOT_FOUND;
-    char name[BTFD_NAME_MAX + 1];
-    size_t n = (size_t)(slash - path - 1);
-    if (!btfd_name_valid(path + 1, n))
-        return HTTP_STATUS_NOT_FOUND;
-    memcpy(name, path + 1, n);
-    name[n] = 0;
-    btfd_material *m = btfd_library_find(srv->lib, name);
-    if (!m || !m->thumb)
-        return HTTP_STATUS_NOT_FOUND;
-    h->thumb = m;
-    btfd_material_ref(m);
-    h->data = m->thumb;
-    h->len = m->thumb_size;
-    *mime = "image/png";
-    return HTTP_STATUS_OK;
-}
-
-static int http_start(btfd_server *srv, struct lws *wsi, btfd_http *h, const char *path)
-{
-    http_clear(h);
-    const char *mime = NULL;
-    int status = http_route(srv, h, path, &mime);
-    if (status != HTTP_STATUS_OK) {
-        if (lws_return_http_status(wsi, (unsigned)status, NULL))
-            return -1;
-        return lws_http_transaction_completed(wsi) ? -1 : 0;
-    }
-    uint8_t buf[LWS_PRE + 1024], *start = buf + LWS_PRE, *p = start, *end = buf + sizeof buf - 1;
-    static const char cache[] = "no-store", any[] = "*";
-    if (lws_add_http_common_headers(wsi, HTTP_STATUS_OK, mime, h->len, &p, end) ||
-        lws_add_http_header_by_token(wsi, WSI_TOKEN_HTTP_CACHE_CONTROL, (const unsigned char *)cache,
-                                     sizeof cache - 1, &p, end) ||
-        lws_add_http_header_by_name(wsi, (const unsigned char *)"access-control-allow-origin:",
-                                    (const unsigned char *)any, 1, &p, end) ||
-        lws_finalize_write_http_header(wsi, start, &p, end))
-        return -1;
-    lws_callback_on_writable(wsi);
-    return 0;
-}
-
-static int http_write(btfd_server *srv, struct lws *wsi, btfd_http *h)
-{
-    if (!h->data)
-        return 0;
-    size_t n = h->len - h->off;
-    if (n > srv->opt.fragment)
-        n = srv->opt.fragment;
-    int last = h->off + n == h->len;
-    uint8_t *p = srv->scratch + LWS_PRE;
-    memcpy(p, h->data + h->off, n);
-    if (lws_write(wsi, p, n, last ? LWS_WRITE_HTTP_FINAL : LWS_WRITE_HTTP) != (int)n)
-        return -1;
-    h->off += n;
-    if (!last) {
-        lws_callback_on_writable(wsi);
-        return 0;
-    }
-    http_clear(h);
-    return lws_http_transaction_completed(wsi) ? -1 : 0;
-}
-
-static int callback_http(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in,
-                         size_t len)
-{
-    btfd_http *h = user;
-    switch (reason) {
-    case LWS_CALLBACK_HTTP:
-        return http_start(server_of(wsi), wsi, h, in ? (const char *)in : "");
-    case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:
-        return 1; /* a WebSocket that did not ask for btf-stream.v1 lands here: refuse it */
-    case LWS_CALLBACK_HTTP_WRITEABLE:
-        if (h && h->data)
-            return http_write(server_of(wsi), wsi, h);
-        break;
-    case LWS_CALLBACK_HTTP_DROP_PROTOCOL:
-    case LWS_CALLBACK_CLOSED_HTTP:
-        if (h)
-            http_clear(h);
-        break;
-    default:
-        break;
-    }
-    return lws_callback_http_dummy(wsi, reason, user, in, len);
 }
 
 /* tx_packet_size of the stream protocol is set by main from --fragment. */
 struct lws_protocols btfd_protocols[] = {
-    {"http", callback_http, sizeof(btfd_http), 0, 0, NULL, 0},
+    {"http", btfd_callback_http, 0, 0, 0, NULL, 0}, /* main sets btfd_http_user_size */
     {BTFD_SUBPROTOCOL, callback_stream, sizeof(btfd_conn), 4096, 0, NULL, 0},
     {NULL, NULL, 0, 0, 0, NULL, 0},
 };

@@ -7,6 +7,7 @@
 #   $(BUILD)/fuzz_request_replay  replays fuzz/corpus/request/* through the parser (cc)
 #   fuzz-request                  libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
 # (fuzz/build.mk runs it with the codec targets as `make fuzz`, and replays every corpus)
+#   $(BUILD)/resume_clients       the reconnecting load client of tests/deploy_test.sh (nginx + 2 btfd)
 # server/ uses codec/ only (btf.h for direction sets and package metadata).
 # `build` gains btfd and the replay binary, so `make test` runs the server tests
 # (tests/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
@@ -25,9 +26,11 @@ FUZZ_SRC     := fuzz/fuzz_request.c server/btfd_request.c
 
 export BTF_BUILD := $(abspath $(BUILD))
 
+RESUME_BIN   := $(BUILD)/resume_clients
+
 .PHONY: server fuzz-request
 server: $(BTFD_BIN)
-build: $(BTFD_BIN) $(FUZZ_REPLAY)
+build: $(BTFD_BIN) $(FUZZ_REPLAY) $(RESUME_BIN)
 
 $(SERVER_OBJ): INC := -Icodec -Iserver
 $(SERVER_OBJ): PKG_CFLAGS = $(SERVER_CFLAGS)
@@ -39,6 +42,11 @@ $(FUZZ_REPLAY): $(FUZZ_SRC) fuzz/replay_main.c server/btfd_request.h
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -MF /dev/null -Iserver $(SERVER_CFLAGS) -o $@ $(FUZZ_SRC) fuzz/replay_main.c \
 	    $(LDFLAGS) $(FUZZ_LIBS) -lm
+
+$(RESUME_BIN): tests/deploy/resume_clients.c tests/lws_connect.h $(CODEC_LIB)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE -Icodec -Itests $(SERVER_CFLAGS) -o $@ $< $(CODEC_LIB) \
+	    $(LDFLAGS) $(SERVER_LIBS) -lm
 
 # libFuzzer + ASan/UBSan; new interesting inputs land in fuzz/corpus/request.
 fuzz-request:

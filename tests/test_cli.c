@@ -158,7 +158,7 @@ static const struct {
 } commands[] = {
     {"chart", cmd_chart},   {"compress", cmd_compress},           {"eval", cmd_eval},
     {"export-thesis", cmd_export_thesis}, {"gen", cmd_gen},       {"import-thesis", cmd_import_thesis},
-    {"lod", cmd_lod},       {"render", cmd_render},
+    {"library", cmd_library}, {"lod", cmd_lod},   {"render", cmd_render},
 };
 
 Test(cli, bad_option_exits_2_and_every_help_lists_exit_codes)

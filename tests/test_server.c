@@ -146,6 +146,7 @@ typedef struct srv {
 } srv;
 
 static pid_t g_pid; /* the server of the running test, killed by the suite's fini if a test fails */
+static const char *g_stderr; /* when set, the next srv_start sends btfd's stderr to this file */
 
 /* Path of a program built next to this test binary (make asan runs
  * build-asan/run_tests), else in $BTF_BUILD, else in build/. */
@@ -193,6 +194,9 @@ static void srv_start(srv *s, const char *lib, const char *const *extra)
         dup2(fds[1], 1);
         close(fds[0]);
         close(fds[1]);
+        int efd = g_stderr ? open(g_stderr, O_WRONLY | O_CREAT | O_TRUNC, 0644) : -1;
+        if (efd >= 0)
+            dup2(efd, 2);
         execv(bin, (char *const *)argv);
         _exit(127);
     }
@@ -217,22 +221,30 @@ static void srv_start(srv *s, const char *lib, const char *const *extra)
     cr_assert_gt(s->port, 0);
 }
 
-/* SIGTERM, then expects a clean exit (status 0) within the timeout. */
-static void srv_stop(srv *s)
+/* Waits up to ms for btfd to exit by itself; its exit status, or -1 (then it is killed). */
+static int srv_wait_exit(srv *s, int ms)
 {
-    kill(s->pid, SIGTERM);
     int status = 0;
-    long long deadline = wsc_now_ms() + TMO;
+    long long deadline = wsc_now_ms() + ms;
     pid_t r;
     while ((r = waitpid(s->pid, &status, WNOHANG)) == 0 && wsc_now_ms() < deadline)
         usleep(10000);
     if (r == 0) {
         kill(s->pid, SIGKILL);
         waitpid(s->pid, &status, 0);
-        cr_assert_fail("btfd did not stop on SIGTERM");
+        return -1;
     }
     g_pid = 0;
-    cr_expect(WIFEXITED(status) && WEXITSTATUS(status) == 0, "btfd exit status %d", status);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+/* SIGTERM, then expects a clean exit (status 0) within the timeout. */
+static void srv_stop(srv *s)
+{
+    kill(s->pid, SIGTERM);
+    int rc = srv_wait_exit(s, TMO);
+    cr_assert_neq(rc, -1, "btfd did not stop on SIGTERM");
+    cr_expect_eq(rc, 0, "btfd exit status %d", rc);
 }
 
 static void open_ws(wsc *c, const srv *s)
@@ -505,14 +517,19 @@ static const char *find_nocase(const char *h, const char *n)
 }
 
 /* GET path with HTTP/1.1 (Connection: close; the paths are deliberately odd,
- * so they are sent verbatim); returns the status (0: no reply), body
- * malloc'd into *body (*blen bytes). */
-static int http_get(int port, const char *path, uint8_t **body, size_t *blen)
+ * so they are sent verbatim) and extra request header lines (each ending in
+ * \r\n, or NULL); returns the status (0: no reply), body malloc'd into *body
+ * (*blen bytes), and the response head into head (if not NULL). A path
+ * "HEAD /x" sends HEAD /x. */
+static int http_req(int port, const char *path, const char *extra, char *head, size_t hn, uint8_t **body,
+                    size_t *blen)
 {
     int fd = tcp_connect(port);
     cr_assert_geq(fd, 0);
-    char req[512];
-    int n = snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n", path);
+    char req[1024];
+    int head_only = !strncmp(path, "HEAD ", 5); /* "HEAD /path": a HEAD request */
+    int n = snprintf(req, sizeof req, "%s %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n%s\r\n",
+                     head_only ? "HEAD" : "GET", path + (head_only ? 5 : 0), extra ? extra : "");
     cr_assert_eq(send(fd, req, (size_t)n, MSG_NOSIGNAL), n);
     long long deadline = wsc_now_ms() + TMO;
     size_t len = 0, cap = 65536, h = 0, clen = (size_t)-1; /* h: header length, 0 until seen */
@@ -541,12 +558,71 @@ static int http_get(int port, const char *path, uint8_t **body, size_t *blen)
     }
     close(fd);
     int status = h ? atoi(buf + 9) : 0;
+    if (head)
+        snprintf(head, hn, "%.*s", (int)h, buf);
     *blen = h ? len - h : 0;
     *body = malloc(*blen + 1);
     memcpy(*body, buf + h, *blen);
     (*body)[*blen] = 0;
     free(buf);
     return status;
+}
+
+static int http_get(int port, const char *path, uint8_t **body, size_t *blen)
+{
+    return http_req(port, path, NULL, NULL, 0, body, blen);
+}
+
+/* Checks the Prometheus text format: comment lines "# HELP name text" and
+ * "# TYPE name counter|gauge", samples "name value", nothing else. */
+static void metrics_well_formed(const char *text)
+{
+    const char *line = text;
+    while (*line) {
+        const char *nl = strchr(line, '\n');
+        cr_assert_not_null(nl, "metrics end without a newline");
+        char l[512], name[128], type[32];
+        snprintf(l, sizeof l, "%.*s", (int)(nl - line), line);
+        double v;
+        char extra;
+        if (!strncmp(l, "# HELP ", 7))
+            cr_expect(strchr(l + 7, ' '), "HELP line without text: %s", l);
+        else if (!strncmp(l, "# TYPE ", 7))
+            cr_expect(sscanf(l + 7, "%127s %31s", name, type) == 2 && (!strcmp(type, "counter") || !strcmp(type, "gauge")),
+                      "bad TYPE line: %s", l);
+        else
+            cr_expect(sscanf(l, "%127[a-zA-Z0-9_:] %lf%c", name, &v, &extra) == 2 && strlen(name) < strlen(l),
+                      "bad sample line: %s", l);
+        line = nl + 1;
+    }
+}
+
+/* Value of the sample `name` in a /metrics body (NAN if absent), which must
+ * follow its own # HELP and # TYPE lines. */
+static double metric_of(const char *text, const char *name)
+{
+    char help[160], type[160], key[160];
+    snprintf(help, sizeof help, "# HELP %s ", name);
+    snprintf(type, sizeof type, "# TYPE %s ", name);
+    snprintf(key, sizeof key, "\n%s ", name);
+    const char *h = strstr(text, help), *t = strstr(text, type), *v = strstr(text, key);
+    if (!v)
+        return NAN;
+    cr_expect(h && t && h < t && t < v, "%s lacks HELP and TYPE before its sample", name);
+    return strtod(v + strlen(key), NULL);
+}
+
+/* One metric of a running btfd, from GET /metrics. */
+static double metric(const srv *s, const char *name)
+{
+    uint8_t *body;
+    size_t n;
+    char head[4096];
+    cr_assert_eq(http_req(s->port, "/metrics", NULL, head, sizeof head, &body, &n), 200);
+    cr_expect(find_nocase(head, "content-type: text/plain; version=0.0.4"), "%s", head);
+    double v = metric_of((char *)body, name);
+    free(body);
+    return v;
 }
 
 /* ================================================================ tests */
@@ -1052,6 +1128,34 @@ static int wait_close(wsc *c, char *reason, size_t n)
     }
 }
 
+/* A client with a 128 KiB receive buffer subscribed to material, which the
+ * test then does not read (nothing services its lws context meanwhile). */
+static void open_slow(wsc *c, const srv *s, const char *material)
+{
+    char st[128], msg[200];
+    cr_assert_eq(wsc_open(c, s->port, "btf-stream.v1", 131072, st, sizeof st), 0, "%s", st);
+    snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"%s\"}", material);
+    wsc_send_text(c, msg);
+}
+
+/* Reads what a connection still gets until it ends (close frame or EOF);
+ * returns the payload bytes of the binary pieces. Fails if it stays open. */
+static size_t read_until_closed(wsc *c)
+{
+    size_t got = 0;
+    for (;;) {
+        wsc_msg m;
+        int r = wsc_recv(c, &m, TMO);
+        cr_assert_neq(r, 0, "the connection was not closed");
+        if (r < 0 || m.op == 8)
+            break;
+        if (m.op == 2)
+            got += m.len - 20;
+        wsc_msg_free(&m);
+    }
+    return got;
+}
+
 static void expect_healthy(const srv *s)
 {
     wsc c;
@@ -1167,9 +1271,7 @@ Test(server, stalled_client_is_dropped_and_others_keep_streaming)
      * the 24 MiB package), yet above the loopback MSS so the drain is not
      * held up by small-window avoidance. */
     wsc slow;
-    char st[128];
-    cr_assert_eq(wsc_open(&slow, s.port, "btf-stream.v1", 131072, st, sizeof st), 0, "%s", st);
-    wsc_send_text(&slow, "{\"type\":\"subscribe\",\"material\":\"big\"}");
+    open_slow(&slow, &s, "big");
     usleep(300000);
     /* meanwhile another client gets the whole package */
     wsc fast;
@@ -1184,20 +1286,11 @@ Test(server, stalled_client_is_dropped_and_others_keep_streaming)
     wsc_close(&fast);
     sleep(3); /* > stall timeout + lws's 1 s timer granularity */
     /* now drain: the connection must end before the package is complete */
-    size_t got = 0;
-    for (;;) {
-        wsc_msg m;
-        int r = wsc_recv(&slow, &m, TMO);
-        cr_assert_neq(r, 0, "stalled client was not dropped");
-        if (r < 0 || m.op == 8)
-            break;
-        if (m.op == 2)
-            got += m.len - 20;
-        wsc_msg_free(&m);
-    }
+    size_t got = read_until_closed(&slow);
     cr_expect_lt(got, total, "received %zu of %zu bytes", got, total);
     wsc_close(&slow);
     expect_healthy(&s);
+    cr_expect_eq(metric(&s, "btfd_stalled_drops_total"), 1, "the drop is counted as a stall");
     srv_stop(&s);
 }
 
@@ -1304,4 +1397,364 @@ Test(server, fuzz_corpus_replays_through_the_request_parser)
     const char *n = strstr(out, "replay: ");
     cr_assert_not_null(n, "%s", out);
     cr_expect_geq(atoi(n + 8), 20, "the saved corpus has inputs: %s", out);
+}
+
+/* ================================================================ operations: health, metrics, signals, log */
+
+/* Polls metric name until it equals want (TMO); returns the last value. */
+static double metric_becomes(const srv *s, const char *name, double want)
+{
+    double v = NAN;
+    for (long long end = wsc_now_ms() + TMO; wsc_now_ms() < end; usleep(20000))
+        if ((v = metric(s, name)) == want)
+            break;
+    return v;
+}
+
+Test(server, healthz_and_metrics_follow_streams_and_scans)
+{
+    size_t total = make_simple(g_lib, "alpha", 3, 20000);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    uint8_t *body;
+    size_t n;
+    cr_expect_eq(http_get(s.port, "/healthz", &body, &n), 200);
+    cr_expect_str_eq((char *)body, "ok\n");
+    free(body);
+    cr_assert_eq(http_get(s.port, "/metrics", &body, &n), 200);
+    metrics_well_formed((char *)body);
+    free(body);
+    cr_expect_eq(metric(&s, "btfd_connections_total"), 0);
+    cr_expect_eq(metric(&s, "btfd_library_materials"), 1);
+    cr_expect_eq(metric(&s, "btfd_library_bytes"), (double)total);
+    cr_expect_eq(metric(&s, "btfd_draining"), 0);
+    wsc c;
+    open_ws(&c, &s);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\"}");
+    stream st = {.lib = g_lib};
+    run_until_complete(&c, &st, 1);
+    cr_expect_eq(metric(&s, "btfd_connections"), 1);
+    cr_expect_eq(metric(&s, "btfd_connections_total"), 1);
+    cr_expect_eq(metric(&s, "btfd_subscriptions"), 1);
+    cr_expect_eq(metric(&s, "btfd_subscriptions_total"), 1);
+    cr_expect_eq(metric(&s, "btfd_sent_chunks_total"), 3);
+    cr_expect_eq(metric(&s, "btfd_sent_bytes_total"), (double)total);
+    cr_expect_eq(metric(&s, "btfd_stalled_drops_total"), 0);
+    stream_free(&st);
+    wsc_close(&c);
+    cr_expect_eq(metric_becomes(&s, "btfd_connections", 0), 0);
+    cr_expect_eq(metric(&s, "btfd_subscriptions"), 0);
+    /* a broken package: the next scan counts it */
+    char p[600];
+    snprintf(p, sizeof p, "%s/broken", g_lib);
+    cr_assert_eq(mkdir(p, 0755), 0);
+    snprintf(p, sizeof p, "%s/broken/manifest.json", g_lib);
+    write_file(p, "{\"format\":", 10);
+    double before = metric(&s, "btfd_scan_errors_total");
+    usleep(250000); /* on-demand rescans are rate limited to one per 200 ms */
+    cr_expect_eq(http_get(s.port, "/materials", &body, &n), 200);
+    free(body);
+    cr_expect_eq(metric(&s, "btfd_scan_errors_total"), before + 1);
+    srv_stop(&s);
+}
+
+Test(server, sigterm_lets_streams_finish_refuses_new_ones_then_closes_with_1001)
+{
+    size_t sizes[4] = {3u << 20, 3u << 20, 3u << 20, 3u << 20};
+    const double lab[] = {4, 3, 2, 1};
+    make_pkg(g_lib, "big", 4, 1, sizes, lab);
+    make_simple(g_lib, "small", 2, 1000);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc idle, busy;
+    open_ws(&idle, &s);
+    wsc_send_text(&idle, "{\"type\":\"subscribe\",\"material\":\"small\"}");
+    stream si = {.lib = g_lib};
+    run_until_complete(&idle, &si, 1);
+    char st_[128];
+    cr_assert_eq(wsc_open(&busy, s.port, "btf-stream.v1", 131072, st_, sizeof st_), 0, "%s", st_);
+    wsc_send_text(&busy, "{\"type\":\"subscribe\",\"material\":\"big\",\"budget\":{\"chunks\":1}}");
+    stream sb = {.lib = g_lib};
+    run_until_complete(&busy, &sb, 1);
+    wsc_send_text(&busy, "{\"type\":\"budget\",\"material\":\"big\",\"budget\":{}}");
+    usleep(200000); /* the server is now sending chunk 1 into a full socket */
+    kill(s.pid, SIGTERM);
+    char reason[128];
+    cr_expect_eq(wait_close(&idle, reason, sizeof reason), 1001, "an idle stream goes away at once");
+    wsc_close(&idle);
+    uint8_t *body;
+    size_t n;
+    cr_expect_eq(http_get(s.port, "/healthz", &body, &n), 503);
+    cr_expect_str_eq((char *)body, "draining\n");
+    free(body);
+    cr_expect_eq(metric(&s, "btfd_draining"), 1);
+    wsc late;
+    cr_expect_neq(wsc_open(&late, s.port, "btf-stream.v1", 0, st_, sizeof st_), 0, "a new stream was accepted");
+    wsc_close(&late);
+    cr_expect_eq(metric(&s, "btfd_refused_total"), 1);
+    /* the busy stream completes, byte-exact, then goes away */
+    run_until_complete(&busy, &sb, 2);
+    cr_expect_eq(sb.n_order, 4);
+    cr_expect_eq(wait_close(&busy, reason, sizeof reason), 1001);
+    stream_free(&si);
+    stream_free(&sb);
+    wsc_close(&busy);
+    cr_expect_eq(srv_wait_exit(&s, TMO), 0, "btfd exits once the last stream is gone");
+}
+
+Test(server, drain_deadline_closes_streams_that_do_not_finish)
+{
+    size_t sizes[2] = {8u << 20, 8u << 20};
+    const double lab[] = {2, 1};
+    size_t total = make_pkg(g_lib, "big", 2, 1, sizes, lab);
+    srv s;
+    const char *extra[] = {"--drain-seconds", "1", NULL};
+    srv_start(&s, g_lib, extra);
+    wsc slow;
+    open_slow(&slow, &s, "big");
+    usleep(200000);
+    long long t0 = wsc_now_ms();
+    kill(s.pid, SIGTERM);
+    cr_expect_eq(srv_wait_exit(&s, TMO), 0);
+    long long dt = wsc_now_ms() - t0;
+    cr_expect(dt >= 900 && dt < 4000, "stopped %lld ms after SIGTERM (drain 1 s)", dt);
+    size_t got = read_until_closed(&slow);
+    cr_expect_lt(got, total);
+    wsc_close(&slow);
+}
+
+Test(server, sighup_rescans_the_library)
+{
+    srv s;
+    srv_start(&s, g_lib, NULL); /* --rescan-ms 0: no periodic rescans */
+    cr_expect_eq(metric(&s, "btfd_library_materials"), 0);
+    make_simple(g_lib, "late", 2, 100);
+    usleep(300000);
+    cr_expect_eq(metric(&s, "btfd_library_materials"), 0, "/metrics does not rescan");
+    kill(s.pid, SIGHUP);
+    cr_expect_eq(metric_becomes(&s, "btfd_library_materials", 1), 1, "SIGHUP did not rescan");
+    expect_healthy(&s);
+    srv_stop(&s);
+}
+
+/* 1 if line starts "YYYY-MM-DDTHH:MM:SS.mmmZ LEVEL btfd: " with a known level. */
+static int log_line_ok(const char *line)
+{
+    int y, mo, d, h, mi, se, ms;
+    char lv[8];
+    return sscanf(line, "%4d-%2d-%2dT%2d:%2d:%2d.%3dZ %7s btfd: ", &y, &mo, &d, &h, &mi, &se, &ms, lv) == 8 &&
+           y >= 2024 && (!strcmp(lv, "INFO") || !strcmp(lv, "WARN") || !strcmp(lv, "ERROR") || !strcmp(lv, "DEBUG"));
+}
+
+Test(server, one_timestamped_log_line_per_connection_and_error)
+{
+    make_simple(g_lib, "alpha", 2, 1000);
+    char log[400];
+    snprintf(log, sizeof log, "%s/btfd.log", g_root);
+    g_stderr = log;
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    g_stderr = NULL;
+    for (int i = 0; i < 2; i++) {
+        wsc c;
+        open_ws(&c, &s);
+        wsc_send_text(&c, i ? "{\"type\":\"subscribe\",\"material\":\"nosuch\"}" : "{\"type\":\"ping\"}");
+        cJSON_Delete(expect_type(&c, i ? "error" : "pong"));
+        wsc_close(&c);
+    }
+    srv_stop(&s);
+    size_t n;
+    char *text = (char *)read_whole(log, &n);
+    cr_assert_not_null(text);
+    int conns = 0, errors = 0, lines = 0;
+    for (char *line = strtok(text, "\n"); line; line = strtok(NULL, "\n")) {
+        lines++;
+        cr_expect(log_line_ok(line), "not a log line: %s", line);
+        cr_expect(!strstr(line, " DEBUG "), "debug line without -v: %s", line);
+        conns += strstr(line, "INFO btfd: conn ") && strstr(line, " from 127.0.0.1: ") != NULL;
+        errors += strstr(line, "error unknown_material") != NULL;
+    }
+    cr_expect_eq(conns, 2, "one line per connection (%d lines)", lines);
+    cr_expect_eq(errors, 1, "one line per error");
+    free(text);
+}
+
+/* ================================================================ HTTP caching: immutable package files */
+
+/* Value of response header name (lower case, with the colon) into buf; "" if absent. */
+static const char *resp_header(const char *head, const char *name, char *buf, size_t n)
+{
+    const char *h = find_nocase(head, name);
+    buf[0] = 0;
+    if (h) {
+        h += strlen(name);
+        while (*h == ' ')
+            h++;
+        snprintf(buf, n, "%.*s", (int)strcspn(h, "\r\n"), h);
+    }
+    return buf;
+}
+
+/* The list's "files" base of material name ("/materials/NAME/ETAG/"). */
+static void files_base(int port, const char *name, char *base, size_t n)
+{
+    uint8_t *body;
+    size_t len;
+    cr_assert_eq(http_get(port, "/materials", &body, &len), 200);
+    cJSON *j = cJSON_Parse((char *)body);
+    free(body);
+    const cJSON *m;
+    base[0] = 0;
+    cJSON_ArrayForEach(m, cJSON_GetObjectItem(j, "materials"))
+        if (!strcmp(jstr(m, "name"), name))
+            snprintf(base, n, "%s", jstr(m, "files"));
+    cJSON_Delete(j);
+    cr_assert(base[0], "no files base for %s", name);
+}
+
+Test(server, package_files_are_immutable_with_strong_etags_and_byte_ranges)
+{
+    const size_t sizes[] = {150000, 7000, 0};
+    const double lab[] = {9, 5, 3};
+    make_pkg(g_lib, "alpha", 3, 1, sizes, lab);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    char base[300], url[400], head[4096], v[200], etag[200], hdr[300];
+    files_base(s.port, "alpha", base, sizeof base);
+    uint8_t *body, *disk;
+    size_t n, dn;
+    for (int c = 0; c < 3; c++) {
+        snprintf(url, sizeof url, "%sc%d_f0.bin", base, c);
+        cr_assert_eq(http_req(s.port, url, NULL, head, sizeof head, &body, &n), 200, "%s", url);
+        char path[700];
+        snprintf(path, sizeof path, "%s/alpha/c%d_f0.bin", g_lib, c);
+        disk = read_whole(path, &dn);
+        cr_expect(n == dn && !memcmp(body, disk, n), "%s: %zu bytes, file has %zu", url, n, dn);
+        free(disk);
+        free(body);
+        cr_expect_str_eq(resp_header(head, "cache-control:", v, sizeof v), "public, max-age=31536000, immutable");
+        resp_header(head, "etag:", etag, sizeof etag);
+        cr_expect(etag[0] == '"' && etag[strlen(etag) - 1] == '"' && strncmp(etag, "W/", 2), "strong etag: %s", etag);
+        snprintf(hdr, sizeof hdr, "If-None-Match: %s\r\n", etag);
+        cr_expect_eq(http_req(s.port, url, hdr, head, sizeof head, &body, &n), 304, "revalidation of %s", url);
+        cr_expect_eq(n, 0);
+        free(body);
+    }
+    /* HEAD: the headers of a GET, no body */
+    snprintf(url, sizeof url, "HEAD %sc0_f0.bin", base);
+    cr_expect_eq(http_req(s.port, url, NULL, head, sizeof head, &body, &n), 200);
+    cr_expect_str_eq(resp_header(head, "content-length:", v, sizeof v), "150000");
+    cr_expect_str_eq(resp_header(head, "cache-control:", v, sizeof v), "public, max-age=31536000, immutable");
+    cr_expect_eq(n, 0, "HEAD sent a body");
+    free(body);
+    /* the manifest too, byte for byte */
+    snprintf(url, sizeof url, "%smanifest.json", base);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 200);
+    char mpath[700];
+    snprintf(mpath, sizeof mpath, "%s/alpha/manifest.json", g_lib);
+    disk = read_whole(mpath, &dn);
+    cr_expect(n == dn && !memcmp(body, disk, n), "manifest differs");
+    free(disk);
+    free(body);
+    /* byte ranges: a middle, a suffix, an open end; beyond the end 416; If-Range of another version: all */
+    snprintf(url, sizeof url, "%sc0_f0.bin", base);
+    char path0[700];
+    snprintf(path0, sizeof path0, "%s/alpha/c0_f0.bin", g_lib);
+    disk = read_whole(path0, &dn);
+    struct { const char *range; size_t a, b; } rs[] = {{"bytes=100-199", 100, 199}, {"bytes=-10", 149990, 149999},
+                                                       {"bytes=149000-", 149000, 149999}, {"bytes=0-999999", 0, 149999}};
+    for (size_t i = 0; i < sizeof rs / sizeof rs[0]; i++) {
+        snprintf(hdr, sizeof hdr, "Range: %s\r\n", rs[i].range);
+        cr_expect_eq(http_req(s.port, url, hdr, head, sizeof head, &body, &n), 206, "%s", rs[i].range);
+        char want[80];
+        snprintf(want, sizeof want, "bytes %zu-%zu/150000", rs[i].a, rs[i].b);
+        cr_expect_str_eq(resp_header(head, "content-range:", v, sizeof v), want);
+        cr_expect(n == rs[i].b - rs[i].a + 1 && !memcmp(body, disk + rs[i].a, n), "%s: bytes differ", rs[i].range);
+        free(body);
+    }
+    cr_expect_eq(http_req(s.port, url, "Range: bytes=150000-\r\n", head, sizeof head, &body, &n), 416);
+    cr_expect_str_eq(resp_header(head, "content-range:", v, sizeof v), "bytes */150000");
+    free(body);
+    cr_expect_eq(http_req(s.port, url, "Range: bytes=0-9\r\nIf-Range: \"other\"\r\n", head, sizeof head, &body, &n), 200);
+    cr_expect_eq(n, 150000);
+    free(body);
+    free(disk);
+    /* not this package's current etag, not its file, not a name in the index: 404 */
+    const char *bad[] = {"/materials/alpha/0123456789abcdef/c0_f0.bin", "/materials/alpha/c0_f0.bin", "/materials/nosuch/x/y"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        cr_expect_eq(http_get(s.port, bad[i], &body, &n), 404, "%s", bad[i]);
+        free(body);
+    }
+    const char *tails[] = {"nosuch.bin", "..%2fbeta%2fc0_f0.bin", "../../alpha/manifest.json", ".hidden"};
+    for (size_t i = 0; i < sizeof tails / sizeof tails[0]; i++) {
+        snprintf(url, sizeof url, "%s%s", base, tails[i]);
+        int st = http_get(s.port, url, &body, &n);
+        cr_expect(st == 404 || st == 400 || st == 403 || (st == 200 && strstr(tails[i], "manifest")), "%s gave %d", url, st);
+        free(body);
+    }
+    /* a replaced package: the old URLs are gone, the new ones work */
+    char old[400];
+    snprintf(old, sizeof old, "%sc1_f0.bin", base);
+    char dir[600];
+    snprintf(dir, sizeof dir, "%s/alpha", g_lib);
+    cr_assert_eq(test_rmtree(dir), 0);
+    const double lab2[] = {8, 4, 2};
+    make_pkg(g_lib, "alpha", 3, 1, sizes, lab2);
+    usleep(250000);
+    char base2[300];
+    files_base(s.port, "alpha", base2, sizeof base2);
+    cr_expect_str_neq(base, base2);
+    cr_expect_eq(http_get(s.port, old, &body, &n), 404, "old etag still served");
+    free(body);
+    snprintf(url, sizeof url, "%sc1_f0.bin", base2);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 200);
+    free(body);
+    srv_stop(&s);
+}
+
+Test(server, list_thumbnails_and_client_files_revalidate_by_etag)
+{
+    make_simple(g_lib, "alpha", 2, 100);
+    char p[600];
+    snprintf(p, sizeof p, "%s/alpha/thumbnail.png", g_lib);
+    write_file(p, "not really a png", 16);
+    char client[300];
+    snprintf(client, sizeof client, "%s/client", g_root);
+    cr_assert_eq(mkdir(client, 0755), 0);
+    snprintf(p, sizeof p, "%s/index.html", client);
+    write_file(p, "<p>hi</p>\n", 10);
+    srv s;
+    const char *extra[] = {"--client", client, NULL};
+    srv_start(&s, g_lib, extra);
+    const char *urls[] = {"/materials", "/materials/alpha/thumbnail.png", "/"};
+    for (size_t i = 0; i < 3; i++) {
+        char head[4096], etag[200], cc[200], hdr[300];
+        uint8_t *body;
+        size_t n;
+        cr_assert_eq(http_req(s.port, urls[i], NULL, head, sizeof head, &body, &n), 200, "%s", urls[i]);
+        free(body);
+        resp_header(head, "etag:", etag, sizeof etag);
+        resp_header(head, "cache-control:", cc, sizeof cc);
+        cr_expect(etag[0], "%s has no etag", urls[i]);
+        cr_expect(!strstr(cc, "no-store") && !strstr(cc, "immutable") && strstr(cc, "max-age="), "%s: %s", urls[i], cc);
+        snprintf(hdr, sizeof hdr, "If-None-Match: %s\r\n", etag);
+        cr_expect_eq(http_req(s.port, urls[i], hdr, head, sizeof head, &body, &n), 304, "%s", urls[i]);
+        free(body);
+        cr_expect_eq(http_req(s.port, urls[i], "If-None-Match: \"other\"\r\n", head, sizeof head, &body, &n), 200);
+        free(body);
+    }
+    /* a new package changes the list's etag */
+    char head[4096], e1[200], e2[200];
+    uint8_t *body;
+    size_t n;
+    http_req(s.port, "/materials", NULL, head, sizeof head, &body, &n);
+    free(body);
+    resp_header(head, "etag:", e1, sizeof e1);
+    make_simple(g_lib, "beta", 1, 100);
+    usleep(250000);
+    http_req(s.port, "/materials", NULL, head, sizeof head, &body, &n);
+    free(body);
+    cr_expect_str_neq(e1, resp_header(head, "etag:", e2, sizeof e2));
+    cr_expect_gt(metric(&s, "btfd_http_not_modified_total"), 0);
+    srv_stop(&s);
 }

@@ -129,10 +129,13 @@ static int btf__args_pos(btf_args *a, const char *val, btf_args_fn fn, void *ctx
     return rc;
 }
 
-/* getopt_long's table from spec->opts; the names point into names (a copy). */
-static void btf__args_table(const char *spec, char *names, size_t n, struct option *t)
+/* getopt_long's table from spec->opts; the names point into names (a copy). A
+ * one-letter NAME is also the short option -NAME (its code must be that letter),
+ * added to shorts (which starts as "-:h"). */
+static void btf__args_table(const char *spec, char *names, size_t n, struct option *t, char shorts[16])
 {
     snprintf(names, n, "%s", spec);
+    snprintf(shorts, 16, "-:h");
     int k = 0;
     t[k++] = (struct option){"help", no_argument, NULL, 'h'};
     char *save = NULL;
@@ -140,6 +143,8 @@ static void btf__args_table(const char *spec, char *names, size_t n, struct opti
         size_t len = strcspn(s, ":!");
         if (!s[len] || !s[len + 1])
             continue; /* malformed entry: no code */
+        if (len == 1 && s[2] == s[0] && strlen(shorts) < 13)
+            snprintf(shorts + strlen(shorts), 4, "%c%s", s[0], s[1] == ':' ? ":" : "");
         t[k++] = (struct option){s, s[len] == ':' ? required_argument : no_argument, NULL, s[len + 1]};
         s[len] = '\0';
     }
@@ -150,13 +155,13 @@ int btf_args_parse(const btf_args_spec *spec, int argc, char **argv, btf_args_fn
 {
     btf_args a = {spec, "", 0};
     struct option opts[BTF_ARGS_MAX + 1];
-    char names[1024];
-    btf__args_table(spec->opts, names, sizeof names, opts);
+    char names[1024], shorts[16];
+    btf__args_table(spec->opts, names, sizeof names, opts, shorts);
     int c, li, rc = 0;
     optind = 0; /* GNU: re-initialise (commands run one after another in one process) */
     opterr = 0;
     /* "-": positionals come back in order as code 1; ":": a missing value is ':' */
-    while (rc == 0 && (li = -1, c = getopt_long(argc, argv, "-:h", opts, &li)) != -1) {
+    while (rc == 0 && (li = -1, c = getopt_long(argc, argv, shorts, opts, &li)) != -1) {
         if (c == 'h') {
             spec->usage(stdout);
             return -1;

@@ -23,7 +23,8 @@
 typedef struct btf_args_spec {
     const char *cmd;        /* "compress": messages read "btf compress: ..." */
     const char *opts;       /* space-separated "NAME:C" (takes a value) or "NAME!C" (a flag), C the
-                             * code passed to the callback; -h and --help are always there */
+                             * code passed to the callback; a one-letter NAME whose C is that
+                             * letter is also -NAME ("j:j": -j 4); -h and --help are always there */
     void (*usage)(FILE *f); /* the command's --help text */
     int n_pos;              /* positionals wanted, exactly; -1: any number */
 } btf_args_spec;

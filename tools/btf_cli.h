@@ -11,6 +11,7 @@ int cmd_eval(int argc, char **argv);
 int cmd_export_thesis(int argc, char **argv);
 int cmd_gen(int argc, char **argv);
 int cmd_import_thesis(int argc, char **argv);
+int cmd_library(int argc, char **argv);
 int cmd_lod(int argc, char **argv);
 int cmd_render(int argc, char **argv);
 

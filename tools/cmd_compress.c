@@ -5,6 +5,7 @@
  *     btf compress knit.btf lib/knit --k 9 --components 16 --bits 16 --grouping spatial
  */
 #include "btf_args.h"
+#include "btf_build.h"
 #include "btf_cli.h"
 #include "btf_fs.h"
 #include "btf_io.h"
@@ -147,31 +148,6 @@ static int compress_json(const char *out, const btf_compress_stats *st, double s
     return btf_json_print(o);
 }
 
-/* --levels: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
-static btf_result compress_v2(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
-{
-    char tmp[4200], name[BTF_PACKAGE_NAME_MAX];
-    if (strlen(o->out) > 4000)
-        return btf_fail(err, BTF_ERR_ARG, "output path too long");
-    snprintf(tmp, sizeof tmp, "%s.tmp-%ld-v1", o->out, (long)getpid());
-    if (!o->pkg.name) {
-        const char *b = strrchr(o->out, '/');
-        b = b && b[1] ? b + 1 : o->out;
-        snprintf(name, sizeof name, "%s", b);
-        o->pkg.name = name;
-    }
-    btf_result r = btf_package_compress(src, &o->pca, &o->pkg, tmp, st, err);
-    if (r != BTF_OK)
-        return r;
-    btf_lod_options lo = {0};
-    lo.levels = o->levels;
-    btf_lod_stats ls = {0};
-    r = btf_lod_build(tmp, o->out, &lo, &ls, err);
-    btf_fs_rmtree(tmp, NULL);
-    st->bytes = ls.bytes, st->n_chunks = ls.n_chunks;
-    return r;
-}
-
 /* --max-bytes / --max-error: the k and chunk count chosen by measuring (codec/btf_budget.h). */
 static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
 {
@@ -201,9 +177,9 @@ static btf_result compress_run(const btf *src, compress_opts *o, btf_compress_st
     btf_progress pr;
     btf_progress_start(&pr, "compress", "blocks");
     o->pca.progress = btf_progress_update, o->pca.progress_ctx = &pr;
-    btf_result r = o->budget.max_bytes > 0 || o->budget.max_error > 0 ? compress_budget(src, o, st, err)
-                   : o->levels > 0                                      ? compress_v2(src, o, st, err)
-                                   : btf_package_compress(src, &o->pca, &o->pkg, o->out, st, err);
+    btf_result r = o->budget.max_bytes > 0 || o->budget.max_error > 0
+                       ? compress_budget(src, o, st, err)
+                       : btf_build_package(src, &o->pca, &o->pkg, o->levels, o->out, st, err);
     btf_progress_end(&pr);
     return r;
 }

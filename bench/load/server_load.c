@@ -1,6 +1,6 @@
 /* server_load.c - load generator for bench/bench_server.sh (in a subdirectory
  * so the Makefile's rule for bench/NAME.c skips it; the script builds it, with
- * libwebsockets and cJSON).
+ * libwebsockets and cJSON, and -Itests for tests/lws_connect.h).
  *
  *   server_load ws   PORT MATERIAL CLIENTS [STALLED] [PREFIX]
  *   server_load http PORT MATERIAL CLIENTS [PREFIX]
@@ -39,6 +39,8 @@
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
+
+#include "lws_connect.h"
 
 #define RUN_LIMIT_S 120
 
@@ -257,20 +259,8 @@ static int run_ws(int port, int n, int stalled, const char *px)
     double t0 = now_s();
     for (int i = 0; i < g_n; i++) {
         client *c = &g_cl[i];
-        struct lws_client_connect_info ci;
-        memset(&ci, 0, sizeof ci);
-        ci.context = ctx;
-        ci.address = "127.0.0.1";
-        ci.port = port;
-        ci.path = "/stream";
-        ci.host = "127.0.0.1";
-        ci.origin = "127.0.0.1";
-        ci.protocol = "btf-stream.v1";
-        ci.local_protocol_name = ws_protocols[0].name;
-        ci.opaque_user_data = c;
-        ci.pwsi = &c->wsi;
         c->t_start = now_s();
-        if (!lws_client_connect_via_info(&ci) && !c->done)
+        if (!btf_lws_connect(ctx, port, ws_protocols[0].name, c, &c->wsi) && !c->done)
             finish(c, 1);
         if (i == stalled - 1) /* let the stalled ones fill their pipes before the rest start */
             while (now_s() - c->t_start < 1.0)

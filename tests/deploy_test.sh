@@ -1,0 +1,131 @@
+#!/usr/bin/env bash
+# tests/deploy_test.sh - the two-server deployment of doc/deploy.md, for real (run by `make test`).
+#
+#   BUILD=build bash tests/deploy_test.sh
+#
+# Starts nginx (server/deploy/nginx.conf.in, its own prefix in a temp dir) in
+# front of two btfd on one library (a package made by `btf compress
+# gen:knit:16`) with server/deploy/cluster.sh, all on 127.0.0.1, and checks:
+# health and list through nginx, package files cached by nginx (MISS, then
+# HIT, byte-exact, immutable headers, ranges), and 200 WebSocket clients
+# ($BUILD/resume_clients) that must all complete, every chunk once, while one
+# btfd is killed (SIGKILL) in the middle, and again while one drains (SIGTERM,
+# clients get 1001). Prints one line per check and last
+# "deploy: N passed, M failed"; exits 1 when a check failed. Everything it
+# started is killed on exit.
+set -uo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+BUILD=${BUILD:-build}
+btf=$BUILD/btf
+clients=$BUILD/resume_clients
+export BTFD=$BUILD/btfd
+pass=0
+fail=0
+
+check() { # check NAME COMMAND...: one line, counted
+    local name=$1
+    shift
+    if "$@" >>"$work/check.log" 2>&1; then
+        pass=$((pass + 1))
+        echo "deploy: ok   $name"
+    else
+        fail=$((fail + 1))
+        echo "deploy: FAIL $name (see below)"
+        tail -n 20 "$work/check.log" | sed 's/^/    /'
+    fi
+}
+
+finish() {
+    for d in "$work"/cluster-*; do
+        [[ -f $d/cluster.env ]] || continue
+        # shellcheck disable=SC1091
+        (source "$d/cluster.env"; kill -KILL "${BTFD_PIDS[@]}" "$NGINX_PID" 2>/dev/null) || true
+    done
+    wait 2>/dev/null
+    rm -rf "$work"
+}
+
+work=$(mktemp -d /tmp/btfdeploy-XXXXXX)
+trap finish EXIT
+for f in "$btf" "$BTFD" "$clients"; do
+    [[ -x $f ]] || { echo "deploy: $f is missing: run 'make build'"; echo "deploy: 0 passed, 1 failed"; exit 1; }
+done
+if ! command -v nginx >/dev/null && [[ ! -x /usr/sbin/nginx ]]; then
+    echo "deploy: nginx is not installed (make setup installs nginx-light)"
+    echo "deploy: 0 passed, 1 failed"
+    exit 1
+fi
+ulimit -n "$(ulimit -Hn)" 2>/dev/null || true
+
+lib=$work/lib
+mkdir -p "$lib"
+check "library: btf compress gen:knit:16" "$btf" compress gen:knit:16 "$lib/knit" --quiet
+etag=
+base=
+up() { # up NAME: a fresh cluster; sets port, pids, base
+    local d=$work/cluster-$1
+    server/deploy/cluster.sh start "$lib" "$d" 2 >>"$work/check.log" 2>&1 || return 1
+    # shellcheck disable=SC1091
+    source "$d/cluster.env"
+    port=$NGINX_PORT
+    pids=("${BTFD_PIDS[@]}")
+}
+get() { curl -s --max-time 10 "$@"; }
+
+list_names_files() {
+    local body
+    body=$(get "http://127.0.0.1:$port/materials") || return 1
+    base=$(sed -n 's/.*"files":"\([^"]*\)".*/\1/p' <<<"$body")
+    etag=$(sed -n 's/.*"etag":"\([0-9a-f]\{16\}\)".*/\1/p' <<<"$body")
+    [[ $base == /materials/knit/$etag/ ]]
+}
+health_ok() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/healthz") == 200 ]]; }
+cache_status() { get -o "$work/got" -D - "http://127.0.0.1:$port$base$1" | tr -d '\r' | sed -n 's/^X-Cache-Status: //ip'; }
+miss_then_hit() {
+    [[ $(cache_status wt-01.bin) == MISS ]] && cmp "$work/got" "$lib/knit/wt-01.bin" &&
+        [[ $(cache_status wt-01.bin) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.bin"
+}
+immutable_headers() {
+    local h
+    h=$(get -o /dev/null -D - "http://127.0.0.1:$port${base}manifest.json" | tr -d '\r')
+    grep -qi '^cache-control: public, max-age=31536000, immutable$' <<<"$h" &&
+        grep -qi "^etag: \"$etag-manifest.json\"$" <<<"$h"
+}
+range_ok() {
+    [[ $(get -o "$work/range" -w '%{http_code}' -H 'Range: bytes=100-1099' "http://127.0.0.1:$port${base}wt-02.bin") == 206 ]] &&
+        cmp "$work/range" <(tail -c +101 "$lib/knit/wt-02.bin" | head -c 1000)
+}
+cached_after_kill() { [[ $(cache_status wt-01.bin) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.bin"; }
+old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.bin") == 404 ]]; }
+# failover SIG: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
+failover() {
+    timeout 100 "$clients" "$port" knit "$lib" 200 "${pids[0]}" 0.4 30 "$1" >"$work/clients-$1.txt" || { cat "$work/clients-$1.txt"; return 1; }
+    cat "$work/clients-$1.txt"
+    [[ $(awk '$1 == "clients_resumed" {print $2}' "$work/clients-$1.txt") -gt 0 ]]
+}
+goaway_seen() { [[ $(awk '$1 == "goaway_1001" {print $2}' "$work/clients-TERM.txt") -gt 0 ]]; }
+drained_exit() { # the drained btfd ends by itself, exit status 0
+    for _ in $(seq 150); do kill -0 "${pids[0]}" 2>/dev/null || break; sleep 0.1; done
+    ! kill -0 "${pids[0]}" 2>/dev/null && grep -q 'draining' "$work/cluster-b/btfd-0.log"
+}
+
+check "cluster: nginx + 2 btfd start" up a
+check "health through nginx" health_ok
+check "list through nginx names the immutable files base" list_names_files
+check "package file: MISS then HIT from nginx's cache, byte-exact" miss_then_hit
+check "immutable Cache-Control and strong ETag through nginx" immutable_headers
+check "byte range through nginx: 206, right bytes" range_ok
+check "unknown etag: 404" old_etag_404
+check "200 clients, one btfd SIGKILLed mid-way: all complete, none twice, resumed" failover KILL
+check "package file still served by the cache after the kill" cached_after_kill
+check "btfd logs the client address nginx forwards" grep -q ' from 127.0.0.1 via 127.0.0.1: ' "$work/cluster-a/btfd-1.log"
+check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-a"
+
+check "cluster: a fresh nginx + 2 btfd (drain run)" up b
+check "200 clients, one btfd drained (SIGTERM) mid-way: all complete, none twice, resumed" failover TERM
+check "the drained btfd's clients were told 1001 going away" goaway_seen
+check "the drained btfd exits by itself" drained_exit
+check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-b"
+
+echo "deploy: $pass passed, $fail failed"
+((fail == 0))

@@ -1,0 +1,44 @@
+/* btf_build.c - one package from one loaded BTF (btf_build.h). */
+#include "btf_build.h"
+
+#include "btf_fs.h"
+#include "btf_lod.h"
+
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+/* Version 2: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
+static btf_result build_v2(const btf *src, const btf_pca_options *pca, btf_package_options pkg, int levels,
+                           const char *out, btf_compress_stats *st, btf_error *err)
+{
+    char tmp[4200], name[BTF_PACKAGE_NAME_MAX];
+    if (strlen(out) > 4000)
+        return btf_fail(err, BTF_ERR_ARG, "output path too long");
+    snprintf(tmp, sizeof tmp, "%s.tmp-%ld-v1", out, (long)getpid());
+    if (!pkg.name) {
+        const char *b = strrchr(out, '/');
+        b = b && b[1] ? b + 1 : out;
+        snprintf(name, sizeof name, "%s", b);
+        pkg.name = name;
+    }
+    btf_result r = btf_package_compress(src, pca, &pkg, tmp, st, err);
+    if (r != BTF_OK)
+        return r;
+    btf_lod_options lo = {0};
+    lo.levels = levels;
+    btf_lod_stats ls = {0};
+    r = btf_lod_build(tmp, out, &lo, &ls, err);
+    btf_fs_rmtree(tmp, NULL);
+    if (st)
+        st->bytes = ls.bytes, st->n_chunks = ls.n_chunks;
+    return r;
+}
+
+btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg, int levels,
+                             const char *out, btf_compress_stats *stats, btf_error *err)
+{
+    if (levels > 0)
+        return build_v2(src, pca, *pkg, levels, out, stats, err);
+    return btf_package_compress(src, pca, pkg, out, stats, err);
+}

@@ -1,0 +1,19 @@
+/* btf_build.h - one package from one loaded BTF, as `btf compress` and
+ * `btf library build` write it: version 1, or version 2 with spatial levels.
+ *
+ *     btf_build_package(src, &pca, &pkg, 4, "lib/wool", &stats, &err);  // 4 levels
+ *
+ * levels 0 is btf_package_compress. levels > 0 compresses into the writer
+ * temporary OUT.tmp-PID-v1 (which the next writer of OUT cleans up if this one
+ * dies) and adds the levels into OUT with btf_lod_build; either way OUT appears
+ * only complete. pkg->name NULL becomes the last element of OUT.
+ */
+#ifndef BTF_BUILD_H
+#define BTF_BUILD_H
+
+#include "btf_package.h"
+
+btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg, int levels,
+                             const char *out, btf_compress_stats *stats, btf_error *err);
+
+#endif
