@@ -45,6 +45,9 @@ static void usage(FILE *f)
             "  --fragment BYTES     payload bytes per binary piece (4096..1048576, default 131072)\n"
             "  --stall-timeout S    drop a client that takes no data for S seconds (default 20)\n"
             "  --rescan-ms MS       rescan the library every MS ms (default 2000, 0 = only on request)\n"
+            "  --allow-origin LIST  origins (comma-separated, e.g. https://a.example) allowed to embed:\n"
+            "                       CORS on the client, shaders and /materials, and the WebSocket\n"
+            "                       handshake's Origin check (default *: any origin)\n"
             "  --no-csp             do not add the security headers (CSP) to HTTP replies\n"
             "  -v, --verbose        log library changes and lws warnings\n"
             "  --version            print \"btfd VERSION\" and exit\n"
@@ -69,6 +72,7 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         {"library", 1, 0, 'l'},  {"port", 1, 0, 'p'},      {"bind", 1, 0, 'b'},
         {"client", 1, 0, 'c'},   {"shaders", 1, 0, 's'},   {"fragment", 1, 0, 'f'},
         {"stall-timeout", 1, 0, 't'}, {"rescan-ms", 1, 0, 'r'}, {"no-csp", 0, 0, 'n'},
+        {"allow-origin", 1, 0, 'a'},
         {"verbose", 0, 0, 'v'},  {"help", 0, 0, 'h'},      {"version", 0, 0, 'V'},
         {0, 0, 0, 0},
     };
@@ -84,6 +88,7 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         case 't': o->stall_timeout_s = (int)int_arg("--stall-timeout", optarg, 1, 3600); break;
         case 'r': o->rescan_ms = (int)int_arg("--rescan-ms", optarg, 0, 3600000); break;
         case 'n': *csp = 0; break;
+        case 'a': o->allow_origin = optarg; break;
         case 'v': o->verbose = 1; break;
         case 'h': usage(stdout); exit(0);
         case 'V': printf("btfd %s\n", BTF_VERSION); exit(0);
@@ -167,6 +172,7 @@ static void make_mounts(const btfd_options *o, struct lws_http_mount m[3])
     m[1].origin = o->shaders_dir;
     m[1].origin_protocol = LWSMPRO_FILE;
     m[1].extra_mimetypes = mime_extra;
+    m[1].protocol = "http"; /* LWS_CALLBACK_ADD_HEADERS: CORS (btfd_origin.c) */
     m[1].mount_next = &m[2];
     m[2].mountpoint = "/";
     m[2].mountpoint_len = 1;
@@ -174,6 +180,7 @@ static void make_mounts(const btfd_options *o, struct lws_http_mount m[3])
     m[2].def = "index.html";
     m[2].origin_protocol = LWSMPRO_FILE;
     m[2].extra_mimetypes = mime_extra;
+    m[2].protocol = "http";
 }
 
 static struct lws_context *make_context(btfd_server *srv, const struct lws_http_mount *mounts, int csp)

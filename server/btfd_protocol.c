@@ -571,6 +571,8 @@ static void handle_message(btfd_server *srv, btfd_conn *c, const char *msg, size
 /* Assembles a text message from RECEIVE callbacks; handles it when complete. */
 static int on_receive(btfd_server *srv, btfd_conn *c, const char *in, size_t len)
 {
+    if (c->close_code)
+        return 0; /* closing (e.g. origin not allowed): nothing more is read */
     if (lws_frame_is_binary(c->wsi)) {
         static const char why[] = "binary frames are not accepted";
         lws_close_reason(c->wsi, LWS_CLOSE_STATUS_UNACCEPTABLE_OPCODE, (unsigned char *)why,
@@ -642,6 +644,11 @@ static int callback_stream(struct lws *wsi, enum lws_callback_reasons reason, vo
     btfd_server *srv = server_of(wsi);
     switch (reason) {
     case LWS_CALLBACK_ESTABLISHED:
+        if (btfd_origin_check(wsi, srv->opt.allow_origin)) {
+            c->wsi = wsi;
+            conn_close_later(c, LWS_CLOSE_STATUS_POLICY_VIOLATION, "origin not allowed");
+            return 0;
+        }
         on_established(srv, c, wsi);
         return 0;
     case LWS_CALLBACK_SERVER_WRITEABLE:
@@ -712,12 +719,11 @@ static int http_start(btfd_server *srv, struct lws *wsi, btfd_http *h, const cha
         return lws_http_transaction_completed(wsi) ? -1 : 0;
     }
     uint8_t buf[LWS_PRE + 1024], *start = buf + LWS_PRE, *p = start, *end = buf + sizeof buf - 1;
-    static const char cache[] = "no-store", any[] = "*";
+    static const char cache[] = "no-store";
     if (lws_add_http_common_headers(wsi, HTTP_STATUS_OK, mime, h->len, &p, end) ||
         lws_add_http_header_by_token(wsi, WSI_TOKEN_HTTP_CACHE_CONTROL, (const unsigned char *)cache,
                                      sizeof cache - 1, &p, end) ||
-        lws_add_http_header_by_name(wsi, (const unsigned char *)"access-control-allow-origin:",
-                                    (const unsigned char *)any, 1, &p, end) ||
+        btfd_cors_headers(wsi, srv->opt.allow_origin, &p, end) ||
         lws_finalize_write_http_header(wsi, start, &p, end))
         return -1;
     lws_callback_on_writable(wsi);
@@ -752,6 +758,15 @@ static int callback_http(struct lws *wsi, enum lws_callback_reasons reason, void
     switch (reason) {
     case LWS_CALLBACK_HTTP:
         return http_start(server_of(wsi), wsi, h, in ? (const char *)in : "");
+    case LWS_CALLBACK_ADD_HEADERS: { /* file mounts: the client files and the shaders */
+        struct lws_process_html_args *a = in;
+        unsigned char *p = (unsigned char *)a->p;
+        if (btfd_cors_headers(wsi, server_of(wsi)->opt.allow_origin, &p, p + a->max_len))
+            return 1;
+        a->max_len -= (int)(p - (unsigned char *)a->p);
+        a->p = (char *)p;
+        return 0;
+    }
     case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:
         return 1; /* a WebSocket that did not ask for btf-stream.v1 lands here: refuse it */
     case LWS_CALLBACK_HTTP_WRITEABLE:
