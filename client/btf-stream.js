@@ -48,6 +48,8 @@ class Subscription {
     this.material = material;
     this.listeners = new Set();
     this.mid = 0;
+    this.seq = 0;           // seq of the subscribe sent on the current connection (its manifest echoes it)
+    this.sent = false;      // subscribe sent on the current connection
     this.etag = null;
     this.manifest = null;   // raw manifest JSON object
     this.limit = 0;         // chunks the server says the budget allows
@@ -100,6 +102,7 @@ export class BtfStream {
     this.connects = 0;
     this.hello = null;
     this.lastError = null;
+    this.retryTimer = 0;
     this.connect();
   }
 
@@ -129,15 +132,23 @@ export class BtfStream {
       this.lastError = `connection closed (${ev.code}${ev.reason ? ': ' + ev.reason : ''})`;
       for (const sub of this.subs.values()) {
         sub.mid = 0;
+        sub.sent = false;
         sub.partial.clear();
       }
       if (this.subs.size) {
         this.broadcast('onStreamError', this.lastError + ', reconnecting');
-        const delay = Math.min(8000, 250 * 2 ** this.retry++);
-        setTimeout(() => this.connect(), delay);
+        this.reconnectLater();
       }
     };
     ws.onerror = () => {}; // onclose follows with the code
+  }
+
+  reconnectLater() {
+    const delay = Math.min(8000, 250 * 2 ** this.retry++);
+    this.retryTimer = setTimeout(() => {
+      this.retryTimer = 0;
+      this.connect();
+    }, delay);
   }
 
   broadcast(ev, ...args) {
@@ -150,7 +161,7 @@ export class BtfStream {
     return true;
   }
 
-  // listener: {budget() -> {chunks, bytes, error}, onManifest(sub), onChunk(sub, j),
+  // listener: {budget() -> {chunks, bytes, error}, onSubscribe(sub), onManifest(sub), onChunk(sub, j),
   //            onComplete(sub, msg), onError(sub, msg), onStreamError(sub, text)}
   // Returns the subscription; chunks already here are replayed to the listener.
   subscribe(material, listener) {
@@ -161,6 +172,8 @@ export class BtfStream {
       this.subs.set(material, sub);
     }
     sub.listeners.add(listener);
+    if (listener.onSubscribe) listener.onSubscribe(sub); // before any replay below
+    if (!this.ws && !this.retryTimer) this.connect(); // closed while nothing was subscribed
     if (fresh) {
       this.sendSubscribe(sub);
     } else {
@@ -176,10 +189,9 @@ export class BtfStream {
     sub.listeners.delete(listener);
     if (sub.listeners.size) return this.updateBudget(sub);
     this.subs.delete(sub.material);
-    if (sub.mid) {
-      this.byMid.delete(sub.mid);
-      this.send({type: 'unsubscribe', material: sub.material});
-    }
+    if (sub.mid) this.byMid.delete(sub.mid);
+    if (sub.sent) this.send({type: 'unsubscribe', material: sub.material}); // also before its manifest came
+    sub.sent = false;
   }
 
   sendSubscribe(sub) {
@@ -190,7 +202,10 @@ export class BtfStream {
       msg.have = have;
       msg.etag = sub.etag;
     }
-    if (this.send(msg)) sub.sentBudget = JSON.stringify(msg.budget);
+    if (!this.send(msg)) return;
+    sub.seq = msg.seq;
+    sub.sent = true;
+    sub.sentBudget = JSON.stringify(msg.budget);
   }
 
   // Sends the subscription's merged budget when it changed (e.g. a viewer resized).
@@ -239,8 +254,19 @@ export class BtfStream {
     }
   }
 
+  // The subscription a message is for: a manifest by the seq of its subscribe, the
+  // rest by mid (an older subscription of the same name may still be in flight).
+  target(msg) {
+    if (msg.type === 'manifest') {
+      const sub = this.subs.get(msg.material);
+      return sub && sub.sent && sub.seq === msg.seq ? sub : null;
+    }
+    if (msg.type === 'error') return msg.material ? this.subs.get(msg.material) : null;
+    return this.byMid.get(msg.mid) || null;
+  }
+
   onText(msg) {
-    const sub = msg.material ? this.subs.get(msg.material) : null;
+    const sub = this.target(msg);
     switch (msg.type) {
     case 'hello':
       this.hello = msg;
