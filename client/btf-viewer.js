@@ -212,7 +212,7 @@ export class BtfViewer extends HTMLElement {
   }
 
   attributeChangedCallback(name, oldV, newV) {
-    if (!this.isConnected || oldV === newV) return;
+    if (!this.orbit || oldV === newV) return; // before connectedCallback (an upgrade): it reads them all
     if (RESTART.has(name)) return this.restart();
     if (name === 'geometry') this.geometry = GEOMETRIES.includes(newV) ? newV : 'plane';
     if (name === 'light-theta') this.lightTheta = num(this, name, sceneDefaults(this.geometry).lightTheta);

@@ -1,6 +1,6 @@
 // orbit.js - orbit camera control from pointer events: one pointer (mouse button
 // or one finger) drags the azimuth/elevation, two fingers pinch to zoom, the wheel
-// zooms, the keyboard orbits (arrows) and zooms (+/-). onChange() is called after every
+// zooms, the keyboard orbits (arrows) and zooms (+/-); one finger turns only the azimuth. onChange() is called after every
 // change. attach(true) turns the controls on (the element should then have CSS
 // `touch-action: pan-y` so vertical swipes still scroll the page); without controls
 // only the pointer position is reported (light follows pointer) and nothing is prevented.
@@ -65,7 +65,8 @@ export class Orbit {
     p.moved += Math.abs(dx) + Math.abs(dy);
     if (this.pointers.size === 1) {
       const h = this.target.clientHeight || 300;
-      this.rotate((-dx / h) * 180, (dy / h) * 180);
+      // one finger: vertical swipes belong to the page (touch-action: pan-y), so only azimuth
+      this.rotate((-dx / h) * 180, e.pointerType === 'touch' ? 0 : (dy / h) * 180);
     } else if (this.pointers.size === 2) {
       const s = this.spread();
       if (this.pinch > 0 && s > 0) this.zoom(this.pinch / s);

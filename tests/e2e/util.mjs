@@ -241,3 +241,34 @@ export function sideBySide(images) {
   }
   return {width: w, height: h, data};
 }
+
+// A page server on another loopback port (another origin than btfd): GET /NAME.html
+// answers pages[NAME] (HTML text). Resolves {url, close()}.
+export async function servePages(pages) {
+  const http = await import('node:http');
+  const srv = http.createServer((req, res) => {
+    const name = new URL(req.url, 'http://x').pathname.replace(/^\/|\.html$/g, '');
+    if (!(name in pages)) {
+      res.writeHead(404).end();
+      return;
+    }
+    res.writeHead(200, {'content-type': 'text/html; charset=utf-8', 'cache-control': 'no-store'});
+    res.end(typeof pages[name] === 'function' ? pages[name](req) : pages[name]);
+  });
+  await new Promise((r) => srv.listen(0, '127.0.0.1', r));
+  return {url: `http://127.0.0.1:${srv.address().port}/`, close: () => new Promise((r) => srv.close(r))};
+}
+
+// Every text frame the server sent on the page's WebSockets, parsed (frames.text), and
+// the binary payload bytes (frames.binary), as the browser's network layer saw them.
+export function watchFrames(page) {
+  const frames = {text: [], binary: 0, sockets: 0};
+  page.on('websocket', (ws) => {
+    frames.sockets++;
+    ws.on('framereceived', (f) => {
+      if (typeof f.payload === 'string') frames.text.push(JSON.parse(f.payload));
+      else frames.binary += f.payload.length;
+    });
+  });
+  return frames;
+}

@@ -1,0 +1,272 @@
+// embed.test.mjs - <btf-viewer> embedded in pages of another origin (a node http server
+// on another loopback port) with the README's two-line snippet: cross-origin loading,
+// events, attribute changes in flight, lazy loading, touch scrolling on a phone, and
+// 40 viewers on one page. Run: node --test tests/e2e/
+import assert from 'node:assert/strict';
+import {after, before, describe, it} from 'node:test';
+import {launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames} from './util.mjs';
+
+const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3]};
+let lib, server, pages, desktop;
+
+// The README snippet (script from btfd, element with no src: the script's origin), plus `body`.
+const snippet = (body) => `<!doctype html><html><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1"><link rel="icon" href="data:,">
+<script type="module" src="${server.url}btf-viewer.js"></script></head>
+<body style="margin:0">${body}</body></html>`;
+
+const viewer = (attrs, style = 'width:200px;height:200px') => `<btf-viewer ${attrs} style="${style}"></btf-viewer>`;
+
+before(async () => {
+  requireBuild();
+  lib = makeLibrary(MATERIALS);
+  server = await startServer(lib.lib);
+  pages = await servePages({
+    one: () => snippet(viewer('material="knit" geometry="sphere" light="fixed" budget-chunks="3"')),
+    events: () => snippet(`<script type="module">
+      window.__events = [];
+      for (const t of ['load', 'progress', 'complete', 'error', 'camera-change'])
+        document.addEventListener(t, (e) => window.__events.push({type: t, detail: e.detail,
+          target: e.target.getAttribute('material')}));
+    </script>${viewer('material="knit" light="fixed" budget-chunks="4" loading="eager"')}
+    ${viewer('material="nosuch" light="fixed" loading="eager"')}`),
+    lazy: () => snippet(`<div style="height:4000px">top</div>${viewer('material="tiles" light="fixed"')}`),
+    scroll: () => snippet(`${viewer('material="stone" light="fixed"', 'display:block;width:100%;height:300px')}
+      <div style="height:1200px"></div>
+      ${viewer('material="stone" light="fixed" camera-controls', 'display:block;width:100%;height:300px')}
+      <div style="height:3000px"></div>`),
+    forty: () => snippet(Array.from({length: 40}, (_, i) =>
+      viewer(`material="${Object.keys(MATERIALS)[i % 3]}" light="fixed" budget-chunks="1" max-dpr="1"`,
+        'width:96px;height:96px')).join('')),
+  });
+  desktop = await launch();
+});
+
+after(async () => {
+  await desktop?.close();
+  await pages?.close();
+  await server?.stop();
+  lib?.remove();
+});
+
+function assertClean(ctx) {
+  const p = ctx.problems.splice(0);
+  assert.deepEqual(p, [], `the page reported errors:\n${p.join('\n')}`);
+}
+
+// Share of pixels of viewer i that differ from its background (something was drawn).
+async function coverage(page, i) {
+  return page.evaluate((k) => {
+    const c = window.__btf.capture(k), px = atob(c.rgba);
+    let fg = 0;
+    for (let p = 0; p < px.length; p += 4) if (Math.abs(px.charCodeAt(p) - px.charCodeAt(0)) > 8) fg++;
+    return fg / (c.width * c.height);
+  }, i);
+}
+
+describe('cross-origin embedding (README snippet on another origin)', () => {
+  it('loads the script, shaders and stream from btfd and draws', async () => {
+    const page = await newPage(desktop);
+    const sockets = [];
+    page.on('websocket', (ws) => sockets.push(ws.url()));
+    await page.goto(`${pages.url}one.html`);
+    assert.notEqual(new URL(pages.url).origin, new URL(server.url).origin);
+    await waitFor(page, () => window.__btf?.viewers()[0]?.drawnChunks === 3, null, 'three chunks drawn');
+    assert.deepEqual(sockets, [`${server.ws}`], 'the stream defaults to the script origin');
+    assert.ok(await coverage(page, 0) > 0.1, 'the sphere covers > 10% of the canvas');
+    assertClean(desktop);
+  });
+});
+
+describe('events and properties', () => {
+  it('fires load, progress and complete in order, error with a reason, camera-change', async () => {
+    const page = await newPage(desktop);
+    await page.goto(`${pages.url}events.html`);
+    await waitFor(page, () => window.__events?.some((e) => e.type === 'complete'), null, 'complete');
+    await waitFor(page, () => window.__events.some((e) => e.type === 'error'), null, 'error');
+    const ev = (await page.evaluate(() => window.__events)).filter((e) => e.target === 'knit');
+    const types = ev.map((e) => e.type);
+    const load = types.indexOf('load'), complete = types.indexOf('complete');
+    assert.ok(types[0] === 'progress' && load > 0 && complete > load, types.join(' '));
+    const prog = ev.filter((e) => e.type === 'progress').map((e) => e.detail);
+    assert.deepEqual(prog.map((p) => p.chunks), [1, 2, 3, 4], 'one progress per chunk');
+    assert.ok(prog.every((p) => p.chunksWanted === 4 && p.bytes > 0 && p.bytes <= p.bytesWanted), JSON.stringify(prog));
+    assert.ok(prog[0].error > prog[3].error, 'the promised error falls');
+    assert.equal(prog[3].bytes, prog[3].bytesWanted);
+    assert.equal(types.filter((t) => t === 'complete').length, 1);
+    const err = (await page.evaluate(() => window.__events)).find((e) => e.type === 'error');
+    assert.equal(err.target, 'nosuch');
+    assert.match(err.detail.reason, /unknown_material/);
+    // properties reflect attributes; a camera attribute moves the camera and says so
+    const r = await page.evaluate(() => {
+      const v = document.querySelector('btf-viewer');
+      v.cameraTheta = 10;
+      return {material: v.material, budget: v.budgetChunks, attr: v.getAttribute('camera-theta'),
+        controls: v.cameraControls, cam: window.__events.filter((e) => e.type === 'camera-change').pop()};
+    });
+    assert.deepEqual([r.material, r.budget, r.attr, r.controls], ['knit', 4, '10', false]);
+    assert.equal(Math.round(r.cam.detail.theta), 10);
+    ctxProblemsWithout(desktop, /404|unknown_material/);
+    assertClean(desktop);
+  });
+
+  it('attribute changes in flight leave one subscription and one GPU package', async () => {
+    const page = await newPage(desktop);
+    const frames = watchFrames(page);
+    await page.goto(`${pages.url}one.html`);
+    await waitFor(page, () => window.__btf?.viewers()[0]?.received >= 1, null, 'streaming');
+    // switch material, src-independent attributes and geometry while chunks are in flight
+    await page.evaluate(async () => {
+      const v = document.querySelector('btf-viewer');
+      for (const m of ['tiles', 'stone', 'knit', 'tiles', 'stone']) {
+        v.material = m;
+        v.geometry = m === 'stone' ? 'plane' : 'cylinder';
+        await new Promise((r) => setTimeout(r, 15));
+      }
+      v.budgetChunks = 2;
+    });
+    await waitFor(page, () => {
+      const v = window.__btf.viewers()[0];
+      return v.material === 'stone' && v.drawnChunks === 2 && v.complete;
+    }, null, 'the last material drawn');
+    await new Promise((r) => setTimeout(r, 300)); // late replies of the old subscriptions
+    const st = await page.evaluate(() => ({gl: window.__btf.gl(), streams: window.__btf.streams()}));
+    assert.equal(st.gl.packages, 1, `GPU packages alive: ${st.gl.packages}`);
+    assert.equal(st.gl.contexts, 1);
+    assert.equal(st.streams.length, 1);
+    assert.deepEqual(st.streams[0].subscriptions.map((s) => [s.material, s.listeners]), [['stone', 1]]);
+    // the server's view: subscriptions it created (manifests) minus those it ended (unsubscribed)
+    const made = frames.text.filter((m) => m.type === 'manifest').map((m) => m.mid);
+    const ended = new Set(frames.text.filter((m) => m.type === 'unsubscribed').map((m) => m.mid));
+    const live = made.filter((m) => !ended.has(m));
+    assert.ok(made.length >= 2, `several subscriptions were made: ${made}`);
+    assert.equal(live.length, 1, `server-side live subscriptions: ${live} of ${made}`);
+    assert.equal(frames.text.filter((m) => m.type === 'error').length, 0, JSON.stringify(frames.text
+      .filter((m) => m.type === 'error')));
+    assertClean(desktop);
+  });
+});
+
+function ctxProblemsWithout(ctx, re) {
+  ctx.problems = ctx.problems.filter((p) => !re.test(p));
+}
+
+describe('loading="lazy"', () => {
+  it('opens no socket, fetches nothing and creates no context until scrolled near', async () => {
+    const page = await newPage(desktop);
+    await page.setViewportSize({width: 800, height: 600});
+    const sockets = [], requests = [];
+    page.on('websocket', (ws) => sockets.push(ws.url()));
+    page.on('request', (r) => requests.push(r.url()));
+    await page.goto(`${pages.url}lazy.html`);
+    await waitFor(page, () => window.__btf?.viewers().length === 1, null, 'the element defined');
+    await new Promise((r) => setTimeout(r, 1000));
+    const gl = await page.evaluate(() => window.__btf.gl());
+    const early = requests.filter((u) => /\/shaders\/|\/materials/.test(u));
+    assert.deepEqual([sockets.length, early.length, gl.contexts], [0, 0, 0],
+      `before scrolling: sockets ${sockets}, requests ${early}, contexts ${gl.contexts}`);
+    await page.evaluate(() => window.scrollTo(0, 3500));
+    await waitFor(page, () => window.__btf.viewers()[0].frames > 0, null, 'drawn after scrolling near');
+    assert.equal(sockets.length, 1);
+    assert.ok(requests.some((u) => u.includes('/shaders/')));
+    assertClean(desktop);
+  });
+});
+
+describe('a good guest on a phone', () => {
+  it('vertical swipes over viewers scroll the page, with and without camera-controls', async () => {
+    const phone = await launch({viewport: {width: 390, height: 700}, deviceScaleFactor: 2, isMobile: true,
+      hasTouch: true});
+    try {
+      const page = await newPage(phone);
+      await page.goto(`${pages.url}scroll.html`);
+      await waitFor(page, () => window.__btf?.viewers()[0]?.frames > 0, null, 'first viewer drawn');
+      const cdp = await phone.newCDPSession(page);
+      const swipe = async (y0) => {
+        await cdp.send('Input.dispatchTouchEvent', {type: 'touchStart', touchPoints: [{x: 200, y: y0}]});
+        for (let i = 1; i <= 10; i++)
+          await cdp.send('Input.dispatchTouchEvent', {type: 'touchMove', touchPoints: [{x: 200, y: y0 - 20 * i}]});
+        await cdp.send('Input.dispatchTouchEvent', {type: 'touchEnd', touchPoints: []});
+        await new Promise((r) => setTimeout(r, 300));
+        return page.evaluate(() => window.scrollY);
+      };
+      const y1 = await swipe(250); // on the first viewer (no camera-controls)
+      assert.ok(y1 > 50, `the page scrolled over a plain viewer: scrollY ${y1}`);
+      // bring the camera-controls viewer under the finger
+      await page.evaluate(() => window.scrollTo(0, 1500 - 100));
+      const yc0 = await page.evaluate(() => window.scrollY);
+      const cam0 = await page.evaluate(() => window.__btf.viewers()[1].camera);
+      const y2 = await swipe(300);
+      assert.ok(y2 > yc0 + 50, `the page scrolled over a camera-controls viewer: ${yc0} -> ${y2}`);
+      const v = await page.evaluate(() => ({touch: getComputedStyle(document.querySelectorAll('btf-viewer')[1]
+        .shadowRoot.querySelector('canvas')).touchAction, cam: window.__btf.viewers()[1].camera}));
+      assert.equal(v.touch, 'pan-y');
+      assert.deepEqual(v.cam, cam0, 'a vertical swipe does not orbit');
+      assertClean(phone);
+    } finally {
+      await phone.close();
+    }
+  });
+
+  it('wheel zooms only once engaged, arrow keys orbit, alt labels', async () => {
+    const page = await newPage(desktop);
+    await page.setViewportSize({width: 800, height: 600});
+    await page.goto(`${pages.url}scroll.html`);
+    await waitFor(page, () => window.__btf?.viewers()[0]?.frames > 0, null, 'drawn');
+    await page.evaluate(() => window.scrollTo(0, 1500 - 100));
+    await waitFor(page, () => window.__btf.viewers()[1].frames > 0, null, 'second viewer drawn');
+    const at = await page.evaluate(() => {
+      const r = document.querySelectorAll('btf-viewer')[1].getBoundingClientRect();
+      return {x: r.left + 100, y: r.top + 100, scroll: window.scrollY};
+    });
+    await page.mouse.move(at.x, at.y);
+    const d0 = (await page.evaluate(() => window.__btf.viewers()[1].camera))[2];
+    await page.mouse.wheel(0, 300);
+    await new Promise((r) => setTimeout(r, 300));
+    const s1 = await page.evaluate(() => ({scroll: window.scrollY, d: window.__btf.viewers()[1].camera[2]}));
+    assert.ok(s1.scroll > at.scroll && s1.d === d0, `not engaged: the page scrolls (${at.scroll} -> ${s1.scroll})`);
+    await page.evaluate((y) => window.scrollTo(0, y), at.scroll);
+    await page.mouse.click(at.x, at.y);
+    const before = await page.evaluate(() => window.scrollY);
+    await page.mouse.wheel(0, 300);
+    await new Promise((r) => setTimeout(r, 300));
+    const s2 = await page.evaluate(() => ({scroll: window.scrollY, d: window.__btf.viewers()[1].camera[2]}));
+    assert.ok(s2.d > d0 && s2.scroll === before, `engaged: zoom ${d0} -> ${s2.d}, scroll ${before} -> ${s2.scroll}`);
+    const az0 = (await page.evaluate(() => window.__btf.viewers()[1].camera))[0];
+    await page.keyboard.press('ArrowLeft');
+    const az1 = (await page.evaluate(() => window.__btf.viewers()[1].camera))[0];
+    assert.equal(az1, az0 + 5, 'ArrowLeft orbits by 5 degrees');
+    const aria = await page.evaluate(() => {
+      const v = document.querySelectorAll('btf-viewer')[1];
+      v.alt = 'Stone tiles';
+      return [v.getAttribute('role'), v.getAttribute('aria-label'), v.tabIndex];
+    });
+    assert.deepEqual(aria, ['img', 'Stone tiles', 0]);
+    assertClean(desktop);
+  });
+});
+
+describe('many viewers', () => {
+  it('40 viewers on one page share one WebGL2 context and all draw', async () => {
+    const page = await newPage(desktop);
+    await page.setViewportSize({width: 1000, height: 700});
+    await page.goto(`${pages.url}forty.html`);
+    await waitFor(page, () => window.__btf?.viewers().length === 40 &&
+      window.__btf.viewers().every((v) => v.drawnChunks === 1 && v.frames > 0), null, '40 viewers drawn', 120000);
+    const gl = await page.evaluate(() => window.__btf.gl());
+    assert.equal(gl.contexts, 1);
+    assert.equal(gl.packages, 40);
+    const cov = [];
+    for (let i = 0; i < 40; i++) cov.push(await coverage(page, i));
+    assert.ok(cov.every((c) => c > 0.1), `every viewer covers > 10%: ${cov.map((c) => c.toFixed(2))}`);
+    // what the page shows: the viewers' own 2D canvases hold the frames (not only the shared one)
+    const shown = await page.evaluate(() => [...document.querySelectorAll('btf-viewer')].map((v) => {
+      const c = v.shadowRoot.querySelector('canvas'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+      let fg = 0;
+      for (let p = 0; p < d.length; p += 4) if (Math.abs(d[p] - d[0]) > 8) fg++;
+      return fg / (c.width * c.height);
+    }));
+    assert.ok(shown.every((c) => c > 0.1), `every canvas shows its frame: ${shown.map((c) => c.toFixed(2))}`);
+    assertClean(desktop);
+  });
+});
