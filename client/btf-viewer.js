@@ -314,6 +314,7 @@ export class BtfViewer extends HTMLElement {
     if (url) this.posterImg.src = new URL(url, document.baseURI).href;
     else this.posterImg.removeAttribute('src');
     this.posterImg.hidden = !url || this.loaded;
+    if (url) this.posterShown = this.posterImg.src;
   }
 
   async defaultPoster(gen) {
@@ -325,6 +326,7 @@ export class BtfViewer extends HTMLElement {
     if (gen !== this.gen || !m || !m.thumbnail || this.loaded) return;
     this.posterImg.src = new URL(m.thumbnail, base).href;
     this.posterImg.hidden = false;
+    this.posterShown = this.posterImg.src;
   }
 
   emit(type, detail) {
@@ -705,6 +707,7 @@ export class BtfViewer extends HTMLElement {
       scene: this.pkg && this.pkg.version >= 2 ? (({level, components, needed, limit, bytes}) =>
         ({level, components, needed, limit, bytes}))(this.sceneBudget()) : null,
       slots: this.gpu ? this.gpu.slots : 0, poster: this.posterImg.hidden ? null : this.posterImg.src,
+      posterShown: this.posterShown ?? null,
     };
   }
 }

@@ -4,7 +4,9 @@
 // 40 viewers on one page. Run: node --test tests/e2e/
 import assert from 'node:assert/strict';
 import {after, before, describe, it} from 'node:test';
-import {launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames} from './util.mjs';
+import path from 'node:path';
+import {launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames, writePng}
+  from './util.mjs';
 
 const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3]};
 let lib, server, pages, desktop;
@@ -20,6 +22,9 @@ const viewer = (attrs, style = 'width:200px;height:200px') => `<btf-viewer ${att
 before(async () => {
   requireBuild();
   lib = makeLibrary(MATERIALS);
+  // tiles gets a thumbnail (the default poster): 8x8 pure red
+  writePng(path.join(lib.lib, 'tiles', 'thumbnail.png'), {width: 8, height: 8,
+    data: new Uint8Array(256).map((_, i) => (i % 4 === 0 || i % 4 === 3 ? 255 : 0))});
   server = await startServer(lib.lib);
   pages = await servePages({
     one: () => snippet(viewer('material="knit" geometry="sphere" light="fixed" budget-chunks="3"')),
@@ -166,7 +171,11 @@ describe('loading="lazy"', () => {
     assert.deepEqual([sockets.length, early.length, gl.contexts], [0, 0, 0],
       `before scrolling: sockets ${sockets}, requests ${early}, contexts ${gl.contexts}`);
     await page.evaluate(() => window.scrollTo(0, 3500));
+    // the poster (tiles' thumbnail from btfd) shows until the first frame, then hides
     await waitFor(page, () => window.__btf.viewers()[0].frames > 0, null, 'drawn after scrolling near');
+    const shown = (await page.evaluate(() => window.__btf.viewers()[0])).posterShown;
+    assert.match(String(shown), /\/materials\/tiles\/thumbnail\.png$/);
+    assert.equal((await page.evaluate(() => window.__btf.viewers()[0])).poster, null, 'poster hidden once drawn');
     assert.equal(sockets.length, 1);
     assert.ok(requests.some((u) => u.includes('/shaders/')));
     assertClean(desktop);
