@@ -7,6 +7,8 @@
 // Binary frames: 20-byte header of little-endian u32 (subscription id, chunk,
 // file index in the chunk's "files", offset, file size), then payload bytes.
 
+import {dropChunks, loadChunks, storeChunk} from './btf-cache.js';
+
 export const SUBPROTOCOL = 'btf-stream.v1';
 const HEADER = 20;
 
@@ -60,6 +62,20 @@ class Subscription {
     this.complete = false;
     this.sentBudget = null;
     this.error = null;
+    this.loading = true;    // reading kept chunks (btf-cache.js); subscribe waits for it
+    this.unannounced = 0;   // kept chunks the listeners have not been told about yet
+    this.cached = 0;        // chunks that came from the browser's cache
+  }
+
+  // Chunks kept from an earlier visit become held ones: the subscribe lists them in
+  // `have` with their etag, and they are replayed once the manifest confirms the etag.
+  adopt(kept) {
+    if (kept && !this.manifest) {
+      this.etag = kept.etag;
+      kept.chunks.forEach((files, j) => { this.chunks[j] = files; });
+      this.received = this.cached = this.unannounced = kept.chunks.length;
+    }
+    this.loading = false;
   }
 
   have() {
@@ -175,7 +191,10 @@ export class BtfStream {
     if (listener.onSubscribe) listener.onSubscribe(sub); // before any replay below
     if (!this.ws && !this.retryTimer) this.connect(); // closed while nothing was subscribed
     if (fresh) {
-      this.sendSubscribe(sub);
+      loadChunks(this.url, material).then((kept) => {
+        sub.adopt(kept);
+        if (this.subs.get(material) === sub) this.sendSubscribe(sub);
+      });
     } else {
       if (sub.manifest && listener.onManifest) listener.onManifest(sub);
       sub.chunks.forEach((c, j) => c && listener.onChunk && listener.onChunk(sub, j));
@@ -195,6 +214,7 @@ export class BtfStream {
   }
 
   sendSubscribe(sub) {
+    if (sub.loading) return; // sent once the kept chunks are read
     const budget = sub.budget();
     const msg = {type: 'subscribe', material: sub.material, seq: ++this.seq, budget: wireBudget(budget)};
     const have = sub.have();
@@ -250,6 +270,7 @@ export class BtfStream {
       sub.partial.delete(chunk);
       sub.chunks[chunk] = p.files;
       sub.received++;
+      storeChunk(this.url, sub.material, sub.etag, chunk, p.files);
       sub.emit('onChunk', chunk);
     }
   }
@@ -273,9 +294,10 @@ export class BtfStream {
       break;
     case 'manifest':
       if (!sub) return;
-      if (sub.etag && sub.etag !== msg.etag) { // the package changed on the server
+      if (sub.etag && (sub.etag !== msg.etag || !msg.resumed) && sub.received) { // the package changed
         sub.chunks = [];
-        sub.received = 0;
+        sub.received = sub.cached = sub.unannounced = 0;
+        dropChunks(this.url, sub.material);
       }
       sub.mid = msg.mid;
       sub.etag = msg.etag;
@@ -285,6 +307,7 @@ export class BtfStream {
         sub.manifest = msg.manifest;
         sub.emit('onManifest');
       }
+      for (; sub.unannounced; sub.unannounced--) sub.emit('onChunk', sub.received - sub.unannounced);
       this.updateBudget(sub);
       break;
     case 'budget':
@@ -313,6 +336,7 @@ export class BtfStream {
   stats() {
     return {url: this.url, open: this.open, bytes: this.bytes, frames: this.frames, connects: this.connects,
             subscriptions: [...this.subs.values()].map((s) => ({material: s.material, received: s.received,
+              cached: s.cached,
               bytes: s.bytes, limit: s.limit, complete: s.complete, listeners: s.listeners.size,
               budget: s.budget()}))};
   }

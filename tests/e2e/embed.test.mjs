@@ -4,8 +4,11 @@
 // 40 viewers on one page. Run: node --test tests/e2e/
 import assert from 'node:assert/strict';
 import {after, before, describe, it} from 'node:test';
+import {spawnSync} from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
 import path from 'node:path';
-import {launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames, writePng}
+import {BTF, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames, writePng}
   from './util.mjs';
 
 const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3]};
@@ -277,5 +280,53 @@ describe('many viewers', () => {
     }));
     assert.ok(shown.every((c) => c > 0.1), `every canvas shows its frame: ${shown.map((c) => c.toFixed(2))}`);
     assertClean(desktop);
+  });
+});
+
+describe('a second visit', () => {
+  // One visit in a browser profile: the bytes the server streamed (binary frames as the
+  // browser's network layer saw them) and whether the server resumed from the kept chunks.
+  const visit = async (profile) => {
+    const ctx = await launch({}, profile);
+    try {
+      const page = await newPage(ctx);
+      const frames = watchFrames(page);
+      await page.goto(`${pages.url}one.html`);
+      await waitFor(page, () => window.__btf?.viewers()[0]?.drawnChunks === 3, null, 'three chunks drawn');
+      assert.ok(await coverage(page, 0) > 0.1, 'drawn');
+      const m = frames.text.find((x) => x.type === 'manifest');
+      assertClean(ctx);
+      return {bytes: frames.binary, resumed: m.resumed, held: m.held, etag: m.etag};
+    } finally {
+      await ctx.close();
+    }
+  };
+
+  it('draws from the kept chunks, streams nothing again, and refetches a new etag', async () => {
+    const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-profile-'));
+    try {
+      const first = await visit(profile);
+      const second = await visit(profile);
+      assert.ok(first.bytes > 100000 && !first.resumed, JSON.stringify(first));
+      assert.ok(second.resumed && second.held === 3, `the server resumed: ${JSON.stringify(second)}`);
+      assert.ok(second.bytes < 1000, `second visit streamed ${second.bytes} of ${first.bytes} bytes`);
+      console.log(`# second visit: ${first.bytes} -> ${second.bytes} chunk bytes over the network ` +
+        `(${(100 * (1 - second.bytes / first.bytes)).toFixed(1)}% saved)`);
+      // the package is replaced (new etag): everything streams again
+      const dir = path.join(lib.dir, 'knit-new');
+      const src = path.join(lib.dir, 'knit2.btf');
+      for (const args of [['gen', 'knit', src, '--size', '32', '--format', 'btf', '--components', '16', '--seed', '7'],
+        ['compress', src, dir, '--k', '3', '--components', '5', '--quiet']]) {
+        const r = spawnSync(BTF, args, {encoding: 'utf8'});
+        assert.equal(r.status, 0, r.stderr);
+      }
+      fs.renameSync(path.join(lib.lib, 'knit'), path.join(lib.dir, 'knit-old'));
+      fs.renameSync(dir, path.join(lib.lib, 'knit'));
+      await fetch(`${server.url}materials`); // rescans the library
+      const third = await visit(profile);
+      assert.ok(!third.resumed && third.etag !== first.etag && third.bytes > 100000, JSON.stringify(third));
+    } finally {
+      fs.rmSync(profile, {recursive: true, force: true});
+    }
   });
 });

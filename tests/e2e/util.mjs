@@ -84,10 +84,11 @@ export function startServer(lib) {
 }
 
 // A fresh browser context (own profile dir) with page errors and console errors
-// collected in ctx.problems. Options as playwright's launchPersistentContext.
-export async function launch(options = {}) {
+// collected in ctx.problems. Options as playwright's launchPersistentContext. With
+// keepProfile (a directory) that profile is used and kept (a second visit).
+export async function launch(options = {}, keepProfile = null) {
   const {chromium} = await import('playwright-core');
-  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-chromium-'));
+  const profile = keepProfile || fs.mkdtempSync(path.join(os.tmpdir(), 'btf-chromium-'));
   const ctx = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM, headless: true, args: CHROMIUM_ARGS, viewport: {width: 1000, height: 700},
     ...options,
@@ -104,7 +105,7 @@ export async function launch(options = {}) {
   const close = ctx.close.bind(ctx);
   ctx.close = async () => {
     await close();
-    fs.rmSync(profile, {recursive: true, force: true});
+    if (!keepProfile) fs.rmSync(profile, {recursive: true, force: true});
   };
   return ctx;
 }
