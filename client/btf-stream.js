@@ -115,6 +115,7 @@ export class BtfStream {
     this.retry = 0;
     this.bytes = 0;        // all bytes received (headers and text included)
     this.frames = 0;
+    this.pieces = {bytes: 0, first: null, last: null, firstBytes: 0}; // binary frames: bytes, arrival times (ms)
     this.connects = 0;
     this.hello = null;
     this.lastError = null;
@@ -251,6 +252,9 @@ export class BtfStream {
       return this.onText(msg);
     }
     this.bytes += data.byteLength;
+    this.pieces.bytes += data.byteLength;
+    this.pieces.last = performance.now();
+    if (this.pieces.first === null) [this.pieces.first, this.pieces.firstBytes] = [this.pieces.last, data.byteLength];
     if (data.byteLength < HEADER) return;
     const h = new DataView(data, 0, HEADER);
     const [mid, chunk, file, off, total] = [0, 4, 8, 12, 16].map((o) => h.getUint32(o, true));
@@ -335,6 +339,7 @@ export class BtfStream {
 
   stats() {
     return {url: this.url, open: this.open, bytes: this.bytes, frames: this.frames, connects: this.connects,
+            pieces: this.pieces,
             subscriptions: [...this.subs.values()].map((s) => ({material: s.material, received: s.received,
               cached: s.cached,
               bytes: s.bytes, limit: s.limit, complete: s.complete, listeners: s.listeners.size,

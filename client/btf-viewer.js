@@ -30,6 +30,10 @@
 // All viewers share one WebGL2 context (btf-context.js) and one WebSocket per server
 // (btf-stream.js). Test hook: window.__btf (viewers' state, capture()).
 
+// Every module of the element is imported here, so the browser asks for all of them
+// in one round trip (btf-cache.js and btf-render.js are otherwise found one level deeper).
+import './btf-cache.js';
+import './btf-render.js';
 import {BtfStream} from './btf-stream.js';
 import {GpuPackage} from './btf-gl.js';
 import {sharedGl, sharedStats} from './btf-context.js';
@@ -133,6 +137,7 @@ export class BtfViewer extends HTMLElement {
     this.frames = 0;
     this.drawnChunks = 0;
     this.uploadChain = Promise.resolve();
+    this.closeReady();
     this.gpu = null;
     this.pkg = null;
     this.sub = null;
@@ -352,23 +357,24 @@ export class BtfViewer extends HTMLElement {
     this.shaderBase = this.getAttribute('shaders') || SHADERS_URL;
     this.defaultPoster(gen);
     this.resize();
+    // the stream starts while the shaders load: chunks arrive (and upload) meanwhile
+    this.stream = BtfStream.for(this.src);
+    this.stream.subscribe(material, this); // sets this.sub (onSubscribe)
+    this.updateLabel();
     try {
       const r = await this.ctx.renderer(this.shaderBase);
       if (gen !== this.gen) return;
       this.renderer = r;
+      this.invalidate();
     } catch (e) {
       if (gen === this.gen) this.fail(e);
-      return;
     }
-    if (!this.isConnected) return;
-    this.stream = BtfStream.for(this.src);
-    this.stream.subscribe(material, this); // sets this.sub (onSubscribe)
-    this.updateLabel();
   }
 
   contextLost() {
     this.lost = true;
     this.fence = null;
+    this.closeReady();
     this.gpu?.free();
     this.gpu = null;
     this.renderer = null;
@@ -458,6 +464,7 @@ export class BtfViewer extends HTMLElement {
     this.gpu?.free();
     this.gpu = null;
     this.uploadChain = Promise.resolve();
+    this.closeReady();
     if (this.gl && !this.lost) this.gpu = new GpuPackage(this.gl, this.pkg, Math.max(1, this.ownLimit()));
     this.updateLabel();
   }
@@ -485,6 +492,8 @@ export class BtfViewer extends HTMLElement {
     return sub === this.sub && gpu && gpu === this.gpu && !this.lost;
   }
 
+  // Decodes chunk j (createImageBitmap: off the main thread) and queues it; frame()
+  // uploads at most one queued chunk per frame, so a burst of chunks never stalls drawing.
   async uploadChunk(sub, j, gpu) {
     if (!this.current(sub, gpu) || j < gpu.uploaded) return;
     const chunk = this.pkg.chunks[j];
@@ -495,10 +504,22 @@ export class BtfViewer extends HTMLElement {
     if (!this.current(sub, gpu)) return bitmap.close();
     const wt = await this.chunkWeights(chunk, data, gpu);
     if (!this.current(sub, gpu)) return bitmap.close();
-    gpu.upload(j, bitmap, wt);
-    bitmap.close();
-    this.updateLabel();
+    this.ready.push({j, bitmap, wt, gpu});
     this.invalidate();
+  }
+
+  // The next decoded chunk into the GPU (one per frame).
+  uploadReady() {
+    const r = this.ready.shift();
+    if (!r) return;
+    if (r.gpu === this.gpu && !this.lost && r.j === r.gpu.uploaded) r.gpu.upload(r.j, r.bitmap, r.wt);
+    r.bitmap.close();
+    this.updateLabel();
+  }
+
+  closeReady() {
+    for (const r of this.ready || []) r.bitmap.close();
+    this.ready = [];
   }
 
   // Dequantised weights of a chunk: wt-JJ.bin (16-bit, .precise), else version 2's
@@ -542,6 +563,7 @@ export class BtfViewer extends HTMLElement {
     if (!this.pkg || !this.sub) return;
     this.gpu = new GpuPackage(this.gl, this.pkg, Math.max(1, this.ownLimit()));
     this.uploadChain = Promise.resolve();
+    this.closeReady();
     const sub = this.sub, gpu = this.gpu;
     sub.chunks.forEach((c, j) => c && (this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gpu))));
     this.invalidate();
@@ -609,6 +631,7 @@ export class BtfViewer extends HTMLElement {
     const limit = this.ownLimit();
     if (chunks >= limit && this.complete && this.completeFor !== limit) {
       this.completeFor = limit;
+      this.completeAt = performance.now(); // since navigation start
       this.emit('complete', this.progress());
     }
   }
@@ -618,7 +641,13 @@ export class BtfViewer extends HTMLElement {
   // viewers on one page never queue frames faster than they are drawn.
   frame() {
     this.raf = 0;
+    try {
+      this.uploadReady();
+    } catch (e) {
+      this.fail(e);
+    }
     this.draw();
+    if (this.ready.length) this.invalidate();
     clearTimeout(this.timer);
     if (!this.animating()) return;
     const gl = this.gl;
@@ -700,7 +729,8 @@ export class BtfViewer extends HTMLElement {
       uploaded: this.gpu ? this.gpu.uploaded : 0, uploads: this.gpu ? this.gpu.uploads : 0,
       capacity: this.gpu ? this.gpu.capacity : 0, drawnChunks: this.drawnChunks, frames: this.frames,
       complete: this.complete, error: this.error || null, label: this.label.textContent, started: this.started,
-      firstFrameMs: this.firstFrameMs, firstFrameAt: this.firstFrameAt ?? null, firstFrameBytes: this.firstFrameBytes,
+      firstFrameMs: this.firstFrameMs, firstFrameAt: this.firstFrameAt ?? null,
+      completeAt: this.completeAt ?? null, firstFrameBytes: this.firstFrameBytes,
       streamBytes: this.sub ? this.sub.bytes : 0, drags: this.orbit ? this.orbit.drags : 0,
       camera: this.orbit ? [this.orbit.az, this.orbit.el, this.orbit.dist] : null, lost: this.lost,
       version: this.pkg ? this.pkg.version : 0, footprint: this.footprint(),

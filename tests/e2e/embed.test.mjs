@@ -8,10 +8,11 @@ import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
+import {measureLink} from './throttle.mjs';
 import {BTF, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames, writePng}
   from './util.mjs';
 
-const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3]};
+const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3], wide: ['knit', 16]};
 let lib, server, pages, desktop;
 
 // The README snippet (script from btfd, element with no src: the script's origin), plus `body`.
@@ -19,6 +20,12 @@ const snippet = (body) => `<!doctype html><html><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1"><link rel="icon" href="data:,">
 <script type="module" src="${server.url}btf-viewer.js"></script></head>
 <body style="margin:0">${body}</body></html>`;
+
+// The snippet with its script from btfd through the throttled link on port `port`.
+export const linkPage = (port, material) => `<!doctype html><html><head><meta charset="utf-8">
+<link rel="icon" href="data:,"><script type="module" src="http://127.0.0.1:${port}/btf-viewer.js"></script></head>
+<body><btf-viewer material="${material}" light="fixed" budget-chunks="1000" max-dpr="1"
+style="width:300px;height:300px"></btf-viewer></body></html>`;
 
 const viewer = (attrs, style = 'width:200px;height:200px') => `<btf-viewer ${attrs} style="${style}"></btf-viewer>`;
 
@@ -43,8 +50,10 @@ before(async () => {
       <div style="height:1200px"></div>
       ${viewer('material="stone" light="fixed" camera-controls', 'display:block;width:100%;height:300px')}
       <div style="height:3000px"></div>`),
+    // ?link=PORT: the script (so shaders and stream too) through a throttled link (throttle.mjs)
+    slow: (req) => linkPage(new URL(req.url, 'http://x').searchParams.get('link'), 'wide'),
     forty: () => snippet(Array.from({length: 40}, (_, i) =>
-      viewer(`material="${Object.keys(MATERIALS)[i % 3]}" light="fixed" budget-chunks="1" max-dpr="1"`,
+      viewer(`material="${['knit', 'stone', 'tiles'][i % 3]}" light="fixed" budget-chunks="1" max-dpr="1"`,
         'width:96px;height:96px')).join('')),
   });
   desktop = await launch();
@@ -327,6 +336,25 @@ describe('a second visit', () => {
       assert.ok(!third.resumed && third.etag !== first.etag && third.bytes > 100000, JSON.stringify(third));
     } finally {
       fs.rmSync(profile, {recursive: true, force: true});
+    }
+  });
+});
+
+describe('a slow link', () => {
+  it('takes the stream at >= 90% of a 4 Mbit/s, 40 ms (RTT) link', async () => {
+    const ctx = await launch();
+    try {
+      const bps = 4e6;
+      const r = await measureLink(ctx, {btfdPort: server.port, pagesUrl: pages.url, page: 'slow', bps, delayMs: 20});
+      console.log(`# 4 Mbit/s, 40 ms RTT: stream ${(100 * r.streamUtilisation).toFixed(1)}% of the link, ` +
+        `whole load ${(100 * r.utilisation).toFixed(1)}% (${r.bytes} bytes, first frame ${r.firstFrameMs.toFixed(0)} ms, ` +
+        `complete ${r.completeMs.toFixed(0)} ms)`);
+      assert.ok(r.bytes > 500000, `a package long enough to measure: ${r.bytes} bytes`);
+      assert.ok(r.streamUtilisation >= 0.9 && r.streamUtilisation < 1.1, `stream: ${r.streamUtilisation}`);
+      assert.ok(r.utilisation >= 0.8 && r.utilisation < 1.1, `whole load (script, shaders, stream): ${r.utilisation}`);
+      assertClean(ctx);
+    } finally {
+      await ctx.close();
     }
   });
 });
