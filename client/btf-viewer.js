@@ -472,15 +472,15 @@ export class BtfViewer extends HTMLElement {
   onChunk(sub, j) {
     if (sub !== this.sub || !this.pkg) return;
     const gpu = this.gpu, gen = this.gen;
-    this.emit('progress', this.progress());
+    this.emit('progress', this.progress(j + 1)); // chunks arrive in order: j + 1 are here
     this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gpu))
       .catch((e) => gen === this.gen && this.fail(e));
   }
 
   // Received against wanted (this viewer's budget), and the error the received prefix promises.
-  progress() {
-    const p = this.pkg, s = this.sub, limit = this.ownLimit();
-    const got = Math.min(s ? s.received : 0, limit);
+  progress(received = this.sub ? this.sub.received : 0) {
+    const p = this.pkg, limit = this.ownLimit();
+    const got = Math.min(received, limit);
     const bytes = (n) => p.chunks.slice(0, n).reduce((a, c) => a + c.bytes, 0);
     const e = promisedError(p, got);
     return {chunks: got, chunksWanted: limit, bytes: bytes(got), bytesWanted: bytes(limit),

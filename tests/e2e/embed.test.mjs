@@ -164,6 +164,50 @@ describe('events and properties', () => {
   });
 });
 
+describe('streams and motion', () => {
+  it('a stream closed with nothing subscribed reconnects for the next viewer', async () => {
+    const page = await newPage(desktop);
+    const frames = watchFrames(page);
+    await page.goto(`${pages.url}one.html`);
+    await waitFor(page, () => window.__btf?.viewers()[0]?.drawnChunks === 3, null, 'drawn');
+    await page.evaluate(() => {
+      const v = document.querySelector('btf-viewer');
+      window.__stream = v.stream;
+      v.remove();
+      window.__stream.ws.close();
+    });
+    await waitFor(page, () => !window.__stream.open, null, 'closed');
+    await page.evaluate(() => {
+      const v = document.createElement('btf-viewer');
+      Object.assign(v, {material: 'tiles', light: 'fixed', loading: 'eager'});
+      document.body.append(v);
+    });
+    await waitFor(page, () => window.__btf.viewers()[0]?.drawnChunks > 0, null, 'the new viewer drawn');
+    assert.equal(frames.sockets, 2, 'a second connection');
+    assertClean(desktop);
+  });
+
+  it('prefers-reduced-motion keeps an orbiting light still', async () => {
+    const page = await newPage(desktop);
+    const count = async () => {
+      await waitFor(page, () => window.__btf?.viewers()[0]?.drawnChunks === 3, null, 'drawn');
+      const f0 = (await page.evaluate(() => window.__btf.viewers()[0])).frames;
+      await new Promise((r) => setTimeout(r, 1500));
+      return (await page.evaluate(() => window.__btf.viewers()[0])).frames - f0;
+    };
+    await page.emulateMedia({reducedMotion: 'reduce'});
+    await page.goto(`${pages.url}one.html`);
+    await page.evaluate(() => document.querySelector('btf-viewer').removeAttribute('light'));
+    const still = await count();
+    await page.emulateMedia({reducedMotion: 'no-preference'});
+    await page.goto(`${pages.url}one.html`);
+    await page.evaluate(() => document.querySelector('btf-viewer').removeAttribute('light'));
+    const moving = await count();
+    assert.ok(still === 0 && moving > 2, `frames in 1.5 s: reduced ${still}, animated ${moving}`);
+    assertClean(desktop);
+  });
+});
+
 function ctxProblemsWithout(ctx, re) {
   ctx.problems = ctx.problems.filter((p) => !re.test(p));
 }
