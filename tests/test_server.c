@@ -674,17 +674,29 @@ Test(server, list_over_http_and_websocket_skips_non_packages)
     srv_stop(&s);
 }
 
-Test(server, http_mounts_serve_client_and_shaders)
+/* The test's --client and --shaders directories (300 bytes each), created empty. */
+static void mount_dirs(char *client, char *shaders)
 {
-    char client[300], shaders[300], p[400];
-    snprintf(client, sizeof client, "%s/client", g_root);
-    snprintf(shaders, sizeof shaders, "%s/shaders", g_root);
+    snprintf(client, 300, "%s/client", g_root);
+    snprintf(shaders, 300, "%s/shaders", g_root);
     cr_assert_eq(mkdir(client, 0755), 0);
     cr_assert_eq(mkdir(shaders, 0755), 0);
-    snprintf(p, sizeof p, "%s/index.html", client);
-    write_file(p, "<p>hello-client</p>\n", 20);
-    snprintf(p, sizeof p, "%s/decode.glsl", shaders);
-    write_file(p, "vec3 decode() { return vec3(0.); }\n", 35);
+}
+
+/* Writes text as dir/name. */
+static void put_file(const char *dir, const char *name, const char *text)
+{
+    char p[400];
+    snprintf(p, sizeof p, "%s/%s", dir, name);
+    write_file(p, text, strlen(text));
+}
+
+Test(server, http_mounts_serve_client_and_shaders)
+{
+    char client[300], shaders[300];
+    mount_dirs(client, shaders);
+    put_file(client, "index.html", "<p>hello-client</p>\n");
+    put_file(shaders, "decode.glsl", "vec3 decode() { return vec3(0.); }\n");
     srv s;
     const char *extra[] = {"--client", client, "--shaders", shaders, NULL};
     srv_start(&s, g_lib, extra);
@@ -764,17 +776,11 @@ static char *ws_from_origin(int port, const char *origin, size_t *n)
 Test(server, cross_origin_headers_and_websocket_origin_check)
 {
     make_simple(g_lib, "alpha", 2, 1000);
-    char client[300], shaders[300], p[400];
-    snprintf(client, sizeof client, "%s/client", g_root);
-    snprintf(shaders, sizeof shaders, "%s/shaders", g_root);
-    cr_assert_eq(mkdir(client, 0755), 0);
-    cr_assert_eq(mkdir(shaders, 0755), 0);
-    snprintf(p, sizeof p, "%s/index.html", client);
-    write_file(p, "<p>page</p>\n", 12);
-    snprintf(p, sizeof p, "%s/btf-viewer.js", client);
-    write_file(p, "export {};\n", 11);
-    snprintf(p, sizeof p, "%s/manifest.json", shaders);
-    write_file(p, "{}\n", 3);
+    char client[300], shaders[300];
+    mount_dirs(client, shaders);
+    put_file(client, "index.html", "<p>page</p>\n");
+    put_file(client, "btf-viewer.js", "export {};\n");
+    put_file(shaders, "manifest.json", "{}\n");
     srv s;
     const char *root[] = {"--client", client, "--shaders", shaders, NULL};
     srv_start(&s, g_lib, root); /* default: any origin */

@@ -9,7 +9,7 @@ import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
 import {measureLink} from './throttle.mjs';
-import {BTF, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames, writePng}
+import {BTF, assertClean, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames, writePng}
   from './util.mjs';
 
 const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3], wide: ['knit', 16]};
@@ -65,11 +65,6 @@ after(async () => {
   await server?.stop();
   lib?.remove();
 });
-
-function assertClean(ctx) {
-  const p = ctx.problems.splice(0);
-  assert.deepEqual(p, [], `the page reported errors:\n${p.join('\n')}`);
-}
 
 // Share of pixels of viewer i that differ from its background (something was drawn).
 async function coverage(page, i) {

@@ -2,6 +2,7 @@
 // made by them, btfd on a free loopback port, Chromium (playwright-core, Debian's
 // /usr/bin/chromium with CHROMIUM_ARGS: no sandbox, software GL through SwiftShader,
 // no network side traffic; a fresh profile), page error collection, PNG read/write (node:zlib) and image differences.
+import assert from 'node:assert/strict';
 import {spawn, spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -108,6 +109,12 @@ export async function launch(options = {}, keepProfile = null) {
     if (!keepProfile) fs.rmSync(profile, {recursive: true, force: true});
   };
   return ctx;
+}
+
+// Fails when the context's pages reported errors since the last check (and forgets them).
+export function assertClean(ctx) {
+  const p = ctx.problems.splice(0);
+  assert.deepEqual(p, [], `the page reported errors:\n${p.join('\n')}`);
 }
 
 export async function newPage(ctx) {
