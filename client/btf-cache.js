@@ -11,7 +11,7 @@ const INDEX = `${BASE}index.json`;
 
 export const chunkCache = {
   limit: 64 * 1024 * 1024, // bytes of chunk files kept across all materials
-  enabled: typeof caches !== 'undefined',
+  enabled: typeof caches !== 'undefined' && globalThis.__btfCache !== false, // test hook: __btfCache = false
 };
 
 let queue = Promise.resolve(); // index updates run one after another

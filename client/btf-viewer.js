@@ -445,6 +445,7 @@ export class BtfViewer extends HTMLElement {
   budgetChanged() {
     if (this.sub) this.sub.stream.updateBudget(this.sub);
     if (this.gpu) this.gpu.reserve(this.ownLimit());
+    this.pump();
     this.updateLabel();
   }
 
@@ -461,20 +462,37 @@ export class BtfViewer extends HTMLElement {
     } catch (e) {
       return this.fail(e);
     }
+    this.newGpu();
+    this.updateLabel();
+  }
+
+  // A fresh GPU package for the manifest (also after a context restore); uploads what is held.
+  newGpu() {
     this.gpu?.free();
     this.gpu = null;
     this.uploadChain = Promise.resolve();
     this.closeReady();
+    this.nextDecode = 0;
     if (this.gl && !this.lost) this.gpu = new GpuPackage(this.gl, this.pkg, Math.max(1, this.ownLimit()));
-    this.updateLabel();
+    this.pump();
   }
 
   onChunk(sub, j) {
     if (sub !== this.sub || !this.pkg) return;
-    const gpu = this.gpu, gen = this.gen;
     this.emit('progress', this.progress(j + 1)); // chunks arrive in order: j + 1 are here
-    this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gpu))
-      .catch((e) => gen === this.gen && this.fail(e));
+    this.pump();
+  }
+
+  // Queues the decode of every held chunk inside this viewer's budget not queued yet: the
+  // subscription may hold more (a larger budget of another viewer, the browser cache).
+  pump() {
+    const sub = this.sub, gpu = this.gpu, gen = this.gen, limit = this.ownLimit();
+    if (!sub || !gpu) return;
+    for (; this.nextDecode < limit && sub.chunks[this.nextDecode]; this.nextDecode++) {
+      const j = this.nextDecode;
+      this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gpu))
+        .catch((e) => gen === this.gen && this.fail(e));
+    }
   }
 
   // Received against wanted (this viewer's budget), and the error the received prefix promises.
@@ -561,11 +579,7 @@ export class BtfViewer extends HTMLElement {
   // Re-uploads every chunk held by the subscription (after a context restore).
   rebuildGpu() {
     if (!this.pkg || !this.sub) return;
-    this.gpu = new GpuPackage(this.gl, this.pkg, Math.max(1, this.ownLimit()));
-    this.uploadChain = Promise.resolve();
-    this.closeReady();
-    const sub = this.sub, gpu = this.gpu;
-    sub.chunks.forEach((c, j) => c && (this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gpu))));
+    this.newGpu();
     this.invalidate();
   }
 

@@ -20,6 +20,8 @@ before(async () => {
   lib = makeLibrary(MATERIALS);
   server = await startServer(lib.lib);
   desktop = await launch();
+  // these tests count what streams from a cold start: no chunks kept between pages (btf-cache.js)
+  await desktop.addInitScript(() => { window.__btfCache = false; });
 });
 
 after(async () => {
