@@ -205,8 +205,6 @@ export class BtfViewer extends HTMLElement {
   // Cancels everything in flight: subscription, uploads, GPU package, frames.
   stop() {
     this.gen++;
-    if (this.fence && this.gl) this.gl.deleteSync(this.fence);
-    this.fence = null;
     if (this.sub) this.sub.stream.unsubscribe(this.sub, this);
     this.gpu?.free();
     this.ctx?.users.delete(this);
@@ -373,7 +371,6 @@ export class BtfViewer extends HTMLElement {
 
   contextLost() {
     this.lost = true;
-    this.fence = null;
     this.closeReady();
     this.gpu?.free();
     this.gpu = null;
@@ -650,11 +647,13 @@ export class BtfViewer extends HTMLElement {
     }
   }
 
-  // One frame. An orbiting light asks for the next one only after the GPU has
-  // finished this one (a fence), and waits as long again: software GL and many
-  // viewers on one page never queue frames faster than they are drawn.
+  // One frame: at most one chunk upload, then the draw. An orbiting light asks for the
+  // next frame only after as long again as this one took (the copy into the 2D canvas
+  // waits for the shared context's draw), so software GL and many viewers on one page
+  // never queue frames faster than they are drawn.
   frame() {
     this.raf = 0;
+    const t0 = performance.now();
     try {
       this.uploadReady();
     } catch (e) {
@@ -664,23 +663,8 @@ export class BtfViewer extends HTMLElement {
     if (this.ready.length) this.invalidate();
     clearTimeout(this.timer);
     if (!this.animating()) return;
-    const gl = this.gl;
-    if (this.fence) gl.deleteSync(this.fence);
-    this.fence = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
-    gl.flush();
-    const t0 = performance.now(), fence = this.fence;
-    const poll = () => {
-      if (this.fence !== fence || this.lost || gl.isContextLost()) return;
-      if (gl.getSyncParameter(fence, gl.SYNC_STATUS) !== gl.SIGNALED) {
-        this.timer = setTimeout(poll, 16);
-        return;
-      }
-      gl.deleteSync(fence);
-      this.fence = null;
-      const cost = performance.now() - t0;
-      this.timer = setTimeout(() => this.invalidate(), Math.max(16, cost));
-    };
-    this.timer = setTimeout(poll, 0);
+    const cost = performance.now() - t0;
+    this.timer = setTimeout(() => this.invalidate(), Math.max(16, cost));
   }
 
   animating() {
