@@ -152,7 +152,9 @@ export class BtfStream {
         sub.sent = false;
         sub.partial.clear();
       }
-      if (this.subs.size) {
+      if (ev.code === 1008 && ev.reason === 'origin not allowed') { // btfd --allow-origin: retrying is futile
+        this.broadcast('onError', {code: 'origin_not_allowed', message: `${this.url} refuses this page's origin`});
+      } else if (this.subs.size) {
         this.broadcast('onStreamError', this.lastError + ', reconnecting');
         this.reconnectLater();
       }

@@ -50,6 +50,10 @@ before(async () => {
       <div style="height:1200px"></div>
       ${viewer('material="stone" light="fixed" camera-controls', 'display:block;width:100%;height:300px')}
       <div style="height:3000px"></div>`),
+    lru: () => snippet(`<script type="module">
+      window.__cache = await import('${server.url}btf-cache.js'); // the viewer's own module instance
+      window.__cache.chunkCache.limit = 250000;
+    </script>${viewer('material="knit" light="fixed" budget-chunks="3" loading="eager"')}`),
     // ?link=PORT: the script (so shaders and stream too) through a throttled link (throttle.mjs)
     slow: (req) => linkPage(new URL(req.url, 'http://x').searchParams.get('link'), 'wide'),
     forty: () => snippet(Array.from({length: 40}, (_, i) =>
@@ -160,6 +164,30 @@ describe('events and properties', () => {
 });
 
 describe('streams and motion', () => {
+  it('a btfd that does not allow the page origin: an error event, no retries', async () => {
+    const strict = await startServer(lib.lib, ['--allow-origin', 'https://only.example']);
+    try {
+      const page = await newPage(desktop);
+      const frames = watchFrames(page);
+      await page.goto(`${pages.url}events.html`);
+      await page.evaluate((ws) => {
+        const v = document.createElement('btf-viewer');
+        Object.assign(v, {material: 'knit', src: ws, loading: 'eager'});
+        document.body.append(v);
+      }, strict.ws);
+      const err = await waitFor(page, () => window.__events.find((e) => e.type === 'error' &&
+        /origin/.test(e.detail.reason)), null, 'the origin error');
+      assert.match(err.detail.reason, /refuses this page's origin \(origin_not_allowed\)/);
+      await new Promise((r) => setTimeout(r, 1000));
+      assert.equal(frames.sockets, 2, 'one socket each to the two servers: no reconnects');
+      // the poster's GET /materials is refused by CORS too (the browser logs it): expected here
+      ctxProblemsWithout(desktop, /unknown_material|blocked by CORS policy|net::ERR_FAILED/);
+      assertClean(desktop);
+    } finally {
+      await strict.stop();
+    }
+  });
+
   it('a stream closed with nothing subscribed reconnects for the next viewer', async () => {
     const page = await newPage(desktop);
     const frames = watchFrames(page);
@@ -350,6 +378,34 @@ describe('a second visit', () => {
       await ctx.close();
     }
   };
+
+  it('keeps at most chunkCache.limit bytes, evicting the least recently used material', async () => {
+    const ctx = await launch();
+    try {
+      const page = await newPage(ctx);
+      await page.goto(`${pages.url}lru.html`);
+      await waitFor(page, () => window.__btf?.viewers()[0]?.drawnChunks === 3, null, 'knit drawn');
+      const index = () => page.evaluate(() => window.__cache.cacheIndex());
+      const keys = (ix) => Object.keys(ix.entries).map((k) => k.split('|')[1]).sort();
+      await waitFor(page, () => window.__cache.cacheIndex().then((ix) => Object.values(ix.entries)
+        .some((e) => e.chunks.length === 3)), null, 'knit kept');
+      const one = await index();
+      assert.deepEqual(keys(one), ['knit']);
+      await page.evaluate(() => { document.querySelector('btf-viewer').material = 'tiles'; });
+      await waitFor(page, () => window.__btf.viewers()[0].material === 'tiles' &&
+        window.__btf.viewers()[0].drawnChunks === 3, null, 'tiles drawn');
+      await waitFor(page, () => window.__cache.cacheIndex().then((ix) => Object.keys(ix.entries).join() !== '' &&
+        Object.values(ix.entries).every((e) => e.chunks.length === 3)), null, 'tiles kept');
+      const two = await index();
+      const total = Object.values(two.entries).reduce((a, e) => a + e.bytes, 0);
+      assert.ok(Object.values(one.entries)[0].bytes + total > 250000, 'both do not fit');
+      assert.deepEqual(keys(two), ['tiles'], `knit (least recently used) evicted: ${JSON.stringify(two)}`);
+      assert.ok(total <= 250000, `kept ${total} bytes`);
+      assertClean(ctx);
+    } finally {
+      await ctx.close();
+    }
+  });
 
   it('draws from the kept chunks, streams nothing again, and refetches a new etag', async () => {
     const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-profile-'));

@@ -55,11 +55,11 @@ export function makeLibrary(materials) {
   return {dir, lib, remove: () => fs.rmSync(dir, {recursive: true, force: true})};
 }
 
-// Starts btfd on a free loopback port; resolves {port, url, ws, stop()}.
-export function startServer(lib) {
+// Starts btfd on a free loopback port (extra: more options); resolves {port, url, ws, stop()}.
+export function startServer(lib, extra = []) {
   return new Promise((resolve, reject) => {
     const p = spawn(BTFD, ['--library', lib, '--port', '0', '--client', path.join(ROOT, 'client'),
-      '--shaders', path.join(ROOT, 'shaders')], {cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe']});
+      '--shaders', path.join(ROOT, 'shaders'), ...extra], {cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe']});
     let out = '', err = '';
     const timer = setTimeout(() => {
       p.kill();
