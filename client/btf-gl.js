@@ -169,6 +169,7 @@ export class GpuPackage {
     this.uploaded = 0;
     this.capacity = 0;
     this.uploads = 0; // texture-layer uploads so far (tests check: one per chunk)
+    GpuPackage.live++;
     const V = pkg.views.dirs, L = pkg.lights.dirs;
     // Version 2 (shaders/README.md, "Spatial levels"): textures by slot (the s-th
     // component to arrive), levels as mip levels; version 1: slot = chunk, one level.
@@ -383,7 +384,10 @@ export class GpuPackage {
 
   free() {
     const gl = this.gl;
+    if (this.wt) GpuPackage.live--;
     for (const t of [this.tex, this.wt, this.range, this.viewBlock]) if (t) gl.deleteTexture(t);
     this.tex = this.wt = this.range = this.viewBlock = null;
   }
 }
+
+GpuPackage.live = 0; // packages not yet freed (test hook: nothing leaks)

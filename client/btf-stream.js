@@ -7,6 +7,8 @@
 // Binary frames: 20-byte header of little-endian u32 (subscription id, chunk,
 // file index in the chunk's "files", offset, file size), then payload bytes.
 
+import {dropChunks, loadChunks, storeChunk} from './btf-cache.js';
+
 export const SUBPROTOCOL = 'btf-stream.v1';
 const HEADER = 20;
 
@@ -48,6 +50,8 @@ class Subscription {
     this.material = material;
     this.listeners = new Set();
     this.mid = 0;
+    this.seq = 0;           // seq of the subscribe sent on the current connection (its manifest echoes it)
+    this.sent = false;      // subscribe sent on the current connection
     this.etag = null;
     this.manifest = null;   // raw manifest JSON object
     this.limit = 0;         // chunks the server says the budget allows
@@ -58,6 +62,20 @@ class Subscription {
     this.complete = false;
     this.sentBudget = null;
     this.error = null;
+    this.loading = true;    // reading kept chunks (btf-cache.js); subscribe waits for it
+    this.unannounced = 0;   // kept chunks the listeners have not been told about yet
+    this.cached = 0;        // chunks that came from the browser's cache
+  }
+
+  // Chunks kept from an earlier visit become held ones: the subscribe lists them in
+  // `have` with their etag, and they are replayed once the manifest confirms the etag.
+  adopt(kept) {
+    if (kept && !this.manifest) {
+      this.etag = kept.etag;
+      kept.chunks.forEach((files, j) => { this.chunks[j] = files; });
+      this.received = this.cached = this.unannounced = kept.chunks.length;
+    }
+    this.loading = false;
   }
 
   have() {
@@ -97,9 +115,11 @@ export class BtfStream {
     this.retry = 0;
     this.bytes = 0;        // all bytes received (headers and text included)
     this.frames = 0;
+    this.pieces = {bytes: 0, first: null, last: null, firstBytes: 0}; // binary frames: bytes, arrival times (ms)
     this.connects = 0;
     this.hello = null;
     this.lastError = null;
+    this.retryTimer = 0;
     this.connect();
   }
 
@@ -129,15 +149,25 @@ export class BtfStream {
       this.lastError = `connection closed (${ev.code}${ev.reason ? ': ' + ev.reason : ''})`;
       for (const sub of this.subs.values()) {
         sub.mid = 0;
+        sub.sent = false;
         sub.partial.clear();
       }
-      if (this.subs.size) {
+      if (ev.code === 1008 && ev.reason === 'origin not allowed') { // btfd --allow-origin: retrying is futile
+        this.broadcast('onError', {code: 'origin_not_allowed', message: `${this.url} refuses this page's origin`});
+      } else if (this.subs.size) {
         this.broadcast('onStreamError', this.lastError + ', reconnecting');
-        const delay = Math.min(8000, 250 * 2 ** this.retry++);
-        setTimeout(() => this.connect(), delay);
+        this.reconnectLater();
       }
     };
     ws.onerror = () => {}; // onclose follows with the code
+  }
+
+  reconnectLater() {
+    const delay = Math.min(8000, 250 * 2 ** this.retry++);
+    this.retryTimer = setTimeout(() => {
+      this.retryTimer = 0;
+      this.connect();
+    }, delay);
   }
 
   broadcast(ev, ...args) {
@@ -150,7 +180,7 @@ export class BtfStream {
     return true;
   }
 
-  // listener: {budget() -> {chunks, bytes, error}, onManifest(sub), onChunk(sub, j),
+  // listener: {budget() -> {chunks, bytes, error}, onSubscribe(sub), onManifest(sub), onChunk(sub, j),
   //            onComplete(sub, msg), onError(sub, msg), onStreamError(sub, text)}
   // Returns the subscription; chunks already here are replayed to the listener.
   subscribe(material, listener) {
@@ -161,8 +191,13 @@ export class BtfStream {
       this.subs.set(material, sub);
     }
     sub.listeners.add(listener);
+    if (listener.onSubscribe) listener.onSubscribe(sub); // before any replay below
+    if (!this.ws && !this.retryTimer) this.connect(); // closed while nothing was subscribed
     if (fresh) {
-      this.sendSubscribe(sub);
+      loadChunks(this.url, material).then((kept) => {
+        sub.adopt(kept);
+        if (this.subs.get(material) === sub) this.sendSubscribe(sub);
+      });
     } else {
       if (sub.manifest && listener.onManifest) listener.onManifest(sub);
       sub.chunks.forEach((c, j) => c && listener.onChunk && listener.onChunk(sub, j));
@@ -176,13 +211,13 @@ export class BtfStream {
     sub.listeners.delete(listener);
     if (sub.listeners.size) return this.updateBudget(sub);
     this.subs.delete(sub.material);
-    if (sub.mid) {
-      this.byMid.delete(sub.mid);
-      this.send({type: 'unsubscribe', material: sub.material});
-    }
+    if (sub.mid) this.byMid.delete(sub.mid);
+    if (sub.sent) this.send({type: 'unsubscribe', material: sub.material}); // also before its manifest came
+    sub.sent = false;
   }
 
   sendSubscribe(sub) {
+    if (sub.loading) return; // sent once the kept chunks are read
     const budget = sub.budget();
     const msg = {type: 'subscribe', material: sub.material, seq: ++this.seq, budget: wireBudget(budget)};
     const have = sub.have();
@@ -190,7 +225,10 @@ export class BtfStream {
       msg.have = have;
       msg.etag = sub.etag;
     }
-    if (this.send(msg)) sub.sentBudget = JSON.stringify(msg.budget);
+    if (!this.send(msg)) return;
+    sub.seq = msg.seq;
+    sub.sent = true;
+    sub.sentBudget = JSON.stringify(msg.budget);
   }
 
   // Sends the subscription's merged budget when it changed (e.g. a viewer resized).
@@ -216,6 +254,9 @@ export class BtfStream {
       return this.onText(msg);
     }
     this.bytes += data.byteLength;
+    this.pieces.bytes += data.byteLength;
+    this.pieces.last = performance.now();
+    if (this.pieces.first === null) [this.pieces.first, this.pieces.firstBytes] = [this.pieces.last, data.byteLength];
     if (data.byteLength < HEADER) return;
     const h = new DataView(data, 0, HEADER);
     const [mid, chunk, file, off, total] = [0, 4, 8, 12, 16].map((o) => h.getUint32(o, true));
@@ -223,33 +264,49 @@ export class BtfStream {
     if (!sub || !sub.manifest) return;
     const entry = sub.manifest.chunks[chunk];
     if (!entry || file >= entry.files.length || sub.chunks[chunk]) return;
+    if (!(total <= (entry.bytes > 0 ? entry.bytes : 256 << 20))) return; // no buffer the manifest does not announce
     let p = sub.partial.get(chunk);
-    if (!p) sub.partial.set(chunk, p = {files: [], done: new Set()});
-    if (!p.files[file]) p.files[file] = new Uint8Array(total);
+    if (!p) sub.partial.set(chunk, p = {files: [], next: [], done: new Set()});
+    if (!p.files[file]) [p.files[file], p.next[file]] = [new Uint8Array(total), 0];
     const n = data.byteLength - HEADER;
-    if (off + n > total || p.files[file].length !== total) return;
+    // pieces of a file come with ascending offsets and no gaps (doc/protocol.md)
+    if (off !== p.next[file] || off + n > total || p.files[file].length !== total || p.done.has(file)) return;
     p.files[file].set(new Uint8Array(data, HEADER, n), off);
+    p.next[file] = off + n;
     sub.bytes += n;
-    if (off + n === total) p.done.add(file);
+    if (p.next[file] === total) p.done.add(file);
     if (p.done.size === entry.files.length) {
       sub.partial.delete(chunk);
       sub.chunks[chunk] = p.files;
       sub.received++;
+      storeChunk(this.url, sub.material, sub.etag, chunk, p.files);
       sub.emit('onChunk', chunk);
     }
   }
 
+  // The subscription a message is for: a manifest by the seq of its subscribe, the
+  // rest by mid (an older subscription of the same name may still be in flight).
+  target(msg) {
+    if (msg.type === 'manifest') {
+      const sub = this.subs.get(msg.material);
+      return sub && sub.sent && sub.seq === msg.seq ? sub : null;
+    }
+    if (msg.type === 'error') return msg.material ? this.subs.get(msg.material) : null;
+    return this.byMid.get(msg.mid) || null;
+  }
+
   onText(msg) {
-    const sub = msg.material ? this.subs.get(msg.material) : null;
+    const sub = this.target(msg);
     switch (msg.type) {
     case 'hello':
       this.hello = msg;
       break;
     case 'manifest':
       if (!sub) return;
-      if (sub.etag && sub.etag !== msg.etag) { // the package changed on the server
+      if (sub.etag && (sub.etag !== msg.etag || !msg.resumed) && sub.received) { // the package changed
         sub.chunks = [];
-        sub.received = 0;
+        sub.received = sub.cached = sub.unannounced = 0;
+        dropChunks(this.url, sub.material);
       }
       sub.mid = msg.mid;
       sub.etag = msg.etag;
@@ -259,6 +316,7 @@ export class BtfStream {
         sub.manifest = msg.manifest;
         sub.emit('onManifest');
       }
+      for (; sub.unannounced; sub.unannounced--) sub.emit('onChunk', sub.received - sub.unannounced);
       this.updateBudget(sub);
       break;
     case 'budget':
@@ -286,7 +344,9 @@ export class BtfStream {
 
   stats() {
     return {url: this.url, open: this.open, bytes: this.bytes, frames: this.frames, connects: this.connects,
+            pieces: this.pieces,
             subscriptions: [...this.subs.values()].map((s) => ({material: s.material, received: s.received,
+              cached: s.cached,
               bytes: s.bytes, limit: s.limit, complete: s.complete, listeners: s.listeners.size,
               budget: s.budget()}))};
   }

@@ -1,15 +1,18 @@
 // btf-viewer.js - <btf-viewer>: an embeddable WebGL2 viewer of one streamed material.
 //
 //   <script type="module" src="http://HOST:PORT/btf-viewer.js"></script>
-//   <btf-viewer src="ws://HOST:PORT/" material="wool" geometry="sphere"></btf-viewer>
+//   <btf-viewer material="wool" geometry="sphere" camera-controls></btf-viewer>
 //
-// Attributes (all optional but material):
-//   src            WebSocket URL of btfd (default: the page's own host)
+// The server (src) and the shader files default to the origin of this script, so the
+// two lines work on a page of any origin (btfd sends CORS headers, doc/protocol.md).
+// Attributes (each also a JS property, camelCase; every one reacts when changed; the
+// table with defaults and the events is in doc/client.md):
+//   src            WebSocket URL of btfd (default: ws(s) of this script's origin + /stream)
 //   material       material name in the server's library
 //   geometry       plane | sphere | cylinder (cloth-like tube)        default plane
 //   light          orbit (circles) | fixed | pointer (follows the pointer)  default orbit
 //   light-theta, light-phi  light direction in degrees (fixed; start of the orbit)
-//   camera-theta, camera-phi, camera-dist, fov   initial camera (then mouse/touch)
+//   camera-theta, camera-phi, camera-dist, fov   camera (then mouse/touch/keys with camera-controls)
 //   repeat         material repeats times the geometry's default (default 1)
 // Angles, distances and surfaces follow `btf render` (doc/client.md, scene.js).
 //   budget-chunks  most chunks to ask for; default: version-2 packages the scene budget
@@ -18,19 +21,42 @@
 //   lod-threshold  visibility threshold of the scene budget (default 1, RMS on 0..255)
 //   budget-bytes   most bytes to ask for
 //   max-dpr        cap of devicePixelRatio for the canvas (default 2)
-//   shaders        base URL of the shader files (default: http(s) of src + /shaders/)
-// Several viewers share one WebSocket per server (btf-stream.js). Test hook:
-// window.__btf (viewers' state, capture()).
+//   shaders        base URL of the shader files (default: shaders/ next to this script)
+//   poster         image shown until the first frame (default: the material's thumbnail, if any)
+//   loading        lazy (default: nothing starts until the viewer nears the viewport) | eager
+//   camera-controls  orbit/zoom by pointer, wheel (once engaged) and arrow keys
+//   alt            accessible description (role="img", aria-label)
+// Events (bubbling, composed): load, progress, complete, error, camera-change.
+// All viewers share one WebGL2 context (btf-context.js) and one WebSocket per server
+// (btf-stream.js). Test hook: window.__btf (viewers' state, capture()).
 
+// Every module of the element is imported here, so the browser asks for all of them
+// in one round trip (btf-cache.js and btf-render.js are otherwise found one level deeper).
+import './btf-cache.js';
+import './btf-render.js';
 import {BtfStream} from './btf-stream.js';
-import {GpuPackage, loadShaders} from './btf-gl.js';
+import {GpuPackage} from './btf-gl.js';
+import {sharedGl, sharedStats} from './btf-context.js';
 import {chunksWithinBytes, dequantWeights, dequantWeights8, parseManifest, promisedError} from './btf-package.js';
 import {LOD_THRESHOLD, lodFootprint, lodSelect} from './btf-lod.js';
-import {MeshRenderer} from './btf-render.js';
 import {Orbit} from './orbit.js';
 import {GEOMETRIES, sceneDefaults} from './scene.js';
 
 const STYLE_URL = new URL('btf-viewer.css', import.meta.url).href;
+const SHADERS_URL = new URL('shaders/', import.meta.url).href;
+const LAZY_MARGIN = '300px'; // loading="lazy": start this far before the viewport
+
+// Attribute -> property type; the property is the camelCase name.
+const ATTRS = {
+  material: 'string', src: 'string', geometry: 'string', light: 'string', 'light-theta': 'number',
+  'light-phi': 'number', 'camera-theta': 'number', 'camera-phi': 'number', 'camera-dist': 'number', fov: 'number',
+  repeat: 'number', 'budget-chunks': 'number', 'budget-bytes': 'number', 'lod-threshold': 'number',
+  'max-dpr': 'number', shaders: 'string', poster: 'string', loading: 'string', 'camera-controls': 'boolean',
+  alt: 'string',
+};
+const RESTART = new Set(['material', 'src', 'shaders']);
+const SCENE = new Set(['repeat', 'lod-threshold', 'fov', 'geometry']);
+const CAMERA = new Set(['camera-theta', 'camera-phi', 'camera-dist']);
 
 // Chunks a viewer of this CSS width asks for when no budget-chunks is set: a small
 // viewer cannot show what the later components add ("model no more than a scene
@@ -48,6 +74,7 @@ function hook() {
       streams: () => BtfStream.all().map((s) => s.stats()),
       capture: (i) => [...registry][i].capture(),
       element: (i) => [...registry][i],
+      gl: () => ({...sharedStats(), packages: GpuPackage.live}),
     };
   }
 }
@@ -57,14 +84,27 @@ function num(el, name, def) {
   return Number.isFinite(v) ? v : def;
 }
 
-function sameOriginWs() {
-  return `${location.protocol === 'https:' ? 'wss:' : 'ws:'}//${location.host}/`;
+// ws(s)://HOST/stream of the origin this script came from.
+function scriptWs() {
+  const u = new URL(import.meta.url);
+  return `${u.protocol === 'https:' ? 'wss:' : 'ws:'}//${u.host}/stream`;
 }
+
+const lists = new Map(); // http base -> Promise of GET /materials (poster thumbnails)
+function materialList(base) {
+  if (!lists.has(base)) {
+    lists.set(base, fetch(new URL('materials', base)).then((r) => (r.ok ? r.json() : {materials: []}))
+      .catch(() => ({materials: []})));
+  }
+  return lists.get(base);
+}
+
+const reducedMotion = () => matchMedia('(prefers-reduced-motion: reduce)').matches;
+const camel = (a) => a.replace(/-([a-z])/g, (_, c) => c.toUpperCase());
 
 export class BtfViewer extends HTMLElement {
   static get observedAttributes() {
-    return ['material', 'src', 'geometry', 'light', 'light-theta', 'light-phi', 'budget-chunks', 'budget-bytes',
-      'repeat', 'lod-threshold', 'fov'];
+    return Object.keys(ATTRS);
   }
 
   constructor() {
@@ -74,6 +114,10 @@ export class BtfViewer extends HTMLElement {
     link.rel = 'stylesheet';
     link.href = STYLE_URL;
     this.canvas = document.createElement('canvas');
+    this.posterImg = document.createElement('img');
+    this.posterImg.className = 'poster';
+    this.posterImg.alt = '';
+    this.posterImg.hidden = true;
     this.bar = document.createElement('div');
     this.bar.className = 'bar';
     this.label = document.createElement('div');
@@ -81,42 +125,40 @@ export class BtfViewer extends HTMLElement {
     this.msg = document.createElement('div');
     this.msg.className = 'msg';
     this.msg.hidden = true;
-    root.append(link, this.canvas, this.bar, this.label, this.msg);
+    root.append(link, this.canvas, this.posterImg, this.bar, this.label, this.msg);
+    this.ctx2d = null;
+    this.gen = 0;
+    this.started = false;
+    this.reset();
+  }
+
+  // Per-stream state (cleared when material, src or shaders change).
+  reset() {
     this.frames = 0;
     this.drawnChunks = 0;
     this.uploadChain = Promise.resolve();
+    this.closeReady();
     this.gpu = null;
     this.pkg = null;
     this.sub = null;
+    this.renderer = null;
     this.lost = false;
-    this.cssWidth = 0;
     this.t0 = performance.now();
     this.firstFrameMs = null;
     this.firstFrameBytes = null;
     this.complete = false;
+    this.loaded = false;
+    this.completeFor = -1;
+    this.error = null;
   }
 
   connectedCallback() {
     hook();
     registry.add(this);
     this.geometry = GEOMETRIES.includes(this.getAttribute('geometry')) ? this.getAttribute('geometry') : 'plane';
-    const def = sceneDefaults(this.geometry);
-    this.orbit = new Orbit(this.canvas, {
-      az: num(this, 'camera-phi', def.cameraPhi), el: 90 - num(this, 'camera-theta', def.cameraTheta),
-      dist: num(this, 'camera-dist', def.cameraDist),
-      onChange: () => {
-        this.sceneChanged();
-        this.invalidate();
-      },
-      onPointer: (x, y) => {
-        if (this.getAttribute('light') !== 'pointer') return;
-        this.lightPhi = (x - 0.5) * 360 - 90;
-        this.lightTheta = Math.max(0, Math.min(85, y * 85));
-        this.invalidate();
-      },
-    });
-    this.lightTheta = num(this, 'light-theta', def.lightTheta);
-    this.lightPhi = num(this, 'light-phi', def.lightPhi);
+    this.makeOrbit();
+    this.lightTheta = num(this, 'light-theta', sceneDefaults(this.geometry).lightTheta);
+    this.lightPhi = num(this, 'light-phi', sceneDefaults(this.geometry).lightPhi);
     this.resizer = new ResizeObserver(() => this.resize());
     this.resizer.observe(this);
     this.onScreen = true;
@@ -128,88 +170,223 @@ export class BtfViewer extends HTMLElement {
     this.visibility.observe(this);
     this.onVisibility = () => this.sceneChanged();
     document.addEventListener('visibilitychange', this.onVisibility);
-    this.onLost = (e) => {
-      e.preventDefault();
-      this.lost = true;
-      this.fence = null;
-      this.gpu = null;
-      this.renderer = null;
-      this.showMessage('WebGL context lost; waiting for the browser to restore it');
-    };
-    this.onRestored = () => {
-      this.lost = false;
-      this.showMessage('');
-      this.setupGl().then(() => this.rebuildGpu()).catch((e) => this.fail(e));
-    };
-    this.canvas.addEventListener('webglcontextlost', this.onLost);
-    this.canvas.addEventListener('webglcontextrestored', this.onRestored);
-    this.start();
+    this.setControls();
+    this.setAria();
+    this.setPoster();
+    if (this.getAttribute('loading') === 'eager') this.start();
+    else this.startWhenNear();
   }
 
   disconnectedCallback() {
     registry.delete(this);
     this.resizer?.disconnect();
     this.visibility?.disconnect();
+    this.near?.disconnect();
+    this.near = null;
     document.removeEventListener('visibilitychange', this.onVisibility);
-    if (this.fence && this.gl) this.gl.deleteSync(this.fence);
-    this.fence = null;
     this.orbit?.dispose();
-    this.canvas.removeEventListener('webglcontextlost', this.onLost);
-    this.canvas.removeEventListener('webglcontextrestored', this.onRestored);
+    this.orbit = null;
+    this.stop();
+    this.started = false;
+  }
+
+  // loading="lazy": starts once the viewer is within LAZY_MARGIN of the viewport.
+  startWhenNear() {
+    if (this.started || this.near) return;
+    this.near = new IntersectionObserver((entries) => {
+      if (!entries.some((e) => e.isIntersecting)) return;
+      this.near.disconnect();
+      this.near = null;
+      if (!this.started && this.isConnected) this.start();
+    }, {rootMargin: LAZY_MARGIN});
+    this.near.observe(this);
+  }
+
+  // Cancels everything in flight: subscription, uploads, GPU package, frames.
+  stop() {
+    this.gen++;
     if (this.sub) this.sub.stream.unsubscribe(this.sub, this);
-    this.sub = null;
     this.gpu?.free();
-    this.renderer?.free();
-    this.gpu = this.renderer = null;
+    this.ctx?.users.delete(this);
     cancelAnimationFrame(this.raf);
     clearTimeout(this.timer);
     this.raf = 0;
+    this.reset();
   }
 
   attributeChangedCallback(name, oldV, newV) {
-    if (!this.isConnected || oldV === newV) return;
-    if (name === 'material' || name === 'src') {
-      this.disconnectedCallback();
-      this.connectedCallback();
-      return;
-    }
+    if (!this.orbit || oldV === newV) return; // before connectedCallback (an upgrade): it reads them all
+    if (RESTART.has(name)) return this.restart();
     if (name === 'geometry') this.geometry = GEOMETRIES.includes(newV) ? newV : 'plane';
-    if (name === 'light-theta') this.lightTheta = num(this, 'light-theta', 45);
-    if (name === 'light-phi') this.lightPhi = num(this, 'light-phi', -50);
+    if (name === 'light-theta') this.lightTheta = num(this, name, sceneDefaults(this.geometry).lightTheta);
+    if (name === 'light-phi') this.lightPhi = num(this, name, sceneDefaults(this.geometry).lightPhi);
+    if (CAMERA.has(name)) this.setCamera();
     if (name.startsWith('budget')) this.budgetChanged();
-    if (name === 'repeat' || name === 'lod-threshold' || name === 'fov') this.sceneChanged();
+    if (SCENE.has(name) || CAMERA.has(name)) this.sceneChanged();
+    if (name === 'max-dpr') this.resize();
+    if (name === 'poster') this.setPoster();
+    if (name === 'loading' && newV === 'eager' && !this.started) this.start();
+    if (name === 'camera-controls') this.setControls();
+    if (name === 'alt') this.setAria();
     this.invalidate();
+  }
+
+  restart() {
+    const was = this.started;
+    this.stop();
+    this.started = false;
+    this.setPoster();
+    if (was) this.start();
+    else if (this.getAttribute('loading') !== 'eager') this.startWhenNear();
+  }
+
+  // ------------------------------------------------------------ page citizenship
+
+  makeOrbit() {
+    const def = sceneDefaults(this.geometry);
+    this.orbit = new Orbit(this.canvas, {
+      az: num(this, 'camera-phi', def.cameraPhi), el: 90 - num(this, 'camera-theta', def.cameraTheta),
+      dist: num(this, 'camera-dist', def.cameraDist),
+      onChange: () => this.cameraMoved(),
+      onPointer: (x, y) => {
+        if (this.getAttribute('light') !== 'pointer') return;
+        this.lightPhi = (x - 0.5) * 360 - 90;
+        this.lightTheta = Math.max(0, Math.min(85, y * 85));
+        this.invalidate();
+      },
+      canWheel: () => this.engaged,
+    });
+  }
+
+  setCamera() {
+    const def = sceneDefaults(this.geometry);
+    this.orbit.az = num(this, 'camera-phi', def.cameraPhi);
+    this.orbit.el = 90 - num(this, 'camera-theta', def.cameraTheta);
+    this.orbit.dist = num(this, 'camera-dist', def.cameraDist);
+    this.emit('camera-change', this.cameraState());
+  }
+
+  cameraMoved() {
+    this.sceneChanged();
+    this.invalidate();
+    this.emit('camera-change', this.cameraState());
+  }
+
+  cameraState() {
+    return {theta: 90 - this.orbit.el, phi: this.orbit.az, dist: this.orbit.dist};
+  }
+
+  // camera-controls: pointer orbit and pinch, wheel zoom once engaged (clicked or
+  // focused), arrow keys; without it the page scrolls and zooms as if the viewer were an image.
+  setControls() {
+    const on = this.hasAttribute('camera-controls');
+    this.orbit.attach(on);
+    if (on && !this.hasAttribute('tabindex')) {
+      this.tabIndex = 0; // keyboard orbit
+      this.autoTab = true;
+    } else if (!on && this.autoTab) {
+      this.removeAttribute('tabindex');
+      this.autoTab = false;
+    }
+    if (!this.onKey) {
+      this.onKey = (e) => {
+        if (this.hasAttribute('camera-controls') && this.orbit.key(e)) e.preventDefault();
+      };
+      this.addEventListener('keydown', this.onKey);
+      this.addEventListener('pointerdown', () => { this.engaged = true; });
+      this.addEventListener('focus', () => { this.engaged = true; });
+      this.addEventListener('blur', () => { this.engaged = false; });
+    }
+  }
+
+  setAria() {
+    const alt = this.getAttribute('alt');
+    if (alt !== null) {
+      this.setAttribute('role', 'img');
+      this.setAttribute('aria-label', alt);
+    } else if (this.getAttribute('role') === 'img') {
+      this.removeAttribute('role');
+      this.removeAttribute('aria-label');
+    }
+  }
+
+  // poster: the attribute's image, else (once started) the material's thumbnail when the server has one.
+  setPoster() {
+    const url = this.getAttribute('poster');
+    this.posterImg.loading = this.getAttribute('loading') === 'eager' ? 'eager' : 'lazy';
+    if (url) this.posterImg.src = new URL(url, document.baseURI).href;
+    else this.posterImg.removeAttribute('src');
+    this.posterImg.hidden = !url || this.loaded;
+    if (url) this.posterShown = this.posterImg.src;
+  }
+
+  async defaultPoster(gen) {
+    const name = this.getAttribute('material');
+    if (this.getAttribute('poster') || !name) return;
+    const base = this.src.replace(/^ws(s?):/, 'http$1:');
+    const list = await materialList(base);
+    const m = (list.materials || []).find((x) => x.name === name);
+    if (gen !== this.gen || !m || !m.thumbnail || this.loaded) return;
+    this.posterImg.src = new URL(m.thumbnail, base).href;
+    this.posterImg.hidden = false;
+    this.posterShown = this.posterImg.src;
+  }
+
+  emit(type, detail) {
+    this.dispatchEvent(new CustomEvent(type, {bubbles: true, composed: true, detail}));
   }
 
   // ------------------------------------------------------------ setup
 
   async start() {
+    this.started = true;
+    const gen = this.gen;
     const material = this.getAttribute('material');
     if (!material) return this.fail(new Error('no material attribute'));
-    this.gl = this.canvas.getContext('webgl2', {antialias: false, premultipliedAlpha: false, alpha: false});
-    if (!this.gl) {
+    this.ctx = sharedGl();
+    if (!this.ctx) {
       return this.fail(new Error('This browser cannot show the material: WebGL2 is not available ' +
                                  '(enable hardware acceleration or use a current browser).'), true);
     }
-    const src = this.getAttribute('src') || sameOriginWs();
-    this.shaderBase = this.getAttribute('shaders') ||
-      new URL('shaders/', src.replace(/^ws(s?):/, 'http$1:')).href;
+    this.ctx.users.add(this);
+    this.gl = this.ctx.gl;
+    this.ctx2d = this.ctx2d || this.canvas.getContext('2d', {alpha: false});
+    this.src = this.getAttribute('src') || scriptWs();
+    this.shaderBase = this.getAttribute('shaders') || SHADERS_URL;
+    this.defaultPoster(gen);
     this.resize();
-    try {
-      await this.setupGl();
-    } catch (e) {
-      return this.fail(e);
-    }
-    if (!this.isConnected) return;
-    this.stream = BtfStream.for(src);
-    this.sub = this.stream.subscribe(material, this);
+    // the stream starts while the shaders load: chunks arrive (and upload) meanwhile
+    this.stream = BtfStream.for(this.src);
+    this.stream.subscribe(material, this); // sets this.sub (onSubscribe)
     this.updateLabel();
+    try {
+      const r = await this.ctx.renderer(this.shaderBase);
+      if (gen !== this.gen) return;
+      this.renderer = r;
+      this.invalidate();
+    } catch (e) {
+      if (gen === this.gen) this.fail(e);
+    }
   }
 
-  async setupGl() {
-    this.shaders = await loadShaders(this.shaderBase);
-    if (this.lost || !this.gl) return;
-    this.renderer = new MeshRenderer(this.gl, this.shaders);
+  contextLost() {
+    this.lost = true;
+    this.closeReady();
+    this.gpu?.free();
+    this.gpu = null;
+    this.renderer = null;
+    this.showMessage('WebGL context lost; waiting for the browser to restore it');
+  }
+
+  contextRestored() {
+    const gen = this.gen;
+    this.lost = false;
+    this.showMessage('');
+    this.ctx.renderer(this.shaderBase).then((r) => {
+      if (gen !== this.gen) return;
+      this.renderer = r;
+      this.rebuildGpu();
+    }).catch((e) => this.fail(e));
   }
 
   // ------------------------------------------------------------ budget
@@ -265,43 +442,99 @@ export class BtfViewer extends HTMLElement {
   budgetChanged() {
     if (this.sub) this.sub.stream.updateBudget(this.sub);
     if (this.gpu) this.gpu.reserve(this.ownLimit());
+    this.pump();
     this.updateLabel();
   }
 
   // ------------------------------------------------------------ stream events
 
+  onSubscribe(sub) {
+    this.sub = sub;
+  }
+
   onManifest(sub) {
+    if (sub !== this.sub) return;
     try {
       this.pkg = parseManifest(sub.manifest);
     } catch (e) {
       return this.fail(e);
     }
-    this.gpu?.free();
-    this.gpu = null;
-    this.uploadChain = Promise.resolve();
-    if (this.gl && !this.lost) this.gpu = new GpuPackage(this.gl, this.pkg, Math.max(1, this.ownLimit()));
+    this.newGpu();
     this.updateLabel();
   }
 
-  onChunk(sub, j) {
-    const gen = this.gpu;
-    this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gen)).catch((e) => this.fail(e));
+  // A fresh GPU package for the manifest (also after a context restore); uploads what is held.
+  newGpu() {
+    this.gpu?.free();
+    this.gpu = null;
+    this.uploadChain = Promise.resolve();
+    this.closeReady();
+    this.nextDecode = 0;
+    if (this.gl && !this.lost) this.gpu = new GpuPackage(this.gl, this.pkg, Math.max(1, this.ownLimit()));
+    this.pump();
   }
 
+  onChunk(sub, j) {
+    if (sub !== this.sub || !this.pkg) return;
+    this.emit('progress', this.progress(j + 1)); // chunks arrive in order: j + 1 are here
+    this.pump();
+  }
+
+  // Queues the decode of every held chunk inside this viewer's budget not queued yet: the
+  // subscription may hold more (a larger budget of another viewer, the browser cache).
+  pump() {
+    const sub = this.sub, gpu = this.gpu, gen = this.gen, limit = this.ownLimit();
+    if (!sub || !gpu) return;
+    for (; this.nextDecode < limit && sub.chunks[this.nextDecode]; this.nextDecode++) {
+      const j = this.nextDecode;
+      this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gpu))
+        .catch((e) => gen === this.gen && this.fail(e));
+    }
+  }
+
+  // Received against wanted (this viewer's budget), and the error the received prefix promises.
+  progress(received = this.sub ? this.sub.received : 0) {
+    const p = this.pkg, limit = this.ownLimit();
+    const got = Math.min(received, limit);
+    const bytes = (n) => p.chunks.slice(0, n).reduce((a, c) => a + c.bytes, 0);
+    const e = promisedError(p, got);
+    return {chunks: got, chunksWanted: limit, bytes: bytes(got), bytesWanted: bytes(limit),
+            error: e ? (Number.isFinite(e.lab) ? e.lab : e.rmse ?? null) : null,
+            metric: e && Number.isFinite(e.lab) ? 'lab' : 'rmse'};
+  }
+
+  current(sub, gpu) {
+    return sub === this.sub && gpu && gpu === this.gpu && !this.lost;
+  }
+
+  // Decodes chunk j (createImageBitmap: off the main thread) and queues it; frame()
+  // uploads at most one queued chunk per frame, so a burst of chunks never stalls drawing.
   async uploadChunk(sub, j, gpu) {
-    if (!gpu || gpu !== this.gpu || this.lost || j < gpu.uploaded) return;
+    if (!this.current(sub, gpu) || j < gpu.uploaded) return;
     const chunk = this.pkg.chunks[j];
     const files = sub.chunks[j];
     const data = (name) => files[chunk.files.indexOf(name)];
     const bitmap = await createImageBitmap(new Blob([data(chunk.tex)], {type: 'image/png'}),
                                            {premultiplyAlpha: 'none', colorSpaceConversion: 'none'});
-    if (gpu !== this.gpu || this.lost) return bitmap.close();
+    if (!this.current(sub, gpu)) return bitmap.close();
     const wt = await this.chunkWeights(chunk, data, gpu);
-    if (gpu !== this.gpu || this.lost) return bitmap.close();
-    gpu.upload(j, bitmap, wt);
-    bitmap.close();
-    this.updateLabel();
+    if (!this.current(sub, gpu)) return bitmap.close();
+    this.ready.push({j, bitmap, wt, gpu});
     this.invalidate();
+  }
+
+  // The next decoded chunk into the GPU (one per frame).
+  uploadReady() {
+    const r = this.ready.shift();
+    if (!r) return;
+    if (r.gpu === this.gpu && !this.lost && r.j === r.gpu.uploaded) r.gpu.upload(r.j, r.bitmap, r.wt);
+    r.bitmap.close();
+    this.updateLabel();
+  }
+
+  closeReady() {
+    for (const r of this.ready || []) r.bitmap.close();
+    this.ready = [];
   }
 
   // Dequantised weights of a chunk: wt-JJ.bin (16-bit, .precise), else version 2's
@@ -325,25 +558,25 @@ export class BtfViewer extends HTMLElement {
     return dequantWeights8(this.pkg, chunk, px);
   }
 
-  onComplete() {
+  onComplete(sub) {
+    if (sub !== this.sub) return;
     this.complete = true;
     this.updateLabel();
+    this.invalidate();
   }
 
   onError(sub, msg) {
-    this.fail(new Error(`${msg.message} (${msg.code})`));
+    if (sub === this.sub) this.fail(new Error(`${msg.message} (${msg.code})`));
   }
 
   onStreamError(sub, text) {
-    if (!this.complete) this.label.textContent = text;
+    if (sub === this.sub && !this.complete) this.label.textContent = text;
   }
 
   // Re-uploads every chunk held by the subscription (after a context restore).
   rebuildGpu() {
     if (!this.pkg || !this.sub) return;
-    this.gpu = new GpuPackage(this.gl, this.pkg, Math.max(1, this.ownLimit()));
-    this.uploadChain = Promise.resolve();
-    this.sub.chunks.forEach((c, j) => c && this.onChunk(this.sub, j));
+    this.newGpu();
     this.invalidate();
   }
 
@@ -363,15 +596,14 @@ export class BtfViewer extends HTMLElement {
   }
 
   invalidate() {
-    if (!this.raf && this.isConnected) this.raf = requestAnimationFrame((t) => this.frame(t));
+    if (!this.raf && this.isConnected && this.started) this.raf = requestAnimationFrame((t) => this.frame(t));
   }
 
   // The scene in btf render's terms (scene.js sceneDefaults / cameraMake).
   view() {
     const light = this.getAttribute('light') || 'orbit';
     let phi = this.lightPhi;
-    if (light === 'orbit' && !matchMedia('(prefers-reduced-motion: reduce)').matches)
-      phi += ((performance.now() - this.t0) / 1000) * 30;
+    if (light === 'orbit' && !reducedMotion()) phi += ((performance.now() - this.t0) / 1000) * 30;
     return {
       geometry: this.geometry, cameraTheta: 90 - this.orbit.el, cameraPhi: this.orbit.az,
       cameraDist: this.orbit.dist, lightTheta: this.lightTheta, lightPhi: phi, fov: num(this, 'fov', 40),
@@ -384,52 +616,60 @@ export class BtfViewer extends HTMLElement {
     return this.gpu ? Math.min(this.gpu.uploaded, this.ownLimit()) : 0;
   }
 
+  // Draws into the shared context and copies the frame into this viewer's canvas.
   draw() {
-    if (!this.renderer || this.lost) return false;
-    const v = this.view();
-    this.renderer.draw(this.gpu, v, this.canvas.width, this.canvas.height);
-    if (this.gpu && v.chunks > 0) {
-      this.frames++;
-      this.drawnChunks = v.chunks;
-      if (this.firstFrameMs === null) {
-        this.firstFrameMs = performance.now() - this.t0;
-        this.firstFrameAt = performance.now(); // since navigation start
-        this.firstFrameBytes = this.stream ? this.stream.bytes : null;
-      }
-    }
+    if (!this.renderer || this.lost || this.ctx.lost) return false;
+    const v = this.view(), w = this.canvas.width, h = this.canvas.height;
+    this.ctx.fit(w, h);
+    this.renderer.draw(this.gpu, v, w, h);
+    this.ctx.present(this.ctx2d, w, h);
+    if (this.gpu && v.chunks > 0) this.drawn(v.chunks);
     return true;
   }
 
-  // One frame. An orbiting light asks for the next one only after the GPU has
-  // finished this one (a fence), and waits as long again: software GL and many
-  // viewers on one page never queue frames faster than they are drawn.
+  // Bookkeeping and events of a frame that showed chunks.
+  drawn(chunks) {
+    this.frames++;
+    this.drawnChunks = chunks;
+    if (!this.loaded) {
+      this.loaded = true;
+      this.firstFrameMs = performance.now() - this.t0;
+      this.firstFrameAt = performance.now(); // since navigation start
+      this.firstFrameBytes = this.stream ? this.stream.bytes : null;
+      this.posterImg.hidden = true;
+      this.emit('load', {chunks});
+    }
+    const limit = this.ownLimit();
+    if (chunks >= limit && this.complete && this.completeFor !== limit) {
+      this.completeFor = limit;
+      this.completeAt = performance.now(); // since navigation start
+      this.emit('complete', this.progress());
+    }
+  }
+
+  // One frame: at most one chunk upload, then the draw. An orbiting light asks for the
+  // next frame only after as long again as this one took (the copy into the 2D canvas
+  // waits for the shared context's draw), so software GL and many viewers on one page
+  // never queue frames faster than they are drawn.
   frame() {
     this.raf = 0;
+    const t0 = performance.now();
+    try {
+      this.uploadReady();
+    } catch (e) {
+      this.fail(e);
+    }
     this.draw();
+    if (this.ready.length) this.invalidate();
     clearTimeout(this.timer);
     if (!this.animating()) return;
-    const gl = this.gl;
-    if (this.fence) gl.deleteSync(this.fence);
-    this.fence = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
-    gl.flush();
-    const t0 = performance.now();
-    const poll = () => {
-      if (!this.fence || this.lost || gl.isContextLost()) return;
-      if (gl.getSyncParameter(this.fence, gl.SYNC_STATUS) !== gl.SIGNALED) {
-        this.timer = setTimeout(poll, 16);
-        return;
-      }
-      gl.deleteSync(this.fence);
-      this.fence = null;
-      const cost = performance.now() - t0;
-      this.timer = setTimeout(() => this.invalidate(), Math.max(16, cost));
-    };
-    this.timer = setTimeout(poll, 0);
+    const cost = performance.now() - t0;
+    this.timer = setTimeout(() => this.invalidate(), Math.max(16, cost));
   }
 
   animating() {
     return (this.getAttribute('light') || 'orbit') === 'orbit' && this.drawableChunks() > 0 && this.onScreen &&
-      !matchMedia('(prefers-reduced-motion: reduce)').matches && !document.hidden;
+      !reducedMotion() && !document.hidden;
   }
 
   // Test hook: draws now and returns the canvas pixels, rows top-down, RGBA, base64.
@@ -453,13 +693,12 @@ export class BtfViewer extends HTMLElement {
       this.label.textContent = this.getAttribute('material') || '';
       return;
     }
-    const limit = this.ownLimit();
-    const want = p.chunks.slice(0, limit).reduce((a, c) => a + c.bytes, 0) || 1;
-    const got = p.chunks.slice(0, Math.min(s.received, limit)).reduce((a, c) => a + c.bytes, 0);
-    this.bar.style.width = `${Math.min(100, (100 * got) / want).toFixed(1)}%`;
-    this.bar.classList.toggle('done', got >= want);
-    const drawn = this.drawableChunks();
-    let t = `${p.name} · ${drawn}/${limit} chunks · ${(got / 1024).toFixed(0)} KB`;
+    const pr = this.progress();
+    const want = pr.bytesWanted || 1;
+    this.bar.style.width = `${Math.min(100, (100 * pr.bytes) / want).toFixed(1)}%`;
+    this.bar.classList.toggle('done', pr.bytes >= want);
+    const drawn = this.drawableChunks(), limit = pr.chunksWanted;
+    let t = `${p.name} · ${drawn}/${limit} chunks · ${(pr.bytes / 1024).toFixed(0)} KB`;
     const done = drawn >= limit && limit > 0;
     const e = promisedError(p, drawn);
     if (done && e && Number.isFinite(e.lab)) t += ` · Lab error ${e.lab.toFixed(2)}`;
@@ -477,6 +716,7 @@ export class BtfViewer extends HTMLElement {
     this.showMessage(this.error);
     this.classList.toggle('no-webgl', noWebgl);
     if (e && e.report) console.error(`${this.error}\n${e.report}`);
+    this.emit('error', {reason: this.error});
   }
 
   state() {
@@ -486,16 +726,36 @@ export class BtfViewer extends HTMLElement {
       manifestChunks: this.pkg ? this.pkg.chunks.length : 0, received: this.sub ? this.sub.received : 0,
       uploaded: this.gpu ? this.gpu.uploaded : 0, uploads: this.gpu ? this.gpu.uploads : 0,
       capacity: this.gpu ? this.gpu.capacity : 0, drawnChunks: this.drawnChunks, frames: this.frames,
-      complete: this.complete, error: this.error || null, label: this.label.textContent,
-      firstFrameMs: this.firstFrameMs, firstFrameAt: this.firstFrameAt ?? null, firstFrameBytes: this.firstFrameBytes,
+      complete: this.complete, error: this.error || null, label: this.label.textContent, started: this.started,
+      firstFrameMs: this.firstFrameMs, firstFrameAt: this.firstFrameAt ?? null,
+      completeAt: this.completeAt ?? null, firstFrameBytes: this.firstFrameBytes,
       streamBytes: this.sub ? this.sub.bytes : 0, drags: this.orbit ? this.orbit.drags : 0,
       camera: this.orbit ? [this.orbit.az, this.orbit.el, this.orbit.dist] : null, lost: this.lost,
       version: this.pkg ? this.pkg.version : 0, footprint: this.footprint(),
       scene: this.pkg && this.pkg.version >= 2 ? (({level, components, needed, limit, bytes}) =>
         ({level, components, needed, limit, bytes}))(this.sceneBudget()) : null,
-      slots: this.gpu ? this.gpu.slots : 0,
+      slots: this.gpu ? this.gpu.slots : 0, poster: this.posterImg.hidden ? null : this.posterImg.src,
+      posterShown: this.posterShown ?? null,
     };
   }
+}
+
+// A property per attribute (camelCase): strings and numbers reflect the attribute
+// (null when absent), booleans its presence.
+for (const [attr, type] of Object.entries(ATTRS)) {
+  Object.defineProperty(BtfViewer.prototype, camel(attr), {
+    configurable: true,
+    get() {
+      if (type === 'boolean') return this.hasAttribute(attr);
+      const v = this.getAttribute(attr);
+      return type === 'number' && v !== null ? parseFloat(v) : v;
+    },
+    set(v) {
+      if (type === 'boolean') this.toggleAttribute(attr, !!v);
+      else if (v === null || v === undefined) this.removeAttribute(attr);
+      else this.setAttribute(attr, String(v));
+    },
+  });
 }
 
 // Chunks a viewer asks for without a budget-chunks attribute. Replaceable (doc/client.md,

@@ -31,6 +31,7 @@ async function main() {
     v.setAttribute('material', names[i % names.length]);
     v.setAttribute('geometry', GEOMETRIES[i]);
     v.setAttribute('light', params.get('light') || 'orbit');
+    v.setAttribute('camera-controls', '');
     main.append(v);
   }
 }

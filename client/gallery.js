@@ -77,6 +77,7 @@ function route() {
   v.setAttribute('geometry', $('detail-geometry').value);
   v.setAttribute('light', $('detail-light').value);
   v.className = 'large';
+  v.setAttribute('camera-controls', '');
   host.replaceChildren(v);
   detail.hidden = false;
 }

@@ -1,11 +1,14 @@
 // orbit.js - orbit camera control from pointer events: one pointer (mouse button
 // or one finger) drags the azimuth/elevation, two fingers pinch to zoom, the wheel
-// zooms. onChange() is called after every change. The element needs the CSS
-// `touch-action: none` so the browser does not scroll instead.
+// zooms, the keyboard orbits (arrows) and zooms (+/-); one finger turns only the azimuth. onChange() is called after every
+// change. attach(true) turns the controls on (the element should then have CSS
+// `touch-action: pan-y` so vertical swipes still scroll the page); without controls
+// only the pointer position is reported (light follows pointer) and nothing is prevented.
+// canWheel(): whether a wheel event may zoom (the page scrolls otherwise).
 
 export class Orbit {
   constructor(el, {az = 0, el: elev = 25, dist = 3.2, minDist = 1.6, maxDist = 8, onChange = () => {},
-                   onPointer = null} = {}) {
+                   onPointer = null, canWheel = () => true} = {}) {
     this.az = az;
     this.el = elev;
     this.dist = dist;
@@ -13,15 +16,29 @@ export class Orbit {
     this.maxDist = maxDist;
     this.onChange = onChange;
     this.onPointer = onPointer; // (x, y) in 0..1 over the element, for light-follows-pointer
+    this.canWheel = canWheel;
     this.target = el;
     this.pointers = new Map(); // id -> {x, y}
     this.pinch = 0;
     this.drags = 0;            // completed drag gestures (test hook)
+    this.controls = false;
     this.handlers = {
-      pointerdown: (e) => this.down(e), pointermove: (e) => this.move(e), pointerup: (e) => this.up(e),
-      pointercancel: (e) => this.up(e), wheel: (e) => this.wheel(e),
+      pointerdown: (e) => this.down(e), pointerup: (e) => this.up(e), pointercancel: (e) => this.up(e),
+      wheel: (e) => this.wheel(e),
     };
-    for (const [k, f] of Object.entries(this.handlers)) el.addEventListener(k, f, {passive: k !== 'wheel'});
+    this.onMove = (e) => this.move(e);
+    el.addEventListener('pointermove', this.onMove, {passive: true});
+  }
+
+  // Turns the orbit/zoom controls on or off.
+  attach(on) {
+    if (on === this.controls) return;
+    this.controls = on;
+    for (const [k, f] of Object.entries(this.handlers)) {
+      if (on) this.target.addEventListener(k, f, {passive: k !== 'wheel'});
+      else this.target.removeEventListener(k, f);
+    }
+    if (!on) this.pointers.clear();
   }
 
   down(e) {
@@ -48,9 +65,8 @@ export class Orbit {
     p.moved += Math.abs(dx) + Math.abs(dy);
     if (this.pointers.size === 1) {
       const h = this.target.clientHeight || 300;
-      this.az -= (dx / h) * 180;
-      this.el = Math.max(-85, Math.min(85, this.el + (dy / h) * 180));
-      this.onChange();
+      // one finger: vertical swipes belong to the page (touch-action: pan-y), so only azimuth
+      this.rotate((-dx / h) * 180, e.pointerType === 'touch' ? 0 : (dy / h) * 180);
     } else if (this.pointers.size === 2) {
       const s = this.spread();
       if (this.pinch > 0 && s > 0) this.zoom(this.pinch / s);
@@ -66,8 +82,25 @@ export class Orbit {
   }
 
   wheel(e) {
+    if (!this.canWheel(e)) return;
     e.preventDefault();
     this.zoom(Math.exp(e.deltaY * 0.001));
+  }
+
+  // Arrow keys orbit by 5 degrees, + and - zoom; true when the key was used.
+  key(e) {
+    const step = {ArrowLeft: [5, 0], ArrowRight: [-5, 0], ArrowUp: [0, 5], ArrowDown: [0, -5]}[e.key];
+    if (step) this.rotate(step[0], step[1]);
+    else if (e.key === '+' || e.key === '=') this.zoom(1 / 1.1);
+    else if (e.key === '-') this.zoom(1.1);
+    else return false;
+    return true;
+  }
+
+  rotate(dAz, dEl) {
+    this.az += dAz;
+    this.el = Math.max(-85, Math.min(85, this.el + dEl));
+    this.onChange();
   }
 
   zoom(f) {
@@ -76,6 +109,7 @@ export class Orbit {
   }
 
   dispose() {
-    for (const [k, f] of Object.entries(this.handlers)) this.target.removeEventListener(k, f);
+    this.attach(false);
+    this.target.removeEventListener('pointermove', this.onMove);
   }
 }

@@ -4,12 +4,14 @@
 import './btf-viewer.js';
 
 const ATTRS = ['material', 'src', 'geometry', 'light', 'light-theta', 'light-phi', 'camera-theta', 'camera-phi',
-               'camera-dist', 'fov', 'repeat', 'budget-chunks', 'budget-bytes', 'max-dpr', 'shaders'];
+               'camera-dist', 'fov', 'repeat', 'budget-chunks', 'budget-bytes', 'max-dpr', 'shaders', 'lod-threshold', 'loading',
+               'poster', 'alt'];
 const q = new URLSearchParams(location.search);
 const v = document.createElement('btf-viewer');
 v.setAttribute('src', `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`);
 for (const a of ATTRS) if (q.has(a)) v.setAttribute(a, q.get(a));
 v.className = 'solo';
+if (!q.has('camera-controls') || q.get('camera-controls') !== '0') v.setAttribute('camera-controls', '');
 if (q.has('width')) v.style.width = `${parseFloat(q.get('width'))}px`;
 if (q.has('height')) v.style.height = `${parseFloat(q.get('height'))}px`;
 document.getElementById('solo').append(v);

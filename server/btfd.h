@@ -31,6 +31,7 @@ typedef struct btfd_options {
     size_t fragment;         /* payload bytes per binary piece */
     int stall_timeout_s;     /* a client with pending data and no progress this long is dropped */
     int rescan_ms;           /* periodic library rescan; 0 disables */
+    const char *allow_origin; /* --allow-origin: comma-separated origins, NULL or "*" = any */
     int drain_s;             /* SIGTERM: streams may finish this long before 1001 */
     int verbose;             /* -v count: 1 debug lines, 2 also lws notices */
 } btfd_options;
@@ -58,6 +59,13 @@ extern const size_t btfd_http_user_size;
 
 /* http, btf-stream.v1, terminator; main sets the stream's tx_packet_size before use. */
 extern struct lws_protocols btfd_protocols[];
+
+/* btfd_origin.c (--allow-origin). Whether origin (n bytes) is in list (NULL or "*": any). */
+int btfd_origin_allowed(const char *list, const char *origin, size_t n);
+/* Adds access-control-allow-origin (and vary: Origin for a list) to an HTTP reply; 0 ok. */
+int btfd_cors_headers(struct lws *wsi, const char *list, unsigned char **p, unsigned char *end);
+/* WebSocket handshake: 0 when its Origin is allowed, else -1 (the caller closes with 1008). */
+int btfd_origin_check(struct lws *wsi, const char *list);
 
 /* Rescans the library unless one ran in the last 200 ms (force: always). */
 void btfd_server_rescan(btfd_server *srv, int force);

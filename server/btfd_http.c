@@ -253,7 +253,7 @@ static int add_cache_headers(struct lws *wsi, const btfd_http *h, uint8_t **p, u
     if ((h->status == HTTP_STATUS_PARTIAL_CONTENT || h->status == HTTP_STATUS_REQ_RANGE_NOT_SATISFIABLE) &&
         add_header(wsi, "content-range:", cr, p, end))
         return -1;
-    return h->cors && add_header(wsi, "access-control-allow-origin:", "*", p, end) ? -1 : 0;
+    return h->cors && btfd_cors_headers(wsi, server_of(wsi)->opt.allow_origin, p, end) ? -1 : 0;
 }
 
 /* Writes the status line and headers; the body follows from WRITEABLE. */
@@ -339,6 +339,18 @@ static int confirm_upgrade(btfd_server *srv, struct lws *wsi)
     return 1;
 }
 
+/* CORS on a file mount's reply (--allow-origin, btfd_origin.c); 0 ok. */
+static int add_file_cors(struct lws *wsi, void *in)
+{
+    struct lws_process_html_args *a = in;
+    unsigned char *p = (unsigned char *)a->p;
+    if (btfd_cors_headers(wsi, server_of(wsi)->opt.allow_origin, &p, p + a->max_len))
+        return 1;
+    a->max_len -= (int)(p - (unsigned char *)a->p);
+    a->p = (char *)p;
+    return 0;
+}
+
 int btfd_callback_http(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in, size_t len)
 {
     btfd_http *h = user;
@@ -347,6 +359,8 @@ int btfd_callback_http(struct lws *wsi, enum lws_callback_reasons reason, void *
         return http_start(server_of(wsi), wsi, h);
     case LWS_CALLBACK_HTTP_CONFIRM_UPGRADE:
         return confirm_upgrade(server_of(wsi), wsi);
+    case LWS_CALLBACK_ADD_HEADERS: /* file mounts: the client files and the shaders */
+        return add_file_cors(wsi, in);
     case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:
         return 1; /* a WebSocket that did not ask for btf-stream.v1 lands here: refuse it */
     case LWS_CALLBACK_HTTP_WRITEABLE:

@@ -35,6 +35,9 @@ static void usage(FILE *f)
             "  --rescan-ms MS       rescan the library every MS ms (default 2000, 0 = only on request)\n"
             "  --drain-seconds S    on SIGTERM let streams finish for S seconds, then close them\n"
             "                       with 1001 going-away (default 10)\n"
+            "  --allow-origin LIST  origins (comma-separated, e.g. https://a.example) allowed to embed:\n"
+            "                       CORS on the client, shaders and /materials, and the WebSocket\n"
+            "                       handshake's Origin check (default *: any origin)\n"
             "  --no-csp             do not add the security headers (CSP) to HTTP replies\n"
             "  -v, --verbose        debug log lines (subscriptions, skipped packages on rescans);\n"
             "                       -vv also libwebsockets' warnings and notices\n"
@@ -63,7 +66,8 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         {"library", 1, 0, 'l'},  {"port", 1, 0, 'p'},      {"bind", 1, 0, 'b'},
         {"client", 1, 0, 'c'},   {"shaders", 1, 0, 's'},   {"fragment", 1, 0, 'f'},
         {"stall-timeout", 1, 0, 't'}, {"rescan-ms", 1, 0, 'r'}, {"no-csp", 0, 0, 'n'},
-        {"drain-seconds", 1, 0, 'd'}, {"verbose", 0, 0, 'v'},  {"help", 0, 0, 'h'},      {"version", 0, 0, 'V'},
+        {"drain-seconds", 1, 0, 'd'}, {"allow-origin", 1, 0, 'a'}, {"verbose", 0, 0, 'v'},
+        {"help", 0, 0, 'h'},          {"version", 0, 0, 'V'},
         {0, 0, 0, 0},
     };
     int ch;
@@ -79,6 +83,7 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         case 'r': o->rescan_ms = (int)int_arg("--rescan-ms", optarg, 0, 3600000); break;
         case 'n': *csp = 0; break;
         case 'd': o->drain_s = (int)int_arg("--drain-seconds", optarg, 0, 3600); break;
+        case 'a': o->allow_origin = optarg; break;
         case 'v': o->verbose++; break;
         case 'h': usage(stdout); exit(0);
         case 'V': printf("btfd %s\n", BTF_VERSION); exit(0);
@@ -166,6 +171,7 @@ static void file_mount(struct lws_http_mount *m, const char *point, const char *
     m->mountpoint_len = (unsigned char)strlen(point);
     m->origin = dir;
     m->origin_protocol = LWSMPRO_FILE;
+    m->protocol = "http"; /* LWS_CALLBACK_ADD_HEADERS: CORS (btfd_http.c, btfd_origin.c) */
     m->extra_mimetypes = mime_extra;
     m->cache_max_age = 1;
     m->cache_reusable = 1;

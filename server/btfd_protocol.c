@@ -584,6 +584,8 @@ static void handle_message(btfd_server *srv, btfd_conn *c, const char *msg, size
 /* Assembles a text message from RECEIVE callbacks; handles it when complete. */
 static int on_receive(btfd_server *srv, btfd_conn *c, const char *in, size_t len)
 {
+    if (c->close_code)
+        return 0; /* closing (e.g. origin not allowed): nothing more is read */
     if (lws_frame_is_binary(c->wsi)) {
         static const char why[] = "binary frames are not accepted";
         lws_close_reason(c->wsi, LWS_CLOSE_STATUS_UNACCEPTABLE_OPCODE, (unsigned char *)why,
@@ -633,7 +635,8 @@ static void record_peer(btfd_conn *c, struct lws *wsi)
         snprintf(c->peer, sizeof c->peer, "%s", addr);
 }
 
-static void on_established(btfd_server *srv, btfd_conn *c, struct lws *wsi)
+/* Counts a new connection (on_closed uncounts it, whatever its fate). */
+static void conn_register(btfd_server *srv, btfd_conn *c, struct lws *wsi)
 {
     c->wsi = wsi;
     c->tokens = BTFD_RATE_BURST;
@@ -641,6 +644,11 @@ static void on_established(btfd_server *srv, btfd_conn *c, struct lws *wsi)
     c->id = ++srv->stats.connections_total;
     srv->stats.connections++;
     btfd_log(srv, BTFD_LOG_DEBUG, "conn %llu: open from %s", (unsigned long long)c->id, c->peer);
+}
+
+static void on_established(btfd_server *srv, btfd_conn *c, struct lws *wsi)
+{
+    conn_register(srv, c, wsi);
     cJSON *o = reply("hello", NULL);
     cJSON_AddStringToObject(o, "protocol", BTFD_SUBPROTOCOL);
     cJSON_AddStringToObject(o, "server", "btfd");
@@ -690,6 +698,11 @@ static int callback_stream(struct lws *wsi, enum lws_callback_reasons reason, vo
         record_peer(c, wsi); /* the handshake's headers are gone by ESTABLISHED */
         return 0;
     case LWS_CALLBACK_ESTABLISHED:
+        if (btfd_origin_check(wsi, srv->opt.allow_origin)) {
+            conn_register(srv, c, wsi);
+            conn_close_later(c, LWS_CLOSE_STATUS_POLICY_VIOLATION, "origin not allowed");
+            return 0;
+        }
         on_established(srv, c, wsi);
         return 0;
     case LWS_CALLBACK_SERVER_WRITEABLE:

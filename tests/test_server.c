@@ -750,17 +750,29 @@ Test(server, list_over_http_and_websocket_skips_non_packages)
     srv_stop(&s);
 }
 
-Test(server, http_mounts_serve_client_and_shaders)
+/* The test's --client and --shaders directories (300 bytes each), created empty. */
+static void mount_dirs(char *client, char *shaders)
 {
-    char client[300], shaders[300], p[400];
-    snprintf(client, sizeof client, "%s/client", g_root);
-    snprintf(shaders, sizeof shaders, "%s/shaders", g_root);
+    snprintf(client, 300, "%s/client", g_root);
+    snprintf(shaders, 300, "%s/shaders", g_root);
     cr_assert_eq(mkdir(client, 0755), 0);
     cr_assert_eq(mkdir(shaders, 0755), 0);
-    snprintf(p, sizeof p, "%s/index.html", client);
-    write_file(p, "<p>hello-client</p>\n", 20);
-    snprintf(p, sizeof p, "%s/decode.glsl", shaders);
-    write_file(p, "vec3 decode() { return vec3(0.); }\n", 35);
+}
+
+/* Writes text as dir/name. */
+static void put_file(const char *dir, const char *name, const char *text)
+{
+    char p[400];
+    snprintf(p, sizeof p, "%s/%s", dir, name);
+    write_file(p, text, strlen(text));
+}
+
+Test(server, http_mounts_serve_client_and_shaders)
+{
+    char client[300], shaders[300];
+    mount_dirs(client, shaders);
+    put_file(client, "index.html", "<p>hello-client</p>\n");
+    put_file(shaders, "decode.glsl", "vec3 decode() { return vec3(0.); }\n");
     srv s;
     const char *extra[] = {"--client", client, "--shaders", shaders, NULL};
     srv_start(&s, g_lib, extra);
@@ -774,6 +786,117 @@ Test(server, http_mounts_serve_client_and_shaders)
     free(body);
     cr_expect_eq(http_get(s.port, "/shaders/../../etc/passwd", &body, &n) != 200, 1);
     free(body);
+    srv_stop(&s);
+}
+
+/* Whether the n bytes at h contain the string k (memmem is a GNU extension). */
+static int has_bytes(const char *h, size_t n, const char *k)
+{
+    size_t m = strlen(k);
+    for (size_t i = 0; i + m <= n; i++)
+        if (!memcmp(h + i, k, m))
+            return 1;
+    return 0;
+}
+
+/* Sends req verbatim and collects what arrives for up to ms (or until the
+ * server closes, or until `until` appears); returns the bytes (malloc'd, NUL-terminated). */
+static char *raw_exchange(int port, const char *req, int ms, const char *until, size_t *len)
+{
+    int fd = tcp_connect(port);
+    cr_assert_geq(fd, 0);
+    cr_assert_eq(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
+    size_t n = 0, cap = 1 << 16;
+    char *buf = malloc(cap + 1);
+    long long deadline = wsc_now_ms() + ms;
+    for (;;) {
+        struct pollfd p = {fd, POLLIN, 0};
+        long long left = deadline - wsc_now_ms();
+        if (left <= 0 || poll(&p, 1, (int)left) <= 0)
+            break;
+        ssize_t k = recv(fd, buf + n, cap - n, 0);
+        if (k <= 0)
+            break;
+        n += (size_t)k;
+        buf[n] = 0;
+        if (until && has_bytes(buf, n, until))
+            break;
+    }
+    close(fd);
+    buf[n] = 0;
+    *len = n;
+    return buf;
+}
+
+/* GET path with an Origin header; returns the reply's headers and body. */
+static char *get_with_origin(int port, const char *path, const char *origin)
+{
+    char req[512];
+    snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nOrigin: %s\r\nConnection: close\r\n\r\n",
+             path, origin);
+    size_t n;
+    return raw_exchange(port, req, TMO, NULL, &n);
+}
+
+/* A WebSocket handshake from origin; returns what the server answered within 1 s. */
+static char *ws_from_origin(int port, const char *origin, size_t *n)
+{
+    char req[512];
+    snprintf(req, sizeof req,
+             "GET /stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+             "Sec-WebSocket-Protocol: btf-stream.v1\r\nOrigin: %s\r\n\r\n", origin);
+    return raw_exchange(port, req, 1000, "\"hello\"", n);
+}
+
+Test(server, cross_origin_headers_and_websocket_origin_check)
+{
+    make_simple(g_lib, "alpha", 2, 1000);
+    char client[300], shaders[300];
+    mount_dirs(client, shaders);
+    put_file(client, "index.html", "<p>page</p>\n");
+    put_file(client, "btf-viewer.js", "export {};\n");
+    put_file(shaders, "manifest.json", "{}\n");
+    srv s;
+    const char *root[] = {"--client", client, "--shaders", shaders, NULL};
+    srv_start(&s, g_lib, root); /* default: any origin */
+    const char *paths[] = {"/btf-viewer.js", "/shaders/manifest.json", "/materials"};
+    for (int i = 0; i < 3; i++) {
+        char *r = get_with_origin(s.port, paths[i], "http://other.example:9");
+        cr_expect(!strncmp(r, "HTTP/1.1 200", 12) && find_nocase(r, "access-control-allow-origin: *\r\n"),
+                  "%s: %.400s", paths[i], r);
+        free(r);
+    }
+    char *r = get_with_origin(s.port, "/", "http://other.example:9");
+    cr_expect(find_nocase(r, "content-security-policy:") && find_nocase(r, "frame-ancestors 'none'"),
+              "btfd's own page keeps its CSP: %.600s", r);
+    free(r);
+    srv_stop(&s);
+
+    const char *list[] = {"--client", client, "--shaders", shaders, "--allow-origin",
+                          "http://a.example,http://b.example:8000", NULL};
+    srv_start(&s, g_lib, list);
+    r = get_with_origin(s.port, "/btf-viewer.js", "http://b.example:8000");
+    cr_expect(find_nocase(r, "access-control-allow-origin: http://b.example:8000\r\n") &&
+              find_nocase(r, "vary: Origin"), "%.600s", r);
+    free(r);
+    r = get_with_origin(s.port, "/materials", "http://evil.example");
+    cr_expect(!find_nocase(r, "access-control-allow-origin"), "no CORS for others: %.600s", r);
+    free(r);
+    size_t n;
+    r = ws_from_origin(s.port, "http://a.example", &n);
+    cr_expect(strstr(r, " 101 ") && has_bytes(r, n, "\"hello\""), "allowed origin streams: %.300s", r);
+    free(r);
+    r = ws_from_origin(s.port, "http://evil.example", &n);
+    const char *body = strstr(r, "\r\n\r\n");
+    /* the close frame: 0x88, length, status 1008 (0x03f0) big-endian, reason */
+    cr_expect(body && (uint8_t)body[4] == 0x88 && (uint8_t)body[6] == 0x03 && (uint8_t)body[7] == 0xf0 &&
+              has_bytes(r, n, "origin not allowed") && !has_bytes(r, n, "\"hello\""),
+              "other origins are closed with 1008: %zu bytes", n);
+    free(r);
+    r = ws_from_origin(s.port, "http://b.example:8000", &n);
+    cr_expect(has_bytes(r, n, "\"hello\""), "the server still streams to allowed origins: %.300s", r);
+    free(r);
     srv_stop(&s);
 }
 

@@ -2,6 +2,7 @@
 // made by them, btfd on a free loopback port, Chromium (playwright-core, Debian's
 // /usr/bin/chromium with CHROMIUM_ARGS: no sandbox, software GL through SwiftShader,
 // no network side traffic; a fresh profile), page error collection, PNG read/write (node:zlib) and image differences.
+import assert from 'node:assert/strict';
 import {spawn, spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -54,11 +55,11 @@ export function makeLibrary(materials) {
   return {dir, lib, remove: () => fs.rmSync(dir, {recursive: true, force: true})};
 }
 
-// Starts btfd on a free loopback port; resolves {port, url, ws, stop()}.
-export function startServer(lib) {
+// Starts btfd on a free loopback port (extra: more options); resolves {port, url, ws, stop()}.
+export function startServer(lib, extra = []) {
   return new Promise((resolve, reject) => {
     const p = spawn(BTFD, ['--library', lib, '--port', '0', '--client', path.join(ROOT, 'client'),
-      '--shaders', path.join(ROOT, 'shaders')], {cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe']});
+      '--shaders', path.join(ROOT, 'shaders'), ...extra], {cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe']});
     let out = '', err = '';
     const timer = setTimeout(() => {
       p.kill();
@@ -84,10 +85,11 @@ export function startServer(lib) {
 }
 
 // A fresh browser context (own profile dir) with page errors and console errors
-// collected in ctx.problems. Options as playwright's launchPersistentContext.
-export async function launch(options = {}) {
+// collected in ctx.problems. Options as playwright's launchPersistentContext. With
+// keepProfile (a directory) that profile is used and kept (a second visit).
+export async function launch(options = {}, keepProfile = null) {
   const {chromium} = await import('playwright-core');
-  const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-chromium-'));
+  const profile = keepProfile || fs.mkdtempSync(path.join(os.tmpdir(), 'btf-chromium-'));
   const ctx = await chromium.launchPersistentContext(profile, {
     executablePath: CHROMIUM, headless: true, args: CHROMIUM_ARGS, viewport: {width: 1000, height: 700},
     ...options,
@@ -104,9 +106,15 @@ export async function launch(options = {}) {
   const close = ctx.close.bind(ctx);
   ctx.close = async () => {
     await close();
-    fs.rmSync(profile, {recursive: true, force: true});
+    if (!keepProfile) fs.rmSync(profile, {recursive: true, force: true});
   };
   return ctx;
+}
+
+// Fails when the context's pages reported errors since the last check (and forgets them).
+export function assertClean(ctx) {
+  const p = ctx.problems.splice(0);
+  assert.deepEqual(p, [], `the page reported errors:\n${p.join('\n')}`);
 }
 
 export async function newPage(ctx) {
@@ -240,4 +248,35 @@ export function sideBySide(images) {
     x0 += img.width + gap;
   }
   return {width: w, height: h, data};
+}
+
+// A page server on another loopback port (another origin than btfd): GET /NAME.html
+// answers pages[NAME] (HTML text). Resolves {url, close()}.
+export async function servePages(pages) {
+  const http = await import('node:http');
+  const srv = http.createServer((req, res) => {
+    const name = new URL(req.url, 'http://x').pathname.replace(/^\/|\.html$/g, '');
+    if (!(name in pages)) {
+      res.writeHead(404).end();
+      return;
+    }
+    res.writeHead(200, {'content-type': 'text/html; charset=utf-8', 'cache-control': 'no-store'});
+    res.end(typeof pages[name] === 'function' ? pages[name](req) : pages[name]);
+  });
+  await new Promise((r) => srv.listen(0, '127.0.0.1', r));
+  return {url: `http://127.0.0.1:${srv.address().port}/`, close: () => new Promise((r) => srv.close(r))};
+}
+
+// Every text frame the server sent on the page's WebSockets, parsed (frames.text), and
+// the binary payload bytes (frames.binary), as the browser's network layer saw them.
+export function watchFrames(page) {
+  const frames = {text: [], binary: 0, sockets: 0};
+  page.on('websocket', (ws) => {
+    frames.sockets++;
+    ws.on('framereceived', (f) => {
+      if (typeof f.payload === 'string') frames.text.push(JSON.parse(f.payload));
+      else frames.binary += f.payload.length;
+    });
+  });
+  return frames;
 }

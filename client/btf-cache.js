@@ -1,0 +1,105 @@
+// btf-cache.js - received chunks kept in the browser for the next visit (Cache API):
+// one entry per (server, material, etag) holding a prefix of its chunks, each chunk one
+// cached response (its files concatenated, sizes in a header). The index (entries, bytes,
+// last use) is itself a cached JSON response. Bounded: least recently used entries go
+// first once the total passes chunkCache.limit bytes. Without the Cache API (pages
+// that are not secure contexts) nothing is kept. A new etag replaces the entry.
+
+const NAME = 'btf-chunks-v1';
+const BASE = 'https://btf-chunk-cache.invalid/'; // keys only, never fetched
+const INDEX = `${BASE}index.json`;
+
+export const chunkCache = {
+  limit: 64 * 1024 * 1024, // bytes of chunk files kept across all materials
+  enabled: typeof caches !== 'undefined' && globalThis.__btfCache !== false, // test hook: __btfCache = false
+};
+
+let queue = Promise.resolve(); // index updates run one after another
+
+function serial(fn) {
+  const p = queue.then(fn);
+  queue = p.catch(() => {});
+  return p;
+}
+
+const entryKey = (server, material) => `${server}|${material}`;
+const chunkUrl = (key, etag, j) => `${BASE}${encodeURIComponent(key)}/${etag}/${j}`;
+
+async function readIndex(cache) {
+  const r = await cache.match(INDEX);
+  return r ? r.json() : {entries: {}};
+}
+
+function writeIndex(cache, index) {
+  return cache.put(INDEX, new Response(JSON.stringify(index), {headers: {'content-type': 'application/json'}}));
+}
+
+async function dropEntry(cache, index, key) {
+  const e = index.entries[key];
+  if (!e) return;
+  await Promise.all(e.chunks.map((j) => cache.delete(chunkUrl(key, e.etag, j))));
+  delete index.entries[key];
+}
+
+// Evicts least recently used entries (never `keep`) until the total fits the limit.
+async function evict(cache, index, keep) {
+  const total = () => Object.values(index.entries).reduce((s, e) => s + e.bytes, 0);
+  const lru = Object.entries(index.entries).filter(([k]) => k !== keep).sort((a, b) => a[1].used - b[1].used);
+  while (total() > chunkCache.limit && lru.length) await dropEntry(cache, index, lru.shift()[0]);
+}
+
+// The kept chunks of a material: {etag, chunks: [files per chunk 0..n-1]} or null.
+export function loadChunks(server, material) {
+  if (!chunkCache.enabled) return Promise.resolve(null);
+  return serial(async () => {
+    const cache = await caches.open(NAME), index = await readIndex(cache), key = entryKey(server, material);
+    const e = index.entries[key];
+    if (!e) return null;
+    const chunks = [];
+    for (let j = 0; e.chunks.includes(j); j++) { // a prefix only: chunks are uploaded in order
+      const r = await cache.match(chunkUrl(key, e.etag, j));
+      if (!r) break;
+      const buf = new Uint8Array(await r.arrayBuffer()), sizes = r.headers.get('x-sizes').split(',').map(Number);
+      let off = 0;
+      chunks.push(sizes.map((n) => buf.subarray(off, (off += n))));
+    }
+    e.used = Date.now();
+    await writeIndex(cache, index);
+    return chunks.length ? {etag: e.etag, chunks} : null;
+  }).catch(() => null);
+}
+
+// Keeps chunk j (its files) of a material at etag; an older etag's chunks are dropped.
+export function storeChunk(server, material, etag, j, files) {
+  if (!chunkCache.enabled) return Promise.resolve();
+  return serial(async () => {
+    const cache = await caches.open(NAME), index = await readIndex(cache), key = entryKey(server, material);
+    if (index.entries[key] && index.entries[key].etag !== etag) await dropEntry(cache, index, key);
+    const e = index.entries[key] || (index.entries[key] = {etag, chunks: [], bytes: 0, used: 0});
+    if (e.chunks.includes(j)) return;
+    const bytes = files.reduce((s, f) => s + f.length, 0);
+    await cache.put(chunkUrl(key, etag, j), new Response(new Blob(files), {headers: {'x-sizes': files.map((f) =>
+      f.length).join(',')}}));
+    e.chunks.push(j);
+    e.bytes += bytes;
+    e.used = Date.now();
+    await evict(cache, index, key);
+    await writeIndex(cache, index);
+  }).catch(() => {});
+}
+
+// Forgets a material's kept chunks (the server no longer has that etag).
+export function dropChunks(server, material) {
+  if (!chunkCache.enabled) return Promise.resolve();
+  return serial(async () => {
+    const cache = await caches.open(NAME), index = await readIndex(cache);
+    await dropEntry(cache, index, entryKey(server, material));
+    await writeIndex(cache, index);
+  }).catch(() => {});
+}
+
+// Test hook: the index ({entries: {key: {etag, chunks, bytes, used}}}).
+export function cacheIndex() {
+  if (!chunkCache.enabled) return Promise.resolve({entries: {}});
+  return serial(async () => readIndex(await caches.open(NAME)));
+}

@@ -1,0 +1,70 @@
+// btf-context.js - one WebGL2 context for every <btf-viewer> of the page. Browsers
+// allow only a few live contexts per page (Chromium: 16), so a page of 40 viewers
+// cannot give each its own. Each viewer draws into the bottom-left of one shared,
+// unattached canvas and copies that region into its own 2D canvas (drawImage) in
+// the same task; the program "render" is compiled once per shader base.
+import {loadShaders} from './btf-gl.js';
+import {MeshRenderer} from './btf-render.js';
+
+let shared;
+
+class SharedGl {
+  constructor() {
+    this.canvas = document.createElement('canvas');
+    this.canvas.width = this.canvas.height = 1;
+    this.gl = this.canvas.getContext('webgl2', {antialias: false, premultipliedAlpha: false, alpha: false});
+    this.lost = false;
+    this.users = new Set();      // viewers: contextLost(), contextRestored()
+    this.renderers = new Map();  // shader base URL -> Promise of MeshRenderer
+    this.canvas.addEventListener('webglcontextlost', (e) => {
+      e.preventDefault();
+      this.lost = true;
+      this.renderers.clear();
+      for (const u of this.users) u.contextLost();
+    });
+    this.canvas.addEventListener('webglcontextrestored', () => {
+      this.lost = false;
+      for (const u of this.users) u.contextRestored();
+    });
+  }
+
+  // The program "render" of the shader files at base (compiled once per context).
+  renderer(base) {
+    if (!this.renderers.has(base)) {
+      const p = loadShaders(base).then((sh) => new MeshRenderer(this.gl, sh));
+      p.catch(() => this.renderers.get(base) === p && this.renderers.delete(base));
+      this.renderers.set(base, p);
+    }
+    return this.renderers.get(base);
+  }
+
+  // Grows the drawing buffer to at least w x h (a viewer draws into its bottom-left).
+  fit(w, h) {
+    const c = this.canvas;
+    if (c.width < w || c.height < h) {
+      c.width = Math.max(c.width, w);
+      c.height = Math.max(c.height, h);
+    }
+  }
+
+  // Copies the w x h frame just drawn into a viewer's 2D context.
+  present(ctx2d, w, h) {
+    ctx2d.drawImage(this.canvas, 0, this.canvas.height - h, w, h, 0, 0, w, h);
+  }
+
+  stats() {
+    return {contexts: this.gl ? 1 : 0, users: this.users.size, renderers: this.renderers.size, lost: this.lost,
+            size: [this.canvas.width, this.canvas.height]};
+  }
+}
+
+// The page's shared context, created on first use; null without WebGL2.
+export function sharedGl() {
+  if (!shared) shared = new SharedGl();
+  return shared.gl ? shared : null;
+}
+
+// Test hook: null until a viewer created the context.
+export function sharedStats() {
+  return shared ? shared.stats() : {contexts: 0, users: 0, renderers: 0, lost: false, size: [0, 0]};
+}

@@ -1,0 +1,102 @@
+// throttle.mjs - a slow link for the tests and bench/bench_client.mjs: a TCP proxy on a
+// loopback port in front of another loopback port. Each direction is a token bucket
+// at `bps` bits per second (burst: one piece) plus a fixed one-way `delayMs`, delivered
+// in pieces of at most 4 KiB; a direction with more than `queue` bytes waiting stops
+// reading its source (the bottleneck's buffer), so the sender sees the link's rate.
+import net from 'node:net';
+
+const PIECE = 4096;
+
+// One direction src -> dst of one connection through the bucket of the link's direction
+// (`lane`, shared by every connection: the browser opens several): a FIFO of pieces, each
+// with the time it leaves the link, delivered in order by one timer.
+function pipe(src, dst, {bps, delayMs, queue}, lane) {
+  let waiting = 0, timer = null; // bytes not yet delivered
+  const stats = lane;
+  const fifo = [];
+  const deliver = () => {
+    timer = null;
+    const now = performance.now();
+    while (fifo.length && fifo[0].at <= now) {
+      const {piece} = fifo.shift();
+      waiting -= piece.length;
+      if (!dst.destroyed) dst.write(piece);
+      stats.bytes += piece.length;
+      stats.last = now;
+      stats.first ??= now - (piece.length * 8 * 1000) / bps; // when its first bit went out
+    }
+    if (waiting <= queue / 2 && src.isPaused()) src.resume();
+    if (fifo.length) timer = setTimeout(deliver, fifo[0].at - now);
+    else if (src.ended) dst.end();
+  };
+  src.on('data', (buf) => {
+    for (let off = 0; off < buf.length; off += PIECE) {
+      const piece = buf.subarray(off, off + PIECE);
+      lane.free = Math.max(lane.free, performance.now()) + (piece.length * 8 * 1000) / bps;
+      fifo.push({piece, at: lane.free + delayMs});
+      waiting += piece.length;
+    }
+    if (waiting > queue) src.pause();
+    if (!timer) timer = setTimeout(deliver, fifo[0].at - performance.now());
+  });
+  src.on('end', () => {
+    src.ended = true;
+    if (!timer) deliver();
+  });
+  src.on('error', () => dst.destroy());
+}
+
+// Resolves {port, url, down, close()}; target: the loopback port behind it; down: bytes
+// delivered towards the client and when the first and last were (ms, performance.now()).
+export function startThrottle({target, bps = 4e6, delayMs = 20, queue = 64 * 1024}) {
+  const sockets = new Set(), down = {bytes: 0, first: null, last: null, free: 0},
+    up = {bytes: 0, first: null, last: null, free: 0};
+  const srv = net.createServer((client) => {
+    const upstream = net.connect(target, '127.0.0.1');
+    for (const s of [client, upstream]) {
+      sockets.add(s);
+      s.on('close', () => sockets.delete(s));
+      s.setNoDelay(true);
+    }
+    pipe(client, upstream, {bps, delayMs, queue}, up);
+    pipe(upstream, client, {bps, delayMs, queue}, down);
+  });
+  return new Promise((resolve) => srv.listen(0, '127.0.0.1', () => resolve({
+    port: srv.address().port, url: `http://127.0.0.1:${srv.address().port}/`, down,
+    close: () => new Promise((r) => {
+      for (const s of sockets) s.destroy();
+      srv.close(r);
+    }),
+  })));
+}
+
+// The page `pageName` of pagesUrl (given ?link=PORT: its script, shaders and stream come
+// from btfd through a throttled link) until its first viewer has drawn its whole budget.
+// Resolves {firstFrameMs, completeMs (from navigation start), bytes (over the link, towards
+// the browser), utilisation: bytes / (link rate x time from the first byte to the last
+// chunk byte), i.e. the share of the link the viewer used while loading; streamUtilisation:
+// the same over the WebSocket's binary frames alone (first to last piece, browser side)}.
+export async function measureLink(ctx, {btfdPort, pagesUrl, page: pageName, bps, delayMs}) {
+  const link = await startThrottle({target: btfdPort, bps, delayMs});
+  try {
+    const page = ctx.pages()[0] || await ctx.newPage();
+    await page.goto(`${pagesUrl}${pageName}.html?link=${link.port}`);
+    const t0 = Date.now();
+    for (;;) {
+      const done = await page.evaluate(() => window.__btf?.viewers()[0]?.complete &&
+        window.__btf.viewers()[0].drawnChunks === window.__btf.viewers()[0].ownLimit);
+      if (done) break;
+      if (Date.now() - t0 > 120000) throw new Error('the throttled stream did not complete in 120 s');
+      await new Promise((r) => setTimeout(r, 50));
+    }
+    const r = await page.evaluate(() => {
+      const v = window.__btf.viewers()[0], s = window.__btf.streams()[0];
+      return {firstFrameMs: v.firstFrameAt, completeMs: v.completeAt, pieces: s.pieces, first: s.pieces.firstBytes};
+    });
+    const d = link.down, stream = ((r.pieces.bytes - r.first) * 8 * 1000) / (r.pieces.last - r.pieces.first);
+    return {firstFrameMs: r.firstFrameMs, completeMs: r.completeMs, bytes: d.bytes,
+            utilisation: (d.bytes * 8 * 1000) / (d.last - d.first) / bps, streamUtilisation: stream / bps};
+  } finally {
+    await link.close();
+  }
+}
