@@ -8,18 +8,13 @@
 #include "btf_budget.h"
 #include "btf_fs.h"
 #include "btf_gen.h"
+#include "test_gen_util.h"
 #include "test_util.h"
 
 static btf *material(void)
 {
-    btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 0.0f}};
-    btf_dirset d;
-    btf_error err = {0};
-    cr_assert_eq(btf_dirset_make(r, 3, &d, &err), BTF_OK);
-    btf_gen_params gp = btf_gen_defaults(BTF_GEN_TILES);
-    btf *b = NULL;
-    cr_assert_eq(btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &b, &err), BTF_OK, "%s", err.msg);
-    return b;
+    static const btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 0.0f}};
+    return test_material(BTF_GEN_TILES, 16, r, 3);
 }
 
 /* Bytes on disk of a package: every regular file in dir. */

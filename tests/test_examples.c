@@ -14,19 +14,13 @@
 #include "btf_lod.h"
 #include "btf_manifest.h"
 #include "btf_package.h"
+#include "test_gen_util.h"
 #include "test_util.h"
 
 /* A small generated material for the examples. */
 static btf *example_source(void)
 {
-    btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 6, 0.0f}};
-    btf_dirset d;
-    btf_error err = {0};
-    cr_assert_eq(btf_dirset_make(r, 2, &d, &err), BTF_OK, "%s", err.msg);
-    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
-    btf *src = NULL;
-    cr_assert_eq(btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &src, &err), BTF_OK, "%s", err.msg);
-    return src;
+    return test_material(BTF_GEN_KNIT, 16, NULL, 0);
 }
 
 /* codec/btf_package.h and codec/btf_lod.h */

@@ -18,6 +18,7 @@
 #include "btf_lod.h"
 #include "btf_manifest.h"
 #include "btf_package.h"
+#include "test_gen_util.h"
 #include "test_util.h"
 
 static void put(const char *dir, const char *name, const char *text)
@@ -52,14 +53,7 @@ static int count_prefix(const char *dir, const char *prefix)
 
 static btf *knit(int size)
 {
-    btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 6, 0.0f}};
-    btf_dirset d;
-    btf_error err = {0};
-    cr_assert_eq(btf_dirset_make(r, 2, &d, &err), BTF_OK, "%s", err.msg);
-    btf_gen_params p = btf_gen_defaults(BTF_GEN_KNIT);
-    btf *b = NULL;
-    cr_assert_eq(btf_gen_create(&p, size, size, &d, &d, BTF_U8, &b, &err), BTF_OK, "%s", err.msg);
-    return b;
+    return test_material(BTF_GEN_KNIT, size, NULL, 0);
 }
 
 static btf_result compress(const btf *b, const char *out, btf_error *err)

@@ -16,6 +16,7 @@
 #include "btf_manifest.h"
 #include "btf_package.h"
 #include "btf_thesis.h"
+#include "test_gen_util.h"
 #include "test_util.h"
 
 /* A manifest of a generated package (v1, or v2 with 2 levels), parsed with cJSON; lives for one test. */
@@ -25,13 +26,9 @@ static cJSON *base_manifest(int version)
     cr_assert(test_tmpdir(dir, sizeof dir));
     snprintf(v1, sizeof v1, "%s/v1", dir);
     snprintf(v2, sizeof v2, "%s/v2", dir);
-    btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 4, 0.0f}};
-    btf_dirset d;
+    static const btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 4, 0.0f}};
     btf_error err = {0};
-    cr_assert_eq(btf_dirset_make(r, 2, &d, &err), BTF_OK);
-    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
-    btf *b = NULL;
-    cr_assert_eq(btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &b, &err), BTF_OK, "%s", err.msg);
+    btf *b = test_material(BTF_GEN_KNIT, 16, r, 2);
     btf_pca_options po = {0};
     po.k = 2, po.components = 2;
     cr_assert_eq(btf_package_compress(b, &po, NULL, v1, NULL, &err), BTF_OK, "%s", err.msg);
@@ -206,13 +203,9 @@ Test(limits, weight_file_size_is_exact)
     char dir[64], pkg[128], path[200];
     cr_assert(test_tmpdir(dir, sizeof dir));
     snprintf(pkg, sizeof pkg, "%s/p", dir);
-    btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 4, 0.0f}};
-    btf_dirset d;
+    static const btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 4, 0.0f}};
     btf_error err = {0};
-    cr_assert_eq(btf_dirset_make(r, 2, &d, &err), BTF_OK);
-    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
-    btf *b = NULL;
-    cr_assert_eq(btf_gen_create(&gp, 8, 8, &d, &d, BTF_U8, &b, &err), BTF_OK, "%s", err.msg);
+    btf *b = test_material(BTF_GEN_KNIT, 8, r, 2);
     btf_pca_options po = {0};
     po.k = 1, po.components = 1;
     cr_assert_eq(btf_package_compress(b, &po, NULL, pkg, NULL, &err), BTF_OK, "%s", err.msg);
