@@ -10,6 +10,7 @@
 #include <cstring>
 #include <memory>
 #include <string>
+#include <strings.h>
 #include <unistd.h>
 
 using namespace OIIO;
@@ -29,22 +30,33 @@ static std::string one_line(std::string e)
 
 // A PNG must pass btf_png_check before OpenImageIO sees it (no decoder messages on
 // stderr, one clear error); other formats go straight to OpenImageIO.
-static btf_result check_file(const char *path, btf_error *err)
+static btf_result check_file(const char *path, int header_only, btf_error *err)
 {
-    char *data = nullptr;
+    uint8_t head[8];
     size_t n = 0;
+    FILE *f = std::fopen(path, "rb");
+    if (!f)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot open image", path);
+    n = std::fread(head, 1, sizeof head, f);
+    std::fclose(f);
+    size_t len = strlen(path);
+    int png = (n >= 4 && !memcmp(head, "\x89PNG", 4)) || (len > 4 && !strcasecmp(path + len - 4, ".png"));
+    if (!png) /* PNG by its magic or its name: checked (a damaged signature included); others go to OIIO */
+        return BTF_OK;
+    char *data = nullptr;
     btf_result r = btf_fs_read(path, (size_t)1 << 30, &data, &n, err);
-    if (r == BTF_OK && btf_png_is_png((const uint8_t *)data, n))
-        r = btf_png_check((const uint8_t *)data, n, path, err);
+    if (r == BTF_OK)
+        r = header_only ? btf_png_check_header((const uint8_t *)data, n, path, err)
+                        : btf_png_check((const uint8_t *)data, n, path, err);
     free(data);
     return r == BTF_ERR_MISSING ? BTF_ERR_IO : r;
 }
 
-// Opens path for reading with alpha left unassociated, after check_file; NULL with
-// *r and err set on failure.
-static std::unique_ptr<ImageInput> open_input(const char *path, btf_result *r, btf_error *err)
+// Opens path for reading with alpha left unassociated, after check_file (the header
+// alone when only the size is wanted); NULL with *r and err set on failure.
+static std::unique_ptr<ImageInput> open_input(const char *path, int header_only, btf_result *r, btf_error *err)
 {
-    if ((*r = check_file(path, err)) != BTF_OK)
+    if ((*r = check_file(path, header_only, err)) != BTF_OK)
         return nullptr;
     ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
@@ -57,7 +69,7 @@ static std::unique_ptr<ImageInput> open_input(const char *path, btf_result *r, b
 extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
 {
     btf_result r = BTF_OK;
-    auto in = open_input(path, &r, err);
+    auto in = open_input(path, 1, &r, err);
     if (!in)
         return r;
     const ImageSpec &s = in->spec();
@@ -73,7 +85,7 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
 {
     *pixels = nullptr;
     btf_result r = BTF_OK;
-    auto in = open_input(path, &r, err);
+    auto in = open_input(path, 0, &r, err);
     if (!in)
         return r;
     const ImageSpec &s = in->spec();

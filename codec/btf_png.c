@@ -36,6 +36,22 @@ static int btf__png_channels(int color, int depth)
     return 0;
 }
 
+/* Filtered size of an Adam7-interlaced image: seven passes, each a sub-image
+ * with one filter byte per row (empty passes have none). */
+static unsigned long long btf__adam7_bytes(uint32_t w, uint32_t h, int bits_per_pixel)
+{
+    static const int x0[7] = {0, 4, 0, 2, 0, 1, 0}, y0[7] = {0, 0, 4, 0, 2, 0, 1};
+    static const int dx[7] = {8, 8, 4, 4, 2, 2, 1}, dy[7] = {8, 8, 8, 4, 4, 2, 2};
+    unsigned long long total = 0;
+    for (int k = 0; k < 7; k++) {
+        unsigned long long pw = w > (uint32_t)x0[k] ? (w - x0[k] + dx[k] - 1) / dx[k] : 0;
+        unsigned long long ph = h > (uint32_t)y0[k] ? (h - y0[k] + dy[k] - 1) / dy[k] : 0;
+        if (pw && ph)
+            total += ph * (1 + (pw * bits_per_pixel + 7) / 8);
+    }
+    return total;
+}
+
 static btf_result btf__png_ihdr(const uint8_t *d, uint32_t len, btf__png *p, const char *what, btf_error *err)
 {
     if (len != 13)
@@ -47,7 +63,7 @@ static btf_result btf__png_ihdr(const uint8_t *d, uint32_t len, btf__png *p, con
         return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG IHDR is invalid (%ux%u, depth %d, colour type %d)", what, p->w,
                         p->h, p->depth, p->color);
     p->row_bytes = 1 + ((unsigned long long)p->w * ch * p->depth + 7) / 8;
-    p->want = p->interlace ? ~0ULL : p->row_bytes * p->h; /* Adam7 passes: size not checked */
+    p->want = p->interlace ? btf__adam7_bytes(p->w, p->h, ch * p->depth) : p->row_bytes * p->h;
     return BTF_OK;
 }
 
@@ -60,9 +76,12 @@ typedef struct btf__inflate {
 
 static void btf__png_count(btf__inflate *s, const btf__png *p, const uint8_t *out, size_t n)
 {
-    for (size_t i = 0; i < n; i++, s->got++)
-        if (!p->interlace && s->got % p->row_bytes == 0 && out[i] > 4)
-            s->bad_filter = 1;
+    if (!p->interlace) { /* the filter byte of every row that starts in this piece */
+        unsigned long long r = (s->got + p->row_bytes - 1) / p->row_bytes * p->row_bytes;
+        for (; r < s->got + n; r += p->row_bytes)
+            s->bad_filter |= out[r - s->got] > 4;
+    }
+    s->got += n;
 }
 
 /* Feeds one IDAT chunk; 1 while the stream is fine. */
@@ -82,7 +101,7 @@ static int btf__png_feed(btf__inflate *s, const btf__png *p, const uint8_t *d, u
     return s->got <= p->want;
 }
 
-/* Walks the chunks; fills p and inflates the image data. */
+/* Walks the chunks; fills p and inflates the image data (s NULL: framing only). */
 static btf_result btf__png_walk(const uint8_t *d, size_t n, btf__png *p, btf__inflate *s, const char *what,
                                 btf_error *err)
 {
@@ -112,18 +131,22 @@ static btf_result btf__png_walk(const uint8_t *d, size_t n, btf__png *p, btf__in
             if (p->color == 3 && !p->has_plte)
                 return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG palette image without PLTE before IDAT", what);
             idat = 1;
-            if (!btf__png_feed(s, p, body, len, &z_done) || s->bad_filter)
+            if (s && (!btf__png_feed(s, p, body, len, &z_done) || s->bad_filter))
                 return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG image data is damaged (zlib stream or row filters)",
                                 what);
         } else if (!memcmp(type, "IEND", 4))
             seen_iend = 1;
+        else if (type[0] >= 'A' && type[0] <= 'Z') /* a critical chunk this decoder does not know */
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG has an unknown critical chunk %.4s", what, type);
         if (r != BTF_OK)
             return r;
         at += 12 + (size_t)len;
     }
     if (!seen_iend || !idat)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG is truncated (no %s)", what, idat ? "IEND" : "image data");
-    if (!p->interlace && s->got != p->want)
+    if (s && !z_done)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG image data is truncated (the zlib stream does not end)", what);
+    if (s && s->got != p->want)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG image data holds %llu of %llu bytes", what, s->got, p->want);
     return BTF_OK;
 }
@@ -141,4 +164,13 @@ btf_result btf_png_check(const uint8_t *data, size_t n, const char *what, btf_er
     btf_result r = btf__png_walk(data, n, &p, &s, what, err);
     inflateEnd(&s.z);
     return r;
+}
+
+btf_result btf_png_check_header(const uint8_t *data, size_t n, const char *what, btf_error *err)
+{
+    btf__png p;
+    memset(&p, 0, sizeof p);
+    if (!btf_png_is_png(data, n))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: not a PNG file", what);
+    return btf__png_walk(data, n, &p, NULL, what, err);
 }

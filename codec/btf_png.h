@@ -22,10 +22,16 @@ int btf_png_is_png(const uint8_t *data, size_t n);
 
 /* BTF_OK when data (n bytes) is a well-formed PNG: every chunk complete with a
  * valid CRC and a letter type, IHDR first and valid, PLTE before IDAT for
- * palette images, IEND last, and the IDAT stream inflating to exactly the
- * image's filtered size with filter bytes 0..4 (non-interlaced images).
+ * palette images, no unknown critical chunk, IEND last, and the IDAT stream
+ * inflating to exactly the image's filtered size (Adam7 passes counted for
+ * interlaced images) with filter bytes 0..4 (checked for non-interlaced images).
  * BTF_ERR_FORMAT otherwise, naming what is wrong; what names the file. */
 btf_result btf_png_check(const uint8_t *data, size_t n, const char *what, btf_error *err);
+
+/* The same without inflating the image data (framing, CRCs, IHDR, chunk order),
+ * for readers that only want the image size: the decoder still reads every chunk
+ * before the image data when it opens a file. */
+btf_result btf_png_check_header(const uint8_t *data, size_t n, const char *what, btf_error *err);
 
 #ifdef __cplusplus
 }
