@@ -54,19 +54,6 @@ static btf_budget_choice btf__best_prefix(btf_package *p, const btf_budget *b, i
     return b->max_error > 0 && !*met ? low : c; /* an unreachable target: the lowest error, reported as unmet */
 }
 
-/* Reads dir's manifest into p (no chunk data). */
-static btf_result btf__budget_manifest(const char *dir, btf_package *p, btf_error *err)
-{
-    char path[BTF_FS_PATH_MAX + 32], *text = NULL;
-    snprintf(path, sizeof path, "%s/manifest.json", dir);
-    memset(p, 0, sizeof *p);
-    btf_result r = btf_fs_read(path, BTF_MANIFEST_MAX_BYTES, &text, NULL, err);
-    if (r == BTF_OK)
-        r = btf_manifest_parse(text, path, p, err);
-    free(text);
-    return r;
-}
-
 /* The "budget" record of the manifest: what was asked, chosen and measured. */
 static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
 {
@@ -99,7 +86,7 @@ static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
 static btf_result btf__budget_cut(const char *dir, int n, char *budget_json, btf_error *err)
 {
     btf_package p;
-    btf_result r = btf__budget_manifest(dir, &p, err);
+    btf_result r = btf_manifest_load(dir, &p, err);
     char path[BTF_FS_PATH_MAX + 80];
     for (int i = n; r == BTF_OK && i < p.n_chunks; i++)
         for (int f = 0; f < p.chunk[i].n_files; f++) {
@@ -128,7 +115,7 @@ static long long btf__package_bytes(const char *dir)
     char path[BTF_FS_PATH_MAX + 80];
     snprintf(path, sizeof path, "%s/manifest.json", dir);
     long long n = btf_fs_size(path);
-    if (btf__budget_manifest(dir, &p, NULL) != BTF_OK)
+    if (btf_manifest_load(dir, &p, NULL) != BTF_OK)
         return -1;
     for (int i = 0; i < p.n_chunks; i++)
         for (int f = 0; f < p.chunk[i].n_files; f++) {
@@ -156,7 +143,7 @@ static btf_result btf__budget_finish(const char *dir, const btf_budget *b, btf_b
             continue;
         }
         btf_package p; /* one chunk fewer: its error from the manifest */
-        if ((r = btf__budget_manifest(dir, &p, err)) != BTF_OK)
+        if ((r = btf_manifest_load(dir, &p, err)) != BTF_OK)
             return r;
         rs->n_chunks--;
         rs->lab = p.chunk[rs->n_chunks - 1].lab, rs->rmse = p.chunk[rs->n_chunks - 1].rmse;
@@ -177,7 +164,7 @@ static btf_result btf__budget_try(const btf *src, btf_pca_options po, const btf_
     btf_fs_rmtree(dir, NULL);
     btf_result r = btf_package_compress(src, &po, opt, dir, NULL, err);
     btf_package p;
-    if (r == BTF_OK && (r = btf__budget_manifest(dir, &p, err)) == BTF_OK) {
+    if (r == BTF_OK && (r = btf_manifest_load(dir, &p, err)) == BTF_OK) {
         *c = btf__best_prefix(&p, b, met);
         btf_manifest_clear(&p);
     }

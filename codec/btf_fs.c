@@ -176,17 +176,33 @@ btf_result btf_fs_rmtree(const char *path, btf_error *err)
     return BTF_OK;
 }
 
+int btf_fs_all_entries(const char *dir, btf_fs_entry_fn ok, void *ctx)
+{
+    char path[2 * BTF_FS_PATH_MAX + 8];
+    DIR *d = opendir(dir);
+    int all = d != NULL;
+    for (struct dirent *e; all && (e = readdir(d));) {
+        struct stat st;
+        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+            continue;
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        all = lstat(path, &st) == 0 && ok(e->d_name, &st, ctx);
+    }
+    if (d)
+        closedir(d);
+    return all;
+}
+
+static int btf__fs_no_entry(const char *name, const struct stat *st, void *ctx)
+{
+    (void)name, (void)st, (void)ctx;
+    return 0;
+}
+
 /* 1 when dir is an empty directory. */
 static int btf__fs_is_empty_dir(const char *dir)
 {
-    DIR *d = opendir(dir);
-    if (!d)
-        return 0;
-    int empty = 1;
-    for (struct dirent *e; empty && (e = readdir(d));)
-        empty = !strcmp(e->d_name, ".") || !strcmp(e->d_name, "..");
-    closedir(d);
-    return empty;
+    return btf_fs_all_entries(dir, btf__fs_no_entry, NULL);
 }
 
 /* Removes the leftovers "OUT.tmp-PID[-SUFFIX]" of writers that are no longer running. */

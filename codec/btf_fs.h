@@ -18,6 +18,7 @@
 #define BTF_FS_H
 
 #include <stddef.h>
+#include <sys/stat.h>
 
 #include "btf.h"
 
@@ -66,6 +67,11 @@ btf_result btf_fs_replace_dir(const char *tmp, const char *out, btf_fs_owned_fn 
 /* BTF_OK when btf_fs_replace_dir could put a directory in place of out: out is
  * absent, an empty directory, or a directory that passes owned(out, ctx). */
 btf_result btf_fs_replaceable(const char *out, btf_fs_owned_fn owned, void *ctx, btf_error *err);
+
+/* 1 when dir can be read and every entry but . and .. passes ok(name, st, ctx)
+ * (st from lstat: links are not followed); the walk stops at the first that fails. */
+typedef int (*btf_fs_entry_fn)(const char *name, const struct stat *st, void *ctx);
+int btf_fs_all_entries(const char *dir, btf_fs_entry_fn ok, void *ctx);
 
 /* Removes a tree (files, links and folders below path, then path) without
  * following links; BTF_OK when path does not exist. */

@@ -3,7 +3,6 @@
 #include "btf_manifest.h"
 
 #include <cjson/cJSON.h>
-#include <dirent.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -531,54 +530,43 @@ static int btf__package_file(const btf_package *p, const char *name)
     return 0;
 }
 
+/* A regular file that the package's manifest (ctx) lists (btf_fs_entry_fn). */
+static int btf__listed_file(const char *name, const struct stat *st, void *ctx)
+{
+    return S_ISREG(st->st_mode) && btf__package_file(ctx, name);
+}
+
+btf_result btf_manifest_load(const char *dir, btf_package *p, btf_error *err)
+{
+    char path[BTF_FS_PATH_MAX + 64], *text = NULL;
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    memset(p, 0, sizeof *p);
+    btf_result r = btf_fs_read(path, BTF_MANIFEST_MAX_BYTES, &text, NULL, err);
+    if (r == BTF_OK)
+        r = btf_manifest_parse(text, path, p, err);
+    free(text);
+    return r;
+}
+
 int btf_manifest_owns_dir(const char *dir, void *ctx)
 {
     (void)ctx;
-    char path[BTF_FS_PATH_MAX + 64];
-    snprintf(path, sizeof path, "%s/manifest.json", dir);
-    char *text;
-    btf_fs_read(path, BTF_MANIFEST_MAX_BYTES, &text, NULL, NULL);
     btf_package p;
-    memset(&p, 0, sizeof p);
-    int ok = text && btf_manifest_parse(text, path, &p, NULL) == BTF_OK;
-    free(text);
-    DIR *d = ok ? opendir(dir) : NULL;
-    ok = d != NULL;
-    for (struct dirent *e; ok && (e = readdir(d));) {
-        struct stat st;
-        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-            continue;
-        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
-        ok = lstat(path, &st) == 0 && S_ISREG(st.st_mode) && btf__package_file(&p, e->d_name);
-    }
-    if (d)
-        closedir(d);
+    int ok = btf_manifest_load(dir, &p, NULL) == BTF_OK && btf_fs_all_entries(dir, btf__listed_file, &p);
     btf_manifest_clear(&p);
     return ok;
 }
 
 /* 1 when name is one a package writer makes: manifest.json, thumbnail.png,
  * tex-..., wt-..., or one of these with a temporary ".tmp-PID" ending. */
-static int btf__writer_file(const char *name)
-{
-    return btf_manifest_valid_name(name) && (!strncmp(name, "manifest.json", 13) || !strncmp(name, "thumbnail.png", 13) ||
-                                             !strncmp(name, "tex-", 4) || !strncmp(name, "wt-", 3));
-}
-
-int btf_manifest_owns_temp(const char *dir, void *ctx)
+static int btf__writer_file(const char *name, const struct stat *st, void *ctx)
 {
     (void)ctx;
-    char path[BTF_FS_PATH_MAX + 64];
-    DIR *d = opendir(dir);
-    int ok = d != NULL;
-    for (struct dirent *e; ok && (e = readdir(d));) {
-        struct stat st;
-        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-            continue;
-        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
-        ok = lstat(path, &st) == 0 && S_ISREG(st.st_mode) && btf__writer_file(e->d_name);
-    }
-    if (d)
-        closedir(d);
-    return ok;
+    return S_ISREG(st->st_mode) && btf_manifest_valid_name(name) &&
+           (!strncmp(name, "manifest.json", 13) || !strncmp(name, "thumbnail.png", 13) || !strncmp(name, "tex-", 4) ||
+            !strncmp(name, "wt-", 3));
+}
+int btf_manifest_owns_temp(const char *dir, void *ctx)
+{
+    return btf_fs_all_entries(dir, btf__writer_file, ctx);
 }

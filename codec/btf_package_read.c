@@ -187,16 +187,11 @@ btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error
     *out = NULL;
     if (!dir || strlen(dir) > 4000)
         return btf_fail(err, BTF_ERR_ARG, "package: no directory");
-    char path[4200];
-    snprintf(path, sizeof path, "%s/manifest.json", dir);
-    char *text;
-    btf_result r = btf_fs_read(path, BTF_MANIFEST_MAX_BYTES, &text, NULL, err);
-    if (r != BTF_OK)
-        return r;
     btf_package *p = calloc(1, sizeof *p);
-    r = p ? btf_manifest_parse(text, path, p, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    free(text);
-    int nc = p ? p->n_chunks : 0;
+    if (!p)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
+    btf_result r = btf_manifest_load(dir, p, err);
+    int nc = p->n_chunks;
     if (r == BTF_OK && n > nc)
         r = btf_fail(err, BTF_ERR_RANGE, "%s: %d chunks requested, the package has %d", dir, n, nc);
     int want = n == 0 ? nc : n;

@@ -4,7 +4,6 @@
 
 #include <cJSON.h>
 #include <cblas.h>
-#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -408,27 +407,20 @@ static btf_result write_meta(const char *dir, const btf_thesis_pkg *p, int r_siz
 
 /* 1 when every entry of dir is a regular file the thesis writer names (meta.json,
  * R.png, N.png, or their temporaries); with need_meta, meta.json must be there. */
-static int btf__thesis_files_only(const char *dir, int need_meta)
+/* A regular file named as the thesis writer names them; *ctx counts meta.json. */
+static int btf__thesis_file(const char *n, const struct stat *st, void *ctx)
 {
-    char path[PATH_MAX_LEN + 256];
-    DIR *d = opendir(dir);
-    int ok = d != NULL, meta = 0;
-    for (struct dirent *e; ok && (e = readdir(d));) {
-        const char *n = e->d_name;
-        struct stat st;
-        if (!strcmp(n, ".") || !strcmp(n, ".."))
-            continue;
-        size_t digits = strspn(n, "0123456789");
-        meta |= !strcmp(n, "meta.json");
-        snprintf(path, sizeof path, "%s/%s", dir, n);
-        ok = lstat(path, &st) == 0 && S_ISREG(st.st_mode) &&
-             (!strncmp(n, "meta.json", 9) || !strncmp(n, "R.png", 5) || (digits > 0 && !strncmp(n + digits, ".png", 4)));
-    }
-    if (d)
-        closedir(d);
-    return ok && (meta || !need_meta);
+    size_t digits = strspn(n, "0123456789");
+    *(int *)ctx += !strcmp(n, "meta.json");
+    return S_ISREG(st->st_mode) &&
+           (!strncmp(n, "meta.json", 9) || !strncmp(n, "R.png", 5) || (digits > 0 && !strncmp(n + digits, ".png", 4)));
 }
 
+static int btf__thesis_files_only(const char *dir, int need_meta)
+{
+    int meta = 0;
+    return btf_fs_all_entries(dir, btf__thesis_file, &meta) && (meta || !need_meta);
+}
 int btf_thesis_owns_dir(const char *dir, void *ctx)
 {
     (void)ctx;
