@@ -33,6 +33,7 @@
 #include "btf_gen.h"
 #include "btf_gl.h"
 #include "btf_gl_package.h"
+#include "btf_lod.h"
 #include "btf_package.h"
 #include "btf_render.h"
 #include "btf_shader.h"
@@ -491,24 +492,84 @@ static void thesis_free(btf_gl *gl, thesis_data *t)
 /* ---------------------------------------------------------------- main */
 
 /* Texture fetches per fragment, from the sources:
- *   shader: 3 view-block fetches + per (view a of 3, chunk j): 1 range + 1 texel
- *           (nearest) + 3 weights (one per light) = 3 + 15 C (pairs of weight 0 skip,
- *           so this is the maximum; it is the count away from measured directions);
+ *   shader: 2 direction-table texels (one per set; a walk step, rare, adds one) +
+ *           per (view a of 3, layer h of 4 slots): 1 texel of 4 slots (nearest) +
+ *           3 weights texels (one per light) = 2 + 12 ceil(C/4); with levels, 1 more
+ *           texel per (view, layer) for the second level: 2 + 15 ceil(C/4);
  *   thesis: 4 map fetches + per (view a, group g of 4 components): 1 L fetch + per
  *           light e: 3 R fetches (one per channel) = 4 + 30 ceil(C/4);
  *   textured: 1.
  * ALU (scalar ops, estimated from the sources): shader: frame + light/view vectors
- *   ~40, btf_dirs_interp_vec twice ~2 x 260 (atan x2, sqrt, ring search over 6 rings,
- *   2 ring vertices with sin/cos, ~2 band-walk steps of 4 determinants each),
- *   per (a, j) ~28 (tile/index math 8, dequantise 3, 3 weighted RGB adds 12, blend 4,
- *   loop 1) -> ~560 + 84 C; thesis: frame ~40, 2 map coordinates ~2 x 12, index and
- *   weight unpacking ~20, per (a, g) ~14 (coordinates, dequantise and mask a vec4),
- *   per (a, g, e) ~60 (3 coordinates, 3 vec4 dequantisations 24, 3 dot4 21, blend 7)
- *   -> ~84 + 582 ceil(C/4); textured: ~4. */
-static int shader_fetches(int C) { return 3 + 15 * C; }
-static int shader_alu(int C) { return 560 + 84 * C; }
+ *   ~40, lod ~10, 2 direction lookups ~2 x 90 (normalise 12, octahedral cell 10, one
+ *   walk step: 3 determinants 39 + argmin 6 + neighbour select 6, weights 15), view
+ *   block and tile ~3 x 14 -> ~270; per (a, h) ~120 (texel unpack and dequantise 8,
+ *   3 weight texels unpacked 3 x 28, blend 12 + dequantise 12 as multiply-adds... 4 x
+ *   4 lanes counted once per vector op: ~120) -> ~270 + 360 ceil(C/4); thesis: frame
+ *   ~40, 2 map coordinates ~2 x 12, index and weight unpacking ~20, per (a, g) ~14
+ *   (coordinates, dequantise and mask a vec4), per (a, g, e) ~60 (3 coordinates, 3 vec4
+ *   dequantisations 24, 3 dot4 21, blend 7) -> ~84 + 582 ceil(C/4); textured: ~4. */
+static int shader_fetches(int C) { return 2 + 12 * ((C + 3) / 4); }
+static int shader_alu(int C) { return 270 + 360 * ((C + 3) / 4); }
 static int thesis_fetches(int C) { return 4 + 30 * ((C + 3) / 4); }
 static int thesis_alu(int C) { return 84 + 582 * ((C + 3) / 4); }
+
+/* Frame cost of package g with the render program specialised for it (C = 0: all
+ * chunks), nearest, lod from derivatives; the program is left in *prog. */
+static frame_cost product_frames(btf_gl *gl, const scene *s, const btf_gl_target *t, const btf_gl_package *g, int C,
+                                 btf_shader_program **prog)
+{
+    btf_error err = {{0}};
+    btf_shader_define defs[BTF_GL_PACKAGE_DEFINES];
+    char vals[BTF_GL_PACKAGE_DEFINES][16];
+    btf_shader_desc sd = {.program = "render", .defines = defs, .n_defines = btf_gl_package_defines(g, 0, C, defs, vals)};
+    btf_shader_program_free(gl, *prog);
+    *prog = NULL;
+    frame_cost none = {-1, -1};
+    if (btf_shader_build(gl, &sd, prog, NULL, &err) != BTF_OK) {
+        die("product program", &err);
+        return none;
+    }
+    btf_gl_fn(gl)->UseProgram((*prog)->id);
+    if (btf_gl_package_bind(gl, g, *prog, 0, &err) != BTF_OK) {
+        die("bind", &err);
+        return none;
+    }
+    btf_gl_decode_settings ds = {0, 1, C};
+    btf_gl_package_settings(gl, g, *prog, &ds);
+    scene_uniforms(gl, (*prog)->id, s);
+    return time_frames(gl, s, t);
+}
+
+/* Version 2 (spatial levels, 3 levels) of the same package against version 1, all
+ * chunks: the level path's cost over level 0 alone, in one run, interleaved. */
+static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const scene *s, const btf_gl_target *t)
+{
+    char dir2[1100];
+    snprintf(dir2, sizeof dir2, "%s-v2", dir1);
+    btf_error err = {{0}};
+    btf_lod_options lo = {0};
+    lo.levels = 3;
+    btf_package *p2 = NULL;
+    btf_gl_package *g1 = NULL, *g2 = NULL;
+    if (btf_lod_build(dir1, dir2, &lo, NULL, &err) != BTF_OK || btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
+        btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err))
+        return die("levels package", &err);
+    btf_shader_program *prog = NULL;
+    double c1[2], c2[2];
+    for (int r = 0; r < 2; r++) {
+        c1[r] = product_frames(gl, s, t, g1, 0, &prog).cpu_ms;
+        c2[r] = product_frames(gl, s, t, g2, 0, &prog).cpu_ms;
+    }
+    double v1 = fmin(c1[0], c1[1]), v2 = fmin(c2[0], c2[1]);
+    printf("levels_v1_C%d_cpu_ms %.2f ms\nlevels_v2_C%d_cpu_ms %.2f ms\n", p1->n_loaded, v1, p1->n_loaded, v2);
+    printf("levels_v2_over_v1_cpu_ratio %.3f x\n", v2 / v1);
+    btf_shader_program_free(gl, prog);
+    btf_gl_package_free(gl, g1);
+    btf_gl_package_free(gl, g2);
+    btf_package_free(p2);
+    remove_dir(dir2);
+    return 0;
+}
 
 static int run(btf_gl *gl, const btf_package *p, const char *dir)
 {
@@ -525,11 +586,10 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     if (btf_gl_target_create(gl, BW, BH, BTF_GL_RGBA8, 1, &t, &err) != BTF_OK)
         return die("target", &err);
     /* product program */
-    btf_shader_desc sd = {.program = "render"};
     btf_shader_program *prog = NULL;
     btf_gl_package *g = NULL;
-    if (btf_shader_build(gl, &sd, &prog, NULL, &err) != BTF_OK || btf_gl_package_upload(gl, p, dir, &g, &err))
-        return die("product program", &err);
+    if (btf_gl_package_upload(gl, p, dir, &g, &err))
+        return die("product package", &err);
     GLuint thesis = build_bench_program(gl, "thesis.frag"), textured = build_bench_program(gl, "textured.frag");
     if (!thesis || !textured)
         return 1;
@@ -574,14 +634,11 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         if (C > p->n_loaded || (getenv("BENCH_MAX_C") && C > atoi(getenv("BENCH_MAX_C"))))
             break;
         ref_decode(p, &ref, C);
-        /* product */
-        f->UseProgram(prog->id);
-        if (btf_gl_package_bind(gl, g, prog, 0, &err) != BTF_OK)
-            return die("bind", &err);
-        btf_gl_decode_settings ds = {0, 1, C};
-        btf_gl_package_settings(gl, g, prog, &ds);
-        scene_uniforms(gl, prog->id, &s);
-        frame_cost ms_s = time_frames(gl, &s, t);
+        /* product: the program specialised for the package (no levels), the filter
+         * (nearest) and C, as btf render builds it (btf_gl_package_defines) */
+        frame_cost ms_s = product_frames(gl, &s, t, g, C, &prog);
+        if (ms_s.cpu_ms < 0)
+            return 1;
         double e_s, m_s;
         if (render_error(gl, t, &ref, &e_s, &m_s))
             return 1;
@@ -611,6 +668,8 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
                thesis_alu(C));
         fflush(stdout);
     }
+    if (!getenv("BENCH_MAX_C") && run_levels(gl, p, dir, &s, t))
+        return 1;
     printf("renderer %s\n", btf_gl_renderer(gl));
     btf_gl_texture_free(gl, tex);
     f->DeleteProgram(thesis);

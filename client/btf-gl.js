@@ -1,9 +1,10 @@
 // btf-gl.js - WebGL2 side of the viewer: shader files from shaders/ assembled exactly
 // as shaders/host/btf_shader.c does (shaders/README.md), compile/link errors reported
-// twgl-style against the numbered source, and the package's textures (the same
-// layout as shaders/host/btf_gl_package.c: u_btf_tex, u_btf_wt, u_btf_range,
-// u_btf_view_block), uploaded one chunk at a time; version-2 packages as mip levels
-// of per-component slots (shaders/README.md, "Spatial levels").
+// twgl-style against the numbered source, and the package's GPU layout (the same as
+// shaders/host/btf_gl_package.c, shaders/README.md "GPU layout"), uploaded one chunk
+// at a time; version-2 packages as mip levels of per-component slots.
+
+import {buildDirtab, dirtabGpu, CELLS} from './btf-dirtab.js';
 
 const manifests = new Map(); // shaders base URL -> Promise of {manifest, files: Map}
 
@@ -157,45 +158,63 @@ function nearest(gl, target) {
   gl.texParameteri(target, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
 }
 
-// A package's GPU textures. Version 1: layers for `capacity` chunks (the budget);
-// grows by a GPU-side copy of the layers already there, so no chunk is uploaded
-// twice. Version 2 (shaders/README.md, "Spatial levels"): one layer (slot) per
-// component with every mip level, allocated at once; chunk (component, level) goes
-// into that mip level. Owned by one viewer; free() with the same context.
+const f32 = Math.fround;
+const WQMAX = [2047, 2047, 1023], WSHIFT = [0, 11, 22];
+
+// Decoder program variants (shaders/btf_decode.glsl, "Host specialisation"): the
+// defines for a package drawn with `filter` and `slots` slots in use, as
+// btf_gl_package_defines does.
+export function decodeDefines(pkg, filter, slots) {
+  return [['BTF_FILTER', filter === 1 ? 1 : 0], ['BTF_LEVELS', pkg.version >= 2 && pkg.levels > 1 ? 1 : 0],
+          ['BTF_QUADS', Math.max(1, Math.ceil(slots / 4))]];
+}
+
+// A package's GPU layout (shaders/README.md, "GPU layout"; the C host's
+// shaders/host/btf_gl_package.c): u_btf_tex RGBA16UI layers of 4 slots at 16 bits on
+// one grid per component, N mip levels; u_btf_wt RGBA32UI layers of 4 slots as
+// 11/11/10-bit RGB; the direction tables (btf-dirtab.js). Slot s: version 1 chunk s;
+// version 2 the s-th component to arrive, whose chunks are its levels. Keeps a CPU
+// copy of every layer it uploaded, so a new chunk rewrites only its slot's channel
+// (and, in version 2, the levels it fills) and growing the layer count re-uploads
+// from the copies. Owned by one viewer; free() with the same context.
 export class GpuPackage {
   constructor(gl, pkg, capacity) {
     this.gl = gl;
     this.pkg = pkg;
     this.uploaded = 0;
     this.capacity = 0;
-    this.uploads = 0; // texture-layer uploads so far (tests check: one per chunk)
+    this.uploads = 0; // chunk uploads so far (tests check: one per chunk)
     GpuPackage.live++;
-    const V = pkg.views.dirs, L = pkg.lights.dirs;
-    // Version 2 (shaders/README.md, "Spatial levels"): textures by slot (the s-th
-    // component to arrive), levels as mip levels; version 1: slot = chunk, one level.
     this.levels = pkg.version >= 2 ? pkg.levels : 1;
     this.slotOf = new Map(); // component -> slot (version 2)
-    this.loaded = [];        // per slot: {fine, coarse, wt16} (version 2)
-    const nc = pkg.version >= 2 ? pkg.components.length : pkg.chunks.length;
-    // weights for every chunk (slot) of the manifest: 12 * L * V bytes each (78 KB at 81 x 81)
-    this.wt = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.wt);
-    nearest(gl, gl.TEXTURE_2D_ARRAY);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGB32F, L, V, nc);
-    this.range = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, this.range);
+    this.loaded = [];        // per slot: {component, fine, coarse, wt16}
+    this.q16 = [];           // per slot, per level: Uint16Array of the atlas on the slot's grid (or null)
+    this.texCopy = [];       // per layer, per level: Uint16Array RGBA
+    this.wtCopy = [];        // per layer: Uint32Array RGBA
+    this.tq = new Float32Array(0);
+    this.wq = new Float32Array(0);
+    const tabs = [buildDirtab(pkg.lights), buildDirtab(pkg.views)];
+    const d = dirtabGpu(tabs[0], tabs[1], pkg.viewBlock);
+    this.viewBase = d.viewBase;
+    this.outerCos = Math.cos(pkg.lights.rings[4 * (pkg.lights.n - 1)] * Math.PI / 180);
+    this.ubo = gl.createBuffer();
+    gl.bindBuffer(gl.UNIFORM_BUFFER, this.ubo);
+    gl.bufferData(gl.UNIFORM_BUFFER, d.ubo, gl.STATIC_DRAW);
+    gl.bindBuffer(gl.UNIFORM_BUFFER, null);
+    this.cells = this.intTexture(CELLS, 2 * CELLS, d.cells);
+    this.tris = this.intTexture(d.triWidth, d.rows, d.tris);
+    this.tex = this.wt = null;
+    this.reserve(pkg.version >= 2 ? pkg.components.length : capacity);
+  }
+
+  intTexture(w, h, data) {
+    const gl = this.gl, t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, t);
     nearest(gl, gl.TEXTURE_2D);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, pkg.nBlocks, nc * this.levels);
-    this.rangeRows = new Float32Array(4 * pkg.nBlocks * nc * this.levels); // CPU copy (version 2)
-    this.viewBlock = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, this.viewBlock);
-    nearest(gl, gl.TEXTURE_2D);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, V, 1);
-    const vb = new Float32Array(4 * V);
-    for (let v = 0; v < V; v++) vb[4 * v] = pkg.viewBlock[v];
-    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, V, 1, gl.RGBA, gl.FLOAT, vb);
-    this.tex = null;
-    this.reserve(pkg.version >= 2 ? nc : capacity);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32UI, w, h);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, gl.RGBA_INTEGER, gl.UNSIGNED_INT, data);
+    return t;
   }
 
   // Slots in use (version 2: components with a loaded chunk; version 1: chunks).
@@ -203,152 +222,227 @@ export class GpuPackage {
     return this.pkg.version >= 2 ? this.loaded.length : this.uploaded;
   }
 
-  get texFormat() {
-    const gl = this.gl;
-    return this.pkg.bits === 16 ? [gl.RGB8, gl.RGB] : [gl.R8, gl.RED];
-  }
-
-  // Makes room for n chunk layers (n <= manifest chunks); copies existing layers on the GPU.
-  // Version 2 allocates every component's slot with all its mip levels at once.
+  // Makes room for n slots (n <= manifest chunks); layers grow in steps of 4 slots and
+  // are re-uploaded from the CPU copies. Version 2 allocates every component at once.
   reserve(n) {
     const gl = this.gl, pkg = this.pkg;
-    if (pkg.version >= 2) {
-      if (this.tex) return;
-      n = pkg.components.length;
-    }
-    n = Math.max(1, Math.min(n, pkg.chunks.length));
+    n = pkg.version >= 2 ? pkg.components.length : Math.max(1, Math.min(n, pkg.chunks.length));
     if (n <= this.capacity) return;
-    const [ifmt] = this.texFormat;
-    const tex = gl.createTexture();
+    const layers = Math.ceil(n / 4), L = pkg.lights.dirs, V = pkg.views.dirs;
+    const tex = gl.createTexture(), wt = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
     if (this.levels > 1) {
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, this.levels - 1);
     }
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.levels, ifmt, pkg.atlas.width, pkg.atlas.height, n);
-    if (this.tex && this.uploaded) {
-      const fb = gl.createFramebuffer();
-      gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb);
-      for (let j = 0; j < this.uploaded; j++) {
-        gl.framebufferTextureLayer(gl.READ_FRAMEBUFFER, gl.COLOR_ATTACHMENT0, this.tex, 0, j);
-        gl.copyTexSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, j, 0, 0, pkg.atlas.width, pkg.atlas.height);
-      }
-      gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
-      gl.deleteFramebuffer(fb);
-    }
-    if (this.tex) gl.deleteTexture(this.tex);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.levels, gl.RGBA16UI, pkg.atlas.width, pkg.atlas.height, layers);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, wt);
+    nearest(gl, gl.TEXTURE_2D_ARRAY);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, L, V, layers);
+    for (const t of [this.tex, this.wt]) if (t) gl.deleteTexture(t);
     this.tex = tex;
-    this.capacity = n;
+    this.wt = wt;
+    const tq = new Float32Array(8 * layers), wq = new Float32Array(24 * layers);
+    tq.set(this.tq);
+    wq.set(this.wq);
+    this.tq = tq;
+    this.wq = wq;
+    for (let h = 0; h < this.texCopy.length; h++) {
+      for (let l = 0; l < this.levels; l++) this.putTex(h, l);
+      this.putWt(h);
+    }
+    this.capacity = layers * 4;
   }
 
-  // Uploads chunk j (must be the next one): its atlas (ImageBitmap decoded without
-  // colour conversion), its dequantised weights, its range row.
-  upload(j, bitmap, weights) {
+  putTex(h, l) {
     const gl = this.gl, pkg = this.pkg;
-    if (j !== this.uploaded) throw new Error(`chunk ${j} uploaded out of order (next is ${this.uploaded})`);
-    if (pkg.version >= 2) return this.uploadLevel(j, bitmap, weights);
-    if (bitmap.width !== pkg.atlas.width || bitmap.height !== pkg.atlas.height)
-      throw new Error(`package ${pkg.name}: ${pkg.chunks[j].tex} is ${bitmap.width}x${bitmap.height}, ` +
-                      `expected ${pkg.atlas.width}x${pkg.atlas.height}`);
-    this.reserve(j + 1);
-    const [, fmt] = this.texFormat;
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tex);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, l, 0, 0, h, pkg.atlas.width >> l, pkg.atlas.height >> l, 1, gl.RGBA_INTEGER,
+                     gl.UNSIGNED_SHORT, this.texCopy[h][l]);
+  }
+
+  putWt(h) {
+    const gl = this.gl, pkg = this.pkg;
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.wt);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, h, pkg.lights.dirs, pkg.views.dirs, 1, gl.RGBA_INTEGER,
+                     gl.UNSIGNED_INT, this.wtCopy[h]);
+  }
+
+  // The layer copies of layer h (created empty on first use).
+  layer(h) {
+    const pkg = this.pkg;
+    while (this.texCopy.length <= h) {
+      const lv = [];
+      for (let l = 0; l < this.levels; l++) lv.push(new Uint16Array(4 * (pkg.atlas.width >> l) * (pkg.atlas.height >> l)));
+      this.texCopy.push(lv);
+      this.wtCopy.push(new Uint32Array(4 * pkg.lights.dirs * pkg.views.dirs));
+    }
+  }
+
+  // Quantised texels of a decoded atlas image: upload into an R8 / RGB8 texture (no
+  // colour conversion) and read back, so they are exactly the PNG's (16-bit: R*256 + G).
+  readAtlas(bitmap) {
+    const gl = this.gl, w = bitmap.width, h = bitmap.height, rgb = this.pkg.bits === 16;
+    const t = gl.createTexture(), fb = gl.createFramebuffer();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    nearest(gl, gl.TEXTURE_2D);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, rgb ? gl.RGBA8 : gl.R8, w, h);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tex);
-    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, j, pkg.atlas.width, pkg.atlas.height, 1, fmt,
-                     gl.UNSIGNED_BYTE, bitmap);
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.wt);
-    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, j, pkg.lights.dirs, pkg.views.dirs, 1, gl.RGB, gl.FLOAT,
-                     weights);
-    const row = new Float32Array(4 * pkg.nBlocks);
-    const r = pkg.chunks[j].texRange;
-    for (let b = 0; b < pkg.nBlocks; b++) {
-      row[4 * b] = r[2 * b];
-      row[4 * b + 1] = r[2 * b + 1];
-    }
-    gl.bindTexture(gl.TEXTURE_2D, this.range);
-    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, j, pkg.nBlocks, 1, gl.RGBA, gl.FLOAT, row);
-    this.uploaded = j + 1;
-    this.uploads++;
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, rgb ? gl.RGBA : gl.RED, gl.UNSIGNED_BYTE, bitmap);
+    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb);
+    gl.framebufferTexture2D(gl.READ_FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, t, 0);
+    const px = new Uint8Array(4 * w * h);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
+    gl.deleteFramebuffer(fb);
+    gl.deleteTexture(t);
+    const q = new Uint16Array(w * h);
+    for (let i = 0; i < w * h; i++) q[i] = rgb ? px[4 * i] * 256 + px[4 * i + 1] : px[4 * i];
+    return q;
   }
 
-  // Version 2: chunk j = (component c, level l) into mip level l of c's slot; its
-  // texture range into row s*N + l of u_btf_range and the slot's loaded level range
-  // into .zw of all N rows; weights (8-bit coarse or 16-bit) replace the slot's layer
-  // unless 16-bit weights are there already. weights.precise: from wt-JJ.bin.
-  uploadLevel(j, bitmap, weights) {
-    const gl = this.gl, pkg = this.pkg, ch = pkg.chunks[j], l = ch.level, N = this.levels;
+  // The 16-bit grid of a component: the smallest lo and the span of every chunk of
+  // it in the manifest (all blocks, all levels), over 65535 (btf__tex_grid).
+  grid(component, v1chunk) {
+    const pkg = this.pkg, qmax = pkg.bits === 16 ? 65535 : 255;
+    let a = Infinity, b = -Infinity;
+    pkg.chunks.forEach((c, i) => {
+      if (pkg.version < 2 ? i !== v1chunk : c.component !== component) return;
+      for (let k = 0; k < pkg.nBlocks; k++) {
+        a = Math.min(a, c.texRange[2 * k]);
+        b = Math.max(b, f32(c.texRange[2 * k] + f32(c.texRange[2 * k + 1] * qmax)));
+      }
+    });
+    return a <= b ? [f32(a), a < b ? f32(f32(b - a) / 65535) : 0] : [0, 0];
+  }
+
+  // Chunk j's atlas (level l) on slot s's grid: T = lo + step * q of the texel's block.
+  requant(j, s, q, l) {
+    const pkg = this.pkg, ch = pkg.chunks[j], cols = pkg.atlas.cols;
+    const wl = pkg.width >> l, hl = pkg.height >> l, aw = wl * cols, ah = hl * pkg.atlas.rows;
+    const lo = this.tq[8 * (s >> 2) + (s & 3)], st = this.tq[8 * (s >> 2) + 4 + (s & 3)];
+    const out = new Uint16Array(aw * ah);
+    for (let y = 0; y < ah; y++)
+      for (let x = 0; x < aw; x++) {
+        const b = Math.floor(y / hl) * cols + Math.floor(x / wl);
+        if (b >= pkg.nBlocks) continue;
+        const t = f32(ch.texRange[2 * b] + f32(ch.texRange[2 * b + 1] * q[y * aw + x]));
+        const v = st > 0 ? Math.round(f32(f32(t - lo) / st)) : 0;
+        out[y * aw + x] = v < 0 ? 0 : v > 65535 ? 65535 : v;
+      }
+    return out;
+  }
+
+  // Slot s into every level of its layer: each level takes the slot's nearest loaded
+  // one, texel by texel (btf_lod_texel_of), then the changed levels are uploaded.
+  fillSlot(s) {
+    const pkg = this.pkg, {fine, coarse} = this.loaded[s], h = s >> 2, c = s & 3;
+    const map = (x, l, from) => (from >= l ? x >> (from - l) : (x << (l - from)) + (1 << (l - from - 1)));
+    for (let l = 0; l < this.levels; l++) {
+      const lam = l < fine ? fine : l > coarse ? coarse : l, src = this.q16[s][lam], dst = this.texCopy[h][l];
+      const wl = pkg.width >> l, hl = pkg.height >> l, aw = wl * pkg.atlas.cols, ah = hl * pkg.atlas.rows;
+      const wm = pkg.width >> lam, hm = pkg.height >> lam, am = wm * pkg.atlas.cols;
+      for (let y = 0; y < ah; y++) {
+        const ty = Math.floor(y / hl), ym = ty * hm + map(y % hl, l, lam);
+        for (let x = 0; x < aw; x++) {
+          const tx = Math.floor(x / wl);
+          dst[4 * (y * aw + x) + c] = src[ym * am + tx * wm + map(x % wl, l, lam)];
+        }
+      }
+      this.putTex(h, l);
+    }
+  }
+
+  // Weights of slot s on their own grid per channel (btf__pack_weights_slot).
+  packWeights(s, w) {
+    const n = this.pkg.lights.dirs * this.pkg.views.dirs, dst = this.wtCopy[s >> 2], c4 = s & 3;
+    for (let i = 0; i < n; i++) dst[4 * i + c4] = 0;
+    for (let c = 0; c < 3; c++) {
+      let lo = Infinity, hi = -Infinity;
+      for (let i = 0; i < n; i++) {
+        lo = Math.min(lo, w[3 * i + c]);
+        hi = Math.max(hi, w[3 * i + c]);
+      }
+      const step = hi > lo ? f32(f32(hi - lo) / WQMAX[c]) : 0;
+      this.wq[24 * (s >> 2) + 4 * c + c4] = lo;
+      this.wq[24 * (s >> 2) + 12 + 4 * c + c4] = step;
+      for (let i = 0; i < n; i++) {
+        const v = step > 0 ? Math.round(f32(f32(w[3 * i + c] - lo) / step)) : 0;
+        dst[4 * i + c4] = (dst[4 * i + c4] | ((v < 0 ? 0 : v > WQMAX[c] ? WQMAX[c] : v) << WSHIFT[c])) >>> 0;
+      }
+    }
+    this.putWt(s >> 2);
+  }
+
+  // Uploads chunk j (must be the next one): its atlas (ImageBitmap decoded without
+  // colour conversion) on its slot's grid, and its weights (dequantised Float32Array;
+  // version 2: replaced unless 16-bit weights are there already; .precise = 16-bit).
+  upload(j, bitmap, weights) {
+    const pkg = this.pkg, ch = pkg.chunks[j], l = pkg.version >= 2 ? ch.level : 0;
+    if (j !== this.uploaded) throw new Error(`chunk ${j} uploaded out of order (next is ${this.uploaded})`);
     const aw = pkg.atlas.width >> l, ah = pkg.atlas.height >> l;
     if (bitmap.width !== aw || bitmap.height !== ah)
       throw new Error(`package ${pkg.name}: ${ch.tex} is ${bitmap.width}x${bitmap.height}, expected ${aw}x${ah}`);
-    let s = this.slotOf.get(ch.component);
-    if (s === undefined) { // the component's first chunk: loaded levels [l, l]
+    let s = pkg.version >= 2 ? this.slotOf.get(ch.component) : j;
+    if (s === undefined || pkg.version < 2) { // the slot's first chunk: loaded levels [l, l]
       if (!weights) throw new Error(`package ${pkg.name}: chunk ${j} is the first of component ${ch.component} ` +
                                     'but carries no weights');
       s = this.loaded.length;
+      this.reserve(s + 1);
       this.slotOf.set(ch.component, s);
       this.loaded.push({fine: l, coarse: l, wt16: false});
+      this.q16.push(new Array(this.levels).fill(null));
+      const [lo, st] = this.grid(ch.component, j);
+      this.tq[8 * (s >> 2) + (s & 3)] = lo;
+      this.tq[8 * (s >> 2) + 4 + (s & 3)] = st;
     } else if (l === this.loaded[s].fine - 1) this.loaded[s].fine = l;
     else if (l === this.loaded[s].coarse + 1) this.loaded[s].coarse = l;
     else throw new Error(`package ${pkg.name}: chunk ${j} makes the levels of component ${ch.component} ` +
                          'non-contiguous');
+    this.layer(s >> 2);
+    this.q16[s][l] = this.requant(j, s, this.readAtlas(bitmap), l);
+    this.fillSlot(s);
     const slot = this.loaded[s];
-    const [, fmt] = this.texFormat;
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
-    gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
-    gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tex);
-    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, l, 0, 0, s, aw, ah, 1, fmt, gl.UNSIGNED_BYTE, bitmap);
-    if (weights && (weights.precise || !slot.wt16)) {
-      gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.wt);
-      gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, s, pkg.lights.dirs, pkg.views.dirs, 1, gl.RGB, gl.FLOAT,
-                       weights);
+    if (weights && (weights.precise || !slot.wt16 || pkg.version < 2)) {
+      this.packWeights(s, weights);
       slot.wt16 = slot.wt16 || !!weights.precise;
     }
-    const nb = pkg.nBlocks, rows = this.rangeRows;
-    for (let k = 0; k < N; k++) {
-      const o = 4 * nb * (s * N + k);
-      for (let b = 0; b < nb; b++) {
-        if (k === l) {
-          rows[o + 4 * b] = ch.texRange[2 * b];
-          rows[o + 4 * b + 1] = ch.texRange[2 * b + 1];
-        }
-        rows[o + 4 * b + 2] = slot.fine;
-        rows[o + 4 * b + 3] = slot.coarse;
-      }
-    }
-    gl.bindTexture(gl.TEXTURE_2D, this.range);
-    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, s * N, nb, N, gl.RGBA, gl.FLOAT,
-                     rows.subarray(4 * nb * s * N, 4 * nb * (s + 1) * N));
     this.uploaded = j + 1;
     this.uploads++;
   }
 
-  // Binds the 4 textures to units first..first+3 and sets the u_btf_* uniforms of prog
-  // (in use), as btf_gl_package_bind + btf_gl_package_settings do.
+  // Binds the textures to units first..first+3 and the direction block to uniform
+  // buffer binding 0, and sets the u_btf_* uniforms of prog (in use), as
+  // btf_gl_package_bind + btf_gl_package_settings do.
   bind(prog, first, {chunks = this.uploaded, filter = 1, wrap = 0} = {}) {
     const gl = this.gl, pkg = this.pkg;
     const units = [[gl.TEXTURE_2D_ARRAY, this.tex, 'u_btf_tex'], [gl.TEXTURE_2D_ARRAY, this.wt, 'u_btf_wt'],
-                   [gl.TEXTURE_2D, this.range, 'u_btf_range'], [gl.TEXTURE_2D, this.viewBlock, 'u_btf_view_block']];
+                   [gl.TEXTURE_2D, this.cells, 'u_btf_dir_cells'], [gl.TEXTURE_2D, this.tris, 'u_btf_dir_tris']];
     units.forEach(([target, t, name], i) => {
       gl.activeTexture(gl.TEXTURE0 + first + i);
       gl.bindTexture(target, t);
       gl.uniform1i(prog.loc(name), first + i);
     });
     gl.activeTexture(gl.TEXTURE0);
-    for (const [u, d] of [['u_btf_lights', pkg.lights], ['u_btf_views', pkg.views]]) {
-      gl.uniform4fv(prog.loc(`${u}.rings`), d.rings.subarray(0, 4 * d.n));
-      gl.uniform1i(prog.loc(`${u}.n_rings`), d.n);
-    }
-    gl.uniform2i(prog.loc('u_btf_size'), pkg.width, pkg.height);
-    gl.uniform1i(prog.loc('u_btf_atlas_cols'), pkg.atlas.cols);
-    gl.uniform1i(prog.loc('u_btf_bits'), pkg.bits);
+    const block = gl.getUniformBlockIndex(prog.program, 'btf_dirs_block');
+    if (block !== gl.INVALID_INDEX) gl.uniformBlockBinding(prog.program, block, 0);
+    gl.bindBufferBase(gl.UNIFORM_BUFFER, 0, this.ubo);
     // version 2: every loaded slot (the shader picks the level per pixel)
     const used = pkg.version >= 2 ? (chunks > 0 ? this.slots : 0) : Math.max(0, Math.min(chunks, this.uploaded));
+    const wq = this.wq.slice();
+    for (let k = used; k < wq.length / 6; k++) for (let c = 0; c < 6; c++) wq[24 * (k >> 2) + 4 * c + (k & 3)] = 0;
+    gl.uniform4fv(prog.loc('u_btf_tq'), this.tq);
+    gl.uniform4fv(prog.loc('u_btf_wq'), wq);
+    gl.uniform2i(prog.loc('u_btf_size'), pkg.width, pkg.height);
+    gl.uniform1i(prog.loc('u_btf_atlas_cols'), pkg.atlas.cols);
+    gl.uniform1i(prog.loc('u_btf_view_base'), this.viewBase);
+    gl.uniform1f(prog.loc('u_btf_outer_cos'), this.outerCos);
     gl.uniform1i(prog.loc('u_btf_chunks'), used);
     gl.uniform1i(prog.loc('u_btf_levels'), this.levels);
     gl.uniform1f(prog.loc('u_btf_lod'), 0);
@@ -384,9 +478,11 @@ export class GpuPackage {
 
   free() {
     const gl = this.gl;
-    if (this.wt) GpuPackage.live--;
-    for (const t of [this.tex, this.wt, this.range, this.viewBlock]) if (t) gl.deleteTexture(t);
-    this.tex = this.wt = this.range = this.viewBlock = null;
+    if (this.ubo) GpuPackage.live--;
+    for (const t of [this.tex, this.wt, this.cells, this.tris]) if (t) gl.deleteTexture(t);
+    if (this.ubo) gl.deleteBuffer(this.ubo);
+    this.tex = this.wt = this.cells = this.tris = this.ubo = null;
+    this.texCopy = this.wtCopy = this.q16 = [];
   }
 }
 

@@ -3,17 +3,26 @@
 // btf_render.frag): the very program `btf render` draws with in the headless C
 // harness, with the same mesh, camera and uniforms (scene.js ports shaders/host/btf_render.c).
 
-import {buildProgram} from './btf-gl.js';
+import {buildProgram, decodeDefines} from './btf-gl.js';
 import {buildMesh, cameraMake} from './scene.js';
 
 // MeshRenderer uses the program "render" (btf_render.vert, btf_dirs.glsl,
 // btf_decode.glsl, btf_render.frag), the one `btf render` draws with: a triangle
-// mesh of the surface (scene.js buildMesh) and the decoder per fragment.
+// mesh of the surface (scene.js buildMesh) and the decoder per fragment, compiled
+// once per specialisation (decodeDefines: filter, levels, 4-slot layers in use).
 export class MeshRenderer {
   constructor(gl, shaders) {
     this.gl = gl;
-    this.prog = buildProgram(gl, shaders, 'render');
+    this.shaders = shaders;
+    this.progs = new Map(); // defines key -> program
+    this.prog = this.program([]); // the generic program (checks the sources compile)
     this.meshes = new Map(); // geometry -> {vao, count, buffers}
+  }
+
+  program(defines) {
+    const key = defines.map((d) => d.join('=')).join(',');
+    if (!this.progs.has(key)) this.progs.set(key, buildProgram(this.gl, this.shaders, 'render', defines));
+    return this.progs.get(key);
   }
 
   mesh(geometry) {
@@ -48,7 +57,7 @@ export class MeshRenderer {
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     if (!pkg || !pkg.uploaded || !view.chunks) return;
     const cam = cameraMake(view, w / h);
-    const p = this.prog;
+    const p = this.program(decodeDefines(pkg.pkg, 1, pkg.slots));
     gl.useProgram(p.program);
     pkg.bind(p, 0, {chunks: view.chunks, filter: 1, wrap: cam.wrap});
     gl.uniformMatrix4fv(p.loc('u_model'), false, new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
@@ -67,7 +76,8 @@ export class MeshRenderer {
 
   free() {
     const gl = this.gl;
-    gl.deleteProgram(this.prog.program);
+    for (const p of this.progs.values()) gl.deleteProgram(p.program);
+    this.progs.clear();
     for (const m of this.meshes.values()) {
       gl.deleteVertexArray(m.vao);
       m.buffers.forEach((b) => gl.deleteBuffer(b));

@@ -5,6 +5,7 @@
 
 #include "btf_package.h"
 #include "btf_lod.h"
+#include "btf_dirtab.h"
 
 /* Up to 4 texels and their filter weights; value type. */
 typedef struct btf__taps {
@@ -67,6 +68,14 @@ static float btf__tex(const btf_package *p, int j, int b, const btf__taps *t)
     return s;
 }
 
+/* Interpolation of set 0 (lights) or 1 (views): the package's direction table (the
+ * GPU decoder's) when the reader built it, else the ring walk (same triangles). */
+static btf_interp btf__interp(const btf_package *p, int set, const float v[3])
+{
+    const btf_dirtab *t = p->dirtab[set];
+    return t ? btf_dirtab_interp_vec(t, v) : btf_dirset_interp_vec(set ? &p->views : &p->lights, v);
+}
+
 /* Level range [fine, coarse] loaded for component c among the first n chunks. */
 static void btf__loaded_levels(const btf_package *p, int n, int c, int *fine, int *coarse)
 {
@@ -78,15 +87,36 @@ static void btf__loaded_levels(const btf_package *p, int n, int c, int *fine, in
         }
 }
 
-/* Version 2 (doc/package-format.md section 10): per component, lod clamped to its
- * loaded levels [fine, coarse], trilinear between floor(lod) and the next level. */
+/* Level-l value of component c in block b with taps on level l's grid: the chunk of
+ * level clamp(l, fine, coarse), texels mapped by btf_lod_texel_of. */
+static float btf__tex_level(const btf_package *p, int n, int c, int b, int l, int fine, int coarse,
+                            const btf__taps *t)
+{
+    int lam = l < fine ? fine : l > coarse ? coarse : l, j = btf_package_chunk_at(p, n, c, lam);
+    int wl = p->width >> l, wm = p->width >> lam, hm = p->height >> lam;
+    const float *tile = p->tex[j] + (size_t)b * wm * hm;
+    float s = 0.0f;
+    for (int i = 0; i < t->n; i++) {
+        int x = (int)(t->idx[i] % (size_t)wl), y = (int)(t->idx[i] / (size_t)wl);
+        s += t->w[i] * tile[(size_t)btf_lod_texel_of(y, l, lam) * wm + btf_lod_texel_of(x, l, lam)];
+    }
+    return s;
+}
+
+/* Version 2 (doc/package-format.md section 10): lod clamped to [0, N-1], trilinear
+ * between floor(lod) and the next level; a level a component has not loaded takes
+ * its nearest loaded level, texel by texel (btf_lod_texel_of). */
 static void btf__decode_levels(const btf_package *p, float u, float v, const float light[3], const float view[3],
                                const btf_decode_options *o, int n, float rgb[3])
 {
-    btf_interp il = btf_dirset_interp_vec(&p->lights, light);
-    btf_interp iv = btf_dirset_interp_vec(&p->views, view);
-    int L = p->lights.n_dirs;
+    btf_interp il = btf__interp(p, 0, light);
+    btf_interp iv = btf__interp(p, 1, view);
+    int L = p->lights.n_dirs, N = p->n_levels;
     float lod = isfinite(o->lod) ? o->lod : 0.0f;
+    float lc = lod < 0.0f ? 0.0f : lod > (float)(N - 1) ? (float)(N - 1) : lod;
+    int l0 = (int)floorf(lc), l1 = l0 + 1 > N - 1 ? N - 1 : l0 + 1;
+    float f = lc - (float)l0;
+    btf__taps t0 = btf__texel_taps(p, u, v, o, l0), t1 = btf__texel_taps(p, u, v, o, l1);
     rgb[0] = rgb[1] = rgb[2] = 0.0f;
     for (int j = 0; j < n; j++) {
         int c = p->chunk[j].component, fine, coarse, first = 1;
@@ -95,17 +125,13 @@ static void btf__decode_levels(const btf_package *p, float u, float v, const flo
         if (!first)
             continue; /* each component once, at its first chunk */
         btf__loaded_levels(p, n, c, &fine, &coarse);
-        float lc = lod < (float)fine ? (float)fine : lod > (float)coarse ? (float)coarse : lod;
-        int l0 = (int)floorf(lc), l1 = l0 + 1 > coarse ? coarse : l0 + 1;
-        float f = lc - (float)l0;
-        int j0 = btf_package_chunk_at(p, n, c, l0), j1 = btf_package_chunk_at(p, n, c, l1);
-        btf__taps t0 = btf__texel_taps(p, u, v, o, p->chunk[j0].level);
-        btf__taps t1 = btf__texel_taps(p, u, v, o, p->chunk[j1].level);
         for (int a = 0; a < 3; a++) {
             if (iv.w[a] == 0.0f)
                 continue;
             int vi = iv.idx[a], b = p->blocks->block_of_view[vi];
-            float t = (1.0f - f) * btf__tex(p, j0, b, &t0) + f * btf__tex(p, j1, b, &t1);
+            float t = (1.0f - f) * btf__tex_level(p, n, c, b, l0, fine, coarse, &t0);
+            if (f > 0.0f)
+                t += f * btf__tex_level(p, n, c, b, l1, fine, coarse, &t1);
             for (int ch = 0; ch < 3; ch++) {
                 float s = 0.0f;
                 for (int e = 0; e < 3; e++)
@@ -129,8 +155,8 @@ void btf_decode(const btf_package *p, float u, float v, const float light[3], co
         return;
     }
     btf__taps taps = btf__texel_taps(p, u, v, &o, 0);
-    btf_interp il = btf_dirset_interp_vec(&p->lights, light);
-    btf_interp iv = btf_dirset_interp_vec(&p->views, view);
+    btf_interp il = btf__interp(p, 0, light);
+    btf_interp iv = btf__interp(p, 1, view);
     int L = p->lights.n_dirs;
     rgb[0] = rgb[1] = rgb[2] = 0.0f;
     for (int a = 0; a < 3; a++) {

@@ -562,3 +562,11 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
     btf__lod_free(&s);
     return r;
 }
+
+int btf_lod_texel_of(int x, int level, int from)
+{
+    if (from >= level)
+        return x >> (from - level);
+    int d = level - from;
+    return (x << d) + (1 << (d - 1));
+}

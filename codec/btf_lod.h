@@ -48,6 +48,11 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
 
 /* Texels per screen pixel of a material W texels wide, repeated `repeat` times
  * across `pixels` device pixels. <= 0 when pixels <= 0 (nothing visible). */
+/* Texel (along one axis, inside a tile) of level `from` that texel x of level `level`
+ * takes when a component lacks `level` (doc/package-format.md section 10): a finer
+ * level's texel repeats its coarser one (x >> d), a coarser level's texel takes the
+ * finer texel at its centre ((x << d) + 2^(d-1)). The GPU packing uses the same. */
+int btf_lod_texel_of(int x, int level, int from);
 double btf_lod_footprint(int width, double repeat, double pixels);
 
 /* One viewer's view of a material. Plain value. */

@@ -2,6 +2,7 @@
  * before decoding), level addressing and direct reconstruction. Format:
  * doc/package-format.md; manifest text: btf_manifest.c; decoder: btf_decode.c. */
 #include "btf_package.h"
+#include "btf_dirtab.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -178,6 +179,8 @@ void btf_package_free(btf_package *p)
         free(p->tex[i]);
         free(p->wt[i]);
     }
+    btf_dirtab_free(p->dirtab[0]);
+    btf_dirtab_free(p->dirtab[1]);
     btf_manifest_clear(p);
     free(p);
 }
@@ -204,6 +207,10 @@ btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error
     }
     for (int i = 0; r == BTF_OK && i < want; i++)
         r = btf__load_chunk(p, dir, i, err);
+    if (r == BTF_OK) /* the decoder's direction tables, as the GPU gets them */
+        r = btf_dirtab_build(&p->lights, &p->dirtab[0], err);
+    if (r == BTF_OK)
+        r = btf_dirtab_build(&p->views, &p->dirtab[1], err);
     if (r != BTF_OK) {
         btf_package_free(p);
         return r;

@@ -1,7 +1,7 @@
 // btf_decode.glsl - PCA package decoder: the GLSL twin of btf_decode
-// (codec/btf_decode.c, doc/package-format.md section 6), operation by operation in
-// float. Needs btf_dirs.glsl before it. Tested against the CPU decoder on both
-// headless backends (tests/test_gl.c).
+// (codec/btf_decode.c, doc/package-format.md section 6) on the packed GPU layout of
+// shaders/README.md ("GPU layout"). Needs btf_dirs.glsl before it. Tested against the
+// CPU decoder on both headless backends (tests/test_gl.c, tests/test_lod_gl.c).
 //
 // Public:  vec3 btf_decode_lod(vec2 uv, vec3 light, vec3 view, float lod)
 //          vec3 btf_decode(vec2 uv, vec3 light, vec3 view)   (lod = u_btf_lod)
@@ -9,158 +9,219 @@
 //   local frame (z = normal, need not be unit). Result on the byte/255 scale, not
 //   clamped. The host fills the uniforms below (C: btf_gl_package_bind).
 //
-// Textures, all read with texelFetch (no filtering, no float-filter extension);
-// slot s = the s-th distinct component of the loaded chunks (version 1: chunk s),
-// N = max(u_btf_levels, 1) spatial levels (shaders/README.md, "Spatial levels"):
-//   u_btf_tex         layer s, mip level l = texture atlas of slot s at level l, R8
-//                     (8-bit package) or RGB8 (16-bit: q = R*256 + G, as in the PNG)
-//   u_btf_wt          layer s = weights of slot s, RGB32F, texel (light, view)
-//   u_btf_range       RGBA32F, texel (block, s*N + l) = (lo, step, fine, coarse):
-//                     T = lo + step * q; [fine, coarse] = loaded levels of slot s
-//   u_btf_view_block  RGBA32F, texel (view, 0).r = block of that view
+// Textures (texelFetch only: no filtering, no float textures, WebGL2 core formats);
+// slot s = the s-th distinct component of the loaded chunks (version 1: chunk s):
+//   u_btf_tex  RGBA32UI array, layer g, mip level l: atlas of slots 8g..8g+7 at level l,
+//              16 bits each: channel c = slot 8g+2c (low half) | slot 8g+2c+1 (high half);
+//              T_s = u_btf_tq[2h].[s-4h] + u_btf_tq[2h+1].[s-4h] * q (h = s / 4). A level a
+//              slot has not loaded holds its nearest loaded level (finer levels: the
+//              coarse texel repeated; coarser: the finer texel at the centre)
+//   u_btf_wt   RGBA32UI array, layer h = slots 4h..4h+3, texel (light, view): channel c =
+//              slot 4h+c as R (bits 0..10) | G (11..21) | B (22..31);
+//              W = u_btf_wq[6h + ch] + u_btf_wq[6h + 3 + ch] * q per colour channel ch
+//   The view's block: bits 12.. of the view vertex's .w in btf_dirs_block.
+// Per fragment: 2 direction texels, then per view sample (3): one u_btf_tex texel per
+// 8 slots (4 bilinear, twice between two levels) and per light sample (3) one
+// u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/8) + 3 ceil(C/4)) texels, nearest.
 
 #ifndef BTF_MAX_CHUNKS
 #define BTF_MAX_CHUNKS 64
 #endif
 
-uniform sampler2DArray u_btf_tex;
-uniform sampler2DArray u_btf_wt;
-uniform sampler2D u_btf_range;
-uniform sampler2D u_btf_view_block;
-uniform btf_dirset u_btf_lights;
-uniform btf_dirset u_btf_views;
+uniform highp usampler2DArray u_btf_tex;
+uniform highp usampler2DArray u_btf_wt;
+uniform vec4 u_btf_tq[BTF_MAX_CHUNKS / 2];     // per 4 slots: lo, step of T
+uniform vec4 u_btf_wq[BTF_MAX_CHUNKS / 4 * 6]; // per 4 slots: lo R, G, B, step R, G, B of W
 uniform ivec2 u_btf_size;    // W, H texels of the material (= one atlas tile)
 uniform int u_btf_atlas_cols;
-uniform int u_btf_bits;      // 8 or 16
+uniform int u_btf_view_base; // first view vertex in btf_dirs_block
 uniform int u_btf_chunks;    // slots to use, 1..uploaded (version 1: chunks)
 uniform int u_btf_levels;    // spatial levels N (0 or 1: none)
 uniform float u_btf_lod;     // lod of btf_decode (0 = finest)
 uniform int u_btf_filter;    // 0 nearest, 1 bilinear
 uniform int u_btf_wrap;      // 1 tile (indices modulo the size), 0 clamp to the edge
 
-// Up to 4 texels of one tile and their filter weights.
-struct btf_taps {
-    ivec2 p[4];
-    vec4 w;
-    int n;
-};
+// Host specialisation: BTF_FILTER (0 nearest, 1 bilinear) and BTF_LEVELS (0: level 0
+// only, 1: the level blend) fix at compile time what u_btf_filter / u_btf_levels
+// otherwise choose at run time. SIMD software rasterisers (llvmpipe) run both sides
+// of every branch and every loop at least once, whatever the condition, so a program
+// compiled for the package and filter skips the work it cannot need.
+#ifdef BTF_FILTER
+#define BTF__BILINEAR (BTF_FILTER == 1)
+#else
+#define BTF__BILINEAR (u_btf_filter == 1)
+#endif
+#ifdef BTF_LEVELS
+#define BTF__LEVELS (BTF_LEVELS == 1)
+#else
+#define BTF__LEVELS (u_btf_levels > 1)
+#endif
+
+// (floor(a / n), a - n * floor(a / n)) for n > 0 and |a| < 2^24: the quotient in
+// float (GPU division may be off by one ulp, the two corrections fix that), because
+// integer division runs one lane at a time on CPU rasterizers (llvmpipe), and GLSL ES
+// leaves % of negative operands undefined.
+ivec2 btf_divmod(int a, int n)
+{
+    int q = int(floor(float(a) / float(n)));
+    int m = a - n * q;
+    q -= m < 0 ? 1 : 0;
+    m += m < 0 ? n : 0;
+    q += m >= n ? 1 : 0;
+    m -= m >= n ? n : 0;
+    return ivec2(q, clamp(m, 0, n - 1)); // in range even where |a| >= 2^24 is inexact
+}
 
 int btf_wrap_or_clamp(int i, int n)
 {
     return u_btf_wrap != 0 ? btf_divmod(i, n).y : clamp(i, 0, n - 1);
 }
 
-// Taps on the tile of level `level`: (W >> level) x (H >> level) texels.
-btf_taps btf_texel_taps(vec2 uv, int level)
+// Texel columns and rows on the tile of level `level`, (W >> level) x (H >> level)
+// texels: (x0, x1, y0, y1) of the bilinear footprint (nearest: x0 = x1, y0 = y1), and
+// in a the bilinear fractions.
+ivec4 btf_texel_taps(vec2 uv, int level, out vec2 a)
 {
-    btf_taps t;
     ivec2 isize = u_btf_size >> level;
-    vec2 size = vec2(isize);
-    vec2 f = clamp(uv, -1e6, 1e6) * size;
-    if (u_btf_filter != 1) {
-        t.n = 1;
-        t.p[0] = ivec2(btf_wrap_or_clamp(int(floor(f.x)), isize.x), btf_wrap_or_clamp(int(floor(f.y)), isize.y));
-        t.p[1] = t.p[2] = t.p[3] = t.p[0];
-        t.w = vec4(1.0, 0.0, 0.0, 0.0);
-        return t;
+    vec2 f = clamp(uv, -1e6, 1e6) * vec2(isize);
+    if (!BTF__BILINEAR) {
+        a = vec2(0.0);
+        ivec2 p = ivec2(floor(f));
+        p = ivec2(btf_wrap_or_clamp(p.x, isize.x), btf_wrap_or_clamp(p.y, isize.y));
+        return p.xxyy;
     }
     f -= 0.5;
-    vec2 f0 = floor(f), a = f - f0;
+    vec2 f0 = floor(f);
+    a = f - f0;
     int x0 = int(f0.x), y0 = int(f0.y);
-    int xs0 = btf_wrap_or_clamp(x0, isize.x), xs1 = btf_wrap_or_clamp(x0 + 1, isize.x);
-    int ys0 = btf_wrap_or_clamp(y0, isize.y), ys1 = btf_wrap_or_clamp(y0 + 1, isize.y);
-    t.n = 4;
-    t.p[0] = ivec2(xs0, ys0);
-    t.p[1] = ivec2(xs1, ys0);
-    t.p[2] = ivec2(xs0, ys1);
-    t.p[3] = ivec2(xs1, ys1);
-    t.w = vec4((1.0 - a.x) * (1.0 - a.y), a.x * (1.0 - a.y), (1.0 - a.x) * a.y, a.x * a.y);
-    return t;
+    return ivec4(btf_wrap_or_clamp(x0, isize.x), btf_wrap_or_clamp(x0 + 1, isize.x), btf_wrap_or_clamp(y0, isize.y),
+                 btf_wrap_or_clamp(y0 + 1, isize.y));
 }
 
-// Quantised value q (0..255 or 0..65535) at atlas pixel p of slot j, mip level l.
-float btf_tex_q(int j, ivec2 p, int l)
+// 16-bit values of slots 4h..4h+3 at texel p of level l.
+vec4 btf_tex4(int h, int l, ivec2 p)
 {
-    vec4 s = texelFetch(u_btf_tex, ivec3(p, j), l);
-    if (u_btf_bits == 16)
-        return round(s.r * 255.0) * 256.0 + round(s.g * 255.0);
-    return round(s.r * 255.0);
+    return vec4(texelFetch(u_btf_tex, ivec3(p, h), l));
 }
 
-// Filtered, dequantised texture value of slot j at level l with range (lo, step),
-// on the atlas tile starting at texel `tile` (of that level).
-float btf_tex(int j, int l, vec2 range, ivec2 tile, btf_taps t)
+// Filtered values of slots 4h..4h+3 on the tile of block origin `tile` (level 0):
+// level l0 with weight 1 - f and level l1 with weight f.
+// One level's filtered value (nearest: tap 0 only).
+vec4 btf_tex_level(int h, int l, ivec2 tile, ivec4 xy, vec2 a)
 {
-    float s = 0.0;
-    for (int i = 0; i < 4; i++) {
-        if (i >= t.n)
-            break;
-        s += t.w[i] * (range.x + range.y * btf_tex_q(j, tile + t.p[i], l));
-    }
-    return s;
+    ivec2 t = tile >> l;
+    vec4 q = btf_tex4(h, l, t + xy.xz);
+    if (BTF__BILINEAR)
+        q = (1.0 - a.y) * ((1.0 - a.x) * q + a.x * btf_tex4(h, l, t + xy.yz)) +
+            a.y * ((1.0 - a.x) * btf_tex4(h, l, t + xy.xw) + a.x * btf_tex4(h, l, t + xy.yw));
+    return q;
 }
 
-// Texture value of slot j in block b at `lod`: clamped to the slot's loaded levels
-// [fine, coarse], trilinear between floor(lod) and the next level (the twin of
-// btf__decode_levels in codec/btf_decode.c). tile0 = the block's level-0 tile origin,
-// taps0 = the level-0 taps of uv.
-float btf_tex_lod(int j, int b, ivec2 tile0, vec2 uv, btf_taps taps0, float lod)
+vec4 btf_tex_quad(int h, ivec2 tile, int l0, ivec4 xy0, vec2 a0, int l1, ivec4 xy1, vec2 a1, float f)
 {
-#ifdef BTF_NO_LEVELS
-    // optional host define for packages without levels (btf render sets it for
-    // version 1): level 0 with a constant mip level, a third less time on llvmpipe
-    return btf_tex(j, 0, texelFetch(u_btf_range, ivec2(b, j), 0).xy, tile0, taps0);
+    vec4 q = btf_tex_level(h, l0, tile, xy0, a0);
+    if (BTF__LEVELS)
+        q = mix(q, btf_tex_level(h, l1, tile, xy1, a1), f);
+    return q;
+}
+
+// RGB of the 4 slots 4h..4h+3 with texture values T at view vi: the three light
+// samples' weights interpolated as integers and dequantised once (the light
+// weights sum to 1: lo + step * sum(w q) = sum(w (lo + step q))).
+vec3 btf_quad(int h, vec4 T, int vi, btf_interp il)
+{
+    uvec4 u0 = texelFetch(u_btf_wt, ivec3(il.idx.x, vi, h), 0);
+    uvec4 u1 = texelFetch(u_btf_wt, ivec3(il.idx.y, vi, h), 0);
+    uvec4 u2 = texelFetch(u_btf_wt, ivec3(il.idx.z, vi, h), 0);
+    vec4 qr = il.w.x * vec4(u0 & 2047u) + il.w.y * vec4(u1 & 2047u) + il.w.z * vec4(u2 & 2047u);
+    vec4 qg = il.w.x * vec4(u0 >> 11 & 2047u) + il.w.y * vec4(u1 >> 11 & 2047u) + il.w.z * vec4(u2 >> 11 & 2047u);
+    vec4 qb = il.w.x * vec4(u0 >> 22) + il.w.y * vec4(u1 >> 22) + il.w.z * vec4(u2 >> 22);
+    vec4 wr = u_btf_wq[6 * h] + u_btf_wq[6 * h + 3] * qr;
+    vec4 wg = u_btf_wq[6 * h + 1] + u_btf_wq[6 * h + 4] * qg;
+    vec4 wb = u_btf_wq[6 * h + 2] + u_btf_wq[6 * h + 5] * qb;
+    return vec3(dot(T, wr), dot(T, wg), dot(T, wb));
+}
+
+// One view sample: view vi (its block's tile), every slot in use. With BTF_QUADS
+// (host specialisation: the number of 4-slot layers in use, 1..16) the layers are
+// written out with constant indices; without it, a loop (a SIMD software rasteriser
+// gathers a uniform array lane by lane when the index is a loop variable, and runs
+// a loop's body at least once).
+#define BTF__QUAD(h) btf_quad(h, u_btf_tq[2 * (h)] + u_btf_tq[2 * (h) + 1] * btf_tex_quad(h, tile, l0, xy0, a0, l1, xy1, a1, f), vi, il)
+vec3 btf_view_sample(int vi, btf_interp il, int l0, ivec4 xy0, vec2 a0, int l1, ivec4 xy1, vec2 a1, float f)
+{
+    int b = int(u_btf_verts[u_btf_view_base + vi].w) >> 12;
+    ivec2 tile = btf_divmod(b, u_btf_atlas_cols).yx * u_btf_size; // level-0 tile of block b
+#ifdef BTF_QUADS
+    vec3 s = BTF__QUAD(0);
+#if BTF_QUADS > 1
+    s += BTF__QUAD(1);
 #endif
-    int n = max(u_btf_levels, 1);
-    vec4 r0 = texelFetch(u_btf_range, ivec2(b, j * n), 0);
-    float lc = clamp(lod, r0.z, r0.w);
-    int l0 = int(floor(lc)), l1 = min(l0 + 1, int(r0.w));
-    float f = lc - float(l0);
-    float t = 0.0;
-    for (int i = 0; i < 2; i++) {
-        if (i == 1 && f == 0.0)
-            break;
-        int l = i == 0 ? l0 : l1;
-        // range and taps of level l (level 0: r0 and taps0); a loop, not an if, so
-        // that SIMD software rasterisers (llvmpipe) skip it when every lane is at
-        // level 0 (version 1 packages)
-        vec2 range = r0.xy;
-        btf_taps tp = taps0;
-        for (int k = 0; k < 1; k++) {
-            if (l == 0)
-                break;
-            range = texelFetch(u_btf_range, ivec2(b, j * n + l), 0).xy;
-            tp = btf_texel_taps(uv, l);
-        }
-        t += (i == 0 ? 1.0 - f : f) * btf_tex(j, l, range, tile0 >> l, tp);
-    }
-    return t;
+#if BTF_QUADS > 2
+    s += BTF__QUAD(2);
+#endif
+#if BTF_QUADS > 3
+    s += BTF__QUAD(3);
+#endif
+#if BTF_QUADS > 4
+    s += BTF__QUAD(4);
+#endif
+#if BTF_QUADS > 5
+    s += BTF__QUAD(5);
+#endif
+#if BTF_QUADS > 6
+    s += BTF__QUAD(6);
+#endif
+#if BTF_QUADS > 7
+    s += BTF__QUAD(7);
+#endif
+#if BTF_QUADS > 8
+    s += BTF__QUAD(8);
+#endif
+#if BTF_QUADS > 9
+    s += BTF__QUAD(9);
+#endif
+#if BTF_QUADS > 10
+    s += BTF__QUAD(10);
+#endif
+#if BTF_QUADS > 11
+    s += BTF__QUAD(11);
+#endif
+#if BTF_QUADS > 12
+    s += BTF__QUAD(12);
+#endif
+#if BTF_QUADS > 13
+    s += BTF__QUAD(13);
+#endif
+#if BTF_QUADS > 14
+    s += BTF__QUAD(14);
+#endif
+#if BTF_QUADS > 15
+    s += BTF__QUAD(15);
+#endif
+#else
+    vec3 s = vec3(0.0);
+    int quads = max((u_btf_chunks + 3) / 4, 1);
+    for (int h = 0; h < quads; h++)
+        s += BTF__QUAD(h);
+#endif
+    return s;
 }
 
 vec3 btf_decode_lod(vec2 uv, vec3 light, vec3 view, float lod)
 {
-    btf_taps taps0 = btf_texel_taps(uv, 0);
-    btf_interp il = btf_dirs_interp_vec(u_btf_lights, light);
-    btf_interp iv = btf_dirs_interp_vec(u_btf_views, view);
-    vec3 rgb = vec3(0.0);
-    for (int a = 0; a < 3; a++) {
-        if (iv.w[a] == 0.0)
-            continue;
-        int vi = iv.idx[a];
-        int b = int(texelFetch(u_btf_view_block, ivec2(vi, 0), 0).r);
-        // level-0 atlas tile of block b (column, row), once per view
-        ivec2 tile = btf_divmod(b, u_btf_atlas_cols).yx * u_btf_size;
-        for (int j = 0; j < BTF_MAX_CHUNKS; j++) {
-            if (j >= u_btf_chunks)
-                break;
-            float t = btf_tex_lod(j, b, tile, uv, taps0, lod);
-            vec3 s = vec3(0.0); // sum over the 3 lights of wl * Wt_j[vi][li]
-            for (int e = 0; e < 3; e++)
-                if (il.w[e] != 0.0)
-                    s += il.w[e] * texelFetch(u_btf_wt, ivec3(il.idx[e], vi, j), 0).rgb;
-            rgb += iv.w[a] * t * s;
-        }
-    }
+    // levels: lod clamped to [0, N-1], trilinear between floor(lod) and the next
+    int top = BTF__LEVELS ? max(u_btf_levels, 1) - 1 : 0;
+    float lc = clamp(lod, 0.0, float(top));
+    int l0 = int(floor(lc)), l1 = min(l0 + 1, top);
+    float f = lc - float(l0);
+    vec2 a0, a1;
+    ivec4 xy0 = btf_texel_taps(uv, l0, a0), xy1 = btf_texel_taps(uv, l1, a1);
+    btf_interp il = btf_dirs_interp_vec(0, light);
+    btf_interp iv = btf_dirs_interp_vec(1, view);
+    vec3 rgb = iv.w.x * btf_view_sample(iv.idx.x, il, l0, xy0, a0, l1, xy1, a1, f);
+    rgb += iv.w.y * btf_view_sample(iv.idx.y, il, l0, xy0, a0, l1, xy1, a1, f);
+    rgb += iv.w.z * btf_view_sample(iv.idx.z, il, l0, xy0, a0, l1, xy1, a1, f);
     return rgb;
 }
 

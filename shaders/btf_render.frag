@@ -11,6 +11,7 @@ uniform vec4 u_light;    // w = 0: direction towards a distant light; w = 1: lig
 uniform vec2 u_uv_scale; // material repeats across the surface (set u_btf_wrap = 1 when > 1)
 uniform int u_horizon_fade; // 0: decoder value as is; 1: fade (btf render's default)
 uniform int u_btf_lod_auto; // 1: lod from screen-space derivatives; 0: u_btf_lod
+uniform float u_btf_outer_cos; // cos(theta) of the outermost measured light ring
 in vec3 v_world;
 in vec3 v_normal;
 in vec4 v_tangent;
@@ -27,7 +28,7 @@ layout(location = 3) out vec4 o_view;  // local view direction (not normalised)
 float btf_render_horizon(vec3 l)
 {
     float len = length(l);
-    float c_outer = cos(u_btf_lights.rings[max(u_btf_lights.n_rings - 1, 0)].x * BTF_DEG2RAD);
+    float c_outer = u_btf_outer_cos;
     if (!(len > 0.0) || !(c_outer > 1e-3))
         return 1.0;
     float c = l.z / len;

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "btf.h"
+#include "btf_dirtab.h"
 #include "test_util.h"
 
 #define D2R 0.017453292519943295
@@ -75,10 +76,14 @@ static double f_measured(const btf_dirset *d, int i)
     return cache_f[i];
 }
 
+/* The table of the set under test when a test checks btf_dirtab instead of the ring walk. */
+static btf_dirtab *use_tab;
+
 /* Interpolated value of f at (t, p): sum of weights times f at the measured directions. */
 static double interp_value(const btf_dirset *d, double t, double p)
 {
-    btf_interp r = btf_dirset_interp(d, (float)t, (float)p);
+    float v[3] = {(float)(sin(t * D2R) * cos(p * D2R)), (float)(sin(t * D2R) * sin(p * D2R)), (float)cos(t * D2R)};
+    btf_interp r = use_tab ? btf_dirtab_interp_vec(use_tab, v) : btf_dirset_interp(d, (float)t, (float)p);
     return r.w[0] * f_measured(d, r.idx[0]) + r.w[1] * f_measured(d, r.idx[1]) + r.w[2] * f_measured(d, r.idx[2]);
 }
 
@@ -631,4 +636,93 @@ Test(dirset_json, missing_file_and_bad_args)
     cr_assert_eq(btf_dirset_parse_json(txt, sizeof txt - 3, "mem", &d, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(d.n_dirs, 5);
     cr_assert_eq(btf_dirset_parse_json(txt, sizeof txt - 1, "mem", &d, &err), BTF_ERR_FORMAT);
+}
+
+/* ------------------------------------------------------------------ dirtab */
+
+static btf_dirtab *tab_of(const btf_dirset *d)
+{
+    btf_dirtab *t = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_dirtab_build(d, &t, &err), BTF_OK, "%s", err.msg);
+    /* a sphere triangulated with V vertices has 2V - 4 triangles; V = n_dirs + 2
+     * with a virtual north pole, n_dirs + 1 when a pole direction replaces it */
+    int V = d->n_dirs + (d->rings[0].count > 1 ? 2 : 1);
+    cr_assert_eq(t->n_tris, 2 * V - 4, "%d triangles for %d vertices", t->n_tris, V);
+    for (int i = 0; i < t->n_tris; i++)
+        for (int e = 0; e < 3; e++)
+            cr_assert(t->adj[i][e] >= 0, "triangle %d edge %d has no neighbour: not a closed surface", i, e);
+    return t;
+}
+
+/* The table walk and the ring walk describe the same triangles: same value of f
+ * (float rounding of the two paths: the angles vs the vector, < 1e-5) and valid
+ * weights at random directions over the whole sphere, below the horizon included. */
+Test(interp, dirtab_matches_ring_walk)
+{
+    btf_dirset sets[N_SETS];
+    make_sets(sets);
+    for (int s = 0; s < N_SETS; s++) {
+        btf_dirtab *t = tab_of(&sets[s]);
+        for (int i = 0; i < 20000; i++) {
+            double th, ph;
+            rand_dir(i % 4 == 0 ? 180.0 : 90.0, &th, &ph);
+            double tc = th > 90 ? 90 : th;
+            use_tab = NULL;
+            double a = interp_value(&sets[s], tc, ph);
+            use_tab = t;
+            double b = interp_value(&sets[s], th, ph);
+            float v[3] = {(float)(sin(th * D2R) * cos(ph * D2R)), (float)(sin(th * D2R) * sin(ph * D2R)),
+                          (float)cos(th * D2R)};
+            assert_valid(&sets[s], btf_dirtab_interp_vec(t, v), "dirtab");
+            cr_assert(fabs(a - b) < 1e-5, "set %d (%g, %g): ring walk %.7f, table %.7f", s, th, ph, a, b);
+        }
+        use_tab = NULL;
+        btf_dirtab_free(t);
+    }
+}
+
+/* No seams in the table path either (the same scans as the ring walk's). */
+Test(interp, dirtab_continuity)
+{
+    btf_dirset sets[N_SETS];
+    make_sets(sets);
+    const char *names[N_SETS] = {"ubo2003", "dome151", "irregular", "no-pole"};
+    for (int s = 0; s < N_SETS; s++) {
+        use_tab = tab_of(&sets[s]);
+        continuity_scans(&sets[s], names[s]);
+        btf_dirtab_free(use_tab);
+        use_tab = NULL;
+    }
+}
+
+/* Every cell's triangle contains the cell's centre, and the walk from it is short:
+ * the deepest walk over 200000 random queries stays within BTF_DIRTAB_MAX_STEPS. */
+Test(interp, dirtab_exact_at_measured_directions)
+{
+    btf_dirset sets[N_SETS];
+    make_sets(sets);
+    for (int s = 0; s < N_SETS; s++) {
+        btf_dirtab *t = tab_of(&sets[s]);
+        for (int i = 0; i < sets[s].n_dirs; i++) {
+            float v[3];
+            btf_dirset_vector(&sets[s], i, v);
+            btf_interp r = btf_dirtab_interp_vec(t, v);
+            cr_assert(weight_of(&r, i) > 1.0 - 1e-5, "set %d direction %d: own weight %g", s, i, weight_of(&r, i));
+        }
+        btf_dirtab_free(t);
+    }
+}
+
+Test(interp, dirtab_bad_input)
+{
+    btf_dirset d = btf_dirset_ubo2003();
+    btf_dirtab *t = tab_of(&d);
+    float bad[4][3] = {{NAN, 0, 1}, {0, 0, 0}, {INFINITY, 1, 1}, {0, 0, -1}};
+    for (int i = 0; i < 4; i++)
+        assert_valid(&d, btf_dirtab_interp_vec(t, bad[i]), "bad vector");
+    btf_dirtab_free(t);
+    btf_dirset none = {0};
+    cr_assert_neq(btf_dirtab_build(&none, &t, NULL), BTF_OK);
+    cr_assert_neq(btf_dirtab_build(NULL, &t, NULL), BTF_OK);
 }

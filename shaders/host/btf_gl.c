@@ -175,10 +175,13 @@ btf_result btf_gl_check(btf_gl *gl, const char *what, btf_error *err)
 
 size_t btf_gl_format_texel_bytes(btf_gl_format f)
 {
-    return f == BTF_GL_RGBA8 ? 4u : f == BTF_GL_RGBA32F ? 16u : 0u;
+    return f == BTF_GL_RGBA8 ? 4u : f == BTF_GL_RGBA32F || f == BTF_GL_RGBA32UI ? 16u : 0u;
 }
 
-static int btf__gl_format_ok(btf_gl_format f) { return f == BTF_GL_RGBA8 || f == BTF_GL_RGBA32F; }
+static int btf__gl_format_ok(btf_gl_format f)
+{
+    return f == BTF_GL_RGBA8 || f == BTF_GL_RGBA32F || f == BTF_GL_RGBA32UI;
+}
 
 static btf_result btf__gl_size_ok(int w, int h, btf_error *err)
 {
@@ -193,6 +196,8 @@ static void btf__gl_tex_storage(btf_gl *gl, int w, int h, btf_gl_format fmt, con
     gl->fn.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
     if (fmt == BTF_GL_RGBA32F)
         gl->fn.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, data);
+    else if (fmt == BTF_GL_RGBA32UI)
+        gl->fn.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32UI, w, h, 0, GL_RGBA_INTEGER, GL_UNSIGNED_INT, data);
     else
         gl->fn.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE, data);
     gl->fn.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
@@ -268,7 +273,7 @@ btf_result btf_gl_target_create(btf_gl *gl, int w, int h, btf_gl_format fmt, int
     if (!gl || !out)
         return btf_fail(err, BTF_ERR_ARG, "gl: NULL argument");
     *out = NULL;
-    if (!btf__gl_format_ok(fmt))
+    if (!btf__gl_format_ok(fmt) || fmt == BTF_GL_RGBA32UI)
         return btf_fail(err, BTF_ERR_ARG, "gl: unknown target format %d", (int)fmt);
     if (n_color < 1 || n_color > BTF_GL_MAX_TARGETS)
         return btf_fail(err, BTF_ERR_RANGE, "gl: %d colour attachments, expected 1..%d", n_color, BTF_GL_MAX_TARGETS);

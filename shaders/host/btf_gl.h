@@ -134,7 +134,10 @@ btf_result btf_gl_backend_parse(const char *s, btf_gl_backend *out, btf_error *e
     X(PFNGLBUFFERDATAPROC, BufferData)                                                                       \
     X(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer)                                                     \
     X(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray)                                             \
-    X(PFNGLGENQUERIESPROC, GenQueries)
+    X(PFNGLGENQUERIESPROC, GenQueries)                                                                       \
+    X(PFNGLGETUNIFORMBLOCKINDEXPROC, GetUniformBlockIndex)                                                   \
+    X(PFNGLUNIFORMBLOCKBINDINGPROC, UniformBlockBinding)                                                     \
+    X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)
 
 /* GL entry points of one context; filled by btf_gl_create, owned by its btf_gl. */
 typedef struct btf_gl_api {
@@ -167,7 +170,8 @@ btf_result btf_gl_check(btf_gl *gl, const char *what, btf_error *err);
 
 typedef enum btf_gl_format {
     BTF_GL_RGBA8 = 1,  /* 8-bit unsigned normalized; data as uint8_t[4] per texel */
-    BTF_GL_RGBA32F = 2 /* 32-bit float; data as float[4] per texel */
+    BTF_GL_RGBA32F = 2, /* 32-bit float; data as float[4] per texel */
+    BTF_GL_RGBA32UI = 3 /* 32-bit unsigned integer (usampler, not renderable here); data as uint32_t[4] */
 } btf_gl_format;
 
 /* Bytes per texel of a format (4 or 16), 0 if unknown. */

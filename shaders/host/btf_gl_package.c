@@ -6,7 +6,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "btf_image.h"
+#include "btf_lod.h"
+
+#include <math.h>
+#include <stdint.h>
 
 static void btf__nearest_params(const btf_gl_api *f, GLenum target)
 {
@@ -16,131 +19,197 @@ static void btf__nearest_params(const btf_gl_api *f, GLenum target)
     f->TexParameteri(target, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
 }
 
-/* The texture file of chunk j (the one named tex-*). */
-static const char *btf__tex_file(const btf_package *p, int j)
+static int btf__quads(int slots) { return (slots + 3) / 4; }
+
+/* Component of slot s: that of the slot's first chunk. */
+static int btf__slot_component(const btf_gl_package *g, const btf_package *p, int s)
 {
-    for (int i = 0; i < p->chunk[j].n_files; i++)
-        if (!strncmp(p->chunk[j].files[i], "tex-", 4))
-            return p->chunk[j].files[i];
-    return NULL;
+    for (int j = 0; j < g->n_loaded; j++)
+        if (g->chunk_slot[j] == s)
+            return p->chunk[j].component;
+    return -1;
 }
 
-/* Mip level `level`, layer `slot` of the atlas array from chunk j's PNG, checked
- * against the manifest (level l atlas = (aw >> l) x (ah >> l)). */
-static btf_result btf__upload_atlas_layer(btf_gl *gl, const btf_package *p, const char *dir, int j, int slot,
-                                          int level, int aw, int ah, btf_error *err)
+/* The 16-bit grid of slot s: lo = the smallest lo, step = the span of every chunk of
+ * its component in the manifest (all blocks, all levels) over 65535. */
+static void btf__tex_grid(const btf_gl_package *g, const btf_package *p, int s, float *lo, float *step)
 {
-    const char *name = btf__tex_file(p, j);
-    if (!name)
-        return btf_fail(err, BTF_ERR_FORMAT, "gl package: chunk %d has no tex-* file", j);
-    char path[1200];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    int w = 0, h = 0, ch = 0;
-    uint8_t *px = NULL;
-    btf_result r = btf_image_read_u8(path, &w, &h, &ch, &px, err);
-    if (r != BTF_OK)
-        return r;
-    int want_ch = p->bits == 16 ? 3 : 1;
-    if (w != aw >> level || h != ah >> level || ch != want_ch) {
-        free(px);
-        return btf_fail(err, BTF_ERR_FORMAT, "gl package: %s is %dx%d with %d channels, expected %dx%d with %d", path,
-                        w, h, ch, aw >> level, ah >> level, want_ch);
-    }
+    int c = btf__slot_component(g, p, s);
+    float qmax = (float)((1 << p->bits) - 1), a = 1e30f, b = -1e30f;
+    for (int i = 0; i < p->n_chunks; i++)
+        if (p->version < 2 ? i == s : p->chunk[i].component == c)
+            for (int k = 0; k < g->n_blocks; k++) {
+                a = fminf(a, p->chunk[i].tex_range[2 * k]);
+                b = fmaxf(b, p->chunk[i].tex_range[2 * k] + p->chunk[i].tex_range[2 * k + 1] * qmax);
+            }
+    *lo = a <= b ? a : 0.0f;
+    *step = a < b ? (b - a) / 65535.0f : 0.0f;
+}
+
+/* Chunk of slot s at level l among the first n loaded chunks (-1 if none) and the
+ * slot's loaded range [fine, coarse] there (coarse -1: none). */
+static int btf__slot_chunk(const btf_gl_package *g, int n, int s, int l, int *fine, int *coarse)
+{
+    int at = -1;
+    *fine = g->n_levels, *coarse = -1;
+    for (int j = n - 1; j >= 0; j--)
+        if (g->chunk_slot[j] == s) {
+            at = g->chunk_level[j] == l ? j : at;
+            *fine = g->chunk_level[j] < *fine ? g->chunk_level[j] : *fine;
+            *coarse = g->chunk_level[j] > *coarse ? g->chunk_level[j] : *coarse;
+        }
+    return at;
+}
+
+/* Slot s at mip level l into channel s % 4 of its layer's texels: each texel takes
+ * the slot's nearest loaded level (btf_decode does the same). */
+static void btf__pack_slot(const btf_gl_package *g, const btf_package *p, int n, int s, int l, uint16_t *dst)
+{
+    int fine, coarse;
+    btf__slot_chunk(g, n, s, l, &fine, &coarse);
+    if (coarse < 0)
+        return;
+    int lam = l < fine ? fine : l > coarse ? coarse : l, dummy0, dummy1;
+    const float *src = p->tex[btf__slot_chunk(g, n, s, lam, &dummy0, &dummy1)];
+    float lo, step;
+    btf__tex_grid(g, p, s, &lo, &step);
+    int wl = g->width >> l, hl = g->height >> l, wm = g->width >> lam, hm = g->height >> lam;
+    int aw = wl * g->atlas_cols, ah = hl * g->atlas_rows;
+    for (int y = 0; y < ah; y++)
+        for (int x = 0; x < aw; x++) {
+            int b = (y / hl) * g->atlas_cols + x / wl;
+            if (b >= g->n_blocks)
+                continue;
+            int xm = btf_lod_texel_of(x % wl, l, lam), ym = btf_lod_texel_of(y % hl, l, lam);
+            float t = src[((size_t)b * hm + ym) * wm + xm];
+            float q = step > 0.0f ? rintf((t - lo) / step) : 0.0f;
+            dst[((size_t)y * aw + x) * 4 + s % 4] = (uint16_t)(q < 0.0f ? 0.0f : q > 65535.0f ? 65535.0f : q);
+        }
+}
+
+/* u_btf_tex for the first n loaded chunks: every layer (4 slots), every level. */
+static btf_result btf__pack_textures(btf_gl *gl, btf_gl_package *g, const btf_package *p, int n, btf_error *err)
+{
     const btf_gl_api *f = btf_gl_fn(gl);
+    int quads = btf__quads(g->n_chunks);
+    size_t texels = (size_t)g->width * g->atlas_cols * g->height * g->atlas_rows;
+    uint16_t *buf = malloc(texels * 4 * sizeof(uint16_t));
+    if (!buf)
+        return btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
+    GLint was = 0; /* the caller's binding on the active unit (a bound sampler's) is kept */
+    f->GetIntegerv(GL_TEXTURE_BINDING_2D_ARRAY, &was);
+    f->BindTexture(GL_TEXTURE_2D_ARRAY, g->tex);
     f->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    f->TexSubImage3D(GL_TEXTURE_2D_ARRAY, level, 0, 0, slot, w, h, 1, want_ch == 3 ? GL_RGB : GL_RED,
-                     GL_UNSIGNED_BYTE, px);
-    free(px);
-    return btf_gl_check(gl, "uploading a texture atlas layer", err);
+    for (int l = 0; l < g->n_levels; l++)
+        for (int k = 0; k < quads; k++) {
+            int aw = (g->width >> l) * g->atlas_cols, ah = (g->height >> l) * g->atlas_rows;
+            memset(buf, 0, (size_t)aw * ah * 4 * sizeof(uint16_t));
+            for (int s = 4 * k; s < 4 * k + 4 && s < g->n_chunks; s++)
+                btf__pack_slot(g, p, n, s, l, buf);
+            f->TexSubImage3D(GL_TEXTURE_2D_ARRAY, l, 0, 0, k, aw, ah, 1, GL_RGBA_INTEGER, GL_UNSIGNED_SHORT, buf);
+        }
+    f->BindTexture(GL_TEXTURE_2D_ARRAY, (GLuint)was);
+    free(buf);
+    return btf_gl_check(gl, "uploading the packed textures", err);
 }
 
-static btf_result btf__upload_atlas(btf_gl *gl, btf_gl_package *g, const btf_package *p, const char *dir,
-                                    btf_error *err)
+static btf_result btf__upload_atlas(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    int aw = p->atlas_cols * p->width, ah = p->atlas_rows * p->height;
+    int aw = p->atlas_cols * p->width, ah = p->atlas_rows * p->height, quads = btf__quads(g->n_chunks);
+    g->tq = calloc((size_t)btf__quads(g->n_chunks) * 8, sizeof(float));
+    if (!g->tq)
+        return btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
+    for (int s = 0; s < g->n_chunks; s++)
+        btf__tex_grid(g, p, s, &g->tq[(s / 4) * 8 + s % 4], &g->tq[(s / 4) * 8 + 4 + s % 4]);
     f->GenTextures(1, &g->tex);
     f->BindTexture(GL_TEXTURE_2D_ARRAY, g->tex);
     for (int l = 0; l < g->n_levels; l++)
-        f->TexImage3D(GL_TEXTURE_2D_ARRAY, l, p->bits == 16 ? GL_RGB8 : GL_R8, aw >> l, ah >> l, g->n_chunks, 0,
-                      p->bits == 16 ? GL_RGB : GL_RED, GL_UNSIGNED_BYTE, NULL);
+        f->TexImage3D(GL_TEXTURE_2D_ARRAY, l, GL_RGBA16UI, aw >> l, ah >> l, quads, 0, GL_RGBA_INTEGER,
+                      GL_UNSIGNED_SHORT, NULL);
     btf__nearest_params(f, GL_TEXTURE_2D_ARRAY);
     if (g->n_levels > 1) { /* mipmap complete: texelFetch may read levels 0..N-1 */
         f->TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST_MIPMAP_NEAREST);
         f->TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAX_LEVEL, g->n_levels - 1);
     }
     btf_result r = btf_gl_check(gl, "allocating the texture atlas array", err);
-    for (int j = 0; j < p->n_loaded && r == BTF_OK; j++)
-        r = btf__upload_atlas_layer(gl, p, dir, j, g->chunk_slot[j], g->chunk_level[j], aw, ah, err);
-    return r;
+    return r == BTF_OK ? btf__pack_textures(gl, g, p, p->n_loaded, err) : r;
 }
 
-/* Layer s = the weights of slot s's first chunk (the reader keeps there the most
- * precise weights of the component loaded so far; btf_decode reads the same). */
+/* Weights of slot s (its first chunk holds the most precise loaded; btf_decode reads
+ * the same) on its own grid per channel: 11, 11 and 10 bits. */
+static void btf__pack_weights_slot(btf_gl_package *g, const btf_package *p, const float *w, int s, uint32_t *dst)
+{
+    int n = p->lights.n_dirs * p->views.n_dirs;
+    static const float qmax[3] = {2047.0f, 2047.0f, 1023.0f};
+    static const int shift[3] = {0, 11, 22};
+    for (int c = 0; c < 3; c++) {
+        float lo = 1e30f, hi = -1e30f;
+        for (int i = 0; i < n; i++)
+            lo = fminf(lo, w[i * 3 + c]), hi = fmaxf(hi, w[i * 3 + c]);
+        float step = hi > lo ? (hi - lo) / qmax[c] : 0.0f;
+        g->wq[(s / 4) * 24 + c * 4 + s % 4] = lo;
+        g->wq[(s / 4) * 24 + 12 + c * 4 + s % 4] = step;
+        for (int i = 0; i < n; i++) {
+            float q = step > 0.0f ? rintf((w[i * 3 + c] - lo) / step) : 0.0f;
+            dst[(size_t)i * 4 + s % 4] |= (uint32_t)(q < 0.0f ? 0.0f : q > qmax[c] ? qmax[c] : q) << shift[c];
+        }
+    }
+}
+
+/* Mean squares of chunk j's texture values and of its weights per channel. */
+static void btf__mean_squares(const btf_package *p, int j, double ms[4])
+{
+    size_t nt = (size_t)p->blocks->n_blocks * (p->width >> p->chunk[j].level) * (p->height >> p->chunk[j].level);
+    size_t nw = (size_t)p->lights.n_dirs * p->views.n_dirs;
+    for (size_t i = 0; i < nt; i++)
+        ms[0] += (double)p->tex[j][i] * p->tex[j][i] / (double)nt;
+    for (size_t i = 0; i < nw * 3; i++)
+        ms[1 + i % 3] += (double)p->wt[j][i] * p->wt[j][i] / (double)nw;
+}
+
 static btf_result btf__upload_weights(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    int L = p->lights.n_dirs, V = p->views.n_dirs, quads = btf__quads(g->n_chunks);
+    g->wq = calloc((size_t)quads * 24, sizeof(float));
+    uint32_t *buf = calloc((size_t)L * V * 4 * quads, sizeof(uint32_t));
+    if (!g->wq || !buf) {
+        free(buf);
+        return btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
+    }
+    g->ms = calloc((size_t)g->n_chunks * 4, sizeof(double));
+    if (!g->ms) {
+        free(buf);
+        return btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
+    }
+    for (int j = 0, next = 0; j < p->n_loaded; j++) /* layout (v*L + l)*3 + c */
+        if (g->chunk_slot[j] == next) {
+            btf__mean_squares(p, j, g->ms + 4 * next);
+            btf__pack_weights_slot(g, p, p->wt[j], next, buf + (size_t)L * V * 4 * (next / 4));
+            next++;
+        }
     f->GenTextures(1, &g->wt);
     f->BindTexture(GL_TEXTURE_2D_ARRAY, g->wt);
     f->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    f->TexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_RGB32F, L, V, g->n_chunks, 0, GL_RGB, GL_FLOAT, NULL);
+    f->TexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_RGBA32UI, L, V, quads, 0, GL_RGBA_INTEGER, GL_UNSIGNED_INT, buf);
     btf__nearest_params(f, GL_TEXTURE_2D_ARRAY);
-    for (int j = 0, next = 0; j < p->n_loaded; j++) /* layout (v*L + l)*3 + c is rows of L RGB texels */
-        if (g->chunk_slot[j] == next)
-            f->TexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, next++, L, V, 1, GL_RGB, GL_FLOAT, p->wt[j]);
+    free(buf);
     return btf_gl_check(gl, "uploading the weights", err);
 }
 
-/* .zw of every texel of every slot = its loaded level range [fine, coarse] among the
- * first n chunks (0, 0 for a slot not among them); returns the slots among them. */
-static int btf__fill_levels(btf_gl_package *g, int n)
+/* The direction tables (the same btf_dirtab the CPU decoder reads) and the horizon. */
+static btf_result btf__upload_dirs(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
 {
-    int N = g->n_levels, B = g->n_blocks, used = 0;
-    for (int s = 0; s < g->n_chunks; s++) {
-        int fine = N, coarse = -1;
-        for (int i = 0; i < n; i++)
-            if (g->chunk_slot[i] == s) {
-                fine = g->chunk_level[i] < fine ? g->chunk_level[i] : fine;
-                coarse = g->chunk_level[i] > coarse ? g->chunk_level[i] : coarse;
-            }
-        if (coarse < 0)
-            fine = coarse = 0;
-        else
-            used = s + 1;
-        for (size_t t = (size_t)s * N * B; t < (size_t)(s + 1) * N * B; t++) {
-            g->range_host[t * 4 + 2] = (float)fine;
-            g->range_host[t * 4 + 3] = (float)coarse;
-        }
-    }
-    return used;
-}
-
-/* Range table (block, slot * N + level) and the view -> block map, as RGBA32F 2D textures. */
-static btf_result btf__upload_tables(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
-{
-    int B = g->n_blocks, V = p->views.n_dirs, rows = g->n_chunks * g->n_levels;
-    g->range_host = calloc((size_t)B * (size_t)rows * 4, sizeof(float));
-    float *vb = calloc((size_t)V * 4, sizeof(float));
-    btf_result r = BTF_OK;
-    if (!g->range_host || !vb)
-        r = btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
-    for (int j = p->n_loaded - 1; j >= 0 && r == BTF_OK; j--) { /* the first chunk of a (slot, level) wins */
-        float *row = g->range_host + (size_t)(g->chunk_slot[j] * g->n_levels + g->chunk_level[j]) * B * 4;
-        for (int b = 0; b < B; b++) {
-            row[b * 4 + 0] = p->chunk[j].tex_range[2 * b];
-            row[b * 4 + 1] = p->chunk[j].tex_range[2 * b + 1];
-        }
-    }
+    btf_dirtab *tl = NULL, *tv = NULL;
+    btf_result r = btf_dirtab_build(&p->lights, &tl, err);
     if (r == BTF_OK)
-        btf__fill_levels(g, p->n_loaded);
-    for (int v = 0; v < V && r == BTF_OK; v++)
-        vb[(size_t)v * 4] = (float)p->blocks->block_of_view[v];
+        r = btf_dirtab_build(&p->views, &tv, err);
     if (r == BTF_OK)
-        r = btf_gl_texture_create(gl, B, rows, BTF_GL_RGBA32F, g->range_host, &g->range, err);
-    if (r == BTF_OK)
-        r = btf_gl_texture_create(gl, V, 1, BTF_GL_RGBA32F, vb, &g->view_block, err);
-    free(vb);
+        r = btf_gl_dirs_upload(gl, tl, tv, p->blocks->block_of_view, &g->dirs, err);
+    btf_dirtab_free(tl);
+    btf_dirtab_free(tv);
+    g->outer_cos = cosf(p->lights.rings[p->lights.n_rings - 1].theta_deg * 0.017453292519943295f);
     return r;
 }
 
@@ -183,11 +252,12 @@ void btf_gl_package_free(btf_gl *gl, btf_gl_package *g)
         return;
     btf_gl_texture_free(gl, g->tex);
     btf_gl_texture_free(gl, g->wt);
-    btf_gl_texture_free(gl, g->range);
-    btf_gl_texture_free(gl, g->view_block);
+    btf_gl_dirs_free(gl, &g->dirs);
     free(g->chunk_slot);
     free(g->chunk_level);
-    free(g->range_host);
+    free(g->tq);
+    free(g->wq);
+    free(g->ms);
     free(g);
 }
 
@@ -210,6 +280,8 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
     g->height = p->height;
     g->n_blocks = p->blocks->n_blocks;
     g->atlas_cols = p->atlas_cols;
+    g->atlas_rows = p->atlas_rows;
+    g->src = p;
     g->bits = p->bits;
     g->n_levels = p->n_levels;
     g->n_loaded = p->n_loaded;
@@ -217,11 +289,11 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
     g->views = p->views;
     btf_result r = btf__make_slots(g, p, dir, err);
     if (r == BTF_OK)
-        r = btf__upload_atlas(gl, g, p, dir, err);
+        r = btf__upload_atlas(gl, g, p, err);
     if (r == BTF_OK)
         r = btf__upload_weights(gl, g, p, err);
     if (r == BTF_OK)
-        r = btf__upload_tables(gl, g, p, err);
+        r = btf__upload_dirs(gl, g, p, err);
     if (r != BTF_OK)
         btf_gl_package_free(gl, g), g = NULL;
     *out = g;
@@ -241,27 +313,29 @@ btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_sh
     if (!gl || !g || !prog)
         return btf_fail(err, BTF_ERR_ARG, "gl package: NULL argument");
     const btf_gl_api *f = btf_gl_fn(gl);
-    static const char *names[4] = {"u_btf_tex", "u_btf_wt", "u_btf_range", "u_btf_view_block"};
-    const GLuint tex[4] = {g->tex, g->wt, g->range, g->view_block};
-    const GLenum target[4] = {GL_TEXTURE_2D_ARRAY, GL_TEXTURE_2D_ARRAY, GL_TEXTURE_2D, GL_TEXTURE_2D};
-    for (int i = 0; i < 4; i++) {
+    static const char *names[2] = {"u_btf_tex", "u_btf_wt"};
+    const GLuint tex[2] = {g->tex, g->wt};
+    for (int i = 0; i < 2; i++) {
         GLint loc = f->GetUniformLocation(prog->id, names[i]);
         if (loc < 0)
             return btf_fail(err, BTF_ERR_MISSING, "shader '%s': no sampler %s", prog->name, names[i]);
         f->ActiveTexture((GLenum)(GL_TEXTURE0 + first_unit + i));
-        f->BindTexture(target[i], tex[i]);
+        f->BindTexture(GL_TEXTURE_2D_ARRAY, tex[i]);
         f->Uniform1i(loc, first_unit + i);
     }
     f->Uniform2i(f->GetUniformLocation(prog->id, "u_btf_size"), g->width, g->height);
     btf__set_int(f, prog, "u_btf_atlas_cols", g->atlas_cols);
-    btf__set_int(f, prog, "u_btf_bits", g->bits);
     btf__set_int(f, prog, "u_btf_levels", g->n_levels);
+    GLint oc = f->GetUniformLocation(prog->id, "u_btf_outer_cos");
+    if (oc >= 0)
+        f->Uniform1f(oc, g->outer_cos);
+    GLint tq = f->GetUniformLocation(prog->id, "u_btf_tq");
+    if (tq >= 0)
+        f->Uniform4fv(tq, 2 * btf__quads(g->n_chunks), g->tq);
     btf_gl_decode_settings s = {0};
     btf_gl_package_settings(gl, g, prog, &s);
     btf_gl_package_lod(gl, prog, 0, 0.0f);
-    btf_result r = btf_shader_set_dirset(gl, prog, "u_btf_lights", &g->lights, err);
-    if (r == BTF_OK)
-        r = btf_shader_set_dirset(gl, prog, "u_btf_views", &g->views, err);
+    btf_result r = btf_gl_dirs_bind(gl, &g->dirs, prog, first_unit + 2, err);
     if (r == BTF_OK)
         r = btf_gl_check(gl, "binding a package", err);
     return r;
@@ -271,20 +345,28 @@ void btf_gl_package_settings(btf_gl *gl, const btf_gl_package *g, const btf_shad
                              const btf_gl_decode_settings *s)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    int n = s->n_chunks <= 0 || s->n_chunks > g->n_loaded ? g->n_loaded : s->n_chunks;
-    if (g->n_levels > 1) { /* the prefix's level ranges; the slots among the first n chunks */
-        n = btf__fill_levels((btf_gl_package *)g, n);
-        GLint was = 0;
-        f->GetIntegerv(GL_TEXTURE_BINDING_2D, &was);
-        f->BindTexture(GL_TEXTURE_2D, g->range);
-        f->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-        f->TexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, g->n_blocks, g->n_chunks * g->n_levels, GL_RGBA, GL_FLOAT,
-                         g->range_host);
-        f->BindTexture(GL_TEXTURE_2D, (GLuint)was);
+    int n = s->n_chunks <= 0 || s->n_chunks > g->n_loaded ? g->n_loaded : s->n_chunks, used = 0;
+    for (int j = 0; j < n; j++)
+        used = g->chunk_slot[j] + 1 > used ? g->chunk_slot[j] + 1 : used;
+    if (g->n_levels > 1) { /* the prefix's loaded levels decide each slot's fill */
+        btf_error err = {{0}};
+        btf__pack_textures(gl, (btf_gl_package *)g, g->src, n, &err);
+    }
+    int quads = btf__quads(g->n_chunks);
+    float *wq = malloc((size_t)quads * 24 * sizeof(float));
+    if (wq) { /* slots beyond the prefix: zero weights */
+        memcpy(wq, g->wq, (size_t)quads * 24 * sizeof(float));
+        for (int k = used; k < 4 * quads; k++)
+            for (int c = 0; c < 6; c++)
+                wq[(k / 4) * 24 + c * 4 + k % 4] = 0.0f;
+        GLint loc = f->GetUniformLocation(prog->id, "u_btf_wq");
+        if (loc >= 0)
+            f->Uniform4fv(loc, 6 * quads, wq);
+        free(wq);
     }
     btf__set_int(f, prog, "u_btf_filter", s->filter);
     btf__set_int(f, prog, "u_btf_wrap", s->wrap);
-    btf__set_int(f, prog, "u_btf_chunks", n);
+    btf__set_int(f, prog, "u_btf_chunks", used);
 }
 
 void btf_gl_package_lod(btf_gl *gl, const btf_shader_program *prog, int fixed, float lod)
@@ -294,4 +376,38 @@ void btf_gl_package_lod(btf_gl *gl, const btf_shader_program *prog, int fixed, f
     GLint loc = f->GetUniformLocation(prog->id, "u_btf_lod");
     if (loc >= 0)
         f->Uniform1f(loc, lod);
+}
+
+void btf_gl_package_quant_error(const btf_gl_package *g, double *worst, double *rms)
+{
+    static const double qmax[3] = {2047.0, 2047.0, 1023.0};
+    *worst = *rms = 0.0;
+    for (int c = 0; c < 3 && g; c++) {
+        double e = 0.0, v = 0.0;
+        for (int s = 0; s < g->n_chunks; s++) {
+            const float *tq = g->tq + (s / 4) * 8, *wq = g->wq + (s / 4) * 24;
+            double tlo = tq[s % 4], tst = tq[4 + s % 4], wlo = wq[c * 4 + s % 4], wst = wq[12 + c * 4 + s % 4];
+            double tmax = fmax(fabs(tlo), fabs(tlo + 65535.0 * tst)), wmax = fmax(fabs(wlo), fabs(wlo + qmax[c] * wst));
+            e += tmax * wst / 2 + wmax * tst / 2 + tst * wst / 4;
+            v += (g->ms[4 * s] * wst * wst + g->ms[4 * s + 1 + c] * tst * tst) / 12.0;
+        }
+        *worst = fmax(*worst, e);
+        *rms = fmax(*rms, sqrt(v));
+    }
+}
+
+int btf_gl_package_defines(const btf_gl_package *g, int filter, int n_chunks, btf_shader_define *defs,
+                           char vals[][16])
+{
+    int n = n_chunks <= 0 || n_chunks > g->n_loaded ? g->n_loaded : n_chunks, used = 1;
+    for (int j = 0; j < n; j++)
+        used = g->chunk_slot[j] + 1 > used ? g->chunk_slot[j] + 1 : used;
+    static const char *names[BTF_GL_PACKAGE_DEFINES] = {"BTF_FILTER", "BTF_LEVELS", "BTF_QUADS"};
+    int v[BTF_GL_PACKAGE_DEFINES] = {filter == 1, g->n_levels > 1, btf__quads(used)};
+    for (int i = 0; i < BTF_GL_PACKAGE_DEFINES; i++) {
+        snprintf(vals[i], 16, "%d", v[i]);
+        defs[i].name = names[i];
+        defs[i].value = vals[i];
+    }
+    return BTF_GL_PACKAGE_DEFINES;
 }

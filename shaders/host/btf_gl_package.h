@@ -8,23 +8,24 @@
  *     ... draw ...
  *     btf_gl_package_free(gl, g);
  *
- * Textures (all sampled with texelFetch, WebGL2 core formats only); slot s = the s-th
- * distinct component of the loaded chunks (version 1: chunk s); N spatial levels
- * (version 2; 1 in version 1); the full contract is shaders/README.md, "Spatial levels":
- *   u_btf_tex         sampler2DArray, layer s, mip level l = tex-JJ[-lL].png of slot s
- *                     as stored: R8 (8-bit package) or RGB8 (16-bit: R = high, G = low byte)
- *   u_btf_wt          sampler2DArray RGB32F, L x V texels, layer s = dequantised weights
- *                     of slot s (the most precise loaded), texel (light, view)
- *   u_btf_range       sampler2D RGBA32F, n_blocks x (slots * N): (lo, step, fine, coarse)
- *                     of (block, slot s * N + level l); [fine, coarse] = loaded levels of s
- *   u_btf_view_block  sampler2D RGBA32F, V x 1: block of view v in .r
+ * The GPU layout (shaders/btf_decode.glsl and shaders/README.md, "GPU layout"): slot s =
+ * the s-th distinct component of the loaded chunks (version 1: chunk s); N levels:
+ *   u_btf_tex   RGBA32UI array, layer g = slots 8g..8g+7 at 16 bits each, mip level l;
+ *               values requantised on one grid per component (its manifest ranges over
+ *               every block and level), a level a slot lacks filled from its nearest one
+ *   u_btf_wt    RGBA32UI array, layer h = slots 4h..4h+3 as 11/11/10-bit RGB, texel
+ *               (light, view), one grid per (slot, channel)
+ *   u_btf_tq, u_btf_wq  the grids (uniform arrays); slots not in use get zero weights
+ *   direction tables (btf_gl_dirs.h) on texture units first+2, first+3, block binding 0
  * Limitations: the whole atlas of every loaded chunk is uploaded (no streaming of
- * parts here); sizes are limited by GL_MAX_TEXTURE_SIZE / GL_MAX_ARRAY_TEXTURE_LAYERS.
+ * parts here); sizes are limited by GL_MAX_TEXTURE_SIZE / GL_MAX_ARRAY_TEXTURE_LAYERS;
+ * lights + views at most BTF_GL_MAX_VERTS - 4 directions.
  */
 #ifndef BTF_GL_PACKAGE_H
 #define BTF_GL_PACKAGE_H
 
 #include "btf_gl.h"
+#include "btf_gl_dirs.h"
 #include "btf_package.h"
 #include "btf_shader.h"
 
@@ -33,17 +34,23 @@ extern "C" {
 #endif
 
 /* GPU copy of a package's loaded chunks. Made by btf_gl_package_upload, freed by
- * btf_gl_package_free with the same btf_gl. Keeps a copy of the direction sets. */
+ * btf_gl_package_free with the same btf_gl. Keeps a pointer to the package (version 2
+ * repacks from it when a prefix is chosen): the package must outlive it. */
 typedef struct btf_gl_package {
-    int width, height, n_blocks, atlas_cols, bits;
-    int n_chunks; /* layers uploaded = slots (version 1: the package's loaded chunks) */
+    int width, height, n_blocks, atlas_cols, atlas_rows, bits;
+    int n_chunks;      /* slots uploaded (version 1: the package's loaded chunks) */
     btf_dirset lights, views;
-    GLuint tex, wt, range, view_block;
+    GLuint tex, wt;    /* u_btf_tex, u_btf_wt */
+    btf_gl_dirs dirs;  /* direction tables */
     int n_levels;      /* spatial levels N (1 in version 1) */
     int n_loaded;      /* chunks of the package that were uploaded */
     int *chunk_slot;   /* n_loaded: slot of each loaded chunk (malloc'd) */
     int *chunk_level;  /* n_loaded: level of each loaded chunk (malloc'd) */
-    float *range_host; /* n_blocks x (n_chunks * N) x 4: host copy of u_btf_range (malloc'd) */
+    float *tq;         /* 8 floats per 4 slots: lo[4], step[4] of T (malloc'd) */
+    float *wq;         /* 24 floats per 4 slots: lo R, G, B [4 each], step R, G, B (malloc'd) */
+    float outer_cos;   /* cos(theta) of the outermost light ring (u_btf_outer_cos) */
+    double *ms;        /* 4 per slot: mean square of T, of W per channel (btf_gl_package_quant_error; malloc'd) */
+    const btf_package *src;
 } btf_gl_package;
 
 /* Uploads p's loaded chunks; dir is the package directory (textures are read from
@@ -67,9 +74,29 @@ typedef struct btf_gl_decode_settings {
 } btf_gl_decode_settings;
 
 /* Sets u_btf_filter, u_btf_wrap, u_btf_chunks of prog (in use); version 2: also
- * rewrites the loaded level ranges of u_btf_range for the prefix. */
+ * repacks u_btf_tex for the prefix's loaded levels. */
 void btf_gl_package_settings(btf_gl *gl, const btf_gl_package *g, const btf_shader_program *prog,
                              const btf_gl_decode_settings *s);
+
+#define BTF_GL_PACKAGE_DEFINES 3
+
+/* The shader defines that specialise the decoder for g drawn with `filter` (0 nearest,
+ * 1 bilinear) and its first n_chunks chunks (0 = all): BTF_FILTER, BTF_LEVELS (0 for a
+ * package without levels) and BTF_QUADS (4-slot layers in use); shaders/btf_decode.glsl
+ * explains why. Fills defs[0..] with names and values (vals holds the value text);
+ * returns the count (BTF_GL_PACKAGE_DEFINES). Without them the program decides at run
+ * time (same results, slower on software rasterisers). */
+int btf_gl_package_defines(const btf_gl_package *g, int filter, int n_chunks, btf_shader_define *defs,
+                           char vals[][16]);
+
+/* What the GPU layout's requantisation (16-bit textures, 11/11/10-bit weights) can
+ * do to a decoded value (byte/255 scale), per colour channel, the largest channel:
+ * worst = sum over slots of max|T| dW/2 + max|W| dT/2 + dT dW/4 (every rounding
+ * error at its extreme, aligned); rms = the root of the summed variances
+ * E[T^2] dW^2/12 + E[W^2] dT^2/12 of independent uniform rounding errors (the
+ * expected square error at a random texel and direction pair, before the angular
+ * and spatial interpolation average some of it away). Tests compare the GPU with btf_decode against both. */
+void btf_gl_package_quant_error(const btf_gl_package *g, double *worst, double *rms);
 
 /* Level of detail of prog (in use): fixed = 0: the render program takes it from
  * screen-space derivatives (u_btf_lod_auto = 1, btf_gl_package_bind's default);

@@ -270,10 +270,8 @@ btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir
         return btf_fail(err, BTF_ERR_NOMEM, "renderer: out of memory");
     r->gl = gl;
     r->mesh_geometry = (btf_render_geometry)-1;
-    /* no levels (version 1): level 0 with a constant mip level, the faster variant */
-    btf_shader_define defs[2] = {{"BTF_NO_LEVELS", "1"}, {"BTF_RENDER_DEBUG", "1"}};
-    int no_levels = p->n_levels <= 1;
-    btf_shader_desc sd = {.program = "render", .defines = defs + !no_levels, .n_defines = no_levels + !!debug};
+    btf_shader_define defs[1] = {{"BTF_RENDER_DEBUG", "1"}};
+    btf_shader_desc sd = {.program = "render", .defines = defs, .n_defines = !!debug};
     btf_result res = btf_shader_build(gl, &sd, &r->prog, NULL, err);
     if (res == BTF_OK)
         res = btf_gl_package_upload(gl, p, dir, &r->pkg, err);
@@ -288,6 +286,8 @@ btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir
     *out = r;
     return BTF_OK;
 }
+
+const btf_gl_package *btf_renderer_package(const btf_renderer *r) { return r ? r->pkg : NULL; }
 
 void btf_renderer_free(btf_renderer *r)
 {

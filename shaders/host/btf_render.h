@@ -121,6 +121,8 @@ typedef struct btf_renderer btf_renderer;
 btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir, int debug, btf_renderer **out,
                                btf_error *err);
 void btf_renderer_free(btf_renderer *r);
+/* The package on the GPU that r draws (owned by r). */
+const btf_gl_package *btf_renderer_package(const btf_renderer *r);
 /* Clears t to the background (depth too), draws the scene, waits for the GPU. */
 btf_result btf_renderer_draw(btf_renderer *r, const btf_render_params *p, btf_gl_target *t, btf_error *err);
 

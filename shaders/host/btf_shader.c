@@ -439,30 +439,3 @@ btf_result btf_shader_build(btf_gl *gl, const btf_shader_desc *desc, btf_shader_
     *out = p;
     return r;
 }
-
-btf_result btf_shader_set_dirset(btf_gl *gl, const btf_shader_program *p, const char *name, const btf_dirset *d,
-                                 btf_error *err)
-{
-    if (!gl || !p || !name || !d)
-        return btf_fail(err, BTF_ERR_ARG, "shader: NULL argument");
-    if (d->n_rings < 1 || d->n_rings > BTF_MAX_RINGS)
-        return btf_fail(err, BTF_ERR_RANGE, "shader: dirset with %d rings", d->n_rings);
-    const btf_gl_api *f = btf_gl_fn(gl);
-    char buf[200];
-    snprintf(buf, sizeof buf, "%s.rings", name);
-    GLint rings = f->GetUniformLocation(p->id, buf);
-    snprintf(buf, sizeof buf, "%s.n_rings", name);
-    GLint n = f->GetUniformLocation(p->id, buf);
-    if (rings < 0 || n < 0)
-        return btf_fail(err, BTF_ERR_MISSING, "shader '%s': no btf_dirset uniform '%s'", p->name, name);
-    float v[BTF_MAX_RINGS * 4];
-    for (int r = 0; r < d->n_rings; r++) {
-        v[r * 4 + 0] = d->rings[r].theta_deg;
-        v[r * 4 + 1] = (float)d->rings[r].count;
-        v[r * 4 + 2] = d->rings[r].phi_offset_deg;
-        v[r * 4 + 3] = (float)d->ring_start[r];
-    }
-    f->Uniform4fv(rings, d->n_rings, v);
-    f->Uniform1i(n, d->n_rings);
-    return btf_gl_check(gl, "setting a btf_dirset uniform", err);
-}

@@ -102,12 +102,6 @@ btf_result btf_shader_build(btf_gl *gl, const btf_shader_desc *desc, btf_shader_
                             btf_error *err);
 void btf_shader_program_free(btf_gl *gl, btf_shader_program *p);
 
-/* Sets the struct uniform `name` (type btf_dirset of shaders/btf_dirs.glsl) of p, which
- * must be in use (glUseProgram): NAME.rings[r] = (theta, count, phi_offset, start),
- * NAME.n_rings. BTF_ERR_MISSING when the program has no such uniform. */
-btf_result btf_shader_set_dirset(btf_gl *gl, const btf_shader_program *p, const char *name, const btf_dirset *d,
-                                 btf_error *err);
-
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,142 @@
+// btf-dirtab.js - a ring direction set as triangles plus a lookup table, the JS twin
+// of codec/btf_dirtab.c (doc/data-model.md, "Direction tables"), and their GPU layout
+// for shaders/btf_dirs.glsl (the C host's shaders/host/btf_gl_dirs.c). Float32
+// arithmetic (Math.fround) where the C code uses float, so both make the same
+// triangles. No DOM, no GL: usable in node.
+
+const f32 = Math.fround;
+const TIE = f32(1e-3); // aligned "next" vertices go inner first
+export const CELLS = 64;
+export const MAX_VERTS = 1024; // BTF_GL_MAX_VERTS: vertices of both sets together
+const TRI_W = 1024;
+
+// det(p, a, b) = p . ((a - p) x (b - p)), in float32 like btf__det3.
+function det3(p, a, b) {
+  const u0 = f32(a[0] - p[0]), u1 = f32(a[1] - p[1]), u2 = f32(a[2] - p[2]);
+  const v0 = f32(b[0] - p[0]), v1 = f32(b[1] - p[1]), v2 = f32(b[2] - p[2]);
+  const cx = f32(f32(u1 * v2) - f32(u2 * v1));
+  const cy = f32(f32(u2 * v0) - f32(u0 * v2));
+  const cz = f32(f32(u0 * v1) - f32(u1 * v0));
+  return f32(f32(f32(p[0] * cx) + f32(p[1] * cy)) + f32(p[2] * cz));
+}
+
+// Unit vector of direction m of ring r of a parsed ring table (btf-package.js
+// parseDirset), as btf_dirset_vector: phi in float32, the trigonometry in double.
+function dirVector(d, r, m) {
+  const theta = d.rings[4 * r], count = d.rings[4 * r + 1], off = d.rings[4 * r + 2];
+  let phi = f32(off + f32(m * f32(360 / count)));
+  if (phi >= 360) phi = f32(phi - 360);
+  const t = theta * (Math.PI / 180), p = phi * (Math.PI / 180);
+  return [f32(Math.sin(t) * Math.cos(p)), f32(Math.sin(t) * Math.sin(p)), f32(Math.cos(t))];
+}
+
+// Builds the table of a parsed ring table d = {rings, n, dirs}:
+// {nDirs, nVerts, verts: [[x, y, z, real]], tris: [[a, b, c]], adj: [[n0, n1, n2]], cells: Int32Array}.
+export function buildDirtab(d) {
+  const nDirs = d.dirs, verts = [];
+  for (let r = 0; r < d.n; r++)
+    for (let m = 0; m < d.rings[4 * r + 1]; m++) verts.push([...dirVector(d, r, m), 1]);
+  verts.push([0, 0, 1, 0], [0, 0, -1, 0]); // virtual north and south poles
+  const tris = [];
+  const add = (a, b, c) => {
+    if (a === b || b === c || a === c) return;
+    if (det3(verts[a], verts[b], verts[c]) < 0) [b, c] = [c, b]; // counter-clockwise from outside
+    tris.push([a, b, c]);
+  };
+  const count = (r) => d.rings[4 * r + 1], start = (r) => d.rings[4 * r + 3];
+  const vertex = (r, k) => {
+    const n = count(r), m = k % n;
+    return start(r) + (m < 0 ? m + n : m);
+  };
+  const ringPhi = (r, k) => count(r) === 1 ? 1e9 : f32(d.rings[4 * r + 2] + f32(k * f32(360 / count(r))));
+  const fan = (r, pole) => {
+    for (let k = 0; k < count(r) && count(r) > 1; k++) add(vertex(r, k), vertex(r, k + 1), pole);
+  };
+  if (count(0) > 1) fan(0, nDirs);
+  for (let lo = 0; lo + 1 < d.n; lo++) { // the zipper between ring lo and lo + 1
+    let ki = Math.floor(f32(f32(0 - d.rings[4 * lo + 2]) / f32(360 / count(lo))));
+    let ko = Math.floor(f32(f32(0 - d.rings[4 * lo + 6]) / f32(360 / count(lo + 1))));
+    const steps = (count(lo) === 1 ? 0 : count(lo)) + (count(lo + 1) === 1 ? 0 : count(lo + 1));
+    for (let s = 0; s < steps; s++) {
+      const inner = f32(ringPhi(lo, ki + 1) - ringPhi(lo + 1, ko + 1)) <= TIE;
+      const x = inner ? vertex(lo, ki + 1) : vertex(lo + 1, ko + 1);
+      add(vertex(lo, ki), vertex(lo + 1, ko), x);
+      if (inner) ki++;
+      else ko++;
+    }
+  }
+  fan(d.n - 1, nDirs + 1);
+  const edge = new Map();
+  tris.forEach((t, i) => t.forEach((_, e) => edge.set(`${t[(e + 1) % 3]},${t[(e + 2) % 3]}`, i)));
+  const adj = tris.map((t) => t.map((_, e) => {
+    const n = edge.get(`${t[(e + 2) % 3]},${t[(e + 1) % 3]}`);
+    return n === undefined ? -1 : n;
+  }));
+  const tab = {nDirs, nVerts: nDirs + 2, verts, tris, adj, cells: new Int32Array(CELLS * CELLS)};
+  if (tris.length) fillCells(tab);
+  return tab;
+}
+
+// Barycentric volumes of p in triangle i; returns the index of the smallest.
+function volumes(t, i, p, w) {
+  const [x, y, z] = t.tris[i].map((v) => t.verts[v]);
+  w[0] = det3(p, y, z);
+  w[1] = det3(p, z, x);
+  w[2] = det3(p, x, y);
+  return w[0] <= w[1] && w[0] <= w[2] ? 0 : w[1] <= w[2] ? 1 : 2;
+}
+
+function walk(t, i, p, steps, w) {
+  for (let s = 0; ; s++) {
+    const k = volumes(t, i, p, w);
+    if (w[k] >= 0 || s >= steps || t.adj[i][k] < 0) return i;
+    i = t.adj[i][k];
+  }
+}
+
+function fillCells(t) {
+  let prev = 0;
+  const w = [0, 0, 0];
+  for (let j = 0; j < CELLS; j++)
+    for (let i = 0; i < CELLS; i++) {
+      const u = f32(f32(f32(i + 0.5) / CELLS) * 2 - 1), v = f32(f32(f32(j + 0.5) / CELLS) * 2 - 1);
+      const a = f32(0.5 * f32(u + v)), b = f32(0.5 * f32(u - v)), z = f32(1 - Math.max(Math.abs(u), Math.abs(v)));
+      const n = f32(Math.sqrt(f32(f32(f32(a * a) + f32(b * b)) + f32(z * z))));
+      const p = [f32(a / n), f32(b / n), f32(z / n)];
+      let c = walk(t, prev, p, 4 * CELLS, w), k = volumes(t, c, p, w);
+      for (let s = 0; s < t.tris.length && w[k] < 0; s++)
+        if (w[k = volumes(t, s, p, w)] >= 0) c = s;
+      t.cells[j * CELLS + i] = prev = c;
+    }
+}
+
+// GPU arrays of both tables (btf_gl_dirs_upload): the uniform block (Float32Array of
+// MAX_VERTS vec4), cells (Uint32Array, CELLS x 2 CELLS RGBA32UI), triangles
+// (Uint32Array, TRI_W x rows RGBA32UI); viewBlock (Int32Array) into bits 12.. of the
+// view vertices' w.
+export function dirtabGpu(lights, views, viewBlock) {
+  const nv = lights.nVerts + views.nVerts, nt = lights.tris.length + views.tris.length;
+  if (nv > MAX_VERTS || nt >= 0xffff)
+    throw new Error(`${lights.nDirs} + ${views.nDirs} directions: the GPU tables hold at most ${MAX_VERTS - 4}`);
+  const rows = Math.max(1, Math.ceil(nt / TRI_W));
+  const ubo = new Float32Array(4 * MAX_VERTS), cells = new Uint32Array(4 * CELLS * CELLS * 2);
+  const tris = new Uint32Array(4 * TRI_W * rows);
+  const vbase = [0, lights.nVerts], tbase = [0, lights.tris.length];
+  const texel = (t, s, i, out, o) => {
+    const tr = t.tris[i], n = t.adj[i].map((x) => (x < 0 ? 0xffff : x + tbase[s]));
+    out[o] = ((tr[0] + vbase[s]) | ((tr[1] + vbase[s]) << 16)) >>> 0;
+    out[o + 1] = tr[2] + vbase[s];
+    out[o + 2] = (n[0] | (n[1] << 16)) >>> 0;
+    out[o + 3] = n[2];
+  };
+  [lights, views].forEach((t, s) => {
+    t.verts.forEach((v, i) => {
+      const o = 4 * (vbase[s] + i);
+      ubo.set(v.slice(0, 3), o);
+      ubo[o + 3] = v[3] > 0 ? i + 1 + 4096 * (s === 1 && viewBlock ? viewBlock[i] : 0) : 0;
+    });
+    t.tris.forEach((_, i) => texel(t, s, i, tris, 4 * (tbase[s] + i)));
+    if (t.tris.length) for (let c = 0; c < CELLS * CELLS; c++) texel(t, s, t.cells[c], cells, 4 * (s * CELLS * CELLS + c));
+  });
+  return {ubo, cells, tris, rows, viewBase: vbase[1], triWidth: TRI_W};
+}
