@@ -140,3 +140,37 @@ export function dirtabGpu(lights, views, viewBlock) {
   });
   return {ubo, cells, tris, rows, viewBase: vbase[1], triWidth: TRI_W};
 }
+
+// Interpolation of a direction vector (local frame, any length): the JS twin of
+// btf_dirtab_interp_vec -> {idx: [3], w: [3]} (weights sum to 1).
+export function dirtabInterp(t, v) {
+  const r = {idx: [0, 0, 0], w: [1, 0, 0]};
+  if (!t.tris.length) return r;
+  const m = Math.max(Math.abs(v[0]), Math.abs(v[1]), Math.abs(v[2]));
+  let p = [0, 0, 1];
+  if (v.every(Number.isFinite) && m > 0) {
+    let x = f32(v[0] / m), y = f32(v[1] / m), z = Math.max(f32(v[2] / m), 0);
+    if (x === 0 && y === 0 && z === 0) x = 1;
+    const n = f32(Math.sqrt(f32(f32(f32(x * x) + f32(y * y)) + f32(z * z))));
+    p = [f32(x / n), f32(y / n), f32(z / n)];
+  }
+  const s = Math.abs(p[0]) + Math.abs(p[1]) + p[2], a = p[0] / s, b = p[1] / s;
+  const ci = Math.min(CELLS - 1, Math.max(0, Math.floor((a + b + 1) * 0.5 * CELLS)));
+  const cj = Math.min(CELLS - 1, Math.max(0, Math.floor((a - b + 1) * 0.5 * CELLS)));
+  const w = [0, 0, 0], i = walk(t, t.cells[cj * CELLS + ci], p, 8, w), tri = t.tris[i];
+  let sum = 0, first = -1;
+  for (let k = 0; k < 3; k++) {
+    w[k] = Math.max(w[k], 0) * t.verts[tri[k]][3];
+    sum += w[k];
+    if (first < 0 && t.verts[tri[k]][3] > 0) first = tri[k];
+  }
+  for (let k = 0; k < 3; k++) {
+    r.idx[k] = t.verts[tri[k]][3] > 0 ? tri[k] : first;
+    r.w[k] = sum > 1e-30 ? w[k] / sum : 0;
+  }
+  if (!(sum > 1e-30)) {
+    r.idx[0] = first;
+    r.w = [1, 0, 0];
+  }
+  return r;
+}

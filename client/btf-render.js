@@ -47,8 +47,8 @@ export class MeshRenderer {
   }
 
   // Clears to the background and draws pkg (a GpuPackage) for the scene `view`
-  // ({geometry, camera/light angles, fov, repeat, background, chunks, horizonFade}),
-  // as btf_renderer_draw does.
+  // ({geometry, camera/light angles, fov, repeat, background, chunks, horizonFade,
+  // filter: 0 nearest, else bilinear}), as btf_renderer_draw does.
   draw(pkg, view, w, h) {
     const gl = this.gl;
     gl.viewport(0, 0, w, h);
@@ -57,9 +57,10 @@ export class MeshRenderer {
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     if (!pkg || !pkg.uploaded || !view.chunks) return;
     const cam = cameraMake(view, w / h);
-    const p = this.program(decodeDefines(pkg.pkg, 1, pkg.slots));
+    const filter = view.filter === 0 ? 0 : 1;
+    const p = this.program(decodeDefines(pkg.pkg, filter, Math.min(pkg.slots, view.chunks)));
     gl.useProgram(p.program);
-    pkg.bind(p, 0, {chunks: view.chunks, filter: 1, wrap: cam.wrap});
+    pkg.bind(p, 0, {chunks: view.chunks, filter, wrap: cam.wrap});
     gl.uniformMatrix4fv(p.loc('u_model'), false, new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
     gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
     gl.uniform3fv(p.loc('u_camera'), cam.eye);
