@@ -875,6 +875,56 @@ static void check_decode(btf_gl_backend b, int bits, btf_gl_format fmt)
     check_decode_on(b, bits, fmt, small_dirset(), 1);
 }
 
+/* The decoder specialised at compile time (btf_gl_package_defines: BTF_FILTER,
+ * BTF_LEVELS, BTF_QUADS) decodes as the run-time program does: every prefix (1 and
+ * 2 layers of 4 slots: DEC_C = 4 gives one; a 6-component package gives two), both
+ * filters, within the same bound. */
+Test(gl, decode_specialised_matches_cpu)
+{
+    char tmp[256], pkg[300];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(pkg, sizeof pkg, "%s/knit", tmp);
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
+    btf *m = NULL;
+    btf_error err = {{0}};
+    btf_dirset d = small_dirset();
+    cr_assert_eq(btf_gen_create(&gp, DEC_W, DEC_W, &d, &d, BTF_F32, &m, &err), BTF_OK, "%s", err.msg);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 6;
+    btf_package_options ko = {0};
+    ko.bits = 8;
+    cr_assert_eq(btf_package_compress(m, &po, &ko, pkg, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_free(m);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
+    btf_gl *gl = open_gl(BTF_GL_EGL);
+    btf_gl_package *g = NULL;
+    cr_assert_eq(btf_gl_package_upload(gl, p, pkg, &g, &err), BTF_OK, "%s", err.msg);
+    for (int n = 1; n <= p->n_loaded; n++)
+        for (int filter = 0; filter < 2; filter++) {
+            btf_shader_define defs[BTF_GL_PACKAGE_DEFINES];
+            char vals[BTF_GL_PACKAGE_DEFINES][16];
+            btf_shader_desc sd = {.program = "decode_probe", .defines = defs,
+                                  .n_defines = btf_gl_package_defines(g, filter, n, defs, vals)};
+            cr_assert_str_eq(defs[2].name, "BTF_QUADS");
+            cr_assert_eq(atoi(vals[2]), (n + 3) / 4, "n = %d: %s layers", n, vals[2]);
+            btf_shader_program *prog = NULL;
+            char *report = NULL;
+            cr_assert_eq(btf_shader_build(gl, &sd, &prog, &report, &err), BTF_OK, "%s\n%s", err.msg,
+                         report ? report : "");
+            free(report);
+            btf_gl_decode_settings s = {filter, 1, n};
+            char what[96];
+            snprintf(what, sizeof what, "specialised n=%d filter=%d", n, filter);
+            decode_compare(gl, prog, p, g, BTF_GL_RGBA32F, &s, what);
+            btf_shader_program_free(gl, prog);
+        }
+    btf_gl_package_free(gl, g);
+    btf_gl_free(gl);
+    btf_package_free(p);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
 /* The real 81 x 81 sampling, complete package only (compression costs seconds). */
 Test(gl, decode_matches_cpu_ubo2003_egl) { check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, btf_dirset_ubo2003(), DEC_C); }
 

@@ -203,6 +203,42 @@ static void check_levels(btf_gl_backend b, int bits)
     cr_assert_eq(test_rmtree(dir), 0);
 }
 
+/* The level path compiled in (BTF_LEVELS 1, btf_gl_package_defines) decodes every
+ * lod and prefix as the run-time program does. */
+Test(lod_gl, decode_levels_specialised)
+{
+    char dir[256], v2[300];
+    make_packages(dir, sizeof dir, 8);
+    snprintf(v2, sizeof v2, "%s/v2", dir);
+    btf_package *p = read_pkg(dir, "v2", 0);
+    btf_gl *gl = open_gl(BTF_GL_EGL);
+    btf_gl_package *g = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_gl_package_upload(gl, p, v2, &g, &err), BTF_OK, "%s", err.msg);
+    const int prefixes[] = {1, p->n_chunks / 2, 0};
+    for (int k = 0; k < 3; k++)
+        for (int filter = 0; filter < 2; filter++) {
+            btf_shader_define defs[BTF_GL_PACKAGE_DEFINES];
+            char vals[BTF_GL_PACKAGE_DEFINES][16];
+            btf_shader_desc sd = {.program = "decode_probe", .defines = defs,
+                                  .n_defines = btf_gl_package_defines(g, filter, prefixes[k], defs, vals)};
+            cr_assert_str_eq(vals[1], "1", "a package with levels compiles the level blend in");
+            btf_shader_program *prog = NULL;
+            cr_assert_eq(btf_shader_build(gl, &sd, &prog, NULL, &err), BTF_OK, "%s", err.msg);
+            for (int li = 0; li < N_LODS; li++) {
+                btf_gl_decode_settings s = {filter, 1, prefixes[k]};
+                char what[96];
+                snprintf(what, sizeof what, "specialised n=%d filter=%d", prefixes[k], filter);
+                compare_lod(gl, prog, p, g, &s, lods[li], what);
+            }
+            btf_shader_program_free(gl, prog);
+        }
+    btf_gl_package_free(gl, g);
+    btf_gl_free(gl);
+    btf_package_free(p);
+    cr_assert_eq(test_rmtree(dir), 0);
+}
+
 Test(lod_gl, decode_levels_match_cpu_egl) { check_levels(BTF_GL_EGL, 8); }
 Test(lod_gl, decode_levels_match_cpu_osmesa) { check_levels(BTF_GL_OSMESA, 8); }
 Test(lod_gl, decode_levels_match_cpu_16bit) { check_levels(BTF_GL_EGL, 16); }

@@ -270,11 +270,16 @@ btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir
         return btf_fail(err, BTF_ERR_NOMEM, "renderer: out of memory");
     r->gl = gl;
     r->mesh_geometry = (btf_render_geometry)-1;
-    btf_shader_define defs[1] = {{"BTF_RENDER_DEBUG", "1"}};
-    btf_shader_desc sd = {.program = "render", .defines = defs, .n_defines = !!debug};
-    btf_result res = btf_shader_build(gl, &sd, &r->prog, NULL, err);
-    if (res == BTF_OK)
-        res = btf_gl_package_upload(gl, p, dir, &r->pkg, err);
+    btf_result res = btf_gl_package_upload(gl, p, dir, &r->pkg, err);
+    if (res == BTF_OK) { /* specialised for the package (levels, layers in use); the filter stays a uniform */
+        btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 1];
+        char vals[BTF_GL_PACKAGE_DEFINES][16];
+        btf_gl_package_defines(r->pkg, 0, 0, defs, vals);
+        defs[0] = (btf_shader_define){"BTF_RENDER_DEBUG", "1"};
+        btf_shader_desc sd = {.program = "render", .defines = debug ? defs : defs + 1,
+                              .n_defines = BTF_GL_PACKAGE_DEFINES - !debug};
+        res = btf_shader_build(gl, &sd, &r->prog, NULL, err);
+    }
     if (res != BTF_OK) {
         btf_renderer_free(r);
         return res;
