@@ -571,6 +571,24 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     return 0;
 }
 
+/* One C of the comparison, for the summary table. */
+typedef struct bench_row {
+    int C;
+    double shader_ms, thesis_ms, e_s, m_s, e_t, m_t;
+} bench_row;
+
+/* The results as a markdown table, as comment lines of the results file. */
+static void print_table(const bench_row *r, int n)
+{
+    printf("# | C | product ms | thesis ms | thesis / product | fetches (product / thesis) | ALU est. | "
+           "RMSE vs btf_decode (product / thesis) | max error (product / thesis) |\n");
+    printf("# |---|---|---|---|---|---|---|---|\n");
+    for (int i = 0; i < n; i++)
+        printf("# | %d | %.1f | %.1f | %.2f | %d / %d | %d / %d | %.3f / %.3f | %.1f / %.1f |\n", r[i].C, r[i].shader_ms,
+               r[i].thesis_ms, r[i].thesis_ms / r[i].shader_ms, shader_fetches(r[i].C), thesis_fetches(r[i].C),
+               shader_alu(r[i].C), thesis_alu(r[i].C), r[i].e_s, r[i].e_t, r[i].m_s, r[i].m_t);
+}
+
 static int run(btf_gl *gl, const btf_package *p, const char *dir)
 {
     btf_error err = {{0}};
@@ -629,6 +647,8 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     printf("textured_rmse_vs_all_chunks %.3f 0..255\n", e_tex);
 
     static const int Cs[5] = {1, 2, 4, 8, 16};
+    bench_row rows[5];
+    int n_rows = 0;
     for (int k = 0; k < 5; k++) {
         int C = Cs[k];
         if (C > p->n_loaded || (getenv("BENCH_MAX_C") && C > atoi(getenv("BENCH_MAX_C"))))
@@ -667,7 +687,9 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         printf("shader_C%d_alu %d per_fragment_est\nthesis_C%d_alu %d per_fragment_est\n", C, shader_alu(C), C,
                thesis_alu(C));
         fflush(stdout);
+        rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, e_s, m_s, e_t, m_t};
     }
+    print_table(rows, n_rows);
     if (!getenv("BENCH_MAX_C") && run_levels(gl, p, dir, &s, t))
         return 1;
     printf("renderer %s\n", btf_gl_renderer(gl));
