@@ -726,3 +726,47 @@ Test(interp, dirtab_bad_input)
     cr_assert_neq(btf_dirtab_build(&none, &t, NULL), BTF_OK);
     cr_assert_neq(btf_dirtab_build(NULL, &t, NULL), BTF_OK);
 }
+
+/* Hostile ring tables (rings of one or two directions anywhere, a single ring, huge
+ * count jumps, random tables up to the limits) still give a table whose lookups are
+ * valid weights everywhere, below the horizon and for NaN/zero vectors included. */
+Test(interp, dirtab_degenerate_and_random_tables)
+{
+    static const btf_ring t1[3] = {{0, 1, 0}, {30, 1, 40}, {60, 2, 10}};
+    static const btf_ring t2[2] = {{10, 3, 0}, {80, 200, 0}};
+    static const btf_ring t3[1] = {{0, 1, 0}};
+    static const btf_ring t4[1] = {{45, 7, 3}};
+    static const btf_ring t5[2] = {{20, 2, 0}, {90, 1, 5}};
+    const btf_ring *tabs[5] = {t1, t2, t3, t4, t5};
+    int n[5] = {3, 2, 1, 1, 2};
+    char what[96];
+    rng_state = 2718u;
+    for (int k = 0; k < 45; k++) {
+        btf_dirset d;
+        btf_ring r[BTF_MAX_RINGS];
+        int nr = k < 5 ? n[k] : 1 + (int)(urand() * BTF_MAX_RINGS);
+        for (int i = 0; i < nr && k >= 5; i++) /* ascending theta, counts 1..64, any offset */
+            r[i] = (btf_ring){(float)(i == 0 && urand() < 0.3 ? 0.0 : 90.0 * (i + urand()) / nr),
+                              1 + (int)(urand() * 64), (float)(720 * urand() - 360)};
+        for (int i = 0; i < nr && k >= 5; i++)
+            if (r[i].theta_deg == 0.0f)
+                r[i].count = 1;
+        if (btf_dirset_make(k < 5 ? tabs[k] : r, nr, &d, NULL) != BTF_OK)
+            continue; /* e.g. too many directions: refused before any table */
+        btf_dirtab *t = NULL;
+        cr_assert_eq(btf_dirtab_build(&d, &t, NULL), BTF_OK, "table %d", k);
+        for (int m = 0; m < 3000; m++) {
+            double th, ph;
+            rand_dir(180.0, &th, &ph);
+            float v[3] = {(float)(sin(th * D2R) * cos(ph * D2R)), (float)(sin(th * D2R) * sin(ph * D2R)),
+                          (float)cos(th * D2R)};
+            if (m == 0)
+                v[0] = NAN;
+            else if (m == 1)
+                v[0] = v[1] = v[2] = 0.0f;
+            snprintf(what, sizeof what, "table %d (%d rings) theta %g phi %g", k, nr, th, ph);
+            assert_valid(&d, btf_dirtab_interp_vec(t, v), what);
+        }
+        btf_dirtab_free(t);
+    }
+}

@@ -1,7 +1,7 @@
 // modules.test.mjs - the client's browser-free modules in node: manifest validation
 // and weight dequantisation (client/btf-package.js), shader assembly and compiler-log
 // mapping (client/btf-gl.js), budget merging (client/btf-stream.js), ray casts and
-// meshes (client/scene.js). No server, no browser.
+// meshes (client/scene.js), direction tables (client/btf-dirtab.js). No server, no browser.
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
@@ -247,4 +247,44 @@ describe('btf-lod.js', async () => {
     const s = lod.lodSelect(m, {texelsPerPixel: 50, threshold: 1});
     assert.deepEqual([s.level, s.limit, s.bytes, s.components], [0, 2, 12, 2]);
   });
+});
+
+const tabMod = await import('../../client/btf-dirtab.js');
+
+describe('btf-dirtab.js', () => {
+  const sets = {
+    ubo2003: UBO,
+    'no pole, horizon ring': {rings: [{theta: 15, count: 6, phi_offset: 0}, {theta: 40, count: 12, phi_offset: 7},
+      {theta: 90, count: 16, phi_offset: 11.25}]},
+  };
+  for (const [name, j] of Object.entries(sets)) {
+    it(`${name}: a closed triangulation (2V - 4 triangles, every edge shared) like btf_dirtab_build`, () => {
+      const d = pkgMod.parseManifest({...manifest(), lights: structuredClone(j)}).lights;
+      const t = tabMod.buildDirtab(d);
+      const V = d.dirs + (d.rings[1] > 1 ? 2 : 1);
+      assert.equal(t.tris.length, 2 * V - 4);
+      assert.ok(t.adj.every((a) => a.every((n) => n >= 0)), 'an edge without a neighbour');
+    });
+    it(`${name}: weights sum to 1, exact at the measured directions, continuous along a scan`, () => {
+      const d = pkgMod.parseManifest({...manifest(), lights: structuredClone(j)}).lights;
+      const t = tabMod.buildDirtab(d);
+      for (let i = 0; i < t.nDirs; i++) {
+        const r = tabMod.dirtabInterp(t, t.verts[i].slice(0, 3));
+        const own = r.idx.reduce((s, x, k) => s + (x === i ? r.w[k] : 0), 0);
+        assert.ok(own > 1 - 1e-5, `direction ${i}: own weight ${own}`);
+      }
+      // f = x + 2y + z^2 interpolated along phi at theta 50: a jump beyond 3.5e-4 per 0.004 degree step is a seam
+      const f = (v) => v[0] + 2 * v[1] + v[2] * v[2];
+      let prev = null, worst = 0;
+      for (let p = -2; p <= 362; p += 0.004) {
+        const a = 50 * Math.PI / 180, b = p * Math.PI / 180;
+        const r = tabMod.dirtabInterp(t, [Math.sin(a) * Math.cos(b), Math.sin(a) * Math.sin(b), Math.cos(a)]);
+        assert.ok(Math.abs(r.w[0] + r.w[1] + r.w[2] - 1) < 1e-6);
+        const v = r.idx.reduce((s, x, k) => s + r.w[k] * f(t.verts[x]), 0);
+        if (prev !== null) worst = Math.max(worst, Math.abs(v - prev));
+        prev = v;
+      }
+      assert.ok(worst < 3.5e-4, `largest step ${worst}`);
+    });
+  }
 });
