@@ -282,19 +282,19 @@ export class GpuPackage {
     }
   }
 
-  // Quantised texels of a decoded atlas image: upload into an R8 / RGB8 texture (no
-  // colour conversion) and read back, so they are exactly the PNG's (16-bit: R*256 + G).
-  readAtlas(bitmap) {
-    const gl = this.gl, w = bitmap.width, h = bitmap.height, rgb = this.pkg.bits === 16;
+  // RGBA bytes of a decoded PNG: uploaded into an R8 (grey) or RGBA8 texture without
+  // colour conversion and read back, so they are exactly the PNG's samples.
+  readBack(bitmap, grey) {
+    const gl = this.gl, w = bitmap.width, h = bitmap.height;
     const t = gl.createTexture(), fb = gl.createFramebuffer();
     gl.bindTexture(gl.TEXTURE_2D, t);
     nearest(gl, gl.TEXTURE_2D);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, rgb ? gl.RGBA8 : gl.R8, w, h);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, grey ? gl.R8 : gl.RGBA8, w, h);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
-    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, rgb ? gl.RGBA : gl.RED, gl.UNSIGNED_BYTE, bitmap);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, grey ? gl.RED : gl.RGBA, gl.UNSIGNED_BYTE, bitmap);
     gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb);
     gl.framebufferTexture2D(gl.READ_FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, t, 0);
     const px = new Uint8Array(4 * w * h);
@@ -302,8 +302,14 @@ export class GpuPackage {
     gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
     gl.deleteFramebuffer(fb);
     gl.deleteTexture(t);
-    const q = new Uint16Array(w * h);
-    for (let i = 0; i < w * h; i++) q[i] = rgb ? px[4 * i] * 256 + px[4 * i + 1] : px[4 * i];
+    return px;
+  }
+
+  // Quantised texels of a decoded atlas image (16-bit: q = R*256 + G, as in the PNG).
+  readAtlas(bitmap) {
+    const n = bitmap.width * bitmap.height, rgb = this.pkg.bits === 16, px = this.readBack(bitmap, !rgb);
+    const q = new Uint16Array(n);
+    for (let i = 0; i < n; i++) q[i] = rgb ? px[4 * i] * 256 + px[4 * i + 1] : px[4 * i];
     return q;
   }
 
@@ -451,28 +457,10 @@ export class GpuPackage {
     gl.uniform1i(prog.loc('u_btf_wrap'), wrap);
   }
 
-  // Pixels of a grey PNG (wt-JJ-8.png) decoded by the browser: uploaded into an R8
-  // texture (no colour conversion) and read back, so they are exactly the PNG's bytes.
+  // Pixels of a grey PNG (wt-JJ-8.png) decoded by the browser, exactly the PNG's bytes.
   readGrey(bitmap) {
-    const gl = this.gl, w = bitmap.width, h = bitmap.height;
-    const t = gl.createTexture(), fb = gl.createFramebuffer();
-    gl.bindTexture(gl.TEXTURE_2D, t);
-    nearest(gl, gl.TEXTURE_2D);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.R8, w, h);
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
-    gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
-    gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
-    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, gl.RED, gl.UNSIGNED_BYTE, bitmap);
-    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb);
-    gl.framebufferTexture2D(gl.READ_FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, t, 0);
-    const rgba = new Uint8Array(4 * w * h);
-    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
-    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
-    gl.deleteFramebuffer(fb);
-    gl.deleteTexture(t);
-    const out = new Uint8Array(w * h);
-    for (let i = 0; i < w * h; i++) out[i] = rgba[4 * i];
+    const n = bitmap.width * bitmap.height, px = this.readBack(bitmap, true), out = new Uint8Array(n);
+    for (let i = 0; i < n; i++) out[i] = px[4 * i];
     return out;
   }
 
