@@ -171,17 +171,38 @@ static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress
     return BTF_OK;
 }
 
-/* Compresses src as o says, with the progress line on a terminal. */
-static btf_result compress_run(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
+/* Compresses src (or, when src is NULL, the view source views) as o says, with the
+ * progress line on a terminal. */
+static btf_result compress_run(const btf *src, btf_views *views, compress_opts *o, btf_compress_stats *st,
+                               btf_error *err)
 {
     btf_progress pr;
     btf_progress_start(&pr, "compress", "blocks");
     o->pca.progress = btf_progress_update, o->pca.progress_ctx = &pr;
-    btf_result r = o->budget.max_bytes > 0 || o->budget.max_error > 0
+    btf_result r = !src ? btf_build_package_views(views, &o->pca, &o->pkg, o->levels, o->out, st, err)
+                   : o->budget.max_bytes > 0 || o->budget.max_error > 0
                        ? compress_budget(src, o, st, err)
                        : btf_build_package(src, &o->pca, &o->pkg, o->levels, o->out, st, err);
     btf_progress_end(&pr);
     return r;
+}
+
+/* The input: read view by view (one block of views in memory, doc/input-formats.md
+ * section 5) unless a budget compresses it several times or it is only read whole;
+ * then loaded. 0 ok, 1 failure (printed). */
+static int compress_open(compress_opts *o, btf **src, btf_views *views)
+{
+    btf_error err = {0};
+    btf_result r = BTF_ERR_UNSUPPORTED;
+    *src = NULL;
+    memset(views, 0, sizeof *views);
+    if (o->budget.max_bytes <= 0 && o->budget.max_error <= 0)
+        r = btf_source_open_views(o->in, &o->src, views, &err);
+    if (r == BTF_ERR_UNSUPPORTED)
+        r = btf_source_load_args("compress", o->in, &o->src, src, &err);
+    if (r != BTF_OK)
+        fprintf(stderr, "btf compress: %s\n", err.msg);
+    return r != BTF_OK;
 }
 
 /* The command once its options are parsed; the exit code. */
@@ -190,14 +211,16 @@ static int compress_main(void *opts)
     compress_opts *o = opts;
     btf_error err = {0};
     btf *src = NULL;
+    btf_views views;
     double t0 = btf_now();
-    if (btf_source_load_args("compress", o->in, &o->src, &src, &err) != BTF_OK) {
-        fprintf(stderr, "btf compress: %s\n", err.msg);
+    if (compress_open(o, &src, &views))
         return 1;
-    }
     double t1 = btf_now();
     btf_compress_stats st = {0};
-    btf_result r = compress_run(src, o, &st, &err);
+    btf_result r = compress_run(src, &views, o, &st, &err);
+    if (!src && r == BTF_OK)
+        btf_source_warn("compress", o->in, views.n_filled, views.views.n_dirs * views.lights.n_dirs, &views.report);
+    btf_views_close(&views);
     btf_free(src);
     if (r != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
