@@ -454,8 +454,8 @@ static void to_rgb(int model, float a, float b, float c, float rgb[3])
 }
 
 /* Rows r0..r0+n of every channel (n x T each, into buf + c*n*T): the one product
- * both the whole-file loader and the view-by-view reader compute, one view's
- * n_lights rows at a time, so both give the same floats. */
+ * both the whole-file loader and the view-by-view reader compute, on the same row
+ * chunks (decode_chunk_rows), so both give the same floats. */
 static void decode_rows(const dfmf_header *h, const dfmf_channel *ch, int r0, int n, float *buf)
 {
     size_t T = (size_t)h->width * h->height;
@@ -469,25 +469,29 @@ static void decode_rows(const dfmf_header *h, const dfmf_channel *ch, int r0, in
     }
 }
 
-/* One view's decoded rows (decode_rows of its n_lights rows) into b's view v. */
-static void store_view(const dfmf_header *h, int v, const int *lmap, const float *buf, btf *b)
+/* Rows per decoded chunk: about 2^20 samples per channel. */
+static int decode_chunk_rows(const dfmf_header *h)
 {
     size_t T = (size_t)h->width * h->height;
-    int n = h->n_lights;
-    for (int i = 0; i < n; i++) {
-        int l = lmap[i];
-        const float *a = buf + (size_t)i * T, *bb = a + (size_t)n * T, *cc = bb + (size_t)n * T;
-        size_t base = btf_index(b, v, l, 0, 0, 0);
-        for (size_t t = 0; t < T; t++) {
-            float rgb[3];
-            to_rgb(h->color_model, a[t], bb[t], cc[t], rgb);
-            if (b->storage == BTF_F32) {
-                float *d = (float *)b->data + base + 3 * t;
-                d[0] = rgb[0], d[1] = rgb[1], d[2] = rgb[2];
-            } else {
-                uint8_t *d = (uint8_t *)b->data + base + 3 * t;
-                d[0] = to_u8(rgb[0]), d[1] = to_u8(rgb[1]), d[2] = to_u8(rgb[2]);
-            }
+    int rows = h->n_views * h->n_lights, chunk = (int)((1u << 20) / T);
+    return chunk < 1 ? 1 : chunk > rows ? rows : chunk;
+}
+
+/* Row i of a decoded chunk of n rows (buf) into b's image (v, l). */
+static void store_row(const dfmf_header *h, const float *buf, int n, int i, int v, int l, btf *b)
+{
+    size_t T = (size_t)h->width * h->height;
+    const float *a = buf + (size_t)i * T, *bb = a + (size_t)n * T, *cc = bb + (size_t)n * T;
+    size_t base = btf_index(b, v, l, 0, 0, 0);
+    for (size_t t = 0; t < T; t++) {
+        float rgb[3];
+        to_rgb(h->color_model, a[t], bb[t], cc[t], rgb);
+        if (b->storage == BTF_F32) {
+            float *d = (float *)b->data + base + 3 * t;
+            d[0] = rgb[0], d[1] = rgb[1], d[2] = rgb[2];
+        } else {
+            uint8_t *d = (uint8_t *)b->data + base + 3 * t;
+            d[0] = to_u8(rgb[0]), d[1] = to_u8(rgb[1]), d[2] = to_u8(rgb[2]);
         }
     }
 }
@@ -496,12 +500,15 @@ static btf_result decode_all(const dfmf_header *h, const dfmf_channel *ch, const
                              btf *b, const char *path, btf_error *err)
 {
     size_t T = (size_t)h->width * h->height;
-    float *buf = malloc(sizeof(float) * 3u * (size_t)h->n_lights * T);
+    int rows = h->n_views * h->n_lights, chunk = decode_chunk_rows(h);
+    float *buf = malloc(sizeof(float) * 3u * (size_t)chunk * T);
     if (!buf)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    for (int fv = 0; fv < h->n_views; fv++) {
-        decode_rows(h, ch, fv * h->n_lights, h->n_lights, buf);
-        store_view(h, vmap[fv], lmap, buf, b);
+    for (int r0 = 0; r0 < rows; r0 += chunk) {
+        int n = rows - r0 < chunk ? rows - r0 : chunk;
+        decode_rows(h, ch, r0, n, buf);
+        for (int i = 0; i < n; i++)
+            store_row(h, buf, n, i, vmap[(r0 + i) / h->n_lights], lmap[(r0 + i) % h->n_lights], b);
     }
     free(buf);
     return b->storage == BTF_F32 ? btf_check_finite(b, err) : BTF_OK;
@@ -610,7 +617,9 @@ typedef struct dfmf_views {
     int *map;        /* file view -> canonical (BTF_MAX_DIRS), then file light -> canonical */
     int *file_view;  /* canonical view -> file view */
     btf_storage st;  /* BTF_F32 (as btf_load_dfmf decodes) or BTF_U8 (rounded like it) */
-    float *buf;      /* 3 x n_lights x texels: one view's decoded rows */
+    int chunk;       /* rows per decoded chunk (decode_chunk_rows) */
+    int cur;         /* chunk held in buf, -1 none */
+    float *buf;      /* 3 x chunk x texels: the decoded chunk */
     btf one;         /* one view's samples in the loader's layout (view 0 = the view filled) */
 } dfmf_views;
 
@@ -629,8 +638,15 @@ static btf_result dfmf_views_fill(btf_views *s, int v, float *cols, btf_error *e
     dfmf_views *d = s->impl;
     int fv = d->file_view[v], L = d->h->n_lights;
     size_t T = (size_t)s->width * (size_t)s->height;
-    decode_rows(d->h, d->ch, fv * L, L, d->buf);
-    store_view(d->h, 0, d->map + BTF_MAX_DIRS, d->buf, &d->one); /* view 0 of the one-view buffer */
+    int rows = d->h->n_views * L;
+    for (int i = 0; i < L; i++) { /* the loader's chunks, decoded once each while views go by in order */
+        int r = fv * L + i, c = r / d->chunk, n = rows - c * d->chunk < d->chunk ? rows - c * d->chunk : d->chunk;
+        if (c != d->cur) {
+            decode_rows(d->h, d->ch, c * d->chunk, n, d->buf);
+            d->cur = c;
+        }
+        store_row(d->h, d->buf, n, r - c * d->chunk, 0, d->map[BTF_MAX_DIRS + i], &d->one); /* view 0 of one */
+    }
     for (int l = 0; l < L; l++) {
         float *c0 = cols + (size_t)l * 3u * T;
         size_t base = btf_index(&d->one, 0, l, 0, 0, 0);
@@ -693,7 +709,8 @@ btf_result btf_views_open_dfmf(const char *path, const btf_load_options *opt, bt
         d->st = opt && opt->storage == BTF_U8 ? BTF_U8 : BTF_F32;
         size_t T = (size_t)h->width * h->height;
         d->one = (btf){(int)h->width, (int)h->height, lights, views, d->st, NULL, (size_t)h->n_lights * T * 3};
-        d->buf = malloc(sizeof(float) * 3u * (size_t)h->n_lights * T);
+        d->chunk = decode_chunk_rows(h), d->cur = -1;
+        d->buf = malloc(sizeof(float) * 3u * (size_t)d->chunk * T);
         d->one.data = malloc(d->one.count * (d->st == BTF_U8 ? 1 : sizeof(float)));
         if (!d->buf || !d->one.data)
             res = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (one view)", path);
