@@ -28,8 +28,8 @@ typedef struct btf_load_report {
     char worst_file[1024];
 } btf_load_report;
 
-/* An image is "clipped" when at least this share of its samples are 255: 1%. */
-#define BTF_LOAD_CLIPPED_SHARE 0.01
+/* An image is "clipped" when at least this share of its samples are 255: 10%. */
+#define BTF_LOAD_CLIPPED_SHARE 0.10
 
 /* Adds one image's counts (path, samples, of them at 255) to rep. */
 void btf_load_report_add(btf_load_report *rep, const char *path, long long samples, long long saturated);
