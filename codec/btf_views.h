@@ -6,6 +6,7 @@
  *     if (btf_views_open("dome/", NULL, &s, &err) != BTF_OK) puts(err.msg);  // images or .btf
  *     float *cols = malloc(btf_views_floats(&s) * sizeof(float));
  *     btf_views_fill(&s, view, cols, &err);   // cols[(light*3 + c) * texels + y*width + x]
+ *     free(cols);
  *     btf_views_close(&s);
  *
  * fill writes one view's samples on the byte/255 scale as 3 * n_lights planar
