@@ -51,7 +51,7 @@ static void expect_streamed_equal(const btf *loaded, btf_views *s, const char *d
     cr_assert_eq(s->width, loaded->width);
     cr_assert(btf_dirset_equal(&s->views, &loaded->views) && btf_dirset_equal(&s->lights, &loaded->lights));
     int V = loaded->views.n_dirs;
-    struct { int k; btf_grouping g; btf_center c; } runs[] = {
+    struct { int k; btf_grouping g; btf_center c; } runs[] = { /* stack table of this call: the settings tried */
         {1, BTF_GROUP_CONSECUTIVE, BTF_CENTER_NONE},
         {3, BTF_GROUP_CONSECUTIVE, BTF_CENTER_NONE},
         {V, BTF_GROUP_CONSECUTIVE, BTF_CENTER_NONE},
