@@ -27,6 +27,7 @@
 
 #include "btf_fs.h"
 #include "btf_io.h"
+#include "btf_views.h"
 
 #define SIG "!DFMF08FC"
 #define SIG_LEN 9
@@ -42,6 +43,7 @@ typedef struct dfmf_reader {
     const char *path;
     uint64_t size, pos; /* file size (fstat) and current offset */
     btf_error *err;
+    uint64_t max_factors, factors; /* bound on the factor bytes held (0 = none), bytes so far */
 } dfmf_reader;
 
 static btf_result rd_bytes(dfmf_reader *r, void *buf, size_t n, const char *what)
@@ -410,6 +412,12 @@ static btf_result read_channel(dfmf_reader *r, const dfmf_header *h, int c, dfmf
                         r->path, c, (unsigned long long)bytes, (unsigned long long)r->pos,
                         (unsigned long long)(r->size - r->pos));
     ch->k = (int)k;
+    r->factors += (uint64_t)k * ((uint64_t)rows + cols) * sizeof(float);
+    if (r->max_factors && r->factors > r->max_factors)
+        return btf_fail(r->err, BTF_ERR_RANGE,
+                        "%s: the factors (rank %u, %u x %u per channel) need %.0f MB as floats, more than the %.0f MB "
+                        "a view-by-view read holds",
+                        r->path, k, rows, cols, (double)r->factors / 1e6, (double)r->max_factors / 1e6);
     if ((res = rd_skip(r, (uint64_t)k * ssize, "singular values")) != BTF_OK)
         return res;
     ch->U = malloc(sizeof(float) * ((size_t)rows * k + 1));
@@ -445,9 +453,10 @@ static void to_rgb(int model, float a, float b, float c, float rgb[3])
     rgb[2] = Y + 2.03211f * U;
 }
 
-/* rows r0..r0+n of every channel (n x T each, into buf + c*n*T), then into b. */
-static void decode_rows(const dfmf_header *h, const dfmf_channel *ch, const int *vmap, const int *lmap, int r0,
-                        int n, float *buf, btf *b)
+/* Rows r0..r0+n of every channel (n x T each, into buf + c*n*T): the one product
+ * both the whole-file loader and the view-by-view reader compute, on the same row
+ * chunks (decode_chunk_rows), so both give the same floats. */
+static void decode_rows(const dfmf_header *h, const dfmf_channel *ch, int r0, int n, float *buf)
 {
     size_t T = (size_t)h->width * h->height;
     for (int c = 0; c < 3; c++) {
@@ -458,20 +467,31 @@ static void decode_rows(const dfmf_header *h, const dfmf_channel *ch, const int 
             cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, n, (int)T, ch[c].k, 1.0f,
                         ch[c].U + (size_t)r0 * ch[c].k, ch[c].k, ch[c].SxV, ch[c].k, 0.0f, o, (int)T);
     }
-    for (int i = 0; i < n; i++) {
-        int row = r0 + i, v = vmap[row / h->n_lights], l = lmap[row % h->n_lights];
-        const float *a = buf + (size_t)i * T, *bb = a + (size_t)n * T, *cc = bb + (size_t)n * T;
-        size_t base = btf_index(b, v, l, 0, 0, 0);
-        for (size_t t = 0; t < T; t++) {
-            float rgb[3];
-            to_rgb(h->color_model, a[t], bb[t], cc[t], rgb);
-            if (b->storage == BTF_F32) {
-                float *d = (float *)b->data + base + 3 * t;
-                d[0] = rgb[0], d[1] = rgb[1], d[2] = rgb[2];
-            } else {
-                uint8_t *d = (uint8_t *)b->data + base + 3 * t;
-                d[0] = to_u8(rgb[0]), d[1] = to_u8(rgb[1]), d[2] = to_u8(rgb[2]);
-            }
+}
+
+/* Rows per decoded chunk: about 2^20 samples per channel. */
+static int decode_chunk_rows(const dfmf_header *h)
+{
+    size_t T = (size_t)h->width * h->height;
+    int rows = h->n_views * h->n_lights, chunk = (int)((1u << 20) / T);
+    return chunk < 1 ? 1 : chunk > rows ? rows : chunk;
+}
+
+/* Row i of a decoded chunk of n rows (buf) into b's image (v, l). */
+static void store_row(const dfmf_header *h, const float *buf, int n, int i, int v, int l, btf *b)
+{
+    size_t T = (size_t)h->width * h->height;
+    const float *a = buf + (size_t)i * T, *bb = a + (size_t)n * T, *cc = bb + (size_t)n * T;
+    size_t base = btf_index(b, v, l, 0, 0, 0);
+    for (size_t t = 0; t < T; t++) {
+        float rgb[3];
+        to_rgb(h->color_model, a[t], bb[t], cc[t], rgb);
+        if (b->storage == BTF_F32) {
+            float *d = (float *)b->data + base + 3 * t;
+            d[0] = rgb[0], d[1] = rgb[1], d[2] = rgb[2];
+        } else {
+            uint8_t *d = (uint8_t *)b->data + base + 3 * t;
+            d[0] = to_u8(rgb[0]), d[1] = to_u8(rgb[1]), d[2] = to_u8(rgb[2]);
         }
     }
 }
@@ -480,13 +500,16 @@ static btf_result decode_all(const dfmf_header *h, const dfmf_channel *ch, const
                              btf *b, const char *path, btf_error *err)
 {
     size_t T = (size_t)h->width * h->height;
-    int rows = h->n_views * h->n_lights, chunk = (int)((1u << 20) / T);
-    chunk = chunk < 1 ? 1 : chunk > rows ? rows : chunk;
+    int rows = h->n_views * h->n_lights, chunk = decode_chunk_rows(h);
     float *buf = malloc(sizeof(float) * 3u * (size_t)chunk * T);
     if (!buf)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    for (int r0 = 0; r0 < rows; r0 += chunk)
-        decode_rows(h, ch, vmap, lmap, r0, rows - r0 < chunk ? rows - r0 : chunk, buf, b);
+    for (int r0 = 0; r0 < rows; r0 += chunk) {
+        int n = rows - r0 < chunk ? rows - r0 : chunk;
+        decode_rows(h, ch, r0, n, buf);
+        for (int i = 0; i < n; i++)
+            store_row(h, buf, n, i, vmap[(r0 + i) / h->n_lights], lmap[(r0 + i) % h->n_lights], b);
+    }
     free(buf);
     return b->storage == BTF_F32 ? btf_check_finite(b, err) : BTF_OK;
 }
@@ -572,7 +595,7 @@ btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **ou
         fclose(f);
         return btf_fail(err, BTF_ERR_IO, "%s: not a regular file", path);
     }
-    dfmf_reader r = {f, path, (uint64_t)st.st_size, 0, err};
+    dfmf_reader r = {f, path, (uint64_t)st.st_size, 0, err, 0, 0};
     btf_result res = load_open(&r, &o, out);
     fclose(f);
     if (res == BTF_OK && o.downsample > 1) {
@@ -581,6 +604,120 @@ btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **ou
         btf_free(*out);
         *out = small;
     }
+    return res;
+}
+
+/* ------------------------------------------------------------ view by view */
+
+/* A DFMF file read view by view: its factors in memory, one view decoded per fill;
+ * heap, owned by its btf_views (impl), freed by dfmf_views_close. */
+typedef struct dfmf_views {
+    dfmf_header *h;
+    dfmf_channel ch[3];
+    int *map;        /* file view -> canonical (BTF_MAX_DIRS), then file light -> canonical */
+    int *file_view;  /* canonical view -> file view */
+    btf_storage st;  /* BTF_F32 (as btf_load_dfmf decodes) or BTF_U8 (rounded like it) */
+    int chunk;       /* rows per decoded chunk (decode_chunk_rows) */
+    int cur;         /* chunk held in buf, -1 none */
+    float *buf;      /* 3 x chunk x texels: the decoded chunk */
+    btf one;         /* one view's samples in the loader's layout (view 0 = the view filled) */
+} dfmf_views;
+
+static void dfmf_views_close(btf_views *s)
+{
+    dfmf_views *d = s->impl;
+    if (!d)
+        return;
+    for (int c = 0; c < 3; c++)
+        free(d->ch[c].U), free(d->ch[c].SxV);
+    free(d->h), free(d->map), free(d->file_view), free(d->buf), free(d->one.data), free(d);
+}
+
+static btf_result dfmf_views_fill(btf_views *s, int v, float *cols, btf_error *err)
+{
+    dfmf_views *d = s->impl;
+    int fv = d->file_view[v], L = d->h->n_lights;
+    size_t T = (size_t)s->width * (size_t)s->height;
+    int rows = d->h->n_views * L;
+    for (int i = 0; i < L; i++) { /* the loader's chunks, decoded once each while views go by in order */
+        int r = fv * L + i, c = r / d->chunk, n = rows - c * d->chunk < d->chunk ? rows - c * d->chunk : d->chunk;
+        if (c != d->cur) {
+            decode_rows(d->h, d->ch, c * d->chunk, n, d->buf);
+            d->cur = c;
+        }
+        store_row(d->h, d->buf, n, r - c * d->chunk, 0, d->map[BTF_MAX_DIRS + i], &d->one); /* view 0 of one */
+    }
+    for (int l = 0; l < L; l++) {
+        float *c0 = cols + (size_t)l * 3u * T;
+        size_t base = btf_index(&d->one, 0, l, 0, 0, 0);
+        if (d->st == BTF_U8) {
+            btf_views_put_u8((const uint8_t *)d->one.data + base, T, c0);
+            continue;
+        }
+        const float *p = (const float *)d->one.data + base;
+        for (size_t t = 0; t < T; t++, p += 3)
+            for (int c = 0; c < 3; c++) {
+                if (!isfinite(p[c]))
+                    return btf_fail(err, BTF_ERR_NUMERIC, "%s: view %d light %d texel %zu decodes to a non-finite value",
+                                    s->name, v, l, t);
+                c0[(size_t)c * T + t] = p[c];
+            }
+    }
+    return BTF_OK;
+}
+
+btf_result btf_views_open_dfmf(const char *path, const btf_load_options *opt, btf_views *out, btf_error *err)
+{
+    if (!path || !out)
+        return btf_fail(err, BTF_ERR_ARG, "btf_views_open_dfmf: NULL argument");
+    memset(out, 0, sizeof *out);
+    if (opt && opt->downsample > 1)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: a .btf file is read view by view without --downsample", path);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: cannot open (%s)", path,
+                        strerror(errno));
+    struct stat st;
+    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
+        fclose(f);
+        return btf_fail(err, BTF_ERR_IO, "%s: not a regular file", path);
+    }
+    dfmf_reader r = {f, path, (uint64_t)st.st_size, 0, err, BTF_VIEWS_MAX_FACTOR_BYTES, 0};
+    dfmf_views *d = calloc(1, sizeof *d);
+    btf_result res = d ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    if (d) {
+        out->impl = d, out->close = dfmf_views_close, out->fill = dfmf_views_fill, out->name = path;
+        d->h = calloc(1, sizeof *d->h);
+        d->map = malloc(sizeof(int) * 2 * BTF_MAX_DIRS);
+        d->file_view = malloc(sizeof(int) * BTF_MAX_DIRS);
+        if (!d->h || !d->map || !d->file_view)
+            res = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    }
+    btf_dirset views, lights;
+    if (res == BTF_OK)
+        res = read_header(&r, d->h, &views, &lights, d->map, d->map + BTF_MAX_DIRS);
+    for (int c = 0; c < 3 && res == BTF_OK; c++)
+        res = read_channel(&r, d->h, c, &d->ch[c]);
+    if (res == BTF_OK && r.pos != r.size)
+        res = btf_fail(err, BTF_ERR_FORMAT, "%s: %llu trailing bytes after the last channel (offset %llu)", path,
+                       (unsigned long long)(r.size - r.pos), (unsigned long long)r.pos);
+    fclose(f);
+    if (res == BTF_OK) {
+        dfmf_header *h = d->h;
+        for (int i = 0; i < h->n_views; i++)
+            d->file_view[d->map[i]] = i;
+        d->st = opt && opt->storage == BTF_U8 ? BTF_U8 : BTF_F32;
+        size_t T = (size_t)h->width * h->height;
+        d->one = (btf){(int)h->width, (int)h->height, lights, views, d->st, NULL, (size_t)h->n_lights * T * 3};
+        d->chunk = decode_chunk_rows(h), d->cur = -1;
+        d->buf = malloc(sizeof(float) * 3u * (size_t)d->chunk * T);
+        d->one.data = malloc(d->one.count * (d->st == BTF_U8 ? 1 : sizeof(float)));
+        if (!d->buf || !d->one.data)
+            res = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (one view)", path);
+        out->width = (int)h->width, out->height = (int)h->height, out->lights = lights, out->views = views;
+    }
+    if (res != BTF_OK)
+        btf_views_close(out);
     return res;
 }
 

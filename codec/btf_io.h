@@ -17,6 +17,23 @@
 extern "C" {
 #endif
 
+/* Image samples at the 8-bit maximum (255: clipped highlights), counted by the image
+ * directory readers; the caller's value, filled when btf_load_options.report is set. */
+typedef struct btf_load_report {
+    long long n_samples;        /* colour samples read from the image files */
+    long long n_saturated;      /* of them at 255 */
+    int n_images_clipped;       /* images with at least BTF_LOAD_CLIPPED_SHARE of their samples at 255 */
+    long long worst_saturated;  /* samples at 255 in worst_file, the image with the most */
+    long long worst_samples;    /* colour samples of worst_file */
+    char worst_file[1024];
+} btf_load_report;
+
+/* An image is "clipped" when at least this share of its samples are 255: 10%. */
+#define BTF_LOAD_CLIPPED_SHARE 0.10
+
+/* Adds one image's counts (path, samples, of them at 255) to rep. */
+void btf_load_report_add(btf_load_report *rep, const char *path, long long samples, long long saturated);
+
 /* Options for loaders; zero means default. Plain value. */
 typedef struct btf_load_options {
     int downsample;     /* integer box-filter factor on load, 0/1 = none */
@@ -26,6 +43,7 @@ typedef struct btf_load_options {
     int fill_missing;   /* image directories: a missing (light, view) image is interpolated from the
                          * view's nearest present lights instead of failing the load */
     int *n_filled;      /* optional out: how many images were interpolated (warn the user when > 0) */
+    btf_load_report *report; /* optional out: saturated samples of image directories (warn when clipped) */
 } btf_load_options;
 
 /* Angles tl, pl, tv, pv (whole degrees, 0..999) of a UBO2003 image file name

@@ -101,6 +101,12 @@ typedef struct btf_compress_stats {
 /* PCA + quantisation + ordering + files. src is not modified. */
 btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
                                 const char *out_dir, btf_compress_stats *stats, btf_error *err);
+/* The same from a view source (btf_views.h), one block of views in memory at a time:
+ * the same package, byte for byte, as btf_package_compress on the BTF it reads.
+ * Memory: the block matrix (4 * texels * 3 * lights * k bytes) plus the model
+ * (4 * texels * C per block) and the atlases; docs in doc/package-format.md. */
+btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *opt,
+                                      const char *out_dir, btf_compress_stats *stats, btf_error *err);
 
 /* Reads the manifest and the data of the first n chunks: n = 0 all (every file must
  * exist), n > 0 exactly the first n, n < 0 as many leading chunks as have their

@@ -59,7 +59,7 @@ static inline unsigned btf__quant(float x, const float range[2], unsigned qmax)
 
 /* State of one package compression; lives for one btf_package_compress call. */
 typedef struct btf__writer {
-    const btf *src;
+    const btf_views *src; /* sizes and direction sets; samples arrive per block (btf__on_block) */
     const btf_blocks *blocks;
     int C, bits, qmax, ch, W, H, L, V, rows;
     float noise;          /* target RMS noise per component (byte/255 scale); <= 0 = full range */
@@ -75,6 +75,8 @@ typedef struct btf__writer {
     double *Wd;           /* maxcols x 2C scratch: [Wq | Wf] */
     double *Ad, *D;       /* slab scratch */
     double *TT, *WW;      /* C*C scratch */
+    int stride, sub_w, sub_h; /* Lab subsample: every stride-th texel, sub_w x sub_h of them */
+    float *ref;           /* sub_w*sub_h x V x L x 3: the source at the subsample, kept from each block */
 } btf__writer;
 
 static void btf__writer_free(btf__writer *w)
@@ -92,11 +94,12 @@ static void btf__writer_free(btf__writer *w)
     free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
+    free(w->ref);
 }
 
 
-static btf_result btf__writer_init(btf__writer *w, const btf *src, const btf_blocks *bl, int C, int bits,
-                                   btf_error *err)
+static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const btf_blocks *bl, int C, int bits,
+                                   int stride, btf_error *err)
 {
     memset(w, 0, sizeof *w);
     w->src = src, w->blocks = bl, w->C = C, w->bits = bits;
@@ -123,7 +126,10 @@ static btf_result btf__writer_init(btf__writer *w, const btf *src, const btf_blo
     w->Wd = malloc((size_t)maxcols * 2 * C * sizeof(double));
     w->Ad = malloc((size_t)BTF__SLAB_ROWS * maxcols * sizeof(double));
     w->D = malloc((size_t)BTF__SLAB_ROWS * 2 * C * sizeof(double));
-    int ok = w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf && w->Qq && w->Qf && w->TT &&
+    w->stride = stride;
+    w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
+    w->ref = malloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
+    int ok = w->ref && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf && w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
     for (int j = 0; ok && j < C; j++) {
         w->atlas[j] = calloc((size_t)w->aw * w->ah * w->ch, 1);
@@ -218,10 +224,29 @@ static void btf__accum_p(btf__writer *w, const float *A, int cols)
 }
 
 
+/* Keeps block b's samples at the Lab subsample (A's columns: view, light, channel). */
+static void btf__keep_ref(btf__writer *w, int b, const float *A)
+{
+    const btf_blocks *bl = w->blocks;
+    size_t rows = (size_t)w->rows, per = (size_t)w->V * w->L * 3;
+    for (int i = bl->start[b]; i < bl->start[b + 1]; i++) {
+        int v = bl->views[i], pos = i - bl->start[b];
+        for (int sy = 0; sy < w->sub_h; sy++)
+            for (int sx = 0; sx < w->sub_w; sx++) {
+                size_t row = (size_t)sy * w->stride * w->W + (size_t)sx * w->stride;
+                float *dst = w->ref + ((size_t)sy * w->sub_w + sx) * per + (size_t)v * w->L * 3;
+                for (int l = 0; l < w->L; l++)
+                    for (int c = 0; c < 3; c++)
+                        dst[l * 3 + c] = A[(size_t)((pos * w->L + l) * 3 + c) * rows + row];
+            }
+    }
+}
+
 static btf_result btf__on_block(void *ctx, int b, const float *A, const btf_pca_block *res, btf_error *err)
 {
     btf__writer *w = ctx;
     (void)err;
+    btf__keep_ref(w, b, A);
     btf__quant_textures(w, b, res);
     btf__quant_weights(w, b, res);
     btf__accum_p(w, A, res->cols);
@@ -289,8 +314,9 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
         free(ref), free(test), free(tv), free(acc);
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (error curve)");
     }
+    const float *refs = w->ref;
     for (int y = 0; y < w->H; y += stride)
-        for (int x = 0; x < w->W; x += stride) {
+        for (int x = 0; x < w->W; x += stride, refs += np * 3) {
             for (int v = 0; v < V; v++) {
                 int b = w->blocks->block_of_view[v];
                 size_t px = ((size_t)((b / w->acols) * w->H + y) * w->aw + (size_t)((b % w->acols) * w->W + x)) * w->ch;
@@ -303,7 +329,7 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
                 for (int l = 0; l < L; l++)
                     for (int c = 0; c < 3; c++) {
                         size_t i = ((size_t)v * L + l) * 3 + c;
-                        ref[i] = btf_get(w->src, v, l, x, y, c);
+                        ref[i] = refs[i];
                         float s = 0.0f;
                         for (int a = 0; a < C; a++) {
                             int j = order[a];
@@ -433,7 +459,7 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         rmse[a] = 255.0 * sqrt(btf__sq_error(w, order, a + 1, 1) / n_samples);
         rmsef[a] = 255.0 * sqrt(btf__sq_error(w, order, a + 1, 0) / n_samples);
     }
-    int stride = btf__lab_stride(w->W, w->H, o->lab_max_texels > 0 ? o->lab_max_texels : 256);
+    int stride = w->stride;
     r = btf__lab_curve(w, order, stride, lab, err);
     if (r != BTF_OK)
         goto done;
@@ -483,6 +509,18 @@ static btf_result btf__package_name(const char *out_dir, const btf_package_optio
 btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
                                 const char *out_dir, btf_compress_stats *stats, btf_error *err)
 {
+    btf_pca_options po = btf_pca_resolve(pca);
+    btf_result r = btf_pca_check(src, &po, err);
+    if (r != BTF_OK)
+        return r;
+    btf_views s;
+    btf_views_wrap(src, &s);
+    return btf_package_compress_views(&s, pca, opt, out_dir, stats, err);
+}
+
+btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *opt,
+                                      const char *out_dir, btf_compress_stats *stats, btf_error *err)
+{
     btf_package_options o = {0};
     if (opt)
         o = *opt;
@@ -497,7 +535,7 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
     if (r != BTF_OK)
         return r;
     btf_pca_options po = btf_pca_resolve(pca);
-    r = btf_pca_check(src, &po, err);
+    r = btf_pca_check_views(src, &po, err);
     if (r != BTF_OK)
         return r;
     if (po.components > BTF_PACKAGE_MAX_CHUNKS)
@@ -508,7 +546,8 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
     if (r != BTF_OK)
         return r;
     btf__writer w;
-    r = btf__writer_init(&w, src, bl, po.components, o.bits, err);
+    int stride = btf__lab_stride(src->width, src->height, o.lab_max_texels > 0 ? o.lab_max_texels : 256);
+    r = btf__writer_init(&w, src, bl, po.components, o.bits, stride, err);
     w.noise = o.bits != 8 || o.tex_noise < 0.0f ? 0.0f
               : (o.tex_noise > 0.0f ? o.tex_noise : BTF_PACKAGE_TEX_NOISE) / 255.0f;
     char tmp[BTF_FS_PATH_MAX];
@@ -519,9 +558,7 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
     int made = r == BTF_OK;
     double t0 = btf__now(), t1 = t0;
     if (r == BTF_OK) {
-        btf_pca_model *m = NULL;
-        r = btf_pca_compress(src, &po, btf__on_block, &w, &m, err);
-        btf_pca_model_free(m);
+        r = btf_pca_compress_views(src, &po, btf__on_block, &w, NULL, err); /* the writer keeps what it needs */
         t1 = btf__now();
     }
     if (r == BTF_OK)

@@ -227,35 +227,25 @@ int btf_block_cols(const btf *src, const btf_blocks *bl, int b)
     return 3 * src->lights.n_dirs * (bl->start[b + 1] - bl->start[b]);
 }
 
+/* Fills block b's matrix from a view source: each view's 3L columns in block order. */
+static btf_result btf__block_fill(btf_views *src, const btf_blocks *bl, int b, float *A, btf_error *err)
+{
+    size_t per = btf_views_floats(src);
+    for (int i = bl->start[b]; i < bl->start[b + 1]; i++) {
+        btf_result r = btf_views_fill(src, bl->views[i], A + (size_t)(i - bl->start[b]) * per, err);
+        if (r != BTF_OK)
+            return r;
+    }
+    return BTF_OK;
+}
+
 btf_result btf_block_matrix(const btf *src, const btf_blocks *bl, int b, float *A, btf_error *err)
 {
     if (!src || !bl || !A || b < 0 || b >= bl->n_blocks || bl->n_views != src->views.n_dirs)
         return btf_fail(err, BTF_ERR_ARG, "block matrix: bad arguments (block %d)", b);
-    size_t rows = (size_t)src->width * (size_t)src->height;
-    int L = src->lights.n_dirs;
-    for (int i = bl->start[b]; i < bl->start[b + 1]; i++) {
-        int v = bl->views[i], pos = i - bl->start[b];
-        for (int l = 0; l < L; l++) {
-            size_t base = btf_index(src, v, l, 0, 0, 0);
-            float *c0 = A + (size_t)((pos * L + l) * 3) * rows, *c1 = c0 + rows, *c2 = c1 + rows;
-            if (src->storage == BTF_U8) {
-                const uint8_t *p = (const uint8_t *)src->data + base;
-                for (size_t r = 0; r < rows; r++, p += 3) {
-                    c0[r] = p[0] * (1.0f / 255.0f);
-                    c1[r] = p[1] * (1.0f / 255.0f);
-                    c2[r] = p[2] * (1.0f / 255.0f);
-                }
-            } else {
-                const float *p = (const float *)src->data + base;
-                for (size_t r = 0; r < rows; r++, p += 3) {
-                    c0[r] = p[0];
-                    c1[r] = p[1];
-                    c2[r] = p[2];
-                }
-            }
-        }
-    }
-    return BTF_OK;
+    btf_views s;
+    btf_views_wrap(src, &s);
+    return btf__block_fill(&s, bl, b, A, err);
 }
 
 /* ---------------------------------------------------------------- per-block PCA */
@@ -565,15 +555,12 @@ void btf_pca_model_free(btf_pca_model *m)
     free(m);
 }
 
-btf_result btf_pca_check(const btf *src, const btf_pca_options *opt, btf_error *err)
+/* Options against the sizes: k, C in range, known enums. */
+static btf_result btf__check_sizes(int V, int L, long rows, const btf_pca_options *opt, btf_error *err)
 {
-    if (!src || !src->data)
-        return btf_fail(err, BTF_ERR_ARG, "compress: no source BTF");
     btf_pca_options o = btf_pca_resolve(opt);
-    int V = src->views.n_dirs, L = src->lights.n_dirs;
     if (o.k < 1 || o.k > V)
         return btf_fail(err, BTF_ERR_RANGE, "k = %d views per block: must be 1..%d (the number of views)", o.k, V);
-    long rows = (long)src->width * src->height;
     int last = V % o.k ? V % o.k : o.k; /* smallest block */
     long cols = 3L * L * last, mn = rows < cols ? rows : cols;
     if (o.components < 1 || o.components > mn)
@@ -586,7 +573,22 @@ btf_result btf_pca_check(const btf *src, const btf_pca_options *opt, btf_error *
         return btf_fail(err, BTF_ERR_ARG, "unknown centring %d", (int)o.center);
     if (o.method < BTF_PCA_AUTO || o.method > BTF_PCA_SVD)
         return btf_fail(err, BTF_ERR_ARG, "unknown PCA method %d", (int)o.method);
-    return btf_check_finite(src, err);
+    return BTF_OK;
+}
+
+btf_result btf_pca_check(const btf *src, const btf_pca_options *opt, btf_error *err)
+{
+    if (!src || !src->data)
+        return btf_fail(err, BTF_ERR_ARG, "compress: no source BTF");
+    btf_result r = btf__check_sizes(src->views.n_dirs, src->lights.n_dirs, (long)src->width * src->height, opt, err);
+    return r != BTF_OK ? r : btf_check_finite(src, err);
+}
+
+btf_result btf_pca_check_views(const btf_views *src, const btf_pca_options *opt, btf_error *err)
+{
+    if (!src || !src->fill)
+        return btf_fail(err, BTF_ERR_ARG, "compress: no source");
+    return btf__check_sizes(src->views.n_dirs, src->lights.n_dirs, (long)src->width * src->height, opt, err);
 }
 
 btf_result btf_pca_compress(const btf *src, const btf_pca_options *opt, btf_pca_block_fn fn, void *ctx,
@@ -594,6 +596,19 @@ btf_result btf_pca_compress(const btf *src, const btf_pca_options *opt, btf_pca_
 {
     *out = NULL;
     btf_result r = btf_pca_check(src, opt, err);
+    if (r != BTF_OK)
+        return r;
+    btf_views s;
+    btf_views_wrap(src, &s);
+    return btf_pca_compress_views(&s, opt, fn, ctx, out, err);
+}
+
+btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, btf_pca_block_fn fn, void *ctx,
+                                  btf_pca_model **out, btf_error *err)
+{
+    if (out)
+        *out = NULL;
+    btf_result r = btf_pca_check_views(src, opt, err);
     if (r != BTF_OK)
         return r;
     btf_pca_options o = btf_pca_resolve(opt);
@@ -616,18 +631,21 @@ btf_result btf_pca_compress(const btf *src, const btf_pca_options *opt, btf_pca_
         btf_pca_model_free(m);
         return btf_fail(err, BTF_ERR_NOMEM, "compress: cannot allocate a %d x %d block matrix", rows, maxcols);
     }
+    int cols = 0;
     for (int b = 0; b < m->blocks->n_blocks && r == BTF_OK; b++) {
-        r = btf_block_matrix(src, m->blocks, b, A, err);
+        r = btf__block_fill(src, m->blocks, b, A, err);
+        cols = 3 * src->lights.n_dirs * (m->blocks->start[b + 1] - m->blocks->start[b]);
         if (r == BTF_OK)
-            r = btf_pca_block_compute(A, rows, btf_block_cols(src, m->blocks, b), o.components, o.method,
-                                      o.center, &m->block[b], err);
+            r = btf_pca_block_compute(A, rows, cols, o.components, o.method, o.center, &m->block[b], err);
         if (r == BTF_OK && fn)
             r = fn(ctx, b, A, &m->block[b], err);
         if (r == BTF_OK && o.progress)
             o.progress(o.progress_ctx, b + 1, m->blocks->n_blocks);
+        if (!out) /* only the callback wanted it */
+            btf_pca_block_clear(&m->block[b]);
     }
     free(A);
-    if (r != BTF_OK) {
+    if (r != BTF_OK || !out) {
         btf_pca_model_free(m);
         return r;
     }

@@ -12,7 +12,9 @@
  *
  * Views are grouped into blocks of k (btf_group_views); per block the data matrix
  * A (texels x 3*lights*views-in-block, column-major, byte/255 scale) is built on
- * the fly from the BTF and approximated by C components: A ~= T W^T with T
+ * the fly from the BTF, or from a view source that reads each block's views from
+ * disk (btf_pca_compress_views, btf_views.h: one block's matrix in memory, never
+ * the material), and approximated by C components: A ~= T W^T with T
  * (texels x C, unit columns = left singular vectors) and W (cols x C, V*sigma).
  * C counts component 0 (the row mean when centring, like the thesis).
  * All linear algebra is LAPACKE/OpenBLAS; rank-deficient blocks give zero
@@ -24,6 +26,7 @@
 #define BTF_PCA_H
 
 #include "btf.h"
+#include "btf_views.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -116,8 +119,16 @@ typedef struct btf_pca_model {
 
 /* Checks options against the source (k, C in range, finite data). */
 btf_result btf_pca_check(const btf *src, const btf_pca_options *opt, btf_error *err);
+/* The same checks without reading any data (a non-finite sample fails its block). */
+btf_result btf_pca_check_views(const btf_views *src, const btf_pca_options *opt, btf_error *err);
 btf_result btf_pca_compress(const btf *src, const btf_pca_options *opt, btf_pca_block_fn fn, void *ctx,
                             btf_pca_model **out, btf_error *err);
+/* The same from a view source: each block's views are filled straight into its data
+ * matrix (3 * lights * k * texels floats, the peak besides the model); results equal
+ * btf_pca_compress on the BTF the source reads, bit for bit. out NULL: no model is
+ * kept (each block is released after fn saw it). */
+btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, btf_pca_block_fn fn, void *ctx,
+                                  btf_pca_model **out, btf_error *err);
 void btf_pca_model_free(btf_pca_model *m);
 /* Float reconstruction of one sample from the first n components (n <= n_comp). */
 float btf_pca_model_value(const btf_pca_model *m, int view, int light, int x, int y, int c, int n);

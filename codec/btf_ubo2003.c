@@ -15,6 +15,7 @@
 #include "btf_fs.h"
 #include "btf_image.h"
 #include "btf_io.h"
+#include "btf_views.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -306,8 +307,11 @@ static btf_result btf__scan_run(btf__scan *s, const char *dir, const btf_dirset 
 typedef struct btf__decode {
     const btf__scan *scan;
     btf *b;
+    int slot0; /* image i of b is slot slot0 + i (0: all images; v * n_lights: view v alone) */
+    int n;     /* slots to decode: slot0 .. slot0 + n - 1 */
     int factor;
     int w0, h0; /* full-resolution size of every image */
+    long long *sat; /* n: samples at 255 in each decoded file */
     btf_result rc; /* first failure (btf__decode_fail) */
     btf_error err;
 } btf__decode;
@@ -383,7 +387,15 @@ static btf_result btf__decode_one(btf__decode *d, int slot, uint32_t *acc, btf_e
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: image is %dx%d, expected %dx%d like %s", path, w, h, d->w0, d->h0,
                      d->scan->files[0].path);
     else
-        btf__put_image(d->b, (size_t)slot, px, ch, d->factor, acc);
+        btf__put_image(d->b, (size_t)(slot - d->slot0), px, ch, d->factor, acc);
+    if (r == BTF_OK) { /* clipped highlights: colour samples at the maximum */
+        long long n255 = 0;
+        int colour = ch == 2 || ch == 4 ? ch - 1 : ch;
+        for (size_t i = 0, n = (size_t)w * (size_t)h; i < n; i++)
+            for (int c = 0; c < colour; c++)
+                n255 += px[i * (size_t)ch + (size_t)c] == 255;
+        d->sat[slot - d->slot0] = n255 * (ch < 3 ? 3 : 1);
+    }
     free(px);
     return r;
 }
@@ -401,7 +413,7 @@ static void btf__decode_fail(btf__decode *d, btf_result r, const btf_error *err)
 /* Decodes every slot on OpenMP's threads (OMP_NUM_THREADS), the first failure kept. */
 static btf_result btf__decode_all(btf__decode *d, btf_error *err)
 {
-    int n = d->scan->n_slots;
+    int n = d->n;
 #pragma omp parallel
     {
         btf_error e = {{0}};
@@ -415,7 +427,8 @@ static btf_result btf__decode_all(btf__decode *d, btf_error *err)
             btf_result rc;
 #pragma omp atomic read
             rc = d->rc;
-            btf_result r = rc == BTF_OK && acc && d->scan->slot[i] >= 0 ? btf__decode_one(d, i, acc, &e) : BTF_OK;
+            int slot = d->slot0 + i;
+            btf_result r = rc == BTF_OK && acc && d->scan->slot[slot] >= 0 ? btf__decode_one(d, slot, acc, &e) : BTF_OK;
             if (r != BTF_OK)
                 btf__decode_fail(d, r, &e);
         }
@@ -460,8 +473,9 @@ static btf_result btf__check_dir(const char *dir, btf_error *err)
 }
 
 /* Missing image (view v, light l) as the inverse-angle-weighted mean of the view's
- * (up to) 3 nearest present lights. */
-static void btf__fill_one(const btf__scan *s, btf *b, int v, int l, float *acc, float *img)
+ * (up to) 3 nearest present lights; the view is image row bv of b (v, or 0 for a
+ * one-view buffer). */
+static void btf__fill_one(const btf__scan *s, btf *b, int v, int bv, int l, float *acc, float *img)
 {
     int n = s->set->n_dirs, best[3] = {-1, -1, -1};
     float dl[3], best_d[3] = {1e9f, 1e9f, 1e9f};
@@ -485,14 +499,14 @@ static void btf__fill_one(const btf__scan *s, btf *b, int v, int l, float *acc, 
     memset(acc, 0, ns * sizeof *acc);
     for (int j = 0; j < 3 && best[j] >= 0; j++) {
         float w = 1.0f / (best_d[j] + 1e-3f);
-        btf_get_image(b, v, best[j], img);
+        btf_get_image(b, bv, best[j], img);
         for (size_t i = 0; i < ns; i++)
             acc[i] += w * img[i];
         wsum += w;
     }
     for (size_t i = 0; i < ns; i++) {
         float x = (float)(acc[i] / wsum);
-        size_t at = btf_index(b, v, l, 0, 0, 0) + i;
+        size_t at = btf_index(b, bv, l, 0, 0, 0) + i;
         if (b->storage == BTF_F32)
             ((float *)b->data)[at] = x;
         else
@@ -500,20 +514,44 @@ static void btf__fill_one(const btf__scan *s, btf *b, int v, int l, float *acc, 
     }
 }
 
-/* Interpolates every missing image; returns how many. */
-static int btf__fill_missing(const btf__scan *s, btf *b, btf_error *err, btf_result *r)
+/* Interpolates every missing image of slots slot0 .. slot0 + n_slots - 1 (b's image
+ * i is slot slot0 + i); returns how many. */
+static int btf__fill_missing(const btf__scan *s, btf *b, int slot0, int n_slots, btf_error *err, btf_result *r)
 {
     int n = s->set->n_dirs, filled = 0;
     size_t ns = btf_image_samples(b);
     float *acc = malloc(ns * sizeof *acc), *img = malloc(ns * sizeof *img);
     *r = acc && img ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", s->dir);
-    for (int i = 0; *r == BTF_OK && i < s->n_slots; i++)
+    for (int i = slot0; *r == BTF_OK && i < slot0 + n_slots; i++)
         if (s->slot[i] < 0) {
-            btf__fill_one(s, b, i / n, i % n, acc, img);
+            btf__fill_one(s, b, i / n, (i - slot0) / n, i % n, acc, img);
             filled++;
         }
     free(acc), free(img);
     return filled;
+}
+
+void btf_load_report_add(btf_load_report *rep, const char *path, long long samples, long long saturated)
+{
+    rep->n_samples += samples;
+    rep->n_saturated += saturated;
+    if (samples > 0 && (double)saturated >= BTF_LOAD_CLIPPED_SHARE * (double)samples)
+        rep->n_images_clipped++;
+    if (saturated > rep->worst_saturated) {
+        rep->worst_saturated = saturated, rep->worst_samples = samples;
+        snprintf(rep->worst_file, sizeof rep->worst_file, "%s", path);
+    }
+}
+
+/* Adds the decoded slots' saturation counts to rep (NULL: none wanted). */
+static void btf__report(const btf__decode *d, btf_load_report *rep)
+{
+    if (!rep)
+        return;
+    long long samples = (long long)d->w0 * d->h0 * 3;
+    for (int i = 0; i < d->n; i++)
+        if (d->scan->slot[d->slot0 + i] >= 0)
+            btf_load_report_add(rep, d->scan->files[d->scan->slot[d->slot0 + i]].path, samples, d->sat[i]);
 }
 
 btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, btf **out, btf_error *err)
@@ -546,11 +584,17 @@ btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, bt
         r = btf__pick_factor(opt, first, d.w0, d.h0, &d.factor, err);
     if (r == BTF_OK)
         r = btf_create(d.w0 / d.factor, d.h0 / d.factor, set, set, storage, &d.b, err);
+    d.n = r == BTF_OK ? scan.n_slots : 0;
+    if (r == BTF_OK && !(d.sat = calloc((size_t)d.n, sizeof *d.sat)))
+        r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
     if (r == BTF_OK)
         r = btf__decode_all(&d, err);
-    int filled = r == BTF_OK ? btf__fill_missing(&scan, d.b, err, &r) : 0;
+    if (r == BTF_OK)
+        btf__report(&d, opt ? opt->report : NULL);
+    int filled = r == BTF_OK ? btf__fill_missing(&scan, d.b, 0, scan.n_slots, err, &r) : 0;
     if (opt && opt->n_filled)
         *opt->n_filled = filled;
+    free(d.sat);
     btf__scan_free(&scan);
     if (r != BTF_OK) {
         btf_free(d.b);
@@ -558,6 +602,127 @@ btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, bt
     }
     *out = d.b;
     return BTF_OK;
+}
+
+/* ------------------------------------------------------------------ view by view */
+
+/* An image directory read view by view; heap, owned by its btf_views (impl),
+ * freed by btf__dirviews_close. */
+typedef struct btf__dirviews {
+    btf__scan scan;
+    btf_dirset set;  /* scan.set points here */
+    btf__decode d;   /* d.b: one view's images (U8), reused by every fill */
+    char *counted;   /* per view: its files are in the report already */
+} btf__dirviews;
+
+static void btf__dirviews_close(btf_views *s)
+{
+    btf__dirviews *dv = s->impl;
+    if (!dv)
+        return;
+    btf__scan_free(&dv->scan);
+    if (dv->d.b)
+        free(dv->d.b->data);
+    free(dv->d.b), free(dv->d.sat), free(dv->counted), free(dv);
+}
+
+static btf_result btf__dirviews_fill(btf_views *s, int v, float *cols, btf_error *err)
+{
+    btf__dirviews *dv = s->impl;
+    int L = dv->set.n_dirs;
+    dv->d.slot0 = v * L, dv->d.n = L, dv->d.rc = BTF_OK;
+    btf_result r = btf__decode_all(&dv->d, err);
+    int filled = r == BTF_OK ? btf__fill_missing(&dv->scan, dv->d.b, v * L, L, err, &r) : 0;
+    if (r != BTF_OK)
+        return r;
+    if (!dv->counted[v]) {
+        dv->counted[v] = 1;
+        s->n_filled += filled;
+        btf__report(&dv->d, &s->report);
+    }
+    size_t texels = (size_t)s->width * (size_t)s->height;
+    for (int l = 0; l < L; l++)
+        btf_views_put_u8((const uint8_t *)dv->d.b->data + (size_t)l * texels * 3u, texels, cols + (size_t)l * 3u * texels);
+    return BTF_OK;
+}
+
+/* Every image's header against the first: the size mismatch is found before the work. */
+static btf_result btf__check_headers(const btf__scan *scan, int w0, int h0, btf_error *err)
+{
+    btf_result rc = BTF_OK;
+    btf_error first = {{0}};
+    int n = scan->n_files;
+#pragma omp parallel for schedule(dynamic, 64)
+    for (int i = 1; i < n; i++) {
+        btf_result seen;
+#pragma omp atomic read
+        seen = rc;
+        if (seen != BTF_OK)
+            continue;
+        btf_error e = {{0}};
+        int w, h, ch;
+        btf_result r = btf_image_info(scan->files[i].path, &w, &h, &ch, &e);
+        if (r == BTF_OK && (w != w0 || h != h0))
+            r = btf_fail(&e, BTF_ERR_FORMAT, "%s: image is %dx%d, expected %dx%d like %s", scan->files[i].path, w, h,
+                         w0, h0, scan->files[0].path);
+        if (r != BTF_OK) {
+#pragma omp critical(btf__ubo2003_fail)
+            if (rc == BTF_OK)
+                rc = r, first = e;
+        }
+    }
+    if (rc != BTF_OK && err)
+        *err = first;
+    return rc;
+}
+
+btf_result btf_views_open_ubo2003(const char *dir, const btf_load_options *opt, btf_views *out, btf_error *err)
+{
+    if (!dir || !out)
+        return btf_fail(err, BTF_ERR_ARG, "btf_views_open_ubo2003: NULL argument");
+    memset(out, 0, sizeof *out);
+    const btf_dirset *want = opt ? opt->sampling : NULL;
+    if (opt && opt->storage && opt->storage != BTF_U8)
+        return btf_fail(err, BTF_ERR_ARG, "%s: an image directory is read view by view as bytes only", dir);
+    if (opt && opt->downsample < 0)
+        return btf_fail(err, BTF_ERR_ARG, "%s: downsample factor %d is negative", dir, opt->downsample);
+    if (want && (want->n_dirs < 1 || want->n_dirs > BTF_MAX_DIRS))
+        return btf_fail(err, BTF_ERR_ARG, "%s: sampling has %d directions", dir, want->n_dirs);
+    btf_result r = btf__check_dir(dir, err);
+    if (r != BTF_OK)
+        return r;
+    btf__dirviews *dv = calloc(1, sizeof *dv);
+    if (!dv)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
+    out->impl = dv, out->close = btf__dirviews_close, out->fill = btf__dirviews_fill, out->name = dir;
+    r = btf__scan_run(&dv->scan, dir, want, opt && opt->fill_missing, &dv->set, err);
+    dv->scan.set = &dv->set;
+    dv->d.scan = &dv->scan;
+    const char *first = r == BTF_OK ? dv->scan.files[0].path : NULL;
+    int ch, L = dv->set.n_dirs;
+    if (r == BTF_OK)
+        r = btf_image_info(first, &dv->d.w0, &dv->d.h0, &ch, err);
+    if (r == BTF_OK)
+        r = btf__pick_factor(opt, first, dv->d.w0, dv->d.h0, &dv->d.factor, err);
+    if (r == BTF_OK)
+        r = btf__check_headers(&dv->scan, dv->d.w0, dv->d.h0, err);
+    if (r == BTF_OK) {
+        int w = dv->d.w0 / dv->d.factor, h = dv->d.h0 / dv->d.factor;
+        out->width = w, out->height = h, out->lights = dv->set, out->views = dv->set;
+        /* one view's images as a BTF whose view 0 is the view being filled */
+        dv->d.b = calloc(1, sizeof *dv->d.b);
+        if (dv->d.b) {
+            *dv->d.b = (btf){w, h, dv->set, dv->set, BTF_U8, NULL, (size_t)L * w * h * 3};
+            dv->d.b->data = malloc(dv->d.b->count);
+        }
+        dv->d.sat = calloc((size_t)L, sizeof *dv->d.sat);
+        dv->counted = calloc((size_t)L, 1);
+        if (!dv->d.b || !dv->d.b->data || !dv->d.sat || !dv->counted)
+            r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (one view of %d images)", dir, L);
+    }
+    if (r != BTF_OK)
+        btf_views_close(out);
+    return r;
 }
 
 /* ------------------------------------------------------------------ writer */
@@ -607,7 +772,8 @@ static btf_result btf__check_roundable(const btf_dirset *d, const char *what, bt
 typedef struct btf__writer {
     const btf *b;
     const char *dir, *prefix, *ext;
-    int total;     /* images to write */
+    int total;     /* images to write: b's images 0 .. total - 1 */
+    int view0;     /* b's view 0 is view view0 of the material (a one-view buffer), else 0 */
     btf_result rc; /* first failure (under the critical section) */
     btf_error err;
 } btf__writer;
@@ -615,7 +781,7 @@ typedef struct btf__writer {
 static btf_result btf__write_one(btf__writer *w, int img, uint8_t *tmp, btf_error *err)
 {
     const btf *b = w->b;
-    int nl = b->lights.n_dirs, nv = b->views.n_dirs, light = img % nl, view = img / nl, tl, pl, tv, pv;
+    int nl = b->lights.n_dirs, nv = b->views.n_dirs, light = img % nl, view = w->view0 + img / nl, tl, pl, tv, pv;
     btf__round_angles(&b->lights, light, &tl, &pl);
     btf__round_angles(&b->views, view, &tv, &pv);
     size_t n = strlen(w->dir) + strlen(w->prefix) + strlen(w->ext) + 64;
@@ -699,6 +865,51 @@ btf_result btf_save_ubo2003_dir(const btf *b, const char *dir, const char *prefi
     w.total = b->lights.n_dirs * b->views.n_dirs;
     r = btf__write_all(&w, err);
     return r == BTF_OK ? btf_fs_sync_dir(dir, err) : r; /* the images were written unsynced */
+}
+
+btf_result btf_views_save_ubo2003(btf_views *s, const char *dir, const char *prefix, const char *ext,
+                                  btf_error *err)
+{
+    if (!s || !dir || !s->fill)
+        return btf_fail(err, BTF_ERR_ARG, "btf_views_save_ubo2003: NULL argument");
+    prefix = prefix && *prefix ? prefix : "btf";
+    ext = ext && *ext ? ext : "png";
+    if (*ext == '.')
+        ext++;
+    if (!btf__is_image_ext(ext))
+        return btf_fail(err, BTF_ERR_ARG, "%s: extension \"%s\" is not png, jpg or jpeg", dir, ext);
+    if (strchr(prefix, '/'))
+        return btf_fail(err, BTF_ERR_ARG, "%s: prefix \"%s\" contains '/'", dir, prefix);
+    btf_result r = btf__check_roundable(&s->lights, "light", err);
+    if (r == BTF_OK)
+        r = btf__check_roundable(&s->views, "view", err);
+    if (r == BTF_OK)
+        r = btf__mkdirs(dir, err);
+    if (r != BTF_OK)
+        return r;
+    int L = s->lights.n_dirs;
+    size_t texels = (size_t)s->width * (size_t)s->height;
+    /* one view's images, F32 (the writer rounds them as btf_save_ubo2003_dir does) */
+    btf one = {s->width, s->height, s->lights, s->views, BTF_F32, NULL, (size_t)L * texels * 3};
+    float *cols = malloc(btf_views_floats(s) * sizeof(float));
+    one.data = malloc(one.count * sizeof(float));
+    if (!cols || !one.data)
+        r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (one view of %d images)", dir, L);
+    for (int v = 0; r == BTF_OK && v < s->views.n_dirs; v++) {
+        r = btf_views_fill(s, v, cols, err);
+        float *px = one.data;
+        for (int l = 0; r == BTF_OK && l < L; l++)
+            for (size_t t = 0; t < texels; t++)
+                for (int c = 0; c < 3; c++)
+                    *px++ = cols[((size_t)l * 3 + (size_t)c) * texels + t];
+        btf__writer w;
+        memset(&w, 0, sizeof w);
+        w.b = &one, w.dir = dir, w.prefix = prefix, w.ext = ext, w.total = L, w.view0 = v;
+        if (r == BTF_OK)
+            r = btf__write_all(&w, err);
+    }
+    free(cols), free(one.data);
+    return r == BTF_OK ? btf_fs_sync_dir(dir, err) : r;
 }
 
 /* ------------------------------------------------------------------ any */

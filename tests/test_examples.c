@@ -14,6 +14,7 @@
 #include "btf_lod.h"
 #include "btf_manifest.h"
 #include "btf_package.h"
+#include "btf_views.h"
 #include "test_gen_util.h"
 #include "test_util.h"
 
@@ -129,6 +130,30 @@ Test(examples, base64_color_manifest_headers)
     }
     btf_manifest_clear(&p);
     free(text);
+    btf_free(src);
+    test_rmtree(dir);
+}
+
+/* codec/btf_views.h */
+Test(examples, views_header)
+{
+    char dir[64], path[128];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(path, sizeof path, "%s/dome", dir);
+    btf *src = example_source();
+    cr_assert_eq(btf_save_ubo2003_dir(src, path, "Knit", "png", NULL), BTF_OK);
+    int view = 2;
+    btf_load_options o = {0};
+    o.sampling = &src->views; /* the example's NULL: a built-in sampling the names fit */
+    btf_views s;
+    btf_error err;
+    if (btf_views_open(path, &o, &s, &err) != BTF_OK) puts(err.msg);  // images or .btf
+    float *cols = malloc(btf_views_floats(&s) * sizeof(float));
+    btf_views_fill(&s, view, cols, &err);   // cols[(light*3 + c) * texels + y*width + x]
+    size_t texels = (size_t)s.width * s.height;
+    cr_expect_eq(cols[(5 * 3 + 1) * texels + 3 * s.width + 4], btf_get(src, view, 5, 4, 3, 1));
+    free(cols);
+    btf_views_close(&s);
     btf_free(src);
     test_rmtree(dir);
 }

@@ -1,4 +1,4 @@
-/* btf_build.c - one package from one loaded BTF (btf_build.h). */
+/* btf_build.c - one package from one loaded BTF or one view source (btf_build.h). */
 #include "btf_build.h"
 
 #include "btf_fs.h"
@@ -8,9 +8,17 @@
 #include <string.h>
 #include <unistd.h>
 
+/* Version 1 from whichever of src and views is given. */
+static btf_result build_v1(const btf *src, btf_views *views, const btf_pca_options *pca,
+                           const btf_package_options *pkg, const char *out, btf_compress_stats *st, btf_error *err)
+{
+    return src ? btf_package_compress(src, pca, pkg, out, st, err)
+               : btf_package_compress_views(views, pca, pkg, out, st, err);
+}
+
 /* Version 2: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
-static btf_result build_v2(const btf *src, const btf_pca_options *pca, btf_package_options pkg, int levels,
-                           const char *out, btf_compress_stats *st, btf_error *err)
+static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_options *pca, btf_package_options pkg,
+                           int levels, const char *out, btf_compress_stats *st, btf_error *err)
 {
     char tmp[4200], name[BTF_PACKAGE_NAME_MAX];
     if (strlen(out) > 4000)
@@ -22,7 +30,7 @@ static btf_result build_v2(const btf *src, const btf_pca_options *pca, btf_packa
         snprintf(name, sizeof name, "%s", b);
         pkg.name = name;
     }
-    btf_result r = btf_package_compress(src, pca, &pkg, tmp, st, err);
+    btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
     if (r != BTF_OK)
         return r;
     btf_lod_options lo = {0};
@@ -39,6 +47,14 @@ btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const b
                              const char *out, btf_compress_stats *stats, btf_error *err)
 {
     if (levels > 0)
-        return build_v2(src, pca, *pkg, levels, out, stats, err);
-    return btf_package_compress(src, pca, pkg, out, stats, err);
+        return build_v2(src, NULL, pca, *pkg, levels, out, stats, err);
+    return build_v1(src, NULL, pca, pkg, out, stats, err);
+}
+
+btf_result btf_build_package_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *pkg,
+                                   int levels, const char *out, btf_compress_stats *stats, btf_error *err)
+{
+    if (levels > 0)
+        return build_v2(NULL, src, pca, *pkg, levels, out, stats, err);
+    return build_v1(NULL, src, pca, pkg, out, stats, err);
 }

@@ -15,5 +15,8 @@
 
 btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg, int levels,
                              const char *out, btf_compress_stats *stats, btf_error *err);
+/* The same from a view source (codec/btf_views.h): one block of views in memory. */
+btf_result btf_build_package_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *pkg,
+                                   int levels, const char *out, btf_compress_stats *stats, btf_error *err);
 
 #endif

@@ -13,6 +13,7 @@
 #define BTF_SOURCE_H
 
 #include "btf_io.h"
+#include "btf_views.h"
 
 btf_result btf_source_load(const char *spec, const btf_load_options *opt, btf **out, btf_error *err);
 
@@ -32,5 +33,14 @@ typedef struct btf_source_args {
  * warning: ...") when images were interpolated. */
 btf_result btf_source_load_args(const char *cmd, const char *spec, const btf_source_args *a, btf **out,
                                 btf_error *err);
+
+/* Opens spec as a view source (codec/btf_views.h) with the same options: an image
+ * directory, a `.btf` file or gen:... BTF_ERR_UNSUPPORTED for what is only read
+ * whole (a thesis package; --downsample of a .btf or gen:): load it instead. */
+btf_result btf_source_open_views(const char *spec, const btf_source_args *a, btf_views *out, btf_error *err);
+/* The warnings of a source once read: images interpolated, clipped highlights
+ * (samples at 255: a count, the share and the worst file, when some image has at
+ * least BTF_LOAD_CLIPPED_SHARE of them). */
+void btf_source_warn(const char *cmd, const char *spec, int n_filled, int n_images, const btf_load_report *rep);
 
 #endif

@@ -27,6 +27,7 @@ typedef struct compress_opts {
     btf_pca_options pca;
     btf_package_options pkg;
     int quiet, json;
+    int in_memory;     /* --in-memory: load the whole input first (the baseline of the view-by-view read) */
     btf_budget budget; /* --max-bytes / --max-error (codec/btf_budget.h); both 0 = none */
     int k_set;         /* --k given: the only candidate of a budget */
     int levels; /* > 0: write package version 2 with this many spatial levels (codec/btf_lod.h) */
@@ -39,12 +40,14 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--max-bytes N | --max-error E] [--quiet] [--json]\n"
+            "                           [--max-bytes N | --max-error E] [--in-memory] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
             "blocks of K neighbouring views into the package directory OUT (written as\n"
             "OUT.tmp-PID, renamed when complete). Prints the error after each chunk.\n"
+            "Image directories, .btf files and gen: inputs are read one block of K views at a\n"
+            "time (memory: about 4 * texels * 3 * lights * K bytes, not the whole material).\n"
             "Options take their value as --k 3 or --k=3. On a terminal, stderr shows the\n"
             "blocks done, the time elapsed and an estimate of the time left.\n"
             "  --k K            views per block, 1..views (default 3; 1 = PCA-RF, all = PCA-BTF)\n"
@@ -66,6 +69,8 @@ static void compress_usage(FILE *f)
             "                   compressing each k once with up to 16 components (or --components);\n"
             "                   the choice and every candidate are recorded in the manifest (\"budget\")\n"
             "  --max-error E    the fewest bytes whose CIELab error is <= E (as btf eval reports it)\n"
+            "  --in-memory      load the whole input before compressing (the same package; the\n"
+            "                   baseline the view-by-view read is measured against)\n"
             "  --quiet          print nothing on success\n"
             "  --json           print one JSON object on stdout instead of the text:\n"
             "                   path (OUT), bytes (all chunk files), chunks, seconds_load,\n"
@@ -76,7 +81,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F max-bytes:B max-error:E quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F max-bytes:B max-error:E in-memory!M quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -99,6 +104,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 's': o->src.sampling = v; break;
     case 'F': o->src.fill_missing = 1; break;
     case 'q': o->quiet = 1; break;
+    case 'M': o->in_memory = 1; break;
     case 'j': o->json = 1; break;
     case 'B': rc = btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes); break;
     case 'E': rc = btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error); break;
@@ -171,17 +177,38 @@ static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress
     return BTF_OK;
 }
 
-/* Compresses src as o says, with the progress line on a terminal. */
-static btf_result compress_run(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
+/* Compresses src (or, when src is NULL, the view source views) as o says, with the
+ * progress line on a terminal. */
+static btf_result compress_run(const btf *src, btf_views *views, compress_opts *o, btf_compress_stats *st,
+                               btf_error *err)
 {
     btf_progress pr;
     btf_progress_start(&pr, "compress", "blocks");
     o->pca.progress = btf_progress_update, o->pca.progress_ctx = &pr;
-    btf_result r = o->budget.max_bytes > 0 || o->budget.max_error > 0
+    btf_result r = !src ? btf_build_package_views(views, &o->pca, &o->pkg, o->levels, o->out, st, err)
+                   : o->budget.max_bytes > 0 || o->budget.max_error > 0
                        ? compress_budget(src, o, st, err)
                        : btf_build_package(src, &o->pca, &o->pkg, o->levels, o->out, st, err);
     btf_progress_end(&pr);
     return r;
+}
+
+/* The input: read view by view (one block of views in memory, doc/input-formats.md
+ * section 5) unless a budget compresses it several times or it is only read whole;
+ * then loaded. 0 ok, 1 failure (printed). */
+static int compress_open(compress_opts *o, btf **src, btf_views *views)
+{
+    btf_error err = {0};
+    btf_result r = BTF_ERR_UNSUPPORTED;
+    *src = NULL;
+    memset(views, 0, sizeof *views);
+    if (o->budget.max_bytes <= 0 && o->budget.max_error <= 0 && !o->in_memory)
+        r = btf_source_open_views(o->in, &o->src, views, &err);
+    if (r == BTF_ERR_UNSUPPORTED)
+        r = btf_source_load_args("compress", o->in, &o->src, src, &err);
+    if (r != BTF_OK)
+        fprintf(stderr, "btf compress: %s\n", err.msg);
+    return r != BTF_OK;
 }
 
 /* The command once its options are parsed; the exit code. */
@@ -190,14 +217,16 @@ static int compress_main(void *opts)
     compress_opts *o = opts;
     btf_error err = {0};
     btf *src = NULL;
+    btf_views views;
     double t0 = btf_now();
-    if (btf_source_load_args("compress", o->in, &o->src, &src, &err) != BTF_OK) {
-        fprintf(stderr, "btf compress: %s\n", err.msg);
+    if (compress_open(o, &src, &views))
         return 1;
-    }
     double t1 = btf_now();
     btf_compress_stats st = {0};
-    btf_result r = compress_run(src, o, &st, &err);
+    btf_result r = compress_run(src, &views, o, &st, &err);
+    if (!src && r == BTF_OK)
+        btf_source_warn("compress", o->in, views.n_filled, views.views.n_dirs * views.lights.n_dirs, &views.report);
+    btf_views_close(&views);
     btf_free(src);
     if (r != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);

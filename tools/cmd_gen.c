@@ -3,8 +3,10 @@
  *     btf gen knit out/knit64 --size 64
  *     btf gen tiles tiles.btf --sampling dome151 --format btf
  *
- * Image formats write a UBO2003-named directory (one image per light x view,
- * btf_save_ubo2003_dir); `btf` writes a DFMF `.btf` file (btf_save_dfmf), full rank
+ * Image formats write a UBO2003-named directory (one image per light x view),
+ * rendered and written one view at a time (btf_gen_views_open, btf_views_save_ubo2003),
+ * so a full-size material (dome151 at 400 x 400) needs one view in memory; `btf`
+ * writes a DFMF `.btf` file (btf_save_dfmf, the material in memory), full rank
  * unless --components is given.
  * Samples are generated as 8-bit (what the images store).
  */
@@ -101,14 +103,18 @@ static int gen_parse(int argc, char **argv, gen_opts *o)
     return 0;
 }
 
-static btf_result gen_write(const btf *b, const gen_opts *o, btf_error *err)
+/* Image directory, one view at a time. */
+static btf_result gen_write_images(const btf_gen_params *p, const btf_dirset *d, const gen_opts *o, btf_error *err)
 {
-    if (!strcmp(o->format, "btf"))
-        return btf_save_dfmf(b, o->out, o->components, err);
     char prefix[64];
     const char *name = btf_gen_kind_name((btf_gen_kind)o->kind);
     snprintf(prefix, sizeof prefix, "Gen%c%s%d", toupper((unsigned char)name[0]), name + 1, o->size);
-    return btf_save_ubo2003_dir(b, o->out, prefix, o->format, err);
+    btf_views s;
+    btf_result r = btf_gen_views_open(p, o->size, o->size, d, d, &s, err);
+    if (r == BTF_OK)
+        r = btf_views_save_ubo2003(&s, o->out, prefix, o->format, err);
+    btf_views_close(&s);
+    return r;
 }
 
 /* The command once its options are parsed; the exit code. */
@@ -125,21 +131,24 @@ static int gen_main(void *opts)
     p.seed = o->seed;
     btf *b = NULL;
     double t0 = btf_now();
-    btf_result r = btf_gen_create(&p, o->size, o->size, &d, &d, BTF_U8, &b, &err);
+    btf_result r = BTF_OK;
+    if (!strcmp(o->format, "btf")) {
+        r = btf_gen_create(&p, o->size, o->size, &d, &d, BTF_U8, &b, &err);
+        if (r == BTF_OK)
+            r = btf_save_dfmf(b, o->out, o->components, &err);
+    } else {
+        r = gen_write_images(&p, &d, o, &err);
+    }
     double t1 = btf_now();
-    if (r == BTF_OK)
-        r = gen_write(b, o, &err);
-    double t2 = btf_now();
+    btf_free(b);
     if (r != BTF_OK) {
         fprintf(stderr, "btf gen: %s\n", err.msg);
-        btf_free(b);
         return 1;
     }
     printf("%s: %s %dx%d, %d lights x %d views (%s), seed %u, %zu bytes of samples; "
-           "generated in %.2f s, written (%s) in %.2f s\n",
+           "generated and written (%s) in %.2f s\n",
            o->out, btf_gen_kind_name((btf_gen_kind)o->kind), o->size, o->size, d.n_dirs, d.n_dirs, o->sampling, o->seed,
-           b->count, t1 - t0, o->format, t2 - t1);
-    btf_free(b);
+           (size_t)o->size * o->size * 3 * d.n_dirs * d.n_dirs, o->format, t1 - t0);
     return 0;
 }
 

@@ -208,9 +208,17 @@ static int build_one(const library_opts *o, const library_job *j)
     snprintf(out, sizeof out, "%s/%s", o->out, j->name);
     btf_package_options pkg = o->pkg;
     pkg.name = j->name;
-    btf_result r = btf_source_load(j->spec, &lo, &src, &err);
+    btf_source_args sa = {o->downsample, NULL, 0};
+    btf_views views;
+    btf_result r = btf_source_open_views(j->spec, &sa, &views, &err); /* one block of views in memory */
     if (r == BTF_OK)
-        r = btf_build_package(src, &o->pca, &pkg, o->levels, out, NULL, &err);
+        r = btf_build_package_views(&views, &o->pca, &pkg, o->levels, out, NULL, &err);
+    btf_views_close(&views);
+    if (r == BTF_ERR_UNSUPPORTED) { /* read only whole (a thesis package) */
+        r = btf_source_load(j->spec, &lo, &src, &err);
+        if (r == BTF_OK)
+            r = btf_build_package(src, &o->pca, &pkg, o->levels, out, NULL, &err);
+    }
     btf_free(src);
     stamp_path(o, j, path, sizeof path);
     if (r == BTF_OK && stamp_text(o, j, stamp, sizeof stamp) == 0)

@@ -607,10 +607,11 @@ static void gen_store(btf *b, size_t base, size_t i, float v)
     ((uint8_t *)b->data)[base + i] = (uint8_t)(q > 255.0f ? 255.0f : q); /* v >= 0, never NaN */
 }
 
-static void gen_light_image(gen_job *j, int v, int l, const gen_point *pts)
+/* View v's image under light l into j->out's view bv (v, or 0 in a one-view buffer). */
+static void gen_light_image(gen_job *j, int v, int bv, int l, const gen_point *pts)
 {
     btf *b = j->out;
-    size_t n = (size_t)j->m->w * (size_t)j->m->h, base = btf_index(b, v, l, 0, 0, 0);
+    size_t n = (size_t)j->m->w * (size_t)j->m->h, base = btf_index(b, bv, l, 0, 0, 0);
     gen_lv q;
     gen_lv_make(j->ldir[l], j->vdir[v], &q);
     const float *vt = j->vis + (size_t)l * n;
@@ -641,7 +642,7 @@ static void gen_view_images(gen_job *j)
                 for (int x = 0; x < m->w; x++)
                     gen_visible(m, x, y, j->vdir[v], &pts[(size_t)y * (size_t)m->w + (size_t)x]);
             for (int l = 0; pts && l < b->lights.n_dirs; l++)
-                gen_light_image(j, v, l, pts);
+                gen_light_image(j, v, v, l, pts);
         }
         free(pts);
     }
@@ -709,4 +710,79 @@ btf_result btf_gen_create(const btf_gen_params *p, int w, int h, const btf_dirse
     }
     *out = b;
     return BTF_OK;
+}
+
+/* ---------------------------------------------------------------- view by view */
+
+/* A generated material rendered one view per fill; heap, owned by its btf_views
+ * (impl), freed by gen_views_close. */
+typedef struct gen_views {
+    btf_gen_model *m;
+    gen_job j;       /* j.out = &one */
+    btf one;         /* one view's images (U8), view 0 = the view filled */
+    gen_point *pts;  /* the view's visible points */
+} gen_views;
+
+static void gen_views_close(btf_views *s)
+{
+    gen_views *g = s->impl;
+    if (!g)
+        return;
+    btf_gen_model_free(g->m);
+    free(g->j.ldir), free(g->j.vdir), free(g->j.vis), free(g->one.data), free(g->pts), free(g);
+}
+
+static btf_result gen_views_fill(btf_views *s, int v, float *cols, btf_error *err)
+{
+    (void)err;
+    gen_views *g = s->impl;
+    const btf_gen_model *m = g->m;
+    int L = s->lights.n_dirs;
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < m->h; y++)
+        for (int x = 0; x < m->w; x++)
+            gen_visible(m, x, y, g->j.vdir[v], &g->pts[(size_t)y * (size_t)m->w + (size_t)x]);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int l = 0; l < L; l++)
+        gen_light_image(&g->j, v, 0, l, g->pts);
+    size_t texels = (size_t)m->w * (size_t)m->h;
+    for (int l = 0; l < L; l++)
+        btf_views_put_u8((const uint8_t *)g->one.data + (size_t)l * texels * 3u, texels, cols + (size_t)l * 3u * texels);
+    return BTF_OK;
+}
+
+btf_result btf_gen_views_open(const btf_gen_params *p, int w, int h, const btf_dirset *lights, const btf_dirset *views,
+                              btf_views *out, btf_error *err)
+{
+    if (!out)
+        return btf_fail(err, BTF_ERR_ARG, "gen: out is NULL");
+    memset(out, 0, sizeof *out);
+    if (!lights || !views || lights->n_dirs < 1 || views->n_dirs < 1)
+        return btf_fail(err, BTF_ERR_ARG, "gen: empty or missing direction set");
+    gen_views *g = calloc(1, sizeof *g);
+    if (!g)
+        return btf_fail(err, BTF_ERR_NOMEM, "gen: out of memory");
+    out->impl = g, out->close = gen_views_close, out->fill = gen_views_fill, out->name = "generated material";
+    out->width = w, out->height = h, out->lights = *lights, out->views = *views;
+    btf_result r = btf_gen_model_create(p, w, h, &g->m, err);
+    size_t texels = (size_t)w * (size_t)h;
+    if (r == BTF_OK) {
+        g->one = (btf){w, h, *lights, *views, BTF_U8, NULL, (size_t)lights->n_dirs * texels * 3};
+        g->one.data = malloc(g->one.count);
+        g->pts = malloc(texels * sizeof *g->pts);
+        g->j.m = g->m, g->j.out = &g->one;
+        if (!g->one.data || !g->pts)
+            r = btf_fail(err, BTF_ERR_NOMEM, "gen: out of memory (one view of %d images)", lights->n_dirs);
+    }
+    if (r == BTF_OK)
+        r = gen_prepare_dirs(lights, 0, &g->j.ldir, err);
+    if (r == BTF_OK)
+        r = gen_prepare_dirs(views, 1, &g->j.vdir, err);
+    if (r == BTF_OK && !(g->j.vis = malloc((size_t)lights->n_dirs * texels * sizeof(float))))
+        r = btf_fail(err, BTF_ERR_NOMEM, "gen: no memory for the shadow table (%d lights)", lights->n_dirs);
+    if (r == BTF_OK)
+        gen_shadow_rows(&g->j);
+    if (r != BTF_OK)
+        btf_views_close(out);
+    return r;
 }
