@@ -45,6 +45,13 @@ typedef struct btf_package_options {
      * component; minor components get fewer levels and compress better).
      * 0 = BTF_PACKAGE_TEX_NOISE; negative = always the full 8-bit range. */
     float tex_noise;
+    /* 1: version 3 (doc/package-format.md section 11): per-component texture and
+     * weight steps chosen by rate-distortion (codec/btf_rd.h) for the same added
+     * error as tex_noise's equal noise, weights deflated as wt-JJ.z. 8 bits only. */
+    int rd;
+    /* With rd: when not NULL, receives what the allocation chose (the caller frees
+     * it with btf_rd_result_free). */
+    struct btf_rd_result *rd_out;
     /* Test hook: called before the writer creates package file number i (0-based);
      * a nonzero return makes that write fail like a full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);
