@@ -310,6 +310,9 @@ btf_result btf_manifest_parse(const char *text, const char *path, btf_package *p
     const cJSON *budget = cJSON_GetObjectItemCaseSensitive(m, "budget");
     if (r == BTF_OK && cJSON_IsObject(budget))
         p->budget = cJSON_PrintUnformatted(budget);
+    const cJSON *rd = cJSON_GetObjectItemCaseSensitive(m, "rd");
+    if (r == BTF_OK && cJSON_IsObject(rd))
+        p->rd = cJSON_PrintUnformatted(rd);
     cJSON_Delete(m);
     return r;
 }
@@ -320,9 +323,9 @@ void btf_manifest_clear(btf_package *p)
         free(p->chunk[i].tex_range);
         free(p->chunk[i].wt_range);
     }
-    free(p->chunk), free(p->tex), free(p->wt), free(p->budget);
+    free(p->chunk), free(p->tex), free(p->wt), free(p->budget), free(p->rd);
     btf_blocks_free(p->blocks);
-    p->chunk = NULL, p->tex = NULL, p->wt = NULL, p->blocks = NULL, p->budget = NULL, p->n_chunks = 0;
+    p->chunk = NULL, p->tex = NULL, p->wt = NULL, p->blocks = NULL, p->budget = NULL, p->rd = NULL, p->n_chunks = 0;
 }
 
 /* ---------------------------------------------------------------- serializer */
@@ -506,6 +509,9 @@ char *btf_manifest_print(const btf_package *p, btf_error *err)
         cJSON *budget = p->budget ? cJSON_Parse(p->budget) : NULL;
         if (budget)
             cJSON_AddItemToObject(m, "budget", budget);
+        cJSON *rd = p->rd ? cJSON_Parse(p->rd) : NULL;
+        if (rd)
+            cJSON_AddItemToObject(m, "rd", rd);
         cJSON *chunks = cJSON_AddArrayToObject(m, "chunks");
         for (int a = 0; a < p->n_chunks; a++)
             cJSON_AddItemToArray(chunks, btf__print_chunk(p, a));

@@ -52,6 +52,9 @@ typedef struct btf_package_options {
     /* With rd: when not NULL, receives what the allocation chose (the caller frees
      * it with btf_rd_result_free). */
     struct btf_rd_result *rd_out;
+    /* With rd: > 0 = steps for the least error within this many bytes instead of the
+     * equal-noise error (btf_rd_params.max_bytes; set by btf_budget for --max-bytes). */
+    long long rd_max_bytes;
     /* Test hook: called before the writer creates package file number i (0-based);
      * a nonzero return makes that write fail like a full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);
@@ -93,6 +96,7 @@ typedef struct btf_package {
     int n_levels;           /* spatial levels (1 in version 1); level l has (W >> l) x (H >> l) texels */
     double lod_threshold;   /* version 2: visibility threshold the chunk order was made for ("lod"); 0 if absent */
     char *budget;           /* "budget": what btf_budget_compress chose and measured, as JSON text (malloc'd); NULL if none */
+    char *rd;               /* version 3 "rd": the steps btf_rd_allocate chose, as JSON text (malloc'd); NULL if none */
 } btf_package;
 
 /* Summary of a compression run (optional output of btf_package_compress). */

@@ -5,6 +5,7 @@
 #include "btf_package.h"
 
 #include <cblas.h>
+#include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -42,6 +43,7 @@ typedef struct btf__writer {
     float *tnoise;        /* C: RMS noise (0..255 scale) of component j's texture steps; <= 0 = full range */
     float *wnoise;        /* C: the same for its weights; <= 0 = the full 16-bit range */
     int version;          /* 1, or 3: wt-JJ.z weights (doc/package-format.md section 11) */
+    char *rd_json;        /* version 3: the manifest's "rd" record (malloc'd), NULL otherwise */
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
     uint16_t **qwt;       /* C arrays V*L*3 */
@@ -68,7 +70,7 @@ static void btf__writer_free(btf__writer *w)
         if (w->wt_range)
             free(w->wt_range[j]);
     }
-    free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise);
+    free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise), free(w->rd_json);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
 }
@@ -361,6 +363,7 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
     p.k = po->k, p.n_comp = w->C, p.bits = w->bits, p.center = po->center, p.grouping = po->grouping;
     p.atlas_cols = w->acols, p.atlas_rows = w->arows, p.lab_stride = stride;
     p.version = w->version, p.n_levels = 1, p.n_chunks = w->C;
+    p.rd = w->rd_json; /* borrowed */
     p.chunk = calloc((size_t)w->C, sizeof *p.chunk);
     if (!p.chunk) {
         btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (manifest)");
@@ -449,18 +452,38 @@ done:
 }
 
 
+/* The manifest's "rd" record (doc/package-format.md section 11), malloc'd; NULL when out of memory. */
+static char *btf__rd_json(const btf_rd_result *rr)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "lambda", rr->lambda);
+    cJSON_AddNumberToObject(o, "bytes_equal_noise", (double)rr->bytes_equal);
+    cJSON_AddNumberToObject(o, "bytes", (double)rr->bytes_rd);
+    cJSON_AddNumberToObject(o, "kept", rr->n_kept);
+    cJSON *t = cJSON_AddArrayToObject(o, "tex_noise"), *wn = cJSON_AddArrayToObject(o, "wt_noise");
+    for (int j = 0; j < rr->n_comp; j++) {
+        cJSON_AddItemToArray(t, cJSON_CreateNumber(rr->tex_noise[j]));
+        cJSON_AddItemToArray(wn, cJSON_CreateNumber(rr->wt_noise[j]));
+    }
+    char *s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return s;
+}
+
+
 /* Version 3: steps by rate-distortion from the float model m, then every block's
  * matrix rebuilt once to quantise it and accumulate the exact error sums. */
-static btf_result btf__rd_quantise(btf__writer *w, const btf_pca_model *m, float noise, const char *tmp,
-                                   btf_rd_result *keep, btf_error *err)
+static btf_result btf__rd_quantise(btf__writer *w, const btf_pca_model *m, float noise, long long o_max_bytes,
+                                   const char *tmp, btf_rd_result *keep, btf_error *err)
 {
-    btf_rd_params par = {m, w->acols, w->arows, noise, tmp};
+    btf_rd_params par = {m, w->acols, w->arows, noise, tmp, o_max_bytes};
     btf_rd_result rr;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)
         return r;
     memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
     memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
+    w->rd_json = btf__rd_json(&rr);
     if (keep)
         *keep = rr;
     else
@@ -544,7 +567,7 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
         btf_pca_model *m = NULL;
         r = btf_pca_compress(src, &po, o.rd ? NULL : btf__on_block, &w, &m, err);
         if (r == BTF_OK && o.rd)
-            r = btf__rd_quantise(&w, m, noise, tmp, o.rd_out, err);
+            r = btf__rd_quantise(&w, m, noise, o.rd_max_bytes, tmp, o.rd_out, err);
         btf_pca_model_free(m);
         t1 = btf__now();
     }

@@ -12,7 +12,7 @@
 #include "btf_image.h"
 #include "btf_wtz.h"
 
-#define BTF__RD_TEX_LO (-6) /* texture ladder: tex_noise * 2^(i/2), i = LO..HI */
+#define BTF__RD_TEX_LO (-8) /* texture ladder: tex_noise * 2^(i/2), i = LO..HI */
 #define BTF__RD_TEX_HI 6
 #define BTF__RD_WT_LO (-10) /* weight ladder: the full 16 bits, then tex_noise * 2^(i/2) */
 #define BTF__RD_WT_HI 6
@@ -25,6 +25,7 @@ typedef struct btf__rd {
     const btf_pca_model *m;
     int C, nb, W, H, rows, L, V, aw, ah;
     double *dt, *dw;       /* C x NT, C x NW: added squared error */
+    double *energy;        /* C: |T_j W_j^T|^2 summed over blocks: the error of leaving j out */
     long long *rt, *rw;    /* the same: bytes */
     float *gt, *gw;        /* the ladders' noise values */
     uint8_t *atlas;        /* aw x ah scratch */
@@ -69,6 +70,8 @@ static double btf__rd_wt(btf__rd *r, int j, float g)
         btf_rd_range(wj, (size_t)pb->cols, 65535u, rg);
         rg[1] = btf_rd_step(rg[1], g, r->rows, tn);
         double e = 0.0;
+        if (g == 0.0f) /* once per component: its energy */
+            r->energy[j] += (double)tn * tn * (double)cblas_snrm2(pb->cols, wj, 1) * cblas_snrm2(pb->cols, wj, 1);
         for (int col = 0; col < pb->cols; col++) {
             int pos = col / (3 * r->L), l = (col / 3) % r->L, c = col % 3;
             int v = bl->views[bl->start[b] + pos];
@@ -123,19 +126,34 @@ static int btf__rd_best(const double *d, const long long *rate, int n, double la
     return best;
 }
 
-/* Total distortion and bytes at slope lambda; choices into it, iw when not NULL. */
-static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long long *bytes)
+/* Manifest bytes of a version-3 package with n chunks (an estimate for the byte
+ * budget: two ranges of about 55 characters per block and chunk, plus the header). */
+static long long btf__rd_manifest_bytes(const btf__rd *r, int n)
+{
+    return 2048 + (long long)n * (300 + 120LL * r->nb) + 8LL * r->V;
+}
+
+/* Total quantisation distortion and bytes at slope lambda; choices into it, iw when
+ * not NULL. With keep: *keep = components whose energy exceeds D + lambda R
+ * (component 0 always), bytes counted for those only (plus the manifest). */
+static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long long *bytes, int *keep)
 {
     double d = 0.0;
     long long s = 0;
+    int kept = 0;
     for (int j = 0; j < r->C; j++) {
         int a = btf__rd_best(r->dt + (size_t)j * BTF__RD_NT, r->rt + (size_t)j * BTF__RD_NT, BTF__RD_NT, lambda);
         int b = btf__rd_best(r->dw + (size_t)j * BTF__RD_NW, r->rw + (size_t)j * BTF__RD_NW, BTF__RD_NW, lambda);
-        d += r->dt[(size_t)j * BTF__RD_NT + a] + r->dw[(size_t)j * BTF__RD_NW + b];
-        s += r->rt[(size_t)j * BTF__RD_NT + a] + r->rw[(size_t)j * BTF__RD_NW + b];
+        double dj = r->dt[(size_t)j * BTF__RD_NT + a] + r->dw[(size_t)j * BTF__RD_NW + b];
+        long long sj = r->rt[(size_t)j * BTF__RD_NT + a] + r->rw[(size_t)j * BTF__RD_NW + b];
+        d += dj;
+        if (!keep || j == 0 || dj + lambda * (double)sj < r->energy[j])
+            s += sj, kept++;
         if (it)
             it[j] = a, iw[j] = b;
     }
+    if (keep)
+        *keep = kept, s += btf__rd_manifest_bytes(r, kept);
     if (bytes)
         *bytes = s;
     return d;
@@ -151,7 +169,7 @@ void btf_rd_result_free(btf_rd_result *r)
 
 static void btf__rd_free(btf__rd *r)
 {
-    free(r->dt), free(r->dw), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->atlas), free(r->q);
+    free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->atlas), free(r->q);
 }
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err)
@@ -167,6 +185,7 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     r.aw = par->atlas_cols * r.W, r.ah = par->atlas_rows * r.H;
     r.dt = calloc((size_t)r.C * BTF__RD_NT, sizeof(double));
     r.dw = calloc((size_t)r.C * BTF__RD_NW, sizeof(double));
+    r.energy = calloc((size_t)r.C, sizeof(double));
     r.rt = calloc((size_t)r.C * BTF__RD_NT, sizeof(long long));
     r.rw = calloc((size_t)r.C * BTF__RD_NW, sizeof(long long));
     r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
@@ -176,7 +195,7 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     out->wt_noise = calloc((size_t)r.C, sizeof(float));
     int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
     btf_result res = BTF_OK;
-    if (!r.dt || !r.dw || !r.rt || !r.rw || !r.gt || !r.gw || !r.atlas || !r.q || !out->tex_noise || !out->wt_noise ||
+    if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !r.atlas || !r.q || !out->tex_noise || !out->wt_noise ||
         !it || !iw)
         res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
     for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
@@ -192,17 +211,21 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
             out->d_target += r.dt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.dw[(size_t)j * BTF__RD_NW];
             out->bytes_equal += r.rt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.rw[(size_t)j * BTF__RD_NW];
         }
-        /* the largest slope whose choice adds no more error than the reference (bisection in log lambda) */
         double lo = -60.0, hi = 10.0;
-        for (int k = 0; k < 80; k++) {
+        for (int k = 0; k < 80; k++) { /* bisection in log lambda */
             double mid = 0.5 * (lo + hi);
-            if (btf__rd_at(&r, exp(mid), NULL, NULL, NULL) <= out->d_target)
-                lo = mid;
-            else
-                hi = mid;
+            long long bytes = 0;
+            int kept = 0;
+            if (par->max_bytes > 0) { /* the smallest slope whose kept components fit */
+                btf__rd_at(&r, exp(mid), NULL, NULL, &bytes, &kept);
+                *(bytes <= par->max_bytes ? &hi : &lo) = mid;
+            } else { /* the largest slope adding no more error than the reference */
+                *(btf__rd_at(&r, exp(mid), NULL, NULL, NULL, NULL) <= out->d_target ? &lo : &hi) = mid;
+            }
         }
-        out->lambda = exp(lo);
-        out->d_rd = btf__rd_at(&r, out->lambda, it, iw, &out->bytes_rd);
+        out->lambda = exp(par->max_bytes > 0 ? hi : lo);
+        out->n_kept = r.C;
+        out->d_rd = btf__rd_at(&r, out->lambda, it, iw, &out->bytes_rd, par->max_bytes > 0 ? &out->n_kept : NULL);
         out->n_comp = r.C;
         for (int j = 0; j < r.C; j++)
             out->tex_noise[j] = r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];

@@ -26,6 +26,11 @@ typedef struct btf_rd_params {
     int atlas_cols, atlas_rows; /* the package's atlas grid */
     float tex_noise;            /* equal-noise reference per component (0..255 scale), > 0 */
     const char *scratch;        /* directory for the candidate atlases (removed again) */
+    /* > 0: instead of the equal-noise error, the least error (PCA truncation plus
+     * quantisation) whose kept components' files fit in max_bytes: a component is
+     * kept when its energy exceeds its quantised cost D + lambda R, lambda the
+     * smallest slope that fits (btf_budget). */
+    long long max_bytes;
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */
@@ -34,9 +39,10 @@ typedef struct btf_rd_result {
     float *tex_noise;       /* n_comp: RMS noise (0..255) of component j's texture steps */
     float *wt_noise;        /* n_comp: the same for its weights; 0 = the full 16-bit range */
     double lambda;          /* the common slope: squared error (byte/255 scale) per byte */
-    double d_target, d_rd;  /* added squared error: equal-noise allocation, chosen */
+    double d_target, d_rd;  /* added squared error: equal-noise allocation, chosen (all components) */
     long long bytes_equal;  /* files of the equal-noise allocation (atlases + deflated 16-bit weights) */
-    long long bytes_rd;     /* the same files at the chosen steps */
+    long long bytes_rd;     /* the same files at the chosen steps (with max_bytes: of the kept components) */
+    int n_kept;             /* components worth their bytes at lambda (all without max_bytes) */
 } btf_rd_result;
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err);

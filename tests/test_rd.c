@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <zlib.h>
 
+#include "btf_cli.h"
 #include "btf_lod.h"
 #include "btf_package.h"
 #include "btf_rd.h"
@@ -280,5 +281,22 @@ Test(rd, version3_takes_no_levels_and_needs_8_bits)
     ko.rd = 1, ko.bits = 16;
     cr_assert_eq(btf_package_compress(src, &po, &ko, lv, NULL, &err), BTF_ERR_ARG);
     btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+Test(rd, cli_rd_writes_version_3_and_refuses_levels_or_16_bits)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/c", tmp);
+    char *ok[] = {"compress", "gen:knit:8:77", out, "--rd", "--components", "3", "--tex-noise", "1", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(9, ok), 0);
+    btf_package *p = read_ok(out);
+    cr_assert_eq(p->version, 3);
+    btf_package_free(p);
+    char *lv[] = {"compress", "gen:knit:8:77", out, "--rd", "--levels", "2", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(7, lv), 2);
+    char *b16[] = {"compress", "gen:knit:8:77", out, "--rd", "--bits", "16", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(7, b16), 2);
     cr_assert_eq(test_rmtree(tmp), 0);
 }
