@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 #include <zlib.h>
 
+#include "btf_budget.h"
 #include "btf_cli.h"
 #include "btf_lod.h"
 #include "btf_package.h"
@@ -298,5 +299,38 @@ Test(rd, cli_rd_writes_version_3_and_refuses_levels_or_16_bits)
     cr_assert_eq(cmd_compress(7, lv), 2);
     char *b16[] = {"compress", "gen:knit:8:77", out, "--rd", "--bits", "16", "--quiet", NULL};
     cr_assert_eq(cmd_compress(7, b16), 2);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+Test(rd, budget_tries_fitted_and_equal_noise_steps_and_keeps_the_lower_error)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/b", tmp);
+    btf *src = test_material(BTF_GEN_TILES, 16, rings, 3);
+    btf_budget b = {0};
+    b.max_bytes = 60000, b.max_components = 6, b.k[0] = 3, b.n_k = 1;
+    btf_package_options ko = {0};
+    ko.rd = 1;
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(res.n_candidates, 2);
+    cr_assert_eq(res.candidate[0].rd_fit, 0);
+    cr_assert_eq(res.candidate[1].rd_fit, 1);
+    const btf_budget_choice *lo = res.candidate[0].lab <= res.candidate[1].lab ? &res.candidate[0] : &res.candidate[1];
+    cr_assert_eq(res.rd_fit, lo->rd_fit);
+    cr_assert_eq(res.lab, lo->lab);
+    btf_package *p = read_ok(out);
+    cr_assert_eq(p->version, 3);
+    cr_assert_eq(p->n_chunks, res.n_chunks);
+    struct stat st;
+    char path[1024];
+    snprintf(path, sizeof path, "%s/manifest.json", out);
+    cr_assert_eq(stat(path, &st), 0);
+    cr_assert_leq(files_bytes(p, out) + st.st_size, b.max_bytes);
+    cr_assert_not_null(p->rd, "the rd record survives the cut");
+    btf_package_free(p);
+    btf_free(src);
     cr_assert_eq(test_rmtree(tmp), 0);
 }
