@@ -48,7 +48,7 @@ describe('btf-package.js', () => {
 
   it('refuses manifests outside the format', () => {
     const bad = [
-      (m) => { m.version = 3; }, (m) => { m.format = 'x'; }, (m) => { m.width = 0; },
+      (m) => { m.version = 4; }, (m) => { m.version = 3; }, (m) => { m.format = 'x'; }, (m) => { m.width = 0; },
       (m) => { m.bits = 12; }, (m) => { m.blocks[0] = [0, 1]; }, (m) => { m.blocks[1][0] = 0; },
       (m) => { m.atlas.cols = 2; }, (m) => { m.chunks = []; }, (m) => { m.chunks[0].files = ['../x.png', 'wt-00.bin']; },
       (m) => { m.chunks[1].wt_range.pop(); }, (m) => { m.chunks[0].tex_range[3] = [0, -1]; },
