@@ -4,9 +4,12 @@
  * quantisation adds the same squared error as the equal-noise allocation of
  * section 4 with fewer bytes. Used by the package writer (btf_package_options.rd).
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir};
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0};  // 0: the equal-noise error
  *     btf_rd_result rr;
- *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) { ... rr.tex_noise[j] ...; btf_rd_result_free(&rr); }
+ *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
+ *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
+ *         btf_rd_result_free(&rr);
+ *     }
  */
 #ifndef BTF_RD_H
 #define BTF_RD_H
