@@ -99,9 +99,11 @@ static btf_result btf__budget_cut(const char *dir, int n, char *budget_json, btf
         }
     char *text = NULL;
     if (r == BTF_OK) {
+        int all = p.n_chunks;
+        char *old = p.budget; /* the record of an earlier round, if any: replaced */
         p.n_chunks = n, p.budget = budget_json;
         text = btf_manifest_print(&p, err);
-        p.budget = NULL;
+        p.budget = old, p.n_chunks = all; /* btf_manifest_clear frees every chunk's ranges */
         r = text ? BTF_OK : BTF_ERR_NOMEM;
     }
     snprintf(path, sizeof path, "%s/manifest.json", dir);
