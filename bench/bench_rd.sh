@@ -23,7 +23,7 @@ for m in wool corduroy; do
 done
 if [[ ${RD_LARGE:-1} != 0 ]]; then
     mats+=(tiles256=gen:tiles:256:5151)
-    [[ ${RD_LARGE:-1} == 2 && -f $SHARED/data/thesis-ubo2003/wool/meta.json ]] && mats+=("wool256=$SHARED/data/thesis-ubo2003/wool@256")
+    [[ ${RD_LARGE:-1} == 2 && -f $SHARED/data/thesis-ubo2003/wool/meta.json ]] && mats+=("wool256=$SHARED/data/thesis-ubo2003/wool")
 fi
 [[ -n ${RD_MATERIALS:-} ]] && read -r -a mats <<<"$RD_MATERIALS"
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_rd.XXXXXX")
