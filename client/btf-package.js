@@ -90,7 +90,7 @@ function parseCompactRanges(name, list, nBlocks) {
 
 // Version-2 header: levels (tiles divisible by 2^(levels-1)), ranges, weights8_step.
 function parseLevels(name, m, nb) {
-  if (m.version === 1) return {levels: 1, ranges: null, wt8Step: []};
+  if (m.version !== 2) return {levels: 1, ranges: null, wt8Step: []};
   if (!isInt(m.levels, 1, 15) || m.width % (1 << (m.levels - 1)) || m.height % (1 << (m.levels - 1)))
     fail(name, '"levels" is invalid for the texture size');
   const ranges = m.ranges === undefined ? null : parseCompactRanges(name, m.ranges, nb);
@@ -126,11 +126,15 @@ function parseChunk(name, c, i, nb, lv, version) {
 
 // Validates a manifest object and returns the client's view of it. Throws Error
 // naming the material and the field on anything outside doc/package-format.md.
-// Versions 1 and 2 (section 10: (component, level) chunks).
+// Versions 1, 2 (section 10: (component, level) chunks) and 3 (section 11: version
+// 1 with wt-JJ.z weights). `version` of the result is the chunk layout the GPU side
+// follows (1: one chunk per component at level 0, 2: levels), so a version-3
+// manifest reads as 1 there; `manifestVersion` is the number in the file.
 export function parseManifest(m) {
   const name = m && typeof m.name === 'string' ? m.name : '?';
   if (!m || m.format !== 'btf-package') fail(name, 'manifest "format" is not "btf-package"');
-  if (m.version !== 1 && m.version !== 2) fail(name, `manifest version ${m.version} is not 1 or 2`);
+  if (m.version !== 1 && m.version !== 2 && m.version !== 3) fail(name, `manifest version ${m.version} is not 1, 2 or 3`);
+  const layout = m.version === 2 ? 2 : 1;
   if (!isInt(m.width, 1, MAX_SIZE) || !isInt(m.height, 1, MAX_SIZE)) fail(name, 'width/height out of range');
   if (m.bits !== 8 && m.bits !== 16) fail(name, '"bits" must be 8 or 16');
   const lights = parseDirset(name, 'lights', m.lights);
@@ -154,32 +158,89 @@ export function parseManifest(m) {
   if (!Array.isArray(m.chunks) || m.chunks.length < 1 || m.chunks.length > MAX_CHUNKS)
     fail(name, `needs 1..${MAX_CHUNKS} chunks`);
   const lv = parseLevels(name, m, nb);
-  const chunks = m.chunks.map((c, i) => parseChunk(name, c, i, nb, lv, m.version));
+  const chunks = m.chunks.map((c, i) => parseChunk(name, c, i, nb, lv, layout));
+  if (m.version === 3 && !chunks.every((c) => c.wt.endsWith('.z'))) fail(name, 'version 3 needs a wt-*.z file per chunk');
   const comps = [...new Set(chunks.map((c) => c.component))];
   return {
-    name, version: m.version, levels: lv.levels, components: comps, width: m.width, height: m.height, bits: m.bits,
+    name, version: layout, manifestVersion: m.version, levels: lv.levels, components: comps, width: m.width, height: m.height, bits: m.bits,
     lights, views, viewBlock, nBlocks: nb,
     atlas: {cols: a.cols, rows: a.rows, width: a.width, height: a.height}, chunks,
     totalBytes: chunks.reduce((s, c) => s + c.bytes, 0),
   };
 }
 
-// wt-JJ.bin (little-endian uint16, index (v*L + l)*3 + c) -> Float32Array of the
-// same layout, Wt = lo + step * q in float32 with the range of the view's block.
-export function dequantWeights(pkg, chunk, buf) {
+// q(i) (index (v*L + l)*3 + c) -> Float32Array, Wt = lo + step * q in float32 with
+// the range of the view's block.
+function dequantQ(pkg, chunk, q) {
   const L = pkg.lights.dirs, V = pkg.views.dirs;
-  const n = V * L * 3;
-  if (buf.byteLength !== 2 * n)
-    fail(pkg.name, `${chunk.wt} has ${buf.byteLength} bytes, expected ${2 * n}`);
-  const dv = new DataView(buf instanceof ArrayBuffer ? buf : buf.buffer, buf.byteOffset || 0, 2 * n);
-  const out = new Float32Array(n);
+  const out = new Float32Array(V * L * 3);
   for (let v = 0; v < V; v++) {
     const b = pkg.viewBlock[v];
     const lo = chunk.wtRange[2 * b], step = chunk.wtRange[2 * b + 1];
-    for (let i = v * L * 3, e = (v + 1) * L * 3; i < e; i++)
-      out[i] = f32(lo + f32(step * dv.getUint16(2 * i, true)));
+    for (let i = v * L * 3, e = (v + 1) * L * 3; i < e; i++) out[i] = f32(lo + f32(step * q(i)));
   }
   return out;
+}
+
+// wt-JJ.bin (little-endian uint16, index (v*L + l)*3 + c) -> Float32Array of the
+// same layout, Wt = lo + step * q in float32 with the range of the view's block.
+export function dequantWeights(pkg, chunk, buf) {
+  const n = pkg.views.dirs * pkg.lights.dirs * 3;
+  if (buf.byteLength !== 2 * n)
+    fail(pkg.name, `${chunk.wt} has ${buf.byteLength} bytes, expected ${2 * n}`);
+  const dv = new DataView(buf instanceof ArrayBuffer ? buf : buf.buffer, buf.byteOffset || 0, 2 * n);
+  return dequantQ(pkg, chunk, (i) => dv.getUint16(2 * i, true));
+}
+
+// Inflates a zlib stream (DecompressionStream 'deflate' = RFC 1950) that must
+// produce exactly `want` bytes; stops reading once it produces more.
+async function inflateExactly(name, file, buf, want) {
+  const bytes = buf instanceof Uint8Array ? buf : new Uint8Array(buf);
+  const ds = new DecompressionStream('deflate');
+  const writer = ds.writable.getWriter();
+  writer.write(bytes).catch(() => {});
+  writer.close().catch(() => {});
+  const reader = ds.readable.getReader();
+  const out = new Uint8Array(want);
+  let got = 0;
+  try {
+    for (;;) {
+      const {done, value} = await reader.read();
+      if (done) break;
+      if (got + value.length > want) {
+        reader.cancel().catch(() => {});
+        fail(name, `${file} inflates to more than ${want} bytes`);
+      }
+      out.set(value, got);
+      got += value.length;
+    }
+  } catch (e) {
+    if (e.message.startsWith(`package ${name}:`)) throw e;
+    fail(name, `${file} is not a complete zlib stream (${e.message})`);
+  }
+  if (got !== want) fail(name, `${file} inflates to ${got} bytes, expected ${want}`);
+  return out;
+}
+
+// Version 3 wt-JJ.z (section 11): zlib of two byte planes of zigzag differences
+// along the lights -> the same Float32Array as dequantWeights.
+export async function dequantWeightsZ(pkg, chunk, buf) {
+  const L = pkg.lights.dirs, n = pkg.views.dirs * L * 3;
+  if (buf.byteLength < 1 || buf.byteLength > 2 * n + 1024)
+    fail(pkg.name, `${chunk.wt} has ${buf.byteLength} bytes, expected 1..${2 * n + 1024}`);
+  const raw = await inflateExactly(pkg.name, chunk.wt, buf, 2 * n);
+  const q = new Uint16Array(n);
+  for (let i = 0; i < n; i++) {
+    const z = raw[i] | (raw[n + i] << 8);
+    const d = (z >>> 1) ^ -(z & 1);
+    q[i] = ((Math.floor(i / 3) % L) > 0 ? q[i - 3] : 0) + d; // Uint16Array wraps mod 65536
+  }
+  return dequantQ(pkg, chunk, (i) => q[i]);
+}
+
+// A chunk's 16-bit weights file, whichever coding its name says: a Promise of the Float32Array.
+export async function decodeWeights(pkg, chunk, buf) {
+  return chunk.wt.endsWith('.z') ? dequantWeightsZ(pkg, chunk, buf) : dequantWeights(pkg, chunk, buf);
 }
 
 // wt-JJ-8.png pixels (grey, 3L x V, the same index order as wt-JJ.bin) -> Float32Array,

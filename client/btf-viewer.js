@@ -37,7 +37,8 @@ import './btf-render.js';
 import {BtfStream} from './btf-stream.js';
 import {GpuPackage} from './btf-gl.js';
 import {sharedGl, sharedStats} from './btf-context.js';
-import {chunksWithinBytes, dequantWeights, dequantWeights8, parseManifest, promisedError} from './btf-package.js';
+import {chunksWithinBytes, dequantWeights, dequantWeights8, dequantWeightsZ, parseManifest, promisedError}
+  from './btf-package.js';
 import {LOD_THRESHOLD, lodFootprint, lodSelect} from './btf-lod.js';
 import {Orbit} from './orbit.js';
 import {GEOMETRIES, sceneDefaults} from './scene.js';
@@ -537,11 +538,12 @@ export class BtfViewer extends HTMLElement {
     this.ready = [];
   }
 
-  // Dequantised weights of a chunk: wt-JJ.bin (16-bit, .precise), else version 2's
+  // Dequantised weights of a chunk: wt-JJ.bin or version 3's wt-JJ.z (16-bit, .precise), else version 2's
   // wt-JJ-8.png (8-bit coarse), else null (a chunk that lists only its texture).
   async chunkWeights(chunk, data, gpu) {
     if (chunk.wt) {
-      const w = dequantWeights(this.pkg, chunk, data(chunk.wt));
+      const w = chunk.wt.endsWith('.z') ? await dequantWeightsZ(this.pkg, chunk, data(chunk.wt))
+        : dequantWeights(this.pkg, chunk, data(chunk.wt));
       w.precise = true;
       return w;
     }

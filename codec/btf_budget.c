@@ -40,10 +40,10 @@ static long long btf__prefix_bytes(btf_package *p, int n)
 /* The best prefix of p under b (see btf_budget); n_chunks 0 when none fits. */
 static btf_budget_choice btf__best_prefix(btf_package *p, const btf_budget *b, int *met)
 {
-    btf_budget_choice c = {p->k, 0, btf__prefix_bytes(p, 1), 0.0, 0.0}, low = c; /* none: what one chunk needs */
+    btf_budget_choice c = {p->k, 0, btf__prefix_bytes(p, 1), 0.0, 0.0, 0}, low = c; /* none: what one chunk needs */
     *met = 0;
     for (int n = 1; n <= p->n_chunks; n++) {
-        btf_budget_choice t = {p->k, n, btf__prefix_bytes(p, n), p->chunk[n - 1].lab, p->chunk[n - 1].rmse};
+        btf_budget_choice t = {p->k, n, btf__prefix_bytes(p, n), p->chunk[n - 1].lab, p->chunk[n - 1].rmse, 0};
         if (low.n_chunks == 0 || t.lab < low.lab)
             low = t;
         if (b->max_bytes > 0 && t.bytes <= b->max_bytes && (c.n_chunks == 0 || t.lab < c.lab))
@@ -64,6 +64,8 @@ static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
         cJSON_AddNumberToObject(o, "max_error", b->max_error);
     cJSON_AddBoolToObject(o, "met", res->met);
     cJSON_AddNumberToObject(o, "k", res->k);
+    if (res->rd_fit)
+        cJSON_AddStringToObject(o, "rd_steps", "fitted");
     cJSON_AddNumberToObject(o, "chunks", res->n_chunks);
     cJSON_AddNumberToObject(o, "bytes", (double)res->bytes);
     cJSON_AddNumberToObject(o, "lab", res->lab);
@@ -72,6 +74,8 @@ static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
         const btf_budget_choice *c = &res->candidate[i];
         cJSON *e = cJSON_CreateObject();
         cJSON_AddNumberToObject(e, "k", c->k);
+        if (c->rd_fit)
+            cJSON_AddStringToObject(e, "rd_steps", "fitted");
         cJSON_AddNumberToObject(e, "chunks", c->n_chunks);
         cJSON_AddNumberToObject(e, "bytes", (double)c->bytes);
         cJSON_AddNumberToObject(e, "lab", c->lab);
@@ -95,9 +99,11 @@ static btf_result btf__budget_cut(const char *dir, int n, char *budget_json, btf
         }
     char *text = NULL;
     if (r == BTF_OK) {
+        int all = p.n_chunks;
+        char *old = p.budget; /* the record of an earlier round, if any: replaced */
         p.n_chunks = n, p.budget = budget_json;
         text = btf_manifest_print(&p, err);
-        p.budget = NULL;
+        p.budget = old, p.n_chunks = all; /* btf_manifest_clear frees every chunk's ranges */
         r = text ? BTF_OK : BTF_ERR_NOMEM;
     }
     snprintf(path, sizeof path, "%s/manifest.json", dir);
@@ -187,12 +193,17 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
         po.name = name;
     }
     int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), best = -1, best_met = 0;
+    int fit[BTF_BUDGET_MAX_K] = {0}, nt = nk;
+    for (int i = 0; po.rd && budget->max_bytes > 0 && i < nk && nt < BTF_BUDGET_MAX_K; i++)
+        ks[nt] = ks[i], fit[nt++] = 1; /* version 3: each k also with steps fitted to the bytes */
     char dir[BTF_BUDGET_MAX_K][BTF_FS_PATH_MAX];
-    for (int i = 0; r == BTF_OK && i < nk; i++) {
+    for (int i = 0; r == BTF_OK && i < nt; i++) {
         int met = 0;
-        snprintf(dir[i], sizeof dir[i], "%s.tmp-%ld-k%d", out, (long)getpid(), ks[i]);
+        snprintf(dir[i], sizeof dir[i], "%s.tmp-%ld-k%d%s", out, (long)getpid(), ks[i], fit[i] ? "f" : "");
+        po.rd_max_bytes = fit[i] ? budget->max_bytes : 0;
         r = btf__budget_try(src, pca ? *pca : (btf_pca_options){0}, &po, ks[i], budget, dir[i], &rs.candidate[i], &met,
                             err);
+        rs.candidate[i].rd_fit = fit[i];
         rs.n_candidates = i + 1;
         const btf_budget_choice *c = &rs.candidate[i], *bc = best >= 0 ? &rs.candidate[best] : NULL;
         int better = c->n_chunks > 0 && (!bc || met > best_met ||
@@ -210,7 +221,7 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     }
     if (r == BTF_OK) {
         const btf_budget_choice *c = &rs.candidate[best];
-        rs.k = c->k, rs.n_chunks = c->n_chunks, rs.bytes = c->bytes, rs.lab = c->lab, rs.rmse = c->rmse;
+        rs.k = c->k, rs.rd_fit = c->rd_fit, rs.n_chunks = c->n_chunks, rs.bytes = c->bytes, rs.lab = c->lab, rs.rmse = c->rmse;
         rs.met = best_met;
         r = btf__budget_finish(dir[best], budget, &rs, err);
         if (r == BTF_OK)

@@ -9,7 +9,11 @@
  * Each candidate k is compressed once with the largest component count; its
  * manifest gives the bytes and the measured CIELab error of every chunk prefix
  * (the chunk order is by error drop per byte, doc/package-format.md section 7),
- * so every budget of that k is read off one compression. The best candidate's
+ * so every budget of that k is read off one compression. With opt->rd (version 3)
+ * and max_bytes, each k is tried twice: steps fitted to the bytes
+ * (btf_package_options.rd_max_bytes) and the equal-noise error's steps; the error
+ * measured (CIELab, which the squared error of the allocation only approximates)
+ * decides. The best candidate's
  * package is cut to the chosen prefix and replaces OUT like btf_package_compress.
  */
 #ifndef BTF_BUDGET_H
@@ -36,11 +40,12 @@ typedef struct btf_budget_choice {
     int k, n_chunks; /* n_chunks 0: no prefix of this k meets the budget */
     long long bytes;
     double lab, rmse;
+    int rd_fit; /* with opt->rd and max_bytes: 1 = steps fitted to the bytes, 0 = the equal-noise error */
 } btf_budget_choice;
 
 /* What was chosen and what each candidate measured; plain value. */
 typedef struct btf_budget_result {
-    int k, n_chunks;
+    int k, n_chunks, rd_fit;
     long long bytes;
     double lab, rmse;
     int met;         /* 1: the budget is met (0 with max_error: the lowest error reached is reported) */

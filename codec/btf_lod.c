@@ -46,14 +46,14 @@ void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_sele
     int lev = 0;
     while (lev + 1 < p->n_levels && tpp >= (double)(1 << (lev + 1)))
         lev++;
-    out->level = p->version >= 2 ? lev : 0;
+    out->level = p->version == 2 ? lev : 0;
     int c0 = p->chunk[0].component;
     for (int i = 0; i < p->n_chunks; i++) {
         const btf_chunk_info *ci = &p->chunk[i];
         int first = 1; /* first chunk of its component: count the component once */
         for (int e = 0; e < i && first; e++)
             first = p->chunk[e].component != ci->component;
-        int vis = p->version < 2 || ci->component == c0 || btf__contrib(p, ci->component, out->level) >= thr;
+        int vis = p->version != 2 || ci->component == c0 || btf__contrib(p, ci->component, out->level) >= thr;
         if (vis && first)
             out->n_components++;
         if (vis && ci->level >= out->level) {
@@ -492,6 +492,8 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     if (r != BTF_OK)
         return r;
     btf_package *p = s->p;
+    if (p->version == 3)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: version-3 packages (wt-JJ.z weights) take no spatial levels yet", in_dir);
     if (p->version != 1 || p->n_levels != 1)
         return btf_fail(err, BTF_ERR_ARG, "%s: already has spatial levels (version %d)", in_dir, p->version);
     s->C = p->n_chunks, s->nb = p->blocks->n_blocks, s->W = p->width, s->H = p->height;

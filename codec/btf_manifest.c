@@ -1,4 +1,4 @@
-/* btf_manifest.c - manifest.json of a package: parser, serializer (versions 1 and 2)
+/* btf_manifest.c - manifest.json of a package: parser, serializer (versions 1, 2 and 3)
  * and the test of whether a directory is a package this project wrote. */
 #include "btf_manifest.h"
 
@@ -212,7 +212,7 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
         snprintf(ci->files[i], BTF_PACKAGE_NAME_MAX, "%s", s->valuestring);
     }
     ci->level = 0;
-    if (p->version >= 2 && !btf__get_int(c, "level", 0, p->n_levels - 1, &ci->level))
+    if (p->version == 2 && !btf__get_int(c, "level", 0, p->n_levels - 1, &ci->level))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: missing or wrong \"level\"", path, id);
     const cJSON *v = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "weights8_step"), ci->component);
     ci->wt8_step = 257.0;
@@ -224,7 +224,7 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
     btf_result r = btf__chunk_numbers(c, ci, path, id, err);
     if (r != BTF_OK)
         return r;
-    if (p->version >= 2 && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
+    if (p->version == 2 && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
         return btf__component_ranges(ranges, ci, p->blocks->n_blocks, path, id, err);
     r = btf__parse_ranges(c, "tex_range", p->blocks->n_blocks, &ci->tex_range, path, id, err);
     if (r == BTF_OK)
@@ -239,8 +239,8 @@ static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *
     int version;
     if (!cJSON_IsString(fmt) || strcmp(fmt->valuestring, "btf-package") != 0)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: \"format\" is not \"btf-package\"", path);
-    if (!btf__get_int(m, "version", 1, 2, &version))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unsupported \"version\" (this reader knows 1 and 2)", path);
+    if (!btf__get_int(m, "version", 1, 3, &version))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unsupported \"version\" (this reader knows 1, 2 and 3)", path);
     p->version = version;
     p->n_levels = 1;
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(m, "name");
@@ -310,6 +310,9 @@ btf_result btf_manifest_parse(const char *text, const char *path, btf_package *p
     const cJSON *budget = cJSON_GetObjectItemCaseSensitive(m, "budget");
     if (r == BTF_OK && cJSON_IsObject(budget))
         p->budget = cJSON_PrintUnformatted(budget);
+    const cJSON *rd = cJSON_GetObjectItemCaseSensitive(m, "rd");
+    if (r == BTF_OK && cJSON_IsObject(rd))
+        p->rd = cJSON_PrintUnformatted(rd);
     cJSON_Delete(m);
     return r;
 }
@@ -320,9 +323,9 @@ void btf_manifest_clear(btf_package *p)
         free(p->chunk[i].tex_range);
         free(p->chunk[i].wt_range);
     }
-    free(p->chunk), free(p->tex), free(p->wt), free(p->budget);
+    free(p->chunk), free(p->tex), free(p->wt), free(p->budget), free(p->rd);
     btf_blocks_free(p->blocks);
-    p->chunk = NULL, p->tex = NULL, p->wt = NULL, p->blocks = NULL, p->budget = NULL, p->n_chunks = 0;
+    p->chunk = NULL, p->tex = NULL, p->wt = NULL, p->blocks = NULL, p->budget = NULL, p->rd = NULL, p->n_chunks = 0;
 }
 
 /* ---------------------------------------------------------------- serializer */
@@ -359,7 +362,7 @@ static double btf__num(const btf_package *p, double x)
     char b[32];
     if (!isfinite(x))
         return 0.0;
-    if (p->version < 2)
+    if (p->version != 2)
         return x;
     snprintf(b, sizeof b, "%.4g", x);
     return strtod(b, NULL);
@@ -400,6 +403,8 @@ static void btf__print_header(const btf_package *p, cJSON *m)
     cJSON_AddNumberToObject(wt, "bits", 16);
     cJSON_AddStringToObject(wt, "layout", "view-light-channel");
     cJSON_AddStringToObject(wt, "endian", "little");
+    if (p->version == 3)
+        cJSON_AddStringToObject(wt, "coding", "zlib-delta-light");
     int s = p->lab_stride > 0 ? p->lab_stride : 1;
     cJSON *es = cJSON_AddObjectToObject(m, "error_sample");
     cJSON_AddNumberToObject(es, "texel_stride", s);
@@ -477,13 +482,13 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
         cJSON_AddItemToArray(files, cJSON_CreateString(ci->files[f]));
     cJSON_AddNumberToObject(c, "bytes", (double)ci->bytes);
     cJSON_AddNumberToObject(c, "rmse", btf__num(p, ci->rmse));
-    if (p->version < 2)
+    if (p->version != 2)
         cJSON_AddNumberToObject(c, "lab", btf__num(p, ci->lab));
     cJSON_AddNumberToObject(c, "psnr", btf__num(p, ci->psnr));
-    if (p->version < 2)
+    if (p->version != 2)
         cJSON_AddNumberToObject(c, "delta_e76", btf__num(p, ci->delta_e76));
     cJSON_AddNumberToObject(c, "rmse_float", btf__num(p, ci->rmse_float));
-    if (p->version < 2) {
+    if (p->version != 2) {
         cJSON_AddItemToObject(c, "tex_range", btf__ranges_json(ci->tex_range, p->blocks->n_blocks));
         cJSON_AddItemToObject(c, "wt_range", btf__ranges_json(ci->wt_range, p->blocks->n_blocks));
     } else {
@@ -499,17 +504,20 @@ char *btf_manifest_print(const btf_package *p, btf_error *err)
     cJSON *m = cJSON_CreateObject();
     if (m) {
         btf__print_header(p, m);
-        if (p->version >= 2)
+        if (p->version == 2)
             btf__print_levels(p, m);
         cJSON *budget = p->budget ? cJSON_Parse(p->budget) : NULL;
         if (budget)
             cJSON_AddItemToObject(m, "budget", budget);
+        cJSON *rd = p->rd ? cJSON_Parse(p->rd) : NULL;
+        if (rd)
+            cJSON_AddItemToObject(m, "rd", rd);
         cJSON *chunks = cJSON_AddArrayToObject(m, "chunks");
         for (int a = 0; a < p->n_chunks; a++)
             cJSON_AddItemToArray(chunks, btf__print_chunk(p, a));
     }
     /* version 1 stays readable; version 2 is compact (it travels first) */
-    char *s = m ? (p->version >= 2 ? cJSON_PrintUnformatted(m) : cJSON_Print(m)) : NULL;
+    char *s = m ? (p->version == 2 ? cJSON_PrintUnformatted(m) : cJSON_Print(m)) : NULL;
     cJSON_Delete(m);
     if (!s)
         btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (manifest)");

@@ -45,6 +45,16 @@ typedef struct btf_package_options {
      * component; minor components get fewer levels and compress better).
      * 0 = BTF_PACKAGE_TEX_NOISE; negative = always the full 8-bit range. */
     float tex_noise;
+    /* 1: version 3 (doc/package-format.md section 11): per-component texture and
+     * weight steps chosen by rate-distortion (codec/btf_rd.h) for the same added
+     * error as tex_noise's equal noise, weights deflated as wt-JJ.z. 8 bits only. */
+    int rd;
+    /* With rd: when not NULL, receives what the allocation chose (the caller frees
+     * it with btf_rd_result_free). */
+    struct btf_rd_result *rd_out;
+    /* With rd: > 0 = steps for the least error within this many bytes instead of the
+     * equal-noise error (btf_rd_params.max_bytes; set by btf_budget for --max-bytes). */
+    long long rd_max_bytes;
     /* Test hook: called before the writer creates package file number i (0-based);
      * a nonzero return makes that write fail like a full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);
@@ -87,6 +97,7 @@ typedef struct btf_package {
     double lod_threshold;   /* version 2: visibility threshold the chunk order was made for ("lod"); 0 if absent */
     char *budget;           /* "budget": what btf_budget_compress chose and measured, as JSON text (malloc'd); NULL if none */
     struct btf_dirtab *dirtab[2]; /* lights, views as direction tables (btf_dirtab.h), made by btf_package_read; NULL: btf_decode walks the rings */
+    char *rd;               /* version 3 "rd": the steps btf_rd_allocate chose, as JSON text (malloc'd); NULL if none */
 } btf_package;
 
 /* Summary of a compression run (optional output of btf_package_compress). */

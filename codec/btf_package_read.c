@@ -12,6 +12,7 @@
 #include "btf_fs.h"
 #include "btf_image.h"
 #include "btf_manifest.h"
+#include "btf_wtz.h"
 
 /* ---------------------------------------------------------------- chunk files */
 
@@ -58,7 +59,30 @@ static btf_result btf__load_weights8(const btf_package *p, const char *dir, int 
 }
 
 
-/* Weights of chunk i (dequantised) from its .bin file into wt (V*L*3 floats). */
+/* Version 3: wt-JJ.z (doc/package-format.md section 11), the file size checked before reading. */
+static btf_result btf__load_weights_z(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
+{
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    size_t nwt = (size_t)V * L * 3, max = btf_wtz_max_bytes(V, L);
+    long long sz = btf_fs_size(path);
+    if (sz < 0)
+        return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
+    if (sz < 1 || (unsigned long long)sz > max)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected 1..%zu", path, sz, max);
+    char *z = NULL;
+    size_t nz = 0;
+    uint16_t *q = malloc(nwt * sizeof *q);
+    btf_result r = q ? btf_fs_read(path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    if (r == BTF_OK)
+        r = btf_wtz_decode((const uint8_t *)z, nz, V, L, q, path, err);
+    for (size_t k = 0; r == BTF_OK && k < nwt; k++)
+        wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)], q[k]);
+    free(z), free(q);
+    return r;
+}
+
+
+/* Weights of chunk i (dequantised) from its .bin (or version 3 .z) file into wt (V*L*3 floats). */
 static btf_result btf__load_weights(const btf_package *p, const char *dir, int i, const char *wf, float *wt,
                                     btf_error *err)
 {
@@ -67,6 +91,8 @@ static btf_result btf__load_weights(const btf_package *p, const char *dir, int i
     size_t nwt = (size_t)V * L * 3;
     char path[4200];
     snprintf(path, sizeof path, "%s/%s", dir, wf);
+    if (p->version == 3)
+        return btf__load_weights_z(p, path, i, wt, err);
     uint8_t *raw = malloc(2 * nwt);
     if (!raw)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
@@ -107,11 +133,13 @@ static btf_result btf__shared_weights(const btf_package *p, int i, float *wt, bt
 static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_error *err)
 {
     const btf_chunk_info *ci = &p->chunk[i];
-    const char *tf = btf__chunk_file(ci, ".png", 0), *wf = btf__chunk_file(ci, ".bin", -1);
-    const char *w8 = p->version >= 2 && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
+    const char *tf = btf__chunk_file(ci, ".png", 0);
+    const char *wf = p->version == 3 ? btf__chunk_file(ci, ".z", 1) : btf__chunk_file(ci, ".bin", -1);
+    const char *w8 = p->version == 2 && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
     char path[4200];
-    if (!tf || (!wf && p->version < 2))
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png texture or no .bin weights", dir, i);
+    if (!tf || (!wf && p->version != 2))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png texture or no %s weights", dir, i,
+                        p->version == 3 ? "wt-*.z" : ".bin");
     int nb = p->blocks->n_blocks, W = p->width >> ci->level, H = p->height >> ci->level;
     int ch_want = p->bits == 16 ? 3 : 1, w, h, ch;
     uint8_t *px = NULL;

@@ -5,6 +5,7 @@
 #include "btf_package.h"
 
 #include <cblas.h>
+#include <cjson/cJSON.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,6 +16,8 @@
 #include "btf_image.h"
 #include "btf_manifest.h"
 #include "btf_metrics.h"
+#include "btf_rd.h"
+#include "btf_wtz.h"
 
 #define BTF__SLAB_ROWS 4096
 
@@ -28,31 +31,6 @@ static double btf__now(void)
 }
 
 
-/* Affine range of x[0..n-1] onto 0..qmax; writes {lo, step}. */
-static void btf__range(const float *x, size_t n, size_t stride, unsigned qmax, float range[2])
-{
-    float lo = x[0], hi = x[0];
-    for (size_t i = 1; i < n; i++) {
-        float v = x[i * stride];
-        lo = v < lo ? v : lo;
-        hi = v > hi ? v : hi;
-    }
-    float step = (hi - lo) / (float)qmax;
-    range[0] = lo;
-    range[1] = (step > 0.0f && isfinite(step)) ? step : 0.0f;
-}
-
-
-static inline unsigned btf__quant(float x, const float range[2], unsigned qmax)
-{
-    if (range[1] <= 0.0f)
-        return 0;
-    float q = rintf((x - range[0]) / range[1]);
-    return q <= 0.0f ? 0u : q >= (float)qmax ? qmax : (unsigned)q;
-}
-
-
-/* Dequantisation, the one formula every decoder uses (float32). */
 
 
 /* ---------------------------------------------------------------- writer state */
@@ -62,7 +40,10 @@ typedef struct btf__writer {
     const btf_views *src; /* sizes and direction sets; samples arrive per block (btf__on_block) */
     const btf_blocks *blocks;
     int C, bits, qmax, ch, W, H, L, V, rows;
-    float noise;          /* target RMS noise per component (byte/255 scale); <= 0 = full range */
+    float *tnoise;        /* C: RMS noise (0..255 scale) of component j's texture steps; <= 0 = full range */
+    float *wnoise;        /* C: the same for its weights; <= 0 = the full 16-bit range */
+    int version;          /* 1, or 3: wt-JJ.z weights (doc/package-format.md section 11) */
+    char *rd_json;        /* version 3: the manifest's "rd" record (malloc'd), NULL otherwise */
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
     uint16_t **qwt;       /* C arrays V*L*3 */
@@ -91,7 +72,7 @@ static void btf__writer_free(btf__writer *w)
         if (w->wt_range)
             free(w->wt_range[j]);
     }
-    free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range);
+    free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise), free(w->rd_json);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
     free(w->ref);
@@ -118,6 +99,7 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->qwt = calloc((size_t)C, sizeof *w->qwt);
     w->tex_range = calloc((size_t)C, sizeof *w->tex_range);
     w->wt_range = calloc((size_t)C, sizeof *w->wt_range);
+    w->tnoise = calloc((size_t)C, sizeof(float)), w->wnoise = calloc((size_t)C, sizeof(float));
     w->Pq = calloc((size_t)C, sizeof(double)), w->Pf = calloc((size_t)C, sizeof(double));
     w->Qq = calloc(C2, sizeof(double)), w->Qf = calloc(C2, sizeof(double));
     w->TT = calloc(C2, sizeof(double)), w->WW = calloc(C2, sizeof(double));
@@ -129,7 +111,8 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
     w->ref = malloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
-    int ok = w->ref && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf && w->Qq && w->Qf && w->TT &&
+    int ok = w->ref && w->tnoise && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
+             w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
     for (int j = 0; ok && j < C; j++) {
         w->atlas[j] = calloc((size_t)w->aw * w->ah * w->ch, 1);
@@ -149,16 +132,13 @@ static void btf__quant_textures(btf__writer *w, int b, const btf_pca_block *res)
     for (int j = 0; j < w->C; j++) {
         const float *t = res->t + (size_t)j * w->rows;
         float *rg = w->tex_range[j] + 2 * b;
-        btf__range(t, (size_t)w->rows, 1, (unsigned)w->qmax, rg);
+        btf_rd_range(t, (size_t)w->rows, (unsigned)w->qmax, rg);
         float wn = cblas_snrm2(res->cols, res->w + (size_t)j * res->cols, 1);
-        if (w->noise > 0.0f && wn > 0.0f) { /* equal RMS noise per component */
-            float step = w->noise * sqrtf(12.0f * (float)res->cols) / wn;
-            rg[1] = step > rg[1] ? step : rg[1];
-        }
+        rg[1] = btf_rd_step(rg[1], w->tnoise[j], res->cols, wn); /* RMS noise tnoise[j] from this component */
         for (int y = 0; y < w->H; y++)
             for (int x = 0; x < w->W; x++) {
                 size_t r = (size_t)y * w->W + x;
-                unsigned q = btf__quant(t[r], rg, (unsigned)w->qmax);
+                unsigned q = btf_rd_quant(t[r], rg, (unsigned)w->qmax);
                 uint8_t *px = w->atlas[j] + ((size_t)(ty0 + y) * w->aw + (size_t)(tx0 + x)) * w->ch;
                 if (w->bits == 16) {
                     px[0] = (uint8_t)(q >> 8);
@@ -173,7 +153,7 @@ static void btf__quant_textures(btf__writer *w, int b, const btf_pca_block *res)
 }
 
 
-/* Quantises block b's weights (16 bits) into qwt; [Wq | Wf] into Wd. */
+/* Quantises block b's weights (16 bits, steps for wnoise) into qwt; [Wq | Wf] into Wd. */
 static void btf__quant_weights(btf__writer *w, int b, const btf_pca_block *res)
 {
     const btf_blocks *bl = w->blocks;
@@ -181,11 +161,13 @@ static void btf__quant_weights(btf__writer *w, int b, const btf_pca_block *res)
     for (int j = 0; j < w->C; j++) {
         const float *wj = res->w + (size_t)j * cols;
         float *rg = w->wt_range[j] + 2 * b;
-        btf__range(wj, (size_t)cols, 1, 65535u, rg);
+        btf_rd_range(wj, (size_t)cols, 65535u, rg);
+        if (w->wnoise[j] > 0.0f)
+            rg[1] = btf_rd_step(rg[1], w->wnoise[j], w->rows, cblas_snrm2(w->rows, res->t + (size_t)j * w->rows, 1));
         for (int col = 0; col < cols; col++) {
             int pos = col / (3 * w->L), l = (col / 3) % w->L, c = col % 3;
             int v = bl->views[bl->start[b] + pos];
-            unsigned q = btf__quant(wj[col], rg, 65535u);
+            unsigned q = btf_rd_quant(wj[col], rg, 65535u);
             w->qwt[j][((size_t)v * w->L + l) * 3 + c] = (uint16_t)q;
             w->Wd[(size_t)j * cols + col] = btf_package_dequant(rg, q);
             w->Wd[(size_t)(w->C + j) * cols + col] = wj[col];
@@ -359,8 +341,18 @@ static btf_result btf__hook(const btf_package_options *o, int *counter, const ch
 
 
 
-static btf_result btf__write_weights(const char *path, const uint16_t *q, size_t n, btf_error *err)
+static btf_result btf__write_weights(const char *path, const uint16_t *q, int V, int L, int version, btf_error *err)
 {
+    size_t n = (size_t)V * L * 3;
+    if (version == 3) { /* wt-JJ.z */
+        uint8_t *z = NULL;
+        size_t nz = 0;
+        btf_result r = btf_wtz_encode(q, V, L, &z, &nz, err);
+        if (r == BTF_OK)
+            r = btf_fs_write_atomic(path, z, nz, err);
+        free(z);
+        return r;
+    }
     uint8_t *buf = malloc(2 * n);
     if (!buf)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
@@ -384,7 +376,7 @@ static int btf__lab_stride(int W, int H, int max_texels)
 }
 
 
-/* Version-1 manifest text of what w wrote (malloc'd; NULL when out of memory):
+/* Version-1 (or 3) manifest text of what w wrote (malloc'd; NULL when out of memory):
  * the chunk list in importance order, serialized by btf_manifest_print. */
 static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, const char *name, int stride,
                            const int *order, const long long *bytes, const btf_metrics *lab, const double *rmse,
@@ -397,7 +389,8 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
     p.blocks = (btf_blocks *)w->blocks; /* borrowed: not freed here */
     p.k = po->k, p.n_comp = w->C, p.bits = w->bits, p.center = po->center, p.grouping = po->grouping;
     p.atlas_cols = w->acols, p.atlas_rows = w->arows, p.lab_stride = stride;
-    p.version = 1, p.n_levels = 1, p.n_chunks = w->C;
+    p.version = w->version, p.n_levels = 1, p.n_chunks = w->C;
+    p.rd = w->rd_json; /* borrowed */
     p.chunk = calloc((size_t)w->C, sizeof *p.chunk);
     if (!p.chunk) {
         btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (manifest)");
@@ -408,7 +401,7 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
         int j = order[a];
         c->component = j, c->n_files = 2, c->bytes = bytes[j];
         snprintf(c->files[0], BTF_PACKAGE_NAME_MAX, "tex-%02d.png", j);
-        snprintf(c->files[1], BTF_PACKAGE_NAME_MAX, "wt-%02d.bin", j);
+        snprintf(c->files[1], BTF_PACKAGE_NAME_MAX, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
         c->rmse = rmse[a], c->lab = lab[a].lab_thesis, c->delta_e76 = lab[a].delta_e76, c->rmse_float = rmse_float[a];
         c->psnr = rmse[a] > 0 ? 20.0 * log10(255.0 / rmse[a]) : 999.0;
         c->tex_range = w->tex_range[j], c->wt_range = w->wt_range[j]; /* borrowed */
@@ -440,12 +433,12 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         if (r == BTF_OK)
             r = btf_image_write(path, w->aw, w->ah, w->ch, 8, w->atlas[j], err);
         long long s1 = btf_fs_size(path);
-        snprintf(file, sizeof file, "wt-%02d.bin", j);
+        snprintf(file, sizeof file, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
         snprintf(path, sizeof path, "%s/%s", tmp, file);
         if (r == BTF_OK)
             r = btf__hook(o, &counter, file, err);
         if (r == BTF_OK)
-            r = btf__write_weights(path, w->qwt[j], (size_t)w->V * w->L * 3, err);
+            r = btf__write_weights(path, w->qwt[j], w->V, w->L, w->version, err);
         long long s2 = btf_fs_size(path);
         if (r == BTF_OK && (s1 < 0 || s2 < 0))
             r = btf_fail(err, BTF_ERR_IO, "%s: written file vanished", tmp);
@@ -482,6 +475,55 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
     }
 done:
     free(bytes), free(order), free(rmse), free(rmsef), free(lab);
+    return r;
+}
+
+
+/* The manifest's "rd" record (doc/package-format.md section 11), malloc'd; NULL when out of memory. */
+static char *btf__rd_json(const btf_rd_result *rr)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "lambda", rr->lambda);
+    cJSON_AddNumberToObject(o, "bytes_equal_noise", (double)rr->bytes_equal);
+    cJSON_AddNumberToObject(o, "bytes", (double)rr->bytes_rd);
+    cJSON_AddNumberToObject(o, "kept", rr->n_kept);
+    cJSON *t = cJSON_AddArrayToObject(o, "tex_noise"), *wn = cJSON_AddArrayToObject(o, "wt_noise");
+    for (int j = 0; j < rr->n_comp; j++) {
+        cJSON_AddItemToArray(t, cJSON_CreateNumber(rr->tex_noise[j]));
+        cJSON_AddItemToArray(wn, cJSON_CreateNumber(rr->wt_noise[j]));
+    }
+    char *s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return s;
+}
+
+
+/* Version 3: steps by rate-distortion from the float model m, then every block's
+ * matrix rebuilt once to quantise it and accumulate the exact error sums. */
+static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
+                                   long long o_max_bytes, const char *tmp, btf_rd_result *keep, btf_error *err)
+{
+    btf_rd_params par = {m, w->acols, w->arows, noise, tmp, o_max_bytes};
+    btf_rd_result rr;
+    btf_result r = btf_rd_allocate(&par, &rr, err);
+    if (r != BTF_OK)
+        return r;
+    memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
+    memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
+    w->rd_json = btf__rd_json(&rr);
+    if (keep)
+        *keep = rr;
+    else
+        btf_rd_result_free(&rr);
+    float *A = malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float));
+    if (!A)
+        return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");
+    for (int b = 0; r == BTF_OK && b < w->blocks->n_blocks; b++) {
+        r = btf_pca_block_fill(src, w->blocks, b, A, err);
+        if (r == BTF_OK)
+            r = btf__on_block(w, b, A, &m->block[b], err);
+    }
+    free(A);
     return r;
 }
 
@@ -548,8 +590,12 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
     btf__writer w;
     int stride = btf__lab_stride(src->width, src->height, o.lab_max_texels > 0 ? o.lab_max_texels : 256);
     r = btf__writer_init(&w, src, bl, po.components, o.bits, stride, err);
-    w.noise = o.bits != 8 || o.tex_noise < 0.0f ? 0.0f
-              : (o.tex_noise > 0.0f ? o.tex_noise : BTF_PACKAGE_TEX_NOISE) / 255.0f;
+    float noise = o.bits != 8 || o.tex_noise < 0.0f ? 0.0f : (o.tex_noise > 0.0f ? o.tex_noise : BTF_PACKAGE_TEX_NOISE);
+    for (int j = 0; r == BTF_OK && j < w.C; j++)
+        w.tnoise[j] = noise; /* equal noise; --rd replaces it after the PCA */
+    w.version = o.rd ? 3 : 1;
+    if (r == BTF_OK && o.rd && !(noise > 0.0f))
+        r = btf_fail(err, BTF_ERR_ARG, "rate-distortion steps (rd) need 8-bit textures and tex_noise >= 0");
     char tmp[BTF_FS_PATH_MAX];
     if (r == BTF_OK)
         r = btf_fs_replaceable(out_dir, btf_manifest_owns_dir, NULL, err); /* refuse before the work */
@@ -558,7 +604,12 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
     int made = r == BTF_OK;
     double t0 = btf__now(), t1 = t0;
     if (r == BTF_OK) {
-        r = btf_pca_compress_views(src, &po, btf__on_block, &w, NULL, err); /* the writer keeps what it needs */
+        /* the writer keeps what it needs per block; --rd keeps the model and passes the blocks again */
+        btf_pca_model *m = NULL;
+        r = btf_pca_compress_views(src, &po, o.rd ? NULL : btf__on_block, &w, o.rd ? &m : NULL, err);
+        if (r == BTF_OK && o.rd)
+            r = btf__rd_quantise(&w, src, m, noise, o.rd_max_bytes, tmp, o.rd_out, err);
+        btf_pca_model_free(m);
         t1 = btf__now();
     }
     if (r == BTF_OK)

@@ -227,8 +227,7 @@ int btf_block_cols(const btf *src, const btf_blocks *bl, int b)
     return 3 * src->lights.n_dirs * (bl->start[b + 1] - bl->start[b]);
 }
 
-/* Fills block b's matrix from a view source: each view's 3L columns in block order. */
-static btf_result btf__block_fill(btf_views *src, const btf_blocks *bl, int b, float *A, btf_error *err)
+btf_result btf_pca_block_fill(btf_views *src, const btf_blocks *bl, int b, float *A, btf_error *err)
 {
     size_t per = btf_views_floats(src);
     for (int i = bl->start[b]; i < bl->start[b + 1]; i++) {
@@ -245,7 +244,7 @@ btf_result btf_block_matrix(const btf *src, const btf_blocks *bl, int b, float *
         return btf_fail(err, BTF_ERR_ARG, "block matrix: bad arguments (block %d)", b);
     btf_views s;
     btf_views_wrap(src, &s);
-    return btf__block_fill(&s, bl, b, A, err);
+    return btf_pca_block_fill(&s, bl, b, A, err);
 }
 
 /* ---------------------------------------------------------------- per-block PCA */
@@ -633,7 +632,7 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
     }
     int cols = 0;
     for (int b = 0; b < m->blocks->n_blocks && r == BTF_OK; b++) {
-        r = btf__block_fill(src, m->blocks, b, A, err);
+        r = btf_pca_block_fill(src, m->blocks, b, A, err);
         cols = 3 * src->lights.n_dirs * (m->blocks->start[b + 1] - m->blocks->start[b]);
         if (r == BTF_OK)
             r = btf_pca_block_compute(A, rows, cols, o.components, o.method, o.center, &m->block[b], err);

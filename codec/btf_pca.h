@@ -127,6 +127,9 @@ btf_result btf_pca_compress(const btf *src, const btf_pca_options *opt, btf_pca_
  * matrix (3 * lights * k * texels floats, the peak besides the model); results equal
  * btf_pca_compress on the BTF the source reads, bit for bit. out NULL: no model is
  * kept (each block is released after fn saw it). */
+/* Fills block b's matrix (rows x 3L per view, views in block order) from a view
+ * source, one view at a time; what btf_pca_compress_views computes each block from. */
+btf_result btf_pca_block_fill(btf_views *src, const btf_blocks *bl, int b, float *A, btf_error *err);
 btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, btf_pca_block_fn fn, void *ctx,
                                   btf_pca_model **out, btf_error *err);
 void btf_pca_model_free(btf_pca_model *m);

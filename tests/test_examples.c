@@ -15,6 +15,8 @@
 #include "btf_manifest.h"
 #include "btf_package.h"
 #include "btf_views.h"
+#include "btf_rd.h"
+#include "btf_wtz.h"
 #include "test_gen_util.h"
 #include "test_util.h"
 
@@ -156,4 +158,41 @@ Test(examples, views_header)
     btf_views_close(&s);
     btf_free(src);
     test_rmtree(dir);
+}
+
+/* codec/btf_rd.h and codec/btf_wtz.h */
+Test(examples, rd_and_wtz_headers)
+{
+    char tmp_dir[64];
+    cr_assert(test_tmpdir(tmp_dir, sizeof tmp_dir));
+    btf *src = example_source();
+    btf_error err = {0};
+    btf_pca_options o = {0};
+    btf_pca_model *model = NULL;
+    cr_assert_eq(btf_pca_compress(src, &o, NULL, NULL, &model, &err), BTF_OK, "%s", err.msg);
+    int cols = (int)ceil(sqrt((double)model->blocks->n_blocks)), rows = (model->blocks->n_blocks + cols - 1) / cols;
+    /* btf_rd.h */
+    btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0};  // 0: the equal-noise error
+    btf_rd_result rr;
+    if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
+        float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
+        cr_assert(g > 0.0f && h >= 0.0f);
+        btf_rd_result_free(&rr);
+    } else {
+        cr_assert_fail("%s", err.msg);
+    }
+    /* btf_wtz.h */
+    int V = src->views.n_dirs, L = src->lights.n_dirs;
+    uint16_t *q = calloc((size_t)V * L * 3, sizeof *q), *q_back = calloc((size_t)V * L * 3, sizeof *q);
+    for (int i = 0; i < V * L * 3; i++)
+        q[i] = (uint16_t)(i * 37);
+    uint8_t *z; size_t nz;
+    btf_wtz_encode(q, V, L, &z, &nz, &err);       // q: V*L*3 values, (v*L + l)*3 + c
+    btf_wtz_decode(z, nz, V, L, q_back, "wt-00.z", &err);
+    free(z);
+    cr_assert_eq(memcmp(q, q_back, (size_t)V * L * 3 * sizeof *q), 0);
+    free(q), free(q_back);
+    btf_pca_model_free(model);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp_dir), 0);
 }

@@ -40,7 +40,8 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--max-bytes N | --max-error E] [--in-memory] [--quiet] [--json]\n"
+            "                           [--max-bytes N | --max-error E] [--rd] [--tex-noise X]\n"
+            "                           [--in-memory] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -71,6 +72,11 @@ static void compress_usage(FILE *f)
             "  --max-error E    the fewest bytes whose CIELab error is <= E (as btf eval reports it)\n"
             "  --in-memory      load the whole input before compressing (the same package; the\n"
             "                   baseline the view-by-view read is measured against)\n"
+            "  --rd             package version 3: texture and weight steps per component chosen\n"
+            "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
+            "                   steps, weights deflated (wt-JJ.z); 8-bit textures, no --levels\n"
+            "  --tex-noise X    RMS quantisation noise per component of the 8-bit textures\n"
+            "                   (0..255 scale, default 0.5); with --rd the total it amounts to\n"
             "  --quiet          print nothing on success\n"
             "  --json           print one JSON object on stdout instead of the text:\n"
             "                   path (OUT), bytes (all chunk files), chunks, seconds_load,\n"
@@ -81,7 +87,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F max-bytes:B max-error:E in-memory!M quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F max-bytes:B max-error:E rd!R tex-noise:X in-memory!M quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -105,6 +111,12 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'F': o->src.fill_missing = 1; break;
     case 'q': o->quiet = 1; break;
     case 'M': o->in_memory = 1; break;
+    case 'R': o->pkg.rd = 1; break;
+    case 'X': {
+        double x = 0.0;
+        rc = btf_args_double(a, v, 0.01, 64.0, &x), o->pkg.tex_noise = (float)x;
+        break;
+    }
     case 'j': o->json = 1; break;
     case 'B': rc = btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes); break;
     case 'E': rc = btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error); break;
@@ -119,6 +131,10 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
     memset(o, 0, sizeof *o);
     o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8;
     int rc = btf_args_parse(&compress_spec, argc, argv, compress_option, o);
+    if (rc == 0 && o->pkg.rd && (o->levels > 0 || o->pkg.bits != 8)) {
+        fprintf(stderr, "btf compress: --rd writes version 3: 8-bit textures, no --levels\n");
+        rc = 2;
+    }
     o->pkg.name = o->name;
     return rc;
 }
@@ -169,8 +185,9 @@ static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress
     st->bytes = res.bytes, st->n_chunks = res.n_chunks, st->lab = res.lab, st->rmse = res.rmse;
     if (!o->quiet && !o->json) {
         for (int i = 0; i < res.n_candidates; i++)
-            fprintf(stderr, "btf compress: k %-3d %2d chunks %10lld bytes  Lab %.3f\n", res.candidate[i].k,
-                    res.candidate[i].n_chunks, res.candidate[i].bytes, res.candidate[i].lab);
+            fprintf(stderr, "btf compress: k %-3d %2d chunks %10lld bytes  Lab %.3f%s\n", res.candidate[i].k,
+                    res.candidate[i].n_chunks, res.candidate[i].bytes, res.candidate[i].lab,
+                    res.candidate[i].rd_fit ? "  (rd steps fitted to the bytes)" : "");
         fprintf(stderr, "btf compress: chose k %d, %d chunks, %lld bytes, Lab %.3f%s\n", res.k, res.n_chunks,
                 res.bytes, res.lab, res.met ? "" : " (the error target is not reached: the lowest error)");
     }

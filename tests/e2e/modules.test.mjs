@@ -3,9 +3,12 @@
 // mapping (client/btf-gl.js), budget merging (client/btf-stream.js), ray casts and
 // meshes (client/scene.js), direction tables (client/btf-dirtab.js). No server, no browser.
 import assert from 'node:assert/strict';
+import child from 'node:child_process';
 import fs from 'node:fs';
+import os from 'node:os';
 import path from 'node:path';
 import {describe, it} from 'node:test';
+import zlib from 'node:zlib';
 import {ROOT} from './util.mjs';
 
 const pkgMod = await import('../../client/btf-package.js');
@@ -45,7 +48,7 @@ describe('btf-package.js', () => {
 
   it('refuses manifests outside the format', () => {
     const bad = [
-      (m) => { m.version = 3; }, (m) => { m.format = 'x'; }, (m) => { m.width = 0; },
+      (m) => { m.version = 4; }, (m) => { m.version = 3; }, (m) => { m.format = 'x'; }, (m) => { m.width = 0; },
       (m) => { m.bits = 12; }, (m) => { m.blocks[0] = [0, 1]; }, (m) => { m.blocks[1][0] = 0; },
       (m) => { m.atlas.cols = 2; }, (m) => { m.chunks = []; }, (m) => { m.chunks[0].files = ['../x.png', 'wt-00.bin']; },
       (m) => { m.chunks[1].wt_range.pop(); }, (m) => { m.chunks[0].tex_range[3] = [0, -1]; },
@@ -72,6 +75,72 @@ describe('btf-package.js', () => {
       assert.ok(Math.abs(w[i] - want) <= 2 * Math.abs(want) * 2 ** -23 + 1e-7, `weight ${i}: ${w[i]} vs ${want}`);
     }
     assert.throws(() => pkgMod.dequantWeights(p, p.chunks[0], buf.subarray(0, n)), /wt-00\.bin has/);
+  });
+});
+
+// Version 3 of the same package (doc/package-format.md section 11): wt-JJ.z weights.
+describe('btf-package.js version 3', () => {
+    // q -> wt-JJ.z written from the format text: zigzag differences along the lights, two byte planes, zlib.
+  const encode = (q, L) => {
+    const n = q.length, raw = new Uint8Array(2 * n);
+    for (let i = 0; i < n; i++) {
+      let d = q[i] - ((Math.floor(i / 3) % L) > 0 ? q[i - 3] : 0);
+      d = ((d + 32768) & 0xffff) - 32768;
+      const z = ((d << 1) ^ (d >> 15)) & 0xffff;
+      raw[i] = z & 255;
+      raw[n + i] = z >> 8;
+    }
+    return zlib.deflateSync(raw);
+  };
+  const v3 = () => {
+    const m = manifest();
+    m.version = 3;
+    m.chunks.forEach((c, j) => { c.files = [`tex-0${j}.png`, `wt-0${j}.z`]; });
+    return m;
+  };
+  it('reads as the version-1 layout and needs .z weights', () => {
+    const p = pkgMod.parseManifest(v3());
+    assert.equal(p.version, 1);
+    assert.equal(p.manifestVersion, 3);
+    assert.equal(p.chunks[1].wt, 'wt-01.z');
+    const bad = v3();
+    bad.chunks[0].files[1] = 'wt-00.bin';
+    assert.throws(() => pkgMod.parseManifest(bad), /version 3 needs a wt-\*\.z/);
+  });
+  it('decodes wt-JJ.z to the same Float32Array as the raw 16-bit file', async () => {
+    const p = pkgMod.parseManifest(v3()), p1 = pkgMod.parseManifest(manifest());
+    const n = 81 * 81 * 3, q = new Uint16Array(n);
+    for (let i = 0; i < n; i++) q[i] = i % 5 === 0 ? 0 : i % 5 === 1 ? 65535 : (i * 7919) % 65536; // wrapping differences
+    const want = pkgMod.dequantWeights(p1, p1.chunks[1], Buffer.from(q.buffer));
+    const got = await pkgMod.decodeWeights(p, p.chunks[1], encode(q, 81));
+    assert.deepEqual(got, want);
+    await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], encode(q.subarray(0, n - 3), 81)), /inflates to \d+ bytes/);
+    const z = encode(q, 81);
+    await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], z.subarray(0, z.length - 4)), /wt-01\.z/);
+    await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], new Uint8Array(2 * n + 1025)), /bytes, expected 1\.\./);
+    const more = new Uint16Array(n + 3);
+    more.set(q);
+    await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], encode(more, 81)), /more than/);
+  });
+  it('decodes the wt-JJ.z files btf compress --rd writes, every weight within its block range', async (t) => {
+    const btf = path.join(ROOT, 'build', 'btf');
+    if (!fs.existsSync(btf)) return t.skip('build/btf missing');
+    const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-v3-'));
+    try {
+      child.execFileSync(btf, ['compress', 'gen:stone:8:901', path.join(dir, 'p'), '--rd', '--components', '3', '--quiet']);
+      const m = JSON.parse(fs.readFileSync(path.join(dir, 'p', 'manifest.json'), 'utf8'));
+      const p = pkgMod.parseManifest(m);
+      for (const c of p.chunks) {
+        const w = await pkgMod.decodeWeights(p, c, fs.readFileSync(path.join(dir, 'p', c.wt)));
+        for (let v = 0; v < p.views.dirs; v++) {
+          const b = p.viewBlock[v], lo = c.wtRange[2 * b], hi = lo + 65535 * c.wtRange[2 * b + 1];
+          for (let i = v * p.lights.dirs * 3; i < (v + 1) * p.lights.dirs * 3; i++)
+            assert.ok(w[i] >= lo && w[i] <= hi * (1 + 1e-6) + 1e-12, `chunk ${c.id} weight ${i}`);
+        }
+      }
+    } finally {
+      fs.rmSync(dir, {recursive: true, force: true});
+    }
   });
 });
 

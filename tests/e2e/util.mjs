@@ -40,16 +40,17 @@ export function hasRender() {
 }
 
 // Library of small packages in a temp dir: name -> [generator kind, components,
-// optional spatial levels (a version-2 package, doc/package-format.md section 10)].
+// optional spatial levels (a version-2 package, doc/package-format.md section 10),
+// optional further `btf compress` arguments].
 export function makeLibrary(materials) {
   const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-e2e-'));
   const lib = path.join(dir, 'lib');
   fs.mkdirSync(lib);
-  for (const [name, [kind, comps, levels]] of Object.entries(materials)) {
+  for (const [name, [kind, comps, levels, extra = []]] of Object.entries(materials)) {
     const src = path.join(dir, `${name}.btf`);
     run(BTF, ['gen', kind, src, '--size', '32', '--format', 'btf', '--components', '16']);
     run(BTF, ['compress', src, path.join(lib, name), '--k', '3', '--components', String(comps), '--quiet',
-      ...(levels ? ['--levels', String(levels)] : [])]);
+      ...(levels ? ['--levels', String(levels)] : []), ...extra]);
     fs.rmSync(src);
   }
   return {dir, lib, remove: () => fs.rmSync(dir, {recursive: true, force: true})};

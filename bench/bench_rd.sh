@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# bench/bench_rd.sh - CIELab error at equal bytes against the thesis format (issue 14):
+# per material, `btf export-thesis --k 3 --components 8` (the baseline: its bytes B
+# and its error), then `btf compress --max-bytes B` as version 1 (equal-noise steps,
+# raw 16-bit weights) and as version 3 (`--rd`: rate-distortion steps, deflated
+# weights), each measured by `btf eval` against the source (lab_mae: the thesis's
+# CIELab error). Ratios are to the thesis in the same run. Then WebP against PNG
+# for the component textures of the first material (below).
+# Run by bench/run.sh (results: bench/results/rd.txt); needs `make build` and jq.
+#   RD_MATERIALS="gen:tiles:64:4242 ..." bash bench/bench_rd.sh   # other materials
+#   RD_LARGE=0 bash bench/bench_rd.sh       # skip the 256x256 material (2: add the thesis wool at 256x256)
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+BUILD=${BUILD:-build}
+BTF=$BUILD/btf
+[[ -x $BTF ]] || { echo "bench_rd: $BTF is missing: run 'make build' first" >&2; exit 1; }
+command -v jq >/dev/null || { echo "bench_rd: needs jq" >&2; exit 1; }
+SHARED=${BTF_SHARED:-../shared}
+# Seeds and sizes no test uses; NAME=SOURCE, or NAME=THESIS_DIR@SIZE.
+mats=(tiles64=gen:tiles:64:4242 knit64=gen:knit:64:4243 stone64=gen:stone:64:4244)
+for m in wool corduroy; do
+    [[ -f $SHARED/data/thesis-ubo2003/$m/meta.json ]] && mats+=("${m}64=$SHARED/data/thesis-ubo2003/$m@64")
+done
+if [[ ${RD_LARGE:-1} != 0 ]]; then
+    mats+=(tiles256=gen:tiles:256:5151)
+    [[ ${RD_LARGE:-1} == 2 && -f $SHARED/data/thesis-ubo2003/wool/meta.json ]] && mats+=("wool256=$SHARED/data/thesis-ubo2003/wool")
+fi
+[[ -n ${RD_MATERIALS:-} ]] && read -r -a mats <<<"$RD_MATERIALS"
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_rd.XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
+
+lab() { "$BTF" eval "$1" "$2" --json | jq -r .lab_mae; }
+echo "# material: thesis bytes / Lab | v1 (--max-bytes) bytes / Lab / ratio | v3 (--rd --max-bytes) bytes / Lab / ratio / k, chunks"
+first_v3=
+for spec in "${mats[@]}"; do
+    name=${spec%%=*} src=${spec#*=}
+    [[ $name == "$spec" ]] && name=$(echo "$spec" | tr ':/' '--')
+    echo "bench_rd: $name" >&2
+    if [[ $src == *@* ]]; then # a thesis package at SIZE: its reconstruction, as a DFMF file
+        "$BTF" import-thesis "${src%@*}" "$tmp/$name.btf" --size "${src##*@}" >/dev/null
+        src=$tmp/$name.btf
+    fi
+    "$BTF" export-thesis "$src" "$tmp/$name-thesis" --k 3 --components 8 >/dev/null
+    tb=$(find "$tmp/$name-thesis" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
+    tl=$(lab "$src" "$tmp/$name-thesis")
+    "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --quiet
+    "$BTF" compress "$src" "$tmp/$name-v3" --max-bytes "$tb" --rd --quiet
+    [[ -z $first_v3 ]] && first_v3=$tmp/$name-v3 first_src=$src
+    row="# $name: $tb / $(printf %.3f "$tl")"
+    for v in v1 v3; do
+        d=$tmp/$name-$v
+        b=$(find "$d" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
+        l=$(lab "$src" "$d")
+        r=$(awk -v a="$l" -v t="$tl" 'BEGIN { printf "%.3f", a / t }')
+        echo "rd_${name}_${v}_bytes $b B"
+        echo "rd_${name}_${v}_lab $(printf %.4f "$l") lab"
+        echo "rd_${name}_${v}_lab_ratio $r x"
+        row+=" | $b / $(printf %.3f "$l") / ${r}x"
+    done
+    row+=" / k $(jq .budget.k "$tmp/$name-v3/manifest.json"), $(jq .budget.chunks "$tmp/$name-v3/manifest.json") chunks"
+    echo "rd_${name}_thesis_bytes $tb B"
+    echo "rd_${name}_thesis_lab $(printf %.4f "$tl") lab"
+    echo "$row"
+done
+
+# WebP for the component textures (oiiotool; grey replicated into RGB, WebP has no
+# 1-channel images): the first material's version-3 package with every tex-JJ.png
+# replaced by its WebP at quality Q (decoded back to grey PNG for btf eval; bytes =
+# the WebP files + weights + manifest) against a PNG version 3 at the same bytes.
+# OpenImageIO's "lossless" WebP is measured too (its size; it is not bit-exact here).
+if [[ -n $first_v3 ]] && command -v oiiotool >/dev/null && oiiotool --help 2>/dev/null | grep 'Output formats' | grep -q webp; then
+    src=${first_src}
+    echo "# webp: quality | webp package bytes / Lab | png (--rd --max-bytes same) bytes / Lab"
+    png=0 webpl=0
+    for f in "$first_v3"/tex-*.png; do
+        oiiotool "$f" --ch Y,Y,Y --compression lossless -o "$tmp/t.webp"
+        png=$((png + $(stat -c %s "$f"))) webpl=$((webpl + $(stat -c %s "$tmp/t.webp")))
+    done
+    echo "rd_webp_lossless_png_bytes $png B"
+    echo "rd_webp_lossless_webp_bytes $webpl B"
+    for q in 95 80; do
+        d=$tmp/webp$q
+        cp -r "$first_v3" "$d"
+        b=$(find "$d" -type f ! -name 'tex-*' -printf '%s\n' | awk '{s += $1} END {print s}')
+        for f in "$d"/tex-*.png; do
+            oiiotool "$f" --ch Y,Y,Y --compression "webp:$q" -o "$tmp/t.webp"
+            b=$((b + $(stat -c %s "$tmp/t.webp")))
+            oiiotool "$tmp/t.webp" --ch R --chnames Y -d uint8 -o "$f"
+        done
+        l=$(lab "$src" "$d")
+        "$BTF" compress "$src" "$tmp/png$q" --max-bytes "$b" --rd --quiet
+        pb=$(find "$tmp/png$q" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
+        pl=$(lab "$src" "$tmp/png$q")
+        echo "rd_webp_q${q}_bytes $b B"
+        echo "rd_webp_q${q}_lab $(printf %.4f "$l") lab"
+        echo "rd_webp_q${q}_png_bytes $pb B"
+        echo "rd_webp_q${q}_png_lab $(printf %.4f "$pl") lab"
+        echo "# webp q$q: $b / $(printf %.3f "$l") | $pb / $(printf %.3f "$pl")"
+        rm -rf "$d" "$tmp/png$q"
+    done
+fi

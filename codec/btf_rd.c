@@ -1,0 +1,238 @@
+/* btf_rd.c - equal-slope choice of the quantisation steps (btf_rd.h,
+ * doc/package-format.md section 11): measured rate and distortion of every
+ * candidate step multiplier per component, then one Lagrange multiplier. */
+#include "btf_rd.h"
+
+#include <cblas.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "btf_fs.h"
+#include "btf_image.h"
+#include "btf_wtz.h"
+
+#define BTF__RD_TEX_LO (-8) /* texture ladder: tex_noise * 2^(i/2), i = LO..HI */
+#define BTF__RD_TEX_HI 6
+#define BTF__RD_WT_LO (-10) /* weight ladder: the full 16 bits, then tex_noise * 2^(i/2) */
+#define BTF__RD_WT_HI 6
+#define BTF__RD_NT (BTF__RD_TEX_HI - BTF__RD_TEX_LO + 1)
+#define BTF__RD_NW (BTF__RD_WT_HI - BTF__RD_WT_LO + 2)
+
+/* Measured candidates of one allocation; lives for one btf_rd_allocate call. */
+typedef struct btf__rd {
+    const btf_rd_params *par;
+    const btf_pca_model *m;
+    int C, nb, W, H, rows, L, V, aw, ah;
+    double *dt, *dw;       /* C x NT, C x NW: added squared error */
+    double *energy;        /* C: |T_j W_j^T|^2 summed over blocks: the error of leaving j out */
+    long long *rt, *rw;    /* the same: bytes */
+    float *gt, *gw;        /* the ladders' noise values */
+    uint8_t *atlas;        /* aw x ah scratch */
+    uint16_t *q;           /* V*L*3 scratch */
+} btf__rd;
+
+/* Texture of component j at noise g: the atlas into r->atlas, the added squared error returned. */
+static double btf__rd_tex(btf__rd *r, int j, float g)
+{
+    double d = 0.0;
+    memset(r->atlas, 0, (size_t)r->aw * r->ah);
+    for (int b = 0; b < r->nb; b++) {
+        const btf_pca_block *pb = &r->m->block[b];
+        const float *t = pb->t + (size_t)j * r->rows;
+        float wn = cblas_snrm2(pb->cols, pb->w + (size_t)j * pb->cols, 1), rg[2];
+        btf_rd_range(t, (size_t)r->rows, 255u, rg);
+        rg[1] = btf_rd_step(rg[1], g, pb->cols, wn);
+        int tx0 = (b % r->par->atlas_cols) * r->W, ty0 = (b / r->par->atlas_cols) * r->H;
+        double e = 0.0;
+        for (int y = 0; y < r->H; y++)
+            for (int x = 0; x < r->W; x++) {
+                float v = t[(size_t)y * r->W + x];
+                unsigned qv = btf_rd_quant(v, rg, 255u);
+                r->atlas[(size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)] = (uint8_t)qv;
+                double dv = (double)v - (double)(rg[0] + rg[1] * (float)qv);
+                e += dv * dv;
+            }
+        d += e * (double)wn * (double)wn;
+    }
+    return d;
+}
+
+/* Weights of component j at noise g (0 = full 16 bits): q into r->q, the added squared error returned. */
+static double btf__rd_wt(btf__rd *r, int j, float g)
+{
+    const btf_blocks *bl = r->m->blocks;
+    double d = 0.0;
+    for (int b = 0; b < r->nb; b++) {
+        const btf_pca_block *pb = &r->m->block[b];
+        const float *wj = pb->w + (size_t)j * pb->cols;
+        float tn = cblas_snrm2(r->rows, pb->t + (size_t)j * r->rows, 1), rg[2];
+        btf_rd_range(wj, (size_t)pb->cols, 65535u, rg);
+        rg[1] = btf_rd_step(rg[1], g, r->rows, tn);
+        double e = 0.0;
+        if (g == 0.0f) /* once per component: its energy */
+            r->energy[j] += (double)tn * tn * (double)cblas_snrm2(pb->cols, wj, 1) * cblas_snrm2(pb->cols, wj, 1);
+        for (int col = 0; col < pb->cols; col++) {
+            int pos = col / (3 * r->L), l = (col / 3) % r->L, c = col % 3;
+            int v = bl->views[bl->start[b] + pos];
+            unsigned qv = btf_rd_quant(wj[col], rg, 65535u);
+            r->q[((size_t)v * r->L + l) * 3 + c] = (uint16_t)qv;
+            double dv = (double)wj[col] - (double)(rg[0] + rg[1] * (float)qv);
+            e += dv * dv;
+        }
+        d += e * (double)tn * (double)tn;
+    }
+    return d;
+}
+
+/* Every candidate of every component: rates and distortions. */
+static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
+{
+    char path[BTF_FS_PATH_MAX];
+    snprintf(path, sizeof path, "%s/rd-candidate.png", r->par->scratch);
+    for (int j = 0; j < r->C; j++) {
+        for (int i = 0; i < BTF__RD_NT; i++) {
+            r->dt[(size_t)j * BTF__RD_NT + i] = btf__rd_tex(r, j, r->gt[i]);
+            btf_result res = btf_image_write_unsynced(path, r->aw, r->ah, 1, 8, r->atlas, err);
+            long long s = res == BTF_OK ? btf_fs_size(path) : -1;
+            remove(path);
+            if (res != BTF_OK)
+                return res;
+            if (s < 0)
+                return btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
+            r->rt[(size_t)j * BTF__RD_NT + i] = s;
+        }
+        for (int i = 0; i < BTF__RD_NW; i++) {
+            r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i]);
+            uint8_t *z = NULL;
+            size_t nz = 0;
+            btf_result res = btf_wtz_encode(r->q, r->V, r->L, &z, &nz, err);
+            free(z);
+            if (res != BTF_OK)
+                return res;
+            r->rw[(size_t)j * BTF__RD_NW + i] = (long long)nz;
+        }
+    }
+    return BTF_OK;
+}
+
+/* Index in 0..n-1 minimising d + lambda * rate. */
+static int btf__rd_best(const double *d, const long long *rate, int n, double lambda)
+{
+    int best = 0;
+    for (int i = 1; i < n; i++)
+        if (d[i] + lambda * (double)rate[i] < d[best] + lambda * (double)rate[best])
+            best = i;
+    return best;
+}
+
+/* Manifest bytes of a version-3 package with n chunks (an estimate for the byte
+ * budget: two ranges of about 55 characters per block and chunk, plus the header). */
+static long long btf__rd_manifest_bytes(const btf__rd *r, int n)
+{
+    return 2048 + (long long)n * (300 + 120LL * r->nb) + 8LL * r->V;
+}
+
+/* Total quantisation distortion and bytes at slope lambda; choices into it, iw when
+ * not NULL. With keep: *keep = components whose energy exceeds D + lambda R
+ * (component 0 always), bytes counted for those only (plus the manifest). */
+static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long long *bytes, int *keep)
+{
+    double d = 0.0;
+    long long s = 0;
+    int kept = 0;
+    for (int j = 0; j < r->C; j++) {
+        int a = btf__rd_best(r->dt + (size_t)j * BTF__RD_NT, r->rt + (size_t)j * BTF__RD_NT, BTF__RD_NT, lambda);
+        int b = btf__rd_best(r->dw + (size_t)j * BTF__RD_NW, r->rw + (size_t)j * BTF__RD_NW, BTF__RD_NW, lambda);
+        double dj = r->dt[(size_t)j * BTF__RD_NT + a] + r->dw[(size_t)j * BTF__RD_NW + b];
+        long long sj = r->rt[(size_t)j * BTF__RD_NT + a] + r->rw[(size_t)j * BTF__RD_NW + b];
+        d += dj;
+        if (!keep || j == 0 || dj + lambda * (double)sj < r->energy[j])
+            s += sj, kept++;
+        if (it)
+            it[j] = a, iw[j] = b;
+    }
+    if (keep)
+        *keep = kept, s += btf__rd_manifest_bytes(r, kept);
+    if (bytes)
+        *bytes = s;
+    return d;
+}
+
+void btf_rd_result_free(btf_rd_result *r)
+{
+    if (!r)
+        return;
+    free(r->tex_noise), free(r->wt_noise);
+    memset(r, 0, sizeof *r);
+}
+
+static void btf__rd_free(btf__rd *r)
+{
+    free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->atlas), free(r->q);
+}
+
+btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err)
+{
+    memset(out, 0, sizeof *out);
+    const btf_pca_model *m = par->model;
+    if (!m || !(par->tex_noise > 0.0f) || !par->scratch || par->atlas_cols < 1 || par->atlas_rows < 1 ||
+        (long)par->atlas_cols * par->atlas_rows < m->blocks->n_blocks)
+        return btf_fail(err, BTF_ERR_ARG, "rate-distortion: needs a model, tex_noise > 0, a scratch directory and an atlas grid");
+    btf__rd r = {0};
+    r.par = par, r.m = m, r.C = m->n_comp, r.nb = m->blocks->n_blocks, r.W = m->width, r.H = m->height;
+    r.rows = r.W * r.H, r.L = m->lights.n_dirs, r.V = m->views.n_dirs;
+    r.aw = par->atlas_cols * r.W, r.ah = par->atlas_rows * r.H;
+    r.dt = calloc((size_t)r.C * BTF__RD_NT, sizeof(double));
+    r.dw = calloc((size_t)r.C * BTF__RD_NW, sizeof(double));
+    r.energy = calloc((size_t)r.C, sizeof(double));
+    r.rt = calloc((size_t)r.C * BTF__RD_NT, sizeof(long long));
+    r.rw = calloc((size_t)r.C * BTF__RD_NW, sizeof(long long));
+    r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
+    r.atlas = malloc((size_t)r.aw * r.ah);
+    r.q = malloc((size_t)r.V * r.L * 3 * sizeof(uint16_t));
+    out->tex_noise = calloc((size_t)r.C, sizeof(float));
+    out->wt_noise = calloc((size_t)r.C, sizeof(float));
+    int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
+    btf_result res = BTF_OK;
+    if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !r.atlas || !r.q || !out->tex_noise || !out->wt_noise ||
+        !it || !iw)
+        res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
+    for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
+        r.gt[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_TEX_LO + i));
+    for (int i = 1; res == BTF_OK && i < BTF__RD_NW; i++) /* gw[0] = 0: the full 16-bit range */
+        r.gw[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_WT_LO + i - 1));
+    if (res == BTF_OK)
+        res = btf__rd_measure(&r, err);
+    if (res == BTF_OK) {
+        /* reference: every texture at tex_noise (ladder index -LO), 16-bit weights (index 0) */
+        out->d_target = 0.0, out->bytes_equal = 0;
+        for (int j = 0; j < r.C; j++) {
+            out->d_target += r.dt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.dw[(size_t)j * BTF__RD_NW];
+            out->bytes_equal += r.rt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.rw[(size_t)j * BTF__RD_NW];
+        }
+        double lo = -60.0, hi = 10.0;
+        for (int k = 0; k < 80; k++) { /* bisection in log lambda */
+            double mid = 0.5 * (lo + hi);
+            long long bytes = 0;
+            int kept = 0;
+            if (par->max_bytes > 0) { /* the smallest slope whose kept components fit */
+                btf__rd_at(&r, exp(mid), NULL, NULL, &bytes, &kept);
+                *(bytes <= par->max_bytes ? &hi : &lo) = mid;
+            } else { /* the largest slope adding no more error than the reference */
+                *(btf__rd_at(&r, exp(mid), NULL, NULL, NULL, NULL) <= out->d_target ? &lo : &hi) = mid;
+            }
+        }
+        out->lambda = exp(par->max_bytes > 0 ? hi : lo);
+        out->n_kept = r.C;
+        out->d_rd = btf__rd_at(&r, out->lambda, it, iw, &out->bytes_rd, par->max_bytes > 0 ? &out->n_kept : NULL);
+        out->n_comp = r.C;
+        for (int j = 0; j < r.C; j++)
+            out->tex_noise[j] = r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
+    }
+    free(it), free(iw);
+    btf__rd_free(&r);
+    if (res != BTF_OK)
+        btf_rd_result_free(out);
+    return res;
+}

@@ -1,0 +1,91 @@
+/* btf_rd.h - rate-distortion choice of the quantisation steps of a package
+ * (doc/package-format.md section 11): per component one texture and one weight
+ * step multiplier, chosen with one Lagrange multiplier (equal slope) so that the
+ * quantisation adds the same squared error as the equal-noise allocation of
+ * section 4 with fewer bytes. Used by the package writer (btf_package_options.rd).
+ *
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0};  // 0: the equal-noise error
+ *     btf_rd_result rr;
+ *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
+ *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
+ *         btf_rd_result_free(&rr);
+ *     }
+ */
+#ifndef BTF_RD_H
+#define BTF_RD_H
+
+#include <math.h>
+
+#include "btf.h"
+#include "btf_pca.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Inputs of one allocation; plain value, its pointers are borrowed for the call. */
+typedef struct btf_rd_params {
+    const btf_pca_model *model; /* the float PCA of the package */
+    int atlas_cols, atlas_rows; /* the package's atlas grid */
+    float tex_noise;            /* equal-noise reference per component (0..255 scale), > 0 */
+    const char *scratch;        /* directory for the candidate atlases (removed again) */
+    /* > 0: instead of the equal-noise error, the least error (PCA truncation plus
+     * quantisation) whose kept components' files fit in max_bytes: a component is
+     * kept when its energy exceeds its quantised cost D + lambda R, lambda the
+     * smallest slope that fits (btf_budget). */
+    long long max_bytes;
+} btf_rd_params;
+
+/* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */
+typedef struct btf_rd_result {
+    int n_comp;
+    float *tex_noise;       /* n_comp: RMS noise (0..255) of component j's texture steps */
+    float *wt_noise;        /* n_comp: the same for its weights; 0 = the full 16-bit range */
+    double lambda;          /* the common slope: squared error (byte/255 scale) per byte */
+    double d_target, d_rd;  /* added squared error: equal-noise allocation, chosen (all components) */
+    long long bytes_equal;  /* files of the equal-noise allocation (atlases + deflated 16-bit weights) */
+    long long bytes_rd;     /* the same files at the chosen steps (with max_bytes: of the kept components) */
+    int n_kept;             /* components worth their bytes at lambda (all without max_bytes) */
+} btf_rd_result;
+
+btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err);
+void btf_rd_result_free(btf_rd_result *r);
+
+/* Quantisation step for values of range step `range_step` (full range / qmax) whose
+ * RMS noise, spread over n samples by a factor of norm, is to be `noise` (0..255
+ * scale): max(range_step, noise/255 * sqrt(12 n) / norm); noise <= 0 or norm <= 0
+ * keeps range_step. The one rule of the writer and the allocation. */
+static inline float btf_rd_step(float range_step, float noise, int n, float norm)
+{
+    if (!(noise > 0.0f) || !(norm > 0.0f))
+        return range_step;
+    float s = noise / 255.0f * sqrtf(12.0f * (float)n) / norm;
+    return s > range_step ? s : range_step;
+}
+
+/* Affine range of x[0..n-1] onto 0..qmax: {lo, (hi - lo) / qmax} (step 0 when flat). */
+static inline void btf_rd_range(const float *x, size_t n, unsigned qmax, float range[2])
+{
+    float lo = x[0], hi = x[0];
+    for (size_t i = 1; i < n; i++) {
+        lo = x[i] < lo ? x[i] : lo;
+        hi = x[i] > hi ? x[i] : hi;
+    }
+    float step = (hi - lo) / (float)qmax;
+    range[0] = lo;
+    range[1] = (step > 0.0f && isfinite(step)) ? step : 0.0f;
+}
+
+/* Nearest q in 0..qmax of x under range {lo, step}. */
+static inline unsigned btf_rd_quant(float x, const float range[2], unsigned qmax)
+{
+    if (range[1] <= 0.0f)
+        return 0;
+    float q = rintf((x - range[0]) / range[1]);
+    return q <= 0.0f ? 0u : q >= (float)qmax ? qmax : (unsigned)q;
+}
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,336 @@
+/* test_rd.c - version-3 packages (doc/package-format.md section 11): rate-distortion
+ * steps (codec/btf_rd.h), the wt-JJ.z weights coding (codec/btf_wtz.h) and its
+ * reader limits, suite "rd". */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <zlib.h>
+
+#include "btf_budget.h"
+#include "btf_cli.h"
+#include "btf_lod.h"
+#include "btf_package.h"
+#include "btf_rd.h"
+#include "btf_wtz.h"
+#include "test_gen_util.h"
+#include "test_util.h"
+
+/* 15 directions on three rings. */
+static const btf_ring rings[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 10.0f}};
+
+static void compress_ok(const btf *src, int C, int rd, const char *out, btf_rd_result *rr)
+{
+    btf_pca_options po = {0};
+    po.k = 3, po.components = C;
+    btf_package_options ko = {0};
+    ko.rd = rd, ko.rd_out = rr;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+}
+
+static btf_package *read_ok(const char *dir)
+{
+    btf_package *p = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_read(dir, 0, &p, &err), BTF_OK, "%s", err.msg);
+    return p;
+}
+
+/* Sum of the package's chunk files, from the file system. */
+static long long files_bytes(const btf_package *p, const char *dir)
+{
+    long long s = 0;
+    char path[1024];
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; f < p->chunk[i].n_files; f++) {
+            struct stat st;
+            snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
+            cr_assert_eq(stat(path, &st), 0, "%s", path);
+            s += st.st_size;
+        }
+    return s;
+}
+
+/* RMSE (0..255) of the decoded package against src over every sample, computed here
+ * from btf_package_value and btf_get, not from the writer's sums. */
+static double direct_rmse(const btf_package *p, const btf *src)
+{
+    double e = 0.0;
+    for (int v = 0; v < src->views.n_dirs; v++)
+        for (int l = 0; l < src->lights.n_dirs; l++)
+            for (int y = 0; y < src->height; y++)
+                for (int x = 0; x < src->width; x++) {
+                    float rgb[3];
+                    btf_package_value(p, v, l, x, y, 0, rgb);
+                    for (int c = 0; c < 3; c++) {
+                        double d = (double)rgb[c] - (double)btf_get(src, v, l, x, y, c);
+                        e += d * d;
+                    }
+                }
+    return 255.0 * sqrt(e / ((double)src->views.n_dirs * src->lights.n_dirs * src->width * src->height * 3));
+}
+
+Test(rd, smaller_package_at_equal_error)
+{
+    char tmp[256], a[512], b[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(a, sizeof a, "%s/equal", tmp);
+    snprintf(b, sizeof b, "%s/rd", tmp);
+    btf *src = test_material(BTF_GEN_TILES, 32, rings, 3);
+    btf_rd_result rr;
+    compress_ok(src, 6, 0, a, NULL);
+    compress_ok(src, 6, 1, b, &rr);
+    btf_package *pa = read_ok(a), *pb = read_ok(b);
+    cr_assert_eq(pa->version, 1);
+    cr_assert_eq(pb->version, 3);
+    double ea = direct_rmse(pa, src), eb = direct_rmse(pb, src);
+    long long ba = files_bytes(pa, a), bb = files_bytes(pb, b);
+    /* The allocation spends at most the equal-noise allocation's added squared error
+     * (rr.d_rd <= rr.d_target); what it neglects are the products of two
+     * quantisation errors (texture x weight, and their projections through the PCA
+     * residual), second order: 1% of the RMSE covers them with a wide margin. */
+    cr_assert_leq(rr.d_rd, rr.d_target * (1.0 + 1e-12));
+    cr_assert_leq(eb, ea * 1.01, "rd %.4f vs equal noise %.4f", eb, ea);
+    cr_assert_lt(bb, ba, "rd %lld bytes vs equal noise %lld", bb, ba);
+    /* the manifest's exact error equals the direct measurement (double sums vs float decode) */
+    cr_assert_float_eq(pb->chunk[pb->n_chunks - 1].rmse, eb, 1e-3 * eb);
+    long long sum = 0;
+    for (int i = 0; i < pb->n_chunks; i++) {
+        cr_assert_eq(pb->chunk[i].n_files, 2);
+        cr_assert_str_eq(pb->chunk[i].files[1] + strlen(pb->chunk[i].files[1]) - 2, ".z");
+        sum += pb->chunk[i].bytes;
+    }
+    cr_assert_eq(sum, bb);
+    /* the allocation's reference rate is exactly package a's atlases plus its 16-bit
+     * weights (wt-JJ.bin) as they would deflate in wt-JJ.z */
+    long long ref = 0;
+    size_t nw = (size_t)pa->views.n_dirs * pa->lights.n_dirs * 3;
+    uint16_t *q = malloc(nw * sizeof *q);
+    for (int i = 0; i < pa->n_chunks; i++) {
+        struct stat st;
+        char path[1024];
+        snprintf(path, sizeof path, "%s/%s", a, pa->chunk[i].files[0]);
+        cr_assert_eq(stat(path, &st), 0);
+        ref += st.st_size;
+        snprintf(path, sizeof path, "%s/%s", a, pa->chunk[i].files[1]);
+        FILE *f = fopen(path, "rb");
+        cr_assert_not_null(f);
+        unsigned char le[2];
+        for (size_t k = 0; k < nw; k++) {
+            cr_assert_eq(fread(le, 1, 2, f), 2);
+            q[k] = (uint16_t)(le[0] | le[1] << 8);
+        }
+        fclose(f);
+        uint8_t *z = NULL;
+        size_t nz = 0;
+        btf_error err = {0};
+        cr_assert_eq(btf_wtz_encode(q, pa->views.n_dirs, pa->lights.n_dirs, &z, &nz, &err), BTF_OK);
+        free(z);
+        ref += (long long)nz;
+    }
+    free(q);
+    cr_assert_eq(rr.bytes_equal, ref);
+    cr_assert_lt(rr.bytes_rd, rr.bytes_equal);
+    for (int j = 0; j < rr.n_comp; j++)
+        cr_assert(rr.tex_noise[j] > 0.0f && rr.wt_noise[j] >= 0.0f);
+    btf_rd_result_free(&rr);
+    btf_package_free(pa), btf_package_free(pb);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+/* wt-JJ.z decoded here from the text of doc/package-format.md section 11 alone. */
+static void independent_weights(const char *path, int V, int L, const float *wt_range, const int *block_of_view,
+                                float *out)
+{
+    size_t n = (size_t)V * L * 3;
+    FILE *f = fopen(path, "rb");
+    cr_assert_not_null(f, "%s", path);
+    unsigned char *z = malloc(4 * n + 2048), *raw = malloc(2 * n);
+    size_t nz = fread(z, 1, 4 * n + 2048, f);
+    fclose(f);
+    uLongf len = (uLongf)(2 * n);
+    cr_assert_eq(uncompress(raw, &len, z, (uLong)nz), Z_OK);
+    cr_assert_eq(len, 2 * n);
+    unsigned *q = malloc(n * sizeof *q);
+    for (size_t i = 0; i < n; i++) {
+        unsigned zz = raw[i] + 256u * raw[n + i];
+        long d = (zz & 1u) ? -(long)((zz + 1) / 2) : (long)(zz / 2);
+        size_t l = (i / 3) % (size_t)L;
+        long prev = l > 0 ? (long)q[i - 3] : 0;
+        q[i] = (unsigned)(((prev + d) % 65536 + 65536) % 65536);
+        const float *rg = wt_range + 2 * block_of_view[i / (3 * (size_t)L)];
+        out[i] = rg[0] + rg[1] * (float)q[i];
+    }
+    free(z), free(raw), free(q);
+}
+
+Test(rd, weights_file_decodes_as_specified)
+{
+    char tmp[256], out[512], path[1024];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/m", tmp);
+    btf *src = test_material(BTF_GEN_KNIT, 16, rings, 3);
+    compress_ok(src, 4, 1, out, NULL);
+    btf_package *p = read_ok(out);
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    float *w = malloc((size_t)V * L * 3 * sizeof(float));
+    for (int i = 0; i < p->n_chunks; i++) {
+        snprintf(path, sizeof path, "%s/%s", out, p->chunk[i].files[1]);
+        independent_weights(path, V, L, p->chunk[i].wt_range, p->blocks->block_of_view, w);
+        for (size_t k = 0; k < (size_t)V * L * 3; k++)
+            cr_assert_eq(w[k], p->wt[i][k], "chunk %d weight %zu: %g vs %g", i, k, w[k], p->wt[i][k]);
+    }
+    free(w);
+    btf_package_free(p);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+Test(rd, wtz_round_trip_with_wrapping_differences)
+{
+    int V = 5, L = 7;
+    size_t n = (size_t)V * L * 3;
+    uint16_t *q = malloc(n * sizeof *q), *back = malloc(n * sizeof *q);
+    for (size_t i = 0; i < n; i++) /* extremes next to each other: differences of +-65535 wrap */
+        q[i] = (uint16_t)(i % 4 == 0 ? 0 : i % 4 == 1 ? 65535 : (i * 7919u) & 0xffffu);
+    uint8_t *z = NULL;
+    size_t nz = 0;
+    btf_error err = {0};
+    cr_assert_eq(btf_wtz_encode(q, V, L, &z, &nz, &err), BTF_OK, "%s", err.msg);
+    cr_assert_leq(nz, btf_wtz_max_bytes(V, L));
+    cr_assert_eq(btf_wtz_decode(z, nz, V, L, back, "t", &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(memcmp(q, back, n * sizeof *q), 0);
+    /* truncated, trailing bytes, a stream of another size: refused with a message */
+    cr_assert_eq(btf_wtz_decode(z, nz - 3, V, L, back, "t", &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "t: "), "%s", err.msg);
+    uint8_t *z2 = malloc(nz + 4);
+    memcpy(z2, z, nz), memset(z2 + nz, 0, 4);
+    cr_assert_eq(btf_wtz_decode(z2, nz + 4, V, L, back, "t", &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "after the zlib stream"), "%s", err.msg);
+    cr_assert_eq(btf_wtz_decode(z, nz, V, L + 1, back, "t", &err), BTF_ERR_FORMAT);
+    cr_assert_eq(btf_wtz_decode(z, nz, V, L - 1, back, "t", &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "more than"), "%s", err.msg);
+    free(z), free(z2), free(q), free(back);
+}
+
+/* Replaces the file dir/name with n bytes of data. */
+static void put_file(const char *dir, const char *name, const void *data, size_t n)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "wb");
+    cr_assert_not_null(f);
+    cr_assert_eq(fwrite(data, 1, n, f), n);
+    fclose(f);
+}
+
+Test(rd, reader_limits_of_wt_z)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/m", tmp);
+    btf *src = test_material(BTF_GEN_STONE, 16, rings, 3);
+    compress_ok(src, 3, 1, out, NULL);
+    btf_package *p = read_ok(out);
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    char wf[64];
+    snprintf(wf, sizeof wf, "%s", p->chunk[0].files[1]);
+    btf_package_free(p);
+    size_t max = btf_wtz_max_bytes(V, L);
+    uint8_t *big = calloc(max + 1, 1);
+    btf_error err = {0};
+    put_file(out, wf, big, max + 1); /* one byte over the limit: refused from the size */
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, wf) && strstr(err.msg, "bytes, expected 1.."), "%s", err.msg);
+    put_file(out, wf, big, 0);
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+    put_file(out, wf, big, 100); /* zeros: not a zlib stream */
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "zlib"), "%s", err.msg);
+    /* a valid stream of one weight too many */
+    size_t n = (size_t)V * L * 3 + 1;
+    uLongf zl = compressBound((uLong)(2 * n));
+    uint8_t *z = malloc(zl);
+    cr_assert_eq(compress(z, &zl, big, (uLong)(2 * n)), Z_OK);
+    put_file(out, wf, z, zl);
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "more than"), "%s", err.msg);
+    free(z), free(big);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+Test(rd, version3_takes_no_levels_and_needs_8_bits)
+{
+    char tmp[256], out[512], lv[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/m", tmp);
+    snprintf(lv, sizeof lv, "%s/lv", tmp);
+    btf *src = test_material(BTF_GEN_KNIT, 16, rings, 3);
+    compress_ok(src, 3, 1, out, NULL);
+    btf_lod_options lo = {0};
+    lo.levels = 2;
+    btf_error err = {0};
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_ERR_UNSUPPORTED);
+    cr_assert(strstr(err.msg, "version-3"), "%s", err.msg);
+    btf_pca_options po = {0};
+    btf_package_options ko = {0};
+    ko.rd = 1, ko.bits = 16;
+    cr_assert_eq(btf_package_compress(src, &po, &ko, lv, NULL, &err), BTF_ERR_ARG);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+Test(rd, cli_rd_writes_version_3_and_refuses_levels_or_16_bits)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/c", tmp);
+    char *ok[] = {"compress", "gen:knit:8:77", out, "--rd", "--components", "3", "--tex-noise", "1", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(9, ok), 0);
+    btf_package *p = read_ok(out);
+    cr_assert_eq(p->version, 3);
+    btf_package_free(p);
+    char *lv[] = {"compress", "gen:knit:8:77", out, "--rd", "--levels", "2", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(7, lv), 2);
+    char *b16[] = {"compress", "gen:knit:8:77", out, "--rd", "--bits", "16", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(7, b16), 2);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+Test(rd, budget_tries_fitted_and_equal_noise_steps_and_keeps_the_lower_error)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/b", tmp);
+    btf *src = test_material(BTF_GEN_TILES, 16, rings, 3);
+    btf_budget b = {0};
+    b.max_bytes = 60000, b.max_components = 6, b.k[0] = 3, b.n_k = 1;
+    btf_package_options ko = {0};
+    ko.rd = 1;
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(res.n_candidates, 2);
+    cr_assert_eq(res.candidate[0].rd_fit, 0);
+    cr_assert_eq(res.candidate[1].rd_fit, 1);
+    const btf_budget_choice *lo = res.candidate[0].lab <= res.candidate[1].lab ? &res.candidate[0] : &res.candidate[1];
+    cr_assert_eq(res.rd_fit, lo->rd_fit);
+    cr_assert_eq(res.lab, lo->lab);
+    btf_package *p = read_ok(out);
+    cr_assert_eq(p->version, 3);
+    cr_assert_eq(p->n_chunks, res.n_chunks);
+    struct stat st;
+    char path[1024];
+    snprintf(path, sizeof path, "%s/manifest.json", out);
+    cr_assert_eq(stat(path, &st), 0);
+    cr_assert_leq(files_bytes(p, out) + st.st_size, b.max_bytes);
+    cr_assert_not_null(p->rd, "the rd record survives the cut");
+    btf_package_free(p);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
