@@ -580,12 +580,9 @@ static btf_result load_open(dfmf_reader *r, const btf_load_options *o, btf **out
     return res;
 }
 
-btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **out, btf_error *err)
+/* Opens path for reading and gives its size; a missing file, or not a regular one, is an error. */
+static btf_result dfmf_open(const char *path, FILE **out, uint64_t *size, btf_error *err)
 {
-    if (!path || !out)
-        return btf_fail(err, BTF_ERR_ARG, "btf_load_dfmf: NULL argument");
-    *out = NULL;
-    btf_load_options o = opt ? *opt : (btf_load_options){0};
     FILE *f = fopen(path, "rb");
     if (!f)
         return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: cannot open (%s)", path,
@@ -595,7 +592,23 @@ btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **ou
         fclose(f);
         return btf_fail(err, BTF_ERR_IO, "%s: not a regular file", path);
     }
-    dfmf_reader r = {f, path, (uint64_t)st.st_size, 0, err, 0, 0};
+    *out = f;
+    *size = (uint64_t)st.st_size;
+    return BTF_OK;
+}
+
+btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **out, btf_error *err)
+{
+    if (!path || !out)
+        return btf_fail(err, BTF_ERR_ARG, "btf_load_dfmf: NULL argument");
+    *out = NULL;
+    btf_load_options o = opt ? *opt : (btf_load_options){0};
+    FILE *f = NULL;
+    uint64_t size = 0;
+    btf_result opened = dfmf_open(path, &f, &size, err);
+    if (opened != BTF_OK)
+        return opened;
+    dfmf_reader r = {f, path, size, 0, err, 0, 0};
     btf_result res = load_open(&r, &o, out);
     fclose(f);
     if (res == BTF_OK && o.downsample > 1) {
@@ -673,16 +686,12 @@ btf_result btf_views_open_dfmf(const char *path, const btf_load_options *opt, bt
     memset(out, 0, sizeof *out);
     if (opt && opt->downsample > 1)
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: a .btf file is read view by view without --downsample", path);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: cannot open (%s)", path,
-                        strerror(errno));
-    struct stat st;
-    if (fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
-        fclose(f);
-        return btf_fail(err, BTF_ERR_IO, "%s: not a regular file", path);
-    }
-    dfmf_reader r = {f, path, (uint64_t)st.st_size, 0, err, BTF_VIEWS_MAX_FACTOR_BYTES, 0};
+    FILE *f = NULL;
+    uint64_t size = 0;
+    btf_result opened = dfmf_open(path, &f, &size, err);
+    if (opened != BTF_OK)
+        return opened;
+    dfmf_reader r = {f, path, size, 0, err, BTF_VIEWS_MAX_FACTOR_BYTES, 0};
     dfmf_views *d = calloc(1, sizeof *d);
     btf_result res = d ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     if (d) {

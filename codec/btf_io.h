@@ -68,6 +68,11 @@ btf_result btf_load_dfmf(const char *path, const btf_load_options *opt, btf **ou
  * float32 scalars); components = 0 means full rank (exact up to float rounding). */
 btf_result btf_save_dfmf(const btf *b, const char *path, int components, btf_error *err);
 
+/* What kind of input a path is; btf_load_any and btf_views_open dispatch on it. */
+typedef enum btf_input_kind { BTF_INPUT_DFMF = 1, BTF_INPUT_THESIS, BTF_INPUT_IMAGES } btf_input_kind;
+/* A .btf file, a thesis package directory (meta.json) or an image directory; a
+ * package directory (manifest.json), another file or a missing path is an error. */
+btf_result btf_input_kind_of(const char *path, btf_input_kind *kind, btf_error *err);
 /* Loads anything the loaders read: a directory (UBO2003 images or thesis package,
  * told apart by meta.json) or a `.btf` file. */
 btf_result btf_load_any(const char *path, const btf_load_options *opt, btf **out, btf_error *err);

@@ -554,6 +554,17 @@ static void btf__report(const btf__decode *d, btf_load_report *rep)
             btf_load_report_add(rep, d->scan->files[d->scan->slot[d->slot0 + i]].path, samples, d->sat[i]);
 }
 
+/* The readers' shared checks of the options and of the directory itself. */
+static btf_result btf__check_load(const char *dir, const btf_load_options *opt, btf_error *err)
+{
+    const btf_dirset *want = opt ? opt->sampling : NULL;
+    if (opt && opt->downsample < 0)
+        return btf_fail(err, BTF_ERR_ARG, "%s: downsample factor %d is negative", dir, opt->downsample);
+    if (want && (want->n_dirs < 1 || want->n_dirs > BTF_MAX_DIRS))
+        return btf_fail(err, BTF_ERR_ARG, "%s: sampling has %d directions", dir, want->n_dirs);
+    return btf__check_dir(dir, err);
+}
+
 btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, btf **out, btf_error *err)
 {
     if (!dir || !out)
@@ -563,11 +574,7 @@ btf_result btf_load_ubo2003_dir(const char *dir, const btf_load_options *opt, bt
     btf_storage storage = opt && opt->storage ? opt->storage : BTF_U8;
     if (storage != BTF_U8 && storage != BTF_F32)
         return btf_fail(err, BTF_ERR_ARG, "%s: unknown storage %d", dir, (int)storage);
-    if (opt && opt->downsample < 0)
-        return btf_fail(err, BTF_ERR_ARG, "%s: downsample factor %d is negative", dir, opt->downsample);
-    if (want && (want->n_dirs < 1 || want->n_dirs > BTF_MAX_DIRS))
-        return btf_fail(err, BTF_ERR_ARG, "%s: sampling has %d directions", dir, want->n_dirs);
-    btf_result r = btf__check_dir(dir, err);
+    btf_result r = btf__check_load(dir, opt, err);
     if (r != BTF_OK)
         return r;
     btf__scan scan;
@@ -684,11 +691,7 @@ btf_result btf_views_open_ubo2003(const char *dir, const btf_load_options *opt, 
     const btf_dirset *want = opt ? opt->sampling : NULL;
     if (opt && opt->storage && opt->storage != BTF_U8)
         return btf_fail(err, BTF_ERR_ARG, "%s: an image directory is read view by view as bytes only", dir);
-    if (opt && opt->downsample < 0)
-        return btf_fail(err, BTF_ERR_ARG, "%s: downsample factor %d is negative", dir, opt->downsample);
-    if (want && (want->n_dirs < 1 || want->n_dirs > BTF_MAX_DIRS))
-        return btf_fail(err, BTF_ERR_ARG, "%s: sampling has %d directions", dir, want->n_dirs);
-    btf_result r = btf__check_dir(dir, err);
+    btf_result r = btf__check_load(dir, opt, err);
     if (r != BTF_OK)
         return r;
     btf__dirviews *dv = calloc(1, sizeof *dv);
@@ -835,25 +838,32 @@ static btf_result btf__write_all(btf__writer *w, btf_error *err)
     return w->rc;
 }
 
+/* The writers' shared start: default prefix and extension, their checks, directions
+ * whose names round to whole degrees, the directory made. */
+static btf_result btf__save_start(const char *dir, const char **prefix, const char **ext, const btf_dirset *lights,
+                                  const btf_dirset *views, btf_error *err)
+{
+    *prefix = *prefix && **prefix ? *prefix : "btf";
+    *ext = *ext && **ext ? *ext : "png";
+    if (**ext == '.')
+        (*ext)++;
+    if (!btf__is_image_ext(*ext))
+        return btf_fail(err, BTF_ERR_ARG, "%s: extension \"%s\" is not png, jpg or jpeg", dir, *ext);
+    if (strchr(*prefix, '/'))
+        return btf_fail(err, BTF_ERR_ARG, "%s: prefix \"%s\" contains '/'", dir, *prefix);
+    btf_result r = btf__check_roundable(lights, "light", err);
+    if (r == BTF_OK)
+        r = btf__check_roundable(views, "view", err);
+    return r == BTF_OK ? btf__mkdirs(dir, err) : r;
+}
+
 btf_result btf_save_ubo2003_dir(const btf *b, const char *dir, const char *prefix, const char *ext, btf_error *err)
 {
     if (!b || !dir || !b->data)
         return btf_fail(err, BTF_ERR_ARG, "btf_save_ubo2003_dir: NULL argument");
-    prefix = prefix && *prefix ? prefix : "btf";
-    ext = ext && *ext ? ext : "png";
-    if (*ext == '.')
-        ext++;
-    if (!btf__is_image_ext(ext))
-        return btf_fail(err, BTF_ERR_ARG, "%s: extension \"%s\" is not png, jpg or jpeg", dir, ext);
-    if (strchr(prefix, '/'))
-        return btf_fail(err, BTF_ERR_ARG, "%s: prefix \"%s\" contains '/'", dir, prefix);
     if (b->storage != BTF_U8 && b->storage != BTF_F32)
         return btf_fail(err, BTF_ERR_ARG, "%s: unknown storage %d", dir, (int)b->storage);
-    btf_result r = btf__check_roundable(&b->lights, "light", err);
-    if (r == BTF_OK)
-        r = btf__check_roundable(&b->views, "view", err);
-    if (r == BTF_OK)
-        r = btf__mkdirs(dir, err);
+    btf_result r = btf__save_start(dir, &prefix, &ext, &b->lights, &b->views, err);
     if (r != BTF_OK)
         return r;
     btf__writer w;
@@ -872,19 +882,7 @@ btf_result btf_views_save_ubo2003(btf_views *s, const char *dir, const char *pre
 {
     if (!s || !dir || !s->fill)
         return btf_fail(err, BTF_ERR_ARG, "btf_views_save_ubo2003: NULL argument");
-    prefix = prefix && *prefix ? prefix : "btf";
-    ext = ext && *ext ? ext : "png";
-    if (*ext == '.')
-        ext++;
-    if (!btf__is_image_ext(ext))
-        return btf_fail(err, BTF_ERR_ARG, "%s: extension \"%s\" is not png, jpg or jpeg", dir, ext);
-    if (strchr(prefix, '/'))
-        return btf_fail(err, BTF_ERR_ARG, "%s: prefix \"%s\" contains '/'", dir, prefix);
-    btf_result r = btf__check_roundable(&s->lights, "light", err);
-    if (r == BTF_OK)
-        r = btf__check_roundable(&s->views, "view", err);
-    if (r == BTF_OK)
-        r = btf__mkdirs(dir, err);
+    btf_result r = btf__save_start(dir, &prefix, &ext, &s->lights, &s->views, err);
     if (r != BTF_OK)
         return r;
     int L = s->lights.n_dirs;
@@ -923,25 +921,35 @@ static int btf__has_file(const char *dir, const char *name)
     return ok;
 }
 
+btf_result btf_input_kind_of(const char *path, btf_input_kind *kind, btf_error *err)
+{
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: %s", path, strerror(errno));
+    size_t n = strlen(path);
+    if (S_ISREG(st.st_mode) && n >= 4 && !strcasecmp(path + n - 4, ".btf"))
+        return *kind = BTF_INPUT_DFMF, BTF_OK;
+    if (S_ISREG(st.st_mode))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unknown input (expected a .btf file or a directory)", path);
+    if (!S_ISDIR(st.st_mode))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: neither a file nor a directory", path);
+    if (btf__has_file(path, "meta.json"))
+        return *kind = BTF_INPUT_THESIS, BTF_OK;
+    if (btf__has_file(path, "manifest.json"))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: package: use the package API", path);
+    return *kind = BTF_INPUT_IMAGES, BTF_OK;
+}
+
 btf_result btf_load_any(const char *path, const btf_load_options *opt, btf **out, btf_error *err)
 {
     if (!path || !out)
         return btf_fail(err, BTF_ERR_ARG, "btf_load_any: NULL argument");
     *out = NULL;
-    struct stat st;
-    if (stat(path, &st) != 0)
-        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: %s", path, strerror(errno));
-    if (S_ISREG(st.st_mode)) {
-        size_t n = strlen(path);
-        if (n >= 4 && !strcasecmp(path + n - 4, ".btf"))
-            return btf_load_dfmf(path, opt, out, err);
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unknown input (expected a .btf file or a directory)", path);
-    }
-    if (!S_ISDIR(st.st_mode))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: neither a file nor a directory", path);
-    if (btf__has_file(path, "meta.json"))
-        return btf_import_thesis(path, opt, out, err);
-    if (btf__has_file(path, "manifest.json"))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: package: use the package API", path);
-    return btf_load_ubo2003_dir(path, opt, out, err);
+    btf_input_kind kind;
+    btf_result r = btf_input_kind_of(path, &kind, err);
+    if (r != BTF_OK)
+        return r;
+    return kind == BTF_INPUT_DFMF     ? btf_load_dfmf(path, opt, out, err)
+           : kind == BTF_INPUT_THESIS ? btf_import_thesis(path, opt, out, err)
+                                      : btf_load_ubo2003_dir(path, opt, out, err);
 }

@@ -80,32 +80,13 @@ btf_result btf_views_open(const char *path, const btf_load_options *opt, btf_vie
     if (!path || !out)
         return btf_fail(err, BTF_ERR_ARG, "btf_views_open: NULL argument");
     memset(out, 0, sizeof *out);
-    struct stat st;
-    if (stat(path, &st) != 0)
-        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: %s", path, strerror(errno));
-    if (S_ISREG(st.st_mode)) {
-        size_t n = strlen(path);
-        if (n >= 4 && !strcasecmp(path + n - 4, ".btf"))
-            return btf_views_open_dfmf(path, opt, out, err);
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unknown input (expected a .btf file or a directory)", path);
-    }
-    if (!S_ISDIR(st.st_mode))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: neither a file nor a directory", path);
-    size_t n = strlen(path);
-    char *meta = malloc(n + 16);
-    if (!meta)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    memcpy(meta, path, n);
-    strcpy(meta + n, "/meta.json");
-    int thesis = stat(meta, &st) == 0;
-    strcpy(meta + n, "/manifest.json");
-    int package = stat(meta, &st) == 0;
-    free(meta);
-    if (thesis)
+    btf_input_kind kind;
+    btf_result r = btf_input_kind_of(path, &kind, err);
+    if (r != BTF_OK)
+        return r;
+    if (kind == BTF_INPUT_THESIS)
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: a thesis package is not read view by view (load it)", path);
-    if (package)
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: package: use the package API", path);
-    return btf_views_open_ubo2003(path, opt, out, err);
+    return kind == BTF_INPUT_DFMF ? btf_views_open_dfmf(path, opt, out, err) : btf_views_open_ubo2003(path, opt, out, err);
 }
 
 btf_result btf_views_load(btf_views *s, int u8, btf **out, btf_error *err)
