@@ -58,7 +58,9 @@ export class MeshRenderer {
     if (!pkg || !pkg.uploaded || !view.chunks) return;
     const cam = cameraMake(view, w / h);
     const filter = view.filter === 0 ? 0 : 1;
-    const p = this.program(decodeDefines(pkg.pkg, filter, Math.min(pkg.slots, view.chunks)));
+    // the variant for every slot the package has room for (unused slots have zero
+    // weights): one compile per package, not one per 4 slots as chunks stream in
+    const p = this.program(decodeDefines(pkg.pkg, filter, Math.max(pkg.capacity, 1)));
     gl.useProgram(p.program);
     pkg.bind(p, 0, {chunks: view.chunks, filter, wrap: cam.wrap});
     gl.uniformMatrix4fv(p.loc('u_model'), false, new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
