@@ -21,6 +21,21 @@ static void btf__nearest_params(const btf_gl_api *f, GLenum target)
 
 static int btf__quads(int slots) { return (slots + 3) / 4; }
 
+/* Chunks a prefix of n_chunks draws (0 or more than loaded: all loaded). */
+static int btf__prefix(const btf_gl_package *g, int n_chunks)
+{
+    return n_chunks <= 0 || n_chunks > g->n_loaded ? g->n_loaded : n_chunks;
+}
+
+/* Slots among the first n loaded chunks (0 if none). */
+static int btf__slots_used(const btf_gl_package *g, int n)
+{
+    int used = 0;
+    for (int j = 0; j < n; j++)
+        used = g->chunk_slot[j] + 1 > used ? g->chunk_slot[j] + 1 : used;
+    return used;
+}
+
 /* Component of slot s: that of the slot's first chunk. */
 static int btf__slot_component(const btf_gl_package *g, const btf_package *p, int s)
 {
@@ -71,8 +86,7 @@ static void btf__pack_slot(const btf_gl_package *g, const btf_package *p, int n,
         return;
     int lam = l < fine ? fine : l > coarse ? coarse : l, dummy0, dummy1;
     const float *src = p->tex[btf__slot_chunk(g, n, s, lam, &dummy0, &dummy1)];
-    float lo, step;
-    btf__tex_grid(g, p, s, &lo, &step);
+    float lo = g->tq[(s / 4) * 8 + s % 4], step = g->tq[(s / 4) * 8 + 4 + s % 4]; /* btf__tex_grid, at upload */
     int wl = g->width >> l, hl = g->height >> l, wm = g->width >> lam, hm = g->height >> lam;
     int aw = wl * g->atlas_cols, ah = hl * g->atlas_rows;
     for (int y = 0; y < ah; y++)
@@ -345,9 +359,7 @@ void btf_gl_package_settings(btf_gl *gl, const btf_gl_package *g, const btf_shad
                              const btf_gl_decode_settings *s)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    int n = s->n_chunks <= 0 || s->n_chunks > g->n_loaded ? g->n_loaded : s->n_chunks, used = 0;
-    for (int j = 0; j < n; j++)
-        used = g->chunk_slot[j] + 1 > used ? g->chunk_slot[j] + 1 : used;
+    int n = btf__prefix(g, s->n_chunks), used = btf__slots_used(g, n);
     if (g->n_levels > 1) { /* the prefix's loaded levels decide each slot's fill */
         btf_error err = {{0}};
         btf__pack_textures(gl, (btf_gl_package *)g, g->src, n, &err);
@@ -399,9 +411,8 @@ void btf_gl_package_quant_error(const btf_gl_package *g, double *worst, double *
 int btf_gl_package_defines(const btf_gl_package *g, int filter, int n_chunks, btf_shader_define *defs,
                            char vals[][16])
 {
-    int n = n_chunks <= 0 || n_chunks > g->n_loaded ? g->n_loaded : n_chunks, used = 1;
-    for (int j = 0; j < n; j++)
-        used = g->chunk_slot[j] + 1 > used ? g->chunk_slot[j] + 1 : used;
+    int used = btf__slots_used(g, btf__prefix(g, n_chunks));
+    used = used > 0 ? used : 1;
     static const char *names[BTF_GL_PACKAGE_DEFINES] = {"BTF_FILTER", "BTF_LEVELS", "BTF_QUADS"};
     int v[BTF_GL_PACKAGE_DEFINES] = {filter == 1, g->n_levels > 1, btf__quads(used)};
     for (int i = 0; i < BTF_GL_PACKAGE_DEFINES; i++) {
