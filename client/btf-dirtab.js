@@ -1,5 +1,7 @@
-// btf-dirtab.js - a ring direction set as triangles plus a lookup table, the JS twin
-// of codec/btf_dirtab.c (doc/data-model.md, "Direction tables"), and their GPU layout
+// btf-dirtab.js - a direction set as triangles plus a lookup table, the JS twin
+// of codec/btf_dirtab.c (ring sets: the ring algorithm's triangles; list sets: the
+// manifest's triangles over the directions and their mirror images, checked as the
+// C reader checks them) (doc/data-model.md, "Direction tables"), and their GPU layout
 // for shaders/btf_dirs.glsl (the C host's shaders/host/btf_gl_dirs.c). Float32
 // arithmetic (Math.fround) where the C code uses float, so both make the same
 // triangles. No DOM, no GL: usable in node.
@@ -30,9 +32,11 @@ function dirVector(d, r, m) {
   return [f32(Math.sin(t) * Math.cos(p)), f32(Math.sin(t) * Math.sin(p)), f32(Math.cos(t))];
 }
 
-// Builds the table of a parsed ring table d = {rings, n, dirs}:
-// {nDirs, nVerts, verts: [[x, y, z, real]], tris: [[a, b, c]], adj: [[n0, n1, n2]], cells: Int32Array}.
+// Builds the table of a parsed direction set (btf-package.js parseDirset):
+// {nDirs, nVerts, verts: [[x, y, z, real]], dir: [direction of each vertex, -1 virtual],
+//  tris: [[a, b, c]], adj: [[n0, n1, n2]], cells: Int32Array}. Throws on bad list triangles.
 export function buildDirtab(d) {
+  if (d.list) return buildListDirtab(d);
   const nDirs = d.dirs, verts = [];
   for (let r = 0; r < d.n; r++)
     for (let m = 0; m < d.rings[4 * r + 1]; m++) verts.push([...dirVector(d, r, m), 1]);
@@ -66,15 +70,92 @@ export function buildDirtab(d) {
     }
   }
   fan(d.n - 1, nDirs + 1);
+  const dir = verts.map((v, i) => (i < nDirs ? i : -1));
+  const tab = {nDirs, nVerts: nDirs + 2, verts, dir, tris, adj: adjacency(tris), cells: new Int32Array(CELLS * CELLS)};
+  if (tris.length) fillCells(tab);
+  return tab;
+}
+
+// Neighbour across each edge: the triangle holding the reversed edge (-1 none).
+function adjacency(tris) {
   const edge = new Map();
   tris.forEach((t, i) => t.forEach((_, e) => edge.set(`${t[(e + 1) % 3]},${t[(e + 2) % 3]}`, i)));
-  const adj = tris.map((t) => t.map((_, e) => {
+  return tris.map((t) => t.map((_, e) => {
     const n = edge.get(`${t[(e + 2) % 3]},${t[(e + 1) % 3]}`);
     return n === undefined ? -1 : n;
   }));
-  const tab = {nDirs, nVerts: nDirs + 2, verts, tris, adj, cells: new Int32Array(CELLS * CELLS)};
-  if (tris.length) fillCells(tab);
+}
+
+// Unit vector of list entry i (i >= n: the mirror image of i - n), as btf__list_vertex.
+function listVector(d, i) {
+  const k = i % d.dirs, t = d.list[2 * k] * (Math.PI / 180), p = d.list[2 * k + 1] * (Math.PI / 180);
+  const v = [f32(Math.sin(t) * Math.cos(p)), f32(Math.sin(t) * Math.sin(p)), f32(Math.cos(t))];
+  if (i >= d.dirs) v[2] = -v[2];
+  return v;
+}
+
+const MIRROR_MIN_Z = f32(1e-6), CONVEX_EPS = 1e-5;
+
+// The table of a list set from its triangles (btf_dirtab_build_list): vertices are the
+// directions, then the mirror images in the order the triangles first use them.
+function buildListDirtab(d) {
+  const n = d.dirs, nt = d.tris.length / 3, map = new Int32Array(2 * n).fill(-1);
+  const bad = (msg) => { throw new Error(`direction list: ${msg}`); };
+  for (let i = 0; i < n; i++) map[i] = i;
+  let nv = n;
+  for (let i = 0; i < nt; i++) {
+    let real = 0;
+    for (let k = 0; k < 3; k++) {
+      const x = d.tris[3 * i + k];
+      if (x >= n && !(listVector(d, x)[2] < -MIRROR_MIN_Z)) bad(`triangle ${i} mirrors direction ${x - n}, on the horizon`);
+      if (map[x] < 0) map[x] = nv++;
+      real += x < n;
+    }
+    if (!real) bad(`triangle ${i} holds no measured direction`);
+  }
+  const verts = new Array(nv), dir = new Array(nv);
+  for (let i = 0; i < 2 * n; i++)
+    if (map[i] >= 0) {
+      verts[map[i]] = [...listVector(d, i), 1];
+      dir[map[i]] = i % n;
+    }
+  const tris = [];
+  for (let i = 0; i < nt; i++) tris.push([0, 1, 2].map((k) => map[d.tris[3 * i + k]]));
+  const tab = {nDirs: n, nVerts: nv, verts, dir, tris, adj: [], cells: new Int32Array(CELLS * CELLS)};
+  checkListShape(tab, bad);
+  tab.adj = adjacency(tris);
+  tab.adj.forEach((a, i) => a.forEach((x, e) => {
+    const u = tris[i][(e + 1) % 3], v = tris[i][(e + 2) % 3];
+    if (x < 0 && (u < n || v < n)) bad(`triangle ${i}'s edge ${u}-${v} has no neighbour: the hemisphere is not covered`);
+  }));
+  fillCells(tab);
+  const w = [0, 0, 0];
+  for (let c = 0; c < CELLS * CELLS; c++)
+    if (w[volumes(tab, tab.cells[c], cellCentre(c % CELLS, Math.floor(c / CELLS)), w)] < -1e-6)
+      bad('the triangles do not cover the upper hemisphere');
   return tab;
+}
+
+// Orientation, convexity and each directed edge once (btf__list_shape_ok).
+function checkListShape(t, bad) {
+  const edges = new Set();
+  t.tris.forEach((tr, i) => {
+    const [a, b, c] = tr.map((v) => t.verts[v]);
+    if (!(det3(a, b, c) > 0)) bad(`triangle ${i} is flat or clockwise seen from outside`);
+    const u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]], w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    const nx = u[1] * w[2] - u[2] * w[1], ny = u[2] * w[0] - u[0] * w[2], nz = u[0] * w[1] - u[1] * w[0];
+    const len = Math.sqrt(nx * nx + ny * ny + nz * nz);
+    for (let v = 0; v < t.nVerts; v++) {
+      const p = t.verts[v];
+      if (nx * (p[0] - a[0]) + ny * (p[1] - a[1]) + nz * (p[2] - a[2]) > CONVEX_EPS * len)
+        bad(`triangle ${i} is not on the convex hull (vertex ${v} outside)`);
+    }
+    for (let e = 0; e < 3; e++) {
+      const key = `${tr[e]},${tr[(e + 1) % 3]}`;
+      if (edges.has(key)) bad(`triangle ${i} repeats an edge`);
+      edges.add(key);
+    }
+  });
 }
 
 // Barycentric volumes of p in triangle i; returns the index of the smallest.
@@ -94,15 +175,20 @@ function walk(t, i, p, steps, w) {
   }
 }
 
+// Unit direction at the centre of cell (i, j) of the octahedral map (btf__cell_centre).
+function cellCentre(i, j) {
+  const u = f32(f32(f32(i + 0.5) / CELLS) * 2 - 1), v = f32(f32(f32(j + 0.5) / CELLS) * 2 - 1);
+  const a = f32(0.5 * f32(u + v)), b = f32(0.5 * f32(u - v)), z = f32(1 - Math.max(Math.abs(u), Math.abs(v)));
+  const n = f32(Math.sqrt(f32(f32(f32(a * a) + f32(b * b)) + f32(z * z))));
+  return [f32(a / n), f32(b / n), f32(z / n)];
+}
+
 function fillCells(t) {
   let prev = 0;
   const w = [0, 0, 0];
   for (let j = 0; j < CELLS; j++)
     for (let i = 0; i < CELLS; i++) {
-      const u = f32(f32(f32(i + 0.5) / CELLS) * 2 - 1), v = f32(f32(f32(j + 0.5) / CELLS) * 2 - 1);
-      const a = f32(0.5 * f32(u + v)), b = f32(0.5 * f32(u - v)), z = f32(1 - Math.max(Math.abs(u), Math.abs(v)));
-      const n = f32(Math.sqrt(f32(f32(f32(a * a) + f32(b * b)) + f32(z * z))));
-      const p = [f32(a / n), f32(b / n), f32(z / n)];
+      const p = cellCentre(i, j);
       let c = walk(t, prev, p, 4 * CELLS, w), k = volumes(t, c, p, w);
       for (let s = 0; s < t.tris.length && w[k] < 0; s++)
         if (w[k = volumes(t, s, p, w)] >= 0) c = s;
@@ -131,9 +217,9 @@ export function dirtabGpu(lights, views, viewBlock) {
   };
   [lights, views].forEach((t, s) => {
     t.verts.forEach((v, i) => {
-      const o = 4 * (vbase[s] + i);
+      const o = 4 * (vbase[s] + i), d = v[3] > 0 ? t.dir[i] : -1;
       ubo.set(v.slice(0, 3), o);
-      ubo[o + 3] = v[3] > 0 ? i + 1 + 4096 * (s === 1 && viewBlock ? viewBlock[i] : 0) : 0;
+      ubo[o + 3] = d >= 0 ? d + 1 + 4096 * (s === 1 && viewBlock ? viewBlock[d] : 0) : 0;
     });
     t.tris.forEach((_, i) => texel(t, s, i, tris, 4 * (tbase[s] + i)));
     if (t.tris.length) for (let c = 0; c < CELLS * CELLS; c++) texel(t, s, t.cells[c], cells, 4 * (s * CELLS * CELLS + c));
@@ -165,11 +251,11 @@ export function dirtabInterp(t, v) {
     if (first < 0 && t.verts[tri[k]][3] > 0) first = tri[k];
   }
   for (let k = 0; k < 3; k++) {
-    r.idx[k] = t.verts[tri[k]][3] > 0 ? tri[k] : first;
+    r.idx[k] = t.dir[t.verts[tri[k]][3] > 0 ? tri[k] : first];
     r.w[k] = sum > 1e-30 ? w[k] / sum : 0;
   }
   if (!(sum > 1e-30)) {
-    r.idx[0] = first;
+    r.idx[0] = t.dir[first];
     r.w = [1, 0, 0];
   }
   return r;

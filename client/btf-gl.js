@@ -196,7 +196,7 @@ export class GpuPackage {
     const tabs = [buildDirtab(pkg.lights), buildDirtab(pkg.views)];
     const d = dirtabGpu(tabs[0], tabs[1], pkg.viewBlock);
     this.viewBase = d.viewBase;
-    this.outerCos = Math.cos(pkg.lights.rings[4 * (pkg.lights.n - 1)] * Math.PI / 180);
+    this.outerCos = Math.cos(pkg.lights.maxTheta * Math.PI / 180);
     this.ubo = gl.createBuffer();
     gl.bindBuffer(gl.UNIFORM_BUFFER, this.ubo);
     gl.bufferData(gl.UNIFORM_BUFFER, d.ubo, gl.STATIC_DRAW);

@@ -5,6 +5,7 @@
 
 export const MAX_RINGS = 32;      // BTF_MAX_RINGS of shaders/btf_dirs.glsl
 export const MAX_DIRS = 2048;
+export const MAX_LIST_DIRS = 1024; // BTF_MAX_LIST_DIRS
 export const MAX_CHUNKS = 1024;
 export const MAX_SIZE = 16384;
 
@@ -18,8 +19,11 @@ function isInt(v, lo, hi) {
   return Number.isInteger(v) && v >= lo && v <= hi;
 }
 
-// Ring table -> {rings: Float32Array(4 * n) of (theta, count, phi_offset, start), n, dirs}.
+// "lights" / "views" -> {rings: Float32Array(4 * n) of (theta, count, phi_offset, start), n, dirs,
+// maxTheta}; a direction list (doc/data-model.md) -> {list: Float32Array(2 * dirs) of (theta, phi),
+// tris: Int32Array(3 * triangles) in list numbering, n: 0, dirs, maxTheta}.
 function parseDirset(name, what, j) {
+  if (j && j.directions !== undefined) return parseList(name, what, j);
   const rings = j && Array.isArray(j.rings) ? j.rings : null;
   if (!rings || rings.length < 1 || rings.length > MAX_RINGS)
     fail(name, `"${what}" needs 1..${MAX_RINGS} rings`);
@@ -41,7 +45,32 @@ function parseDirset(name, what, j) {
     total += count;
     if (total > MAX_DIRS) fail(name, `"${what}" has more than ${MAX_DIRS} directions`);
   });
-  return {rings: out, n: rings.length, dirs: total};
+  return {rings: out, n: rings.length, dirs: total, maxTheta: out[4 * (rings.length - 1)]};
+}
+
+// A direction list with the triangles its writer made (checked when the table is built).
+function parseList(name, what, j) {
+  const a = j.directions, t = j.triangles;
+  if (!Array.isArray(a) || a.length < 3 || a.length > MAX_LIST_DIRS)
+    fail(name, `"${what}" must list 3..${MAX_LIST_DIRS} directions`);
+  const n = a.length, list = new Float32Array(2 * n);
+  let maxTheta = 0;
+  a.forEach((e, i) => {
+    const theta = e && e.theta, phi = e && e.phi;
+    if (!Number.isFinite(theta) || theta < 0 || theta > 90 || !Number.isFinite(phi) || Math.abs(phi) > 1e6)
+      fail(name, `"${what}" direction ${i} is invalid`);
+    let p = f32(f32(phi) % 360);            // as btf_dirset_make_list
+    if (p < 0) p = f32(p + 360);
+    list[2 * i] = theta;
+    list[2 * i + 1] = f32(theta) === 0 ? 0 : p;
+    maxTheta = Math.max(maxTheta, list[2 * i]);
+  });
+  if (!Array.isArray(t) || t.length % 3 !== 0 || t.length < 3 || t.length > 12 * (2 * n + 2))
+    fail(name, `"${what}" "triangles" must hold 1..${4 * (2 * n + 2)} vertex triples`);
+  t.forEach((x, i) => {
+    if (!isInt(x, 0, 2 * n - 1)) fail(name, `"${what}" triangle vertex ${i} is not in 0..${2 * n - 1}`);
+  });
+  return {list, tris: Int32Array.from(t), n: 0, dirs: n, maxTheta};
 }
 
 function parseRanges(name, list, nBlocks, ci, key) {

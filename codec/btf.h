@@ -74,15 +74,26 @@ typedef struct btf_ring {
     float phi_offset_deg; /* phi of the first direction; then phi += 360/count */
 } btf_ring;
 
-/* A direction set as rings in ascending theta; plain value, no heap, copy freely.
- * Canonical order: ring by ring (ascending theta), then ascending phi index.
- * ring_start[r] is the canonical index of ring r's first direction. */
+/* Most directions of an explicit list set (the GPU tables hold 1020 in all). */
+#define BTF_MAX_LIST_DIRS 1024
+
+/* A direction set: rings in ascending theta (the fast path), or an explicit list
+ * (n_rings == 0). Plain value, no heap, copy freely (about 8.5 KB).
+ * Ring sets: canonical order ring by ring (ascending theta), then ascending phi
+ * index; ring_start[r] is the canonical index of ring r's first direction.
+ * List sets: index order as listed; list[i] = {theta, phi} in degrees (theta
+ * 0..90, phi wrapped to 0..360); interpolated over the convex hull of the
+ * directions and their mirror images below the horizon (btf_dirtab.h). */
 typedef struct btf_dirset {
     int n_rings;
     int n_dirs;
     btf_ring rings[BTF_MAX_RINGS];
     int ring_start[BTF_MAX_RINGS];
+    float list[BTF_MAX_LIST_DIRS][2];
 } btf_dirset;
+
+/* 1 for an explicit list set, 0 for a ring set. */
+static inline int btf_dirset_is_list(const btf_dirset *d) { return d->n_rings == 0 && d->n_dirs > 0; }
 
 /* Builds a set from a ring table; checks ascending theta, counts, limits. */
 btf_result btf_dirset_make(const btf_ring *rings, int n_rings, btf_dirset *out, btf_error *err);
@@ -90,7 +101,12 @@ btf_result btf_dirset_make(const btf_ring *rings, int n_rings, btf_dirset *out, 
 btf_dirset btf_dirset_ubo2003(void);
 /* UBO2014 dome: 151 directions on 10 rings (doc/input-formats.md section 2.8). */
 btf_dirset btf_dirset_dome151(void);
-/* Reads {"rings":[{"theta":deg,"count":n,"phi_offset":deg},...]} (cJSON). */
+/* Builds a list set from n {theta, phi} pairs in degrees (index order kept);
+ * checks 3 <= n <= BTF_MAX_LIST_DIRS, theta in 0..90, no two directions within
+ * 0.01 degrees, and that the directions surround the normal (they triangulate). */
+btf_result btf_dirset_make_list(const float (*dirs)[2], int n, btf_dirset *out, btf_error *err);
+/* Reads {"rings":[{"theta":deg,"count":n,"phi_offset":deg},...]} or
+ * {"directions":[{"theta":deg,"phi":deg},...]} (cJSON). */
 btf_result btf_dirset_load_json(const char *path, btf_dirset *out, btf_error *err);
 /* Same from JSON text of len bytes; name labels error messages (e.g. the file name). */
 btf_result btf_dirset_parse_json(const char *text, size_t len, const char *name, btf_dirset *out, btf_error *err);
@@ -100,7 +116,9 @@ void btf_dirset_angles(const btf_dirset *d, int i, float *theta_deg, float *phi_
 void btf_dirset_vector(const btf_dirset *d, int i, float v[3]);
 /* Canonical index of the direction at (theta, phi) within tol degrees, or -1. */
 int btf_dirset_find(const btf_dirset *d, float theta_deg, float phi_deg, float tol_deg);
-/* 1 if both sets have the same rings. */
+/* Polar angle of the set's outermost direction, degrees. */
+float btf_dirset_max_theta(const btf_dirset *d);
+/* 1 if both sets have the same rings (or the same list, in the same order). */
 int btf_dirset_equal(const btf_dirset *a, const btf_dirset *b);
 
 /* Angular interpolation result: up to 3 measured directions and weights summing to 1.
@@ -111,7 +129,9 @@ typedef struct btf_interp {
 } btf_interp;
 
 /* The 3 measured directions around (theta, phi) in degrees and their
- * barycentric weights; the CPU reference the shaders match. Never NaN. */
+ * barycentric weights; the CPU reference the shaders match. Never NaN.
+ * A list set is triangulated on every call (qhull): build a btf_dirtab once
+ * (btf_dirtab.h) where many queries follow. */
 btf_interp btf_dirset_interp(const btf_dirset *d, float theta_deg, float phi_deg);
 /* Same for a direction vector in the local frame (z = normal); need not be unit. */
 btf_interp btf_dirset_interp_vec(const btf_dirset *d, const float v[3]);

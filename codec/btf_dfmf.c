@@ -2,8 +2,8 @@
  *
  * Reader: signature "!DFMF08FC" optionally followed by "R" (rotations stored;
  * a 10th byte 'R' is taken as that flag), header versions 1..4, direction lists
- * that must form rings (grouped by theta, equally spaced in phi; anything else is
- * BTF_ERR_UNSUPPORTED), scalars of 2 (half), 4 or 8 bytes, colour models
+ * that form rings (grouped by theta, equally spaced in phi) become ring sets,
+ * others an explicit list set in file order (btf_dirset_make_list), scalars of 2 (half), 4 or 8 bytes, colour models
  * 0 (plain RGB: the three channels are R, G, B) and 11 (log-YUV as in the spec).
  * The colour mean/transform fields, the RGB scale and the cosine flag are read but
  * not applied (their meaning is unconfirmed). Every count is bounded before
@@ -305,8 +305,8 @@ static int cmp_float(const void *a, const void *b)
 }
 
 /* Builds a ring set from (theta, phi) radians and maps file index -> canonical index. */
-static btf_result make_dirset(const float (*dir)[2], int n, const char *what, const char *path, btf_dirset *out,
-                              int *map, btf_error *err)
+static btf_result make_rings(const float (*dir)[2], int n, int strict, const char *what, const char *path,
+                             btf_dirset *out, int *map, btf_error *err)
 {
     const float tol = 0.01f; /* degrees; float radians carry ~1e-5 deg */
     float *th = malloc(sizeof(float) * (size_t)n * 2), *ph = th ? th + n : NULL;
@@ -345,6 +345,11 @@ static btf_result make_dirset(const float (*dir)[2], int n, const char *what, co
                            BTF_MAX_RINGS);
             break;
         }
+        if (strict && m == 1 && t > tol) { /* one direction off the pole: rather a list */
+            res = btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: %s direction at theta %g is alone on its ring", path, what,
+                           (double)t);
+            break;
+        }
         qsort(ring_phi, (size_t)m, sizeof(float), cmp_float);
         for (int i = 1; i < m && res == BTF_OK; i++)
             if (fabsf(ring_phi[i] - ring_phi[0] - (float)i * 360.0f / (float)m) > tol)
@@ -370,6 +375,40 @@ static btf_result make_dirset(const float (*dir)[2], int n, const char *what, co
     }
     free(th);
     return res;
+}
+
+/* A list set of the file's directions in file order. */
+static btf_result make_list(const float (*dir)[2], int n, btf_dirset *out, int *map, btf_error *err)
+{
+    if (n > BTF_MAX_LIST_DIRS)
+        return btf_fail(err, BTF_ERR_RANGE, "%d directions are more than a list holds (%d)", n, BTF_MAX_LIST_DIRS);
+    float(*deg)[2] = malloc(sizeof(float[2]) * (size_t)(n > 0 ? n : 1));
+    if (!deg)
+        return btf_fail(err, BTF_ERR_NOMEM, "out of memory");
+    for (int i = 0; i < n; i++) {
+        deg[i][0] = fmaxf((float)(dir[i][0] * (180.0 / M_PI)), 0.0f);
+        deg[i][1] = (float)(dir[i][1] * (180.0 / M_PI));
+        map[i] = i;
+    }
+    btf_result res = btf_dirset_make_list((const float(*)[2])deg, n, out, err);
+    free(deg);
+    return res;
+}
+
+/* A ring set when the directions form rings (no direction alone on a ring off the
+ * pole), else a list set in file order; rings with lone directions when no list fits. */
+static btf_result make_dirset(const float (*dir)[2], int n, const char *what, const char *path, btf_dirset *out,
+                              int *map, btf_error *err)
+{
+    btf_error ring_err = {{0}}, list_err = {{0}};
+    btf_result res = make_rings(dir, n, 1, what, path, out, map, &ring_err);
+    if (res == BTF_ERR_UNSUPPORTED && make_list(dir, n, out, map, &list_err) == BTF_OK)
+        return BTF_OK;
+    if (res == BTF_ERR_UNSUPPORTED && make_rings(dir, n, 0, what, path, out, map, NULL) == BTF_OK)
+        return BTF_OK;
+    if (res == BTF_ERR_UNSUPPORTED)
+        return btf_fail(err, res, "%s; as a direction list: %s", ring_err.msg, list_err.msg);
+    return res == BTF_OK ? BTF_OK : btf_fail(err, res, "%s", ring_err.msg);
 }
 
 /* ------------------------------------------------------------ channel matrices */

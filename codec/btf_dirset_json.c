@@ -1,11 +1,16 @@
-/* btf_dirset_json.c - direction sets from a small JSON ring table (cJSON).
+/* btf_dirset_json.c - direction sets from a small JSON file (cJSON): a ring table
+ * or an explicit direction list.
  *
- * Format (doc/data-model.md):
+ * Formats (doc/data-model.md):
  *     {"rings": [{"theta": 0, "count": 1, "phi_offset": 0},
  *                {"theta": 15, "count": 6, "phi_offset": 0}, ...]}
  * theta in degrees (0..90, strictly ascending), count an integer 1..2048,
  * phi_offset in degrees (any finite value, wrapped to 0..360). Every ring must
- * give exactly these three keys; other top-level keys (e.g. "name") are ignored.
+ * give exactly these three keys.
+ *     {"directions": [{"theta": 12.5, "phi": 40.0}, ...]}
+ * degrees, index order as listed, 3..1024 entries of exactly these two keys.
+ * A file has one of "rings" and "directions"; other top-level keys (e.g. "name")
+ * are ignored.
  */
 #include "btf.h"
 #include "btf_fs.h"
@@ -24,34 +29,36 @@
  * is used in messages. Not yet declared in btf.h (see the helper's report). */
 btf_result btf_dirset_parse_json(const char *text, size_t len, const char *name, btf_dirset *out, btf_error *err);
 
-static btf_result btf__ring_number(const cJSON *ring, const char *key, const char *name, int r, double *v,
-                                   btf_error *err)
+/* Number `key` of entry r of a "rings" or "directions" array (what: "ring", "direction"). */
+static btf_result btf__ring_number(const cJSON *ring, const char *key, const char *what, const char *name, int r,
+                                   double *v, btf_error *err)
 {
     const cJSON *it = cJSON_GetObjectItemCaseSensitive(ring, key);
     if (!it)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: ring %d: missing key \"%s\"", name, r, key);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %s %d: missing key \"%s\"", name, what, r, key);
     if (!cJSON_IsNumber(it))
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: ring %d: \"%s\" must be a number", name, r, key);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %s %d: \"%s\" must be a number", name, what, r, key);
     if (!isfinite(it->valuedouble))
-        return btf_fail(err, BTF_ERR_RANGE, "%s: ring %d: \"%s\" is not finite", name, r, key);
+        return btf_fail(err, BTF_ERR_RANGE, "%s: %s %d: \"%s\" is not finite", name, what, r, key);
     *v = it->valuedouble;
     return BTF_OK;
 }
 
-/* Rejects unknown and duplicated keys in one ring object (catches typos). */
-static btf_result btf__ring_keys(const cJSON *ring, const char *name, int r, btf_error *err)
+/* Rejects unknown and duplicated keys in one ring or direction object (catches
+ * typos); keys[0..nk-1] are the allowed ones, what says "ring" or "direction". */
+static btf_result btf__entry_keys(const cJSON *ring, const char *const *keys, int nk, const char *what,
+                                  const char *name, int r, btf_error *err)
 {
-    static const char *const keys[3] = {"theta", "count", "phi_offset"};
     int seen[3] = {0, 0, 0};
     for (const cJSON *c = ring->child; c; c = c->next) {
         int k = 0;
-        while (k < 3 && (!c->string || strcmp(c->string, keys[k]) != 0))
+        while (k < nk && (!c->string || strcmp(c->string, keys[k]) != 0))
             k++;
-        if (k == 3)
-            return btf_fail(err, BTF_ERR_FORMAT, "%s: ring %d: unknown key \"%s\" (expected theta, count, phi_offset)",
-                            name, r, c->string ? c->string : "");
+        if (k == nk)
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: %s %d: unknown key \"%s\" (expected %s, %s%s%s)", name, what, r,
+                            c->string ? c->string : "", keys[0], keys[1], nk > 2 ? ", " : "", nk > 2 ? keys[2] : "");
         if (seen[k]++)
-            return btf_fail(err, BTF_ERR_FORMAT, "%s: ring %d: duplicate key \"%s\"", name, r, keys[k]);
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: %s %d: duplicate key \"%s\"", name, what, r, keys[k]);
     }
     return BTF_OK;
 }
@@ -60,14 +67,15 @@ static btf_result btf__parse_ring(const cJSON *ring, const char *name, int r, bt
 {
     if (!cJSON_IsObject(ring))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: ring %d is not an object", name, r);
-    btf_result rc = btf__ring_keys(ring, name, r, err);
+    static const char *const keys[3] = {"theta", "count", "phi_offset"};
+    btf_result rc = btf__entry_keys(ring, keys, 3, "ring", name, r, err);
     double theta = 0, count = 0, off = 0;
     if (rc == BTF_OK)
-        rc = btf__ring_number(ring, "theta", name, r, &theta, err);
+        rc = btf__ring_number(ring, "theta", "ring", name, r, &theta, err);
     if (rc == BTF_OK)
-        rc = btf__ring_number(ring, "count", name, r, &count, err);
+        rc = btf__ring_number(ring, "count", "ring", name, r, &count, err);
     if (rc == BTF_OK)
-        rc = btf__ring_number(ring, "phi_offset", name, r, &off, err);
+        rc = btf__ring_number(ring, "phi_offset", "ring", name, r, &off, err);
     if (rc != BTF_OK)
         return rc;
     if (theta < 0.0 || theta > 90.0)
@@ -84,13 +92,54 @@ static btf_result btf__parse_ring(const cJSON *ring, const char *name, int r, bt
     return BTF_OK;
 }
 
+/* {"directions": [{"theta", "phi"}, ...]} into a list set. */
+static btf_result btf__parse_list(const cJSON *list, const char *name, btf_dirset *out, btf_error *err)
+{
+    if (!cJSON_IsArray(list))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: \"directions\" must be an array", name);
+    int n = cJSON_GetArraySize(list);
+    if (n < 3 || n > BTF_MAX_LIST_DIRS)
+        return btf_fail(err, BTF_ERR_RANGE, "%s: %d directions, expected 3..%d", name, n, BTF_MAX_LIST_DIRS);
+    float(*tab)[2] = malloc(sizeof(float[2]) * BTF_MAX_LIST_DIRS);
+    if (!tab)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", name);
+    static const char *const keys[2] = {"theta", "phi"};
+    btf_result rc = BTF_OK;
+    int i = 0;
+    for (const cJSON *it = list->child; it && i < n && rc == BTF_OK; it = it->next, i++) {
+        double t = 0, p = 0;
+        if (!cJSON_IsObject(it))
+            rc = btf_fail(err, BTF_ERR_FORMAT, "%s: direction %d is not an object", name, i);
+        if (rc == BTF_OK)
+            rc = btf__entry_keys(it, keys, 2, "direction", name, i, err);
+        if (rc == BTF_OK)
+            rc = btf__ring_number(it, "theta", "direction", name, i, &t, err);
+        if (rc == BTF_OK)
+            rc = btf__ring_number(it, "phi", "direction", name, i, &p, err);
+        if (rc == BTF_OK && (t < 0.0 || t > 90.0 || fabs(p) > 1e6))
+            rc = btf_fail(err, BTF_ERR_RANGE, "%s: direction %d: theta %g outside 0..90 or phi %g absurd", name, i, t, p);
+        tab[i][0] = (float)t, tab[i][1] = (float)p;
+    }
+    btf_error inner = {{0}};
+    if (rc == BTF_OK && (rc = btf_dirset_make_list((const float(*)[2])tab, n, out, &inner)) != BTF_OK)
+        btf_fail(err, rc, "%s: %s", name, inner.msg);
+    free(tab);
+    return rc;
+}
+
 static btf_result btf__parse_root(const cJSON *root, const char *name, btf_dirset *out, btf_error *err)
 {
     if (!cJSON_IsObject(root))
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: top level must be an object with key \"rings\"", name);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: top level must be an object with key \"rings\" or \"directions\"",
+                        name);
     const cJSON *rings = cJSON_GetObjectItemCaseSensitive(root, "rings");
+    const cJSON *list = cJSON_GetObjectItemCaseSensitive(root, "directions");
+    if (rings && list)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: give \"rings\" or \"directions\", not both", name);
+    if (list)
+        return btf__parse_list(list, name, out, err);
     if (!rings)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: missing key \"rings\"", name);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: missing key \"rings\" (or \"directions\")", name);
     if (!cJSON_IsArray(rings))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: \"rings\" must be an array", name);
     int n = cJSON_GetArraySize(rings);

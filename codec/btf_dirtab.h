@@ -9,12 +9,18 @@
  *     btf_interp in = btf_dirtab_interp_vec(t, v);   // same triangles as btf_dirset_interp
  *     btf_dirtab_free(t);
  *
- * Vertices 0..n_dirs-1 are the set's directions (canonical order); two virtual
- * vertices follow, the north pole (n_dirs) and the south pole (n_dirs + 1): a
- * virtual vertex's weight is dropped and the real weights renormalised, which is
+ * Ring sets: vertices 0..n_dirs-1 are the set's directions (canonical order); two
+ * virtual vertices follow, the north pole (n_dirs) and the south pole (n_dirs + 1):
+ * a virtual vertex's weight is dropped and the real weights renormalised, which is
  * exactly the azimuth blend the ring algorithm uses inside a ring without a pole
- * direction and beyond the outermost ring. Triangles are counter-clockwise seen
- * from outside; every triangle is the ring algorithm's (zipper bands, caps).
+ * direction and beyond the outermost ring. Every triangle is the ring algorithm's
+ * (zipper bands, caps).
+ * List sets: the triangles are the convex hull (qhull) of the directions and their
+ * mirror images (x, y, -z), those with at least one real direction; vertices
+ * 0..n_dirs-1 are the directions, then the mirror images the triangles use, whose
+ * weight goes to the direction they mirror. Continuous by construction, defined
+ * between the outermost directions and the horizon, and below it.
+ * Triangles are counter-clockwise seen from outside.
  */
 #ifndef BTF_DIRTAB_H
 #define BTF_DIRTAB_H
@@ -32,9 +38,10 @@ extern "C" {
  * allocation), freed by btf_dirtab_free; immutable in between. */
 typedef struct btf_dirtab {
     int n_dirs;      /* real directions */
-    int n_verts;     /* n_dirs + 2 (the virtual poles) */
+    int n_verts;     /* rings: n_dirs + 2 (the virtual poles); lists: n_dirs + mirror images */
     int n_tris;
-    float (*vert)[4];/* n_verts: unit x, y, z; w = 1 real, 0 virtual */
+    float (*vert)[4];/* n_verts: unit x, y, z; w = 1 weighted, 0 virtual */
+    int *dir;        /* n_verts: the direction a vertex's weight goes to, -1 virtual */
     int (*tri)[3];   /* n_tris: vertex indices, counter-clockwise from outside */
     int (*adj)[3];   /* n_tris: triangle across the edge opposite vertex i, -1 none */
     int *cell;       /* CELLS x CELLS: a triangle containing the cell's centre direction */
@@ -44,6 +51,16 @@ typedef struct btf_dirtab {
  * direction, a fan to the south pole beyond the outermost ring) and fills the table. */
 btf_result btf_dirtab_build(const btf_dirset *d, btf_dirtab **out, btf_error *err);
 void btf_dirtab_free(btf_dirtab *t);
+
+/* A list set's table from given triangles in list numbering (index i < n_dirs: direction
+ * i; n_dirs + i: the mirror image of direction i), e.g. read from a package manifest.
+ * Checks what a hostile file could break: indices, orientation, each directed edge
+ * once, convexity (no vertex outside a triangle's plane), every table cell covered. */
+btf_result btf_dirtab_build_list(const btf_dirset *d, const int (*tris)[3], int n_tris, btf_dirtab **out,
+                                 btf_error *err);
+/* A list set's triangles in list numbering into out[0..cap-1]; returns the count
+ * (which may exceed cap: then only cap are written), 0 for a ring set. */
+int btf_dirtab_list_tris(const btf_dirtab *t, int (*out)[3], int cap);
 
 /* Table cell of a direction (any length; z < 0 is taken as z = 0): the octahedral
  * map of the upper hemisphere, u = a + b, v = a - b with (a, b) = (x, y) / (|x| + |y| + z),

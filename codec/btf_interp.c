@@ -18,6 +18,7 @@
  * two ring neighbours are blended by the azimuth of P alone.
  */
 #include "btf.h"
+#include "btf_dirtab.h"
 
 #include <math.h>
 
@@ -163,9 +164,26 @@ static btf_interp btf__band(const btf_dirset *d, int lo, btf__v3 p, float phi)
     return r;
 }
 
+/* A list set: through a table made for this one query (btf.h says so). */
+static btf_interp btf__list_interp(const btf_dirset *d, float theta_deg, float phi_deg)
+{
+    btf_interp none = {{0, 0, 0}, {1.0f, 0.0f, 0.0f}};
+    btf_dirtab *t = NULL;
+    if (btf_dirtab_build(d, &t, NULL) != BTF_OK)
+        return none;
+    float th = theta_deg == theta_deg ? fminf(fmaxf(theta_deg, 0.0f), 90.0f) * BTF__DEG2RAD : 0.0f;
+    float ph = isfinite(phi_deg) ? phi_deg * BTF__DEG2RAD : 0.0f;
+    float v[3] = {sinf(th) * cosf(ph), sinf(th) * sinf(ph), cosf(th)};
+    btf_interp r = btf_dirtab_interp_vec(t, v);
+    btf_dirtab_free(t);
+    return r;
+}
+
 btf_interp btf_dirset_interp(const btf_dirset *d, float theta_deg, float phi_deg)
 {
     btf_interp none = {{0, 0, 0}, {1.0f, 0.0f, 0.0f}};
+    if (d && btf_dirset_is_list(d))
+        return btf__list_interp(d, theta_deg, phi_deg);
     if (!d || d->n_rings < 1 || d->n_rings > BTF_MAX_RINGS || d->n_dirs < 1)
         return none;
     /* 1. sanitise: NaN theta -> 0, clamp to [0, 90]; NaN/Inf phi -> 0, wrap to [0, 360) */

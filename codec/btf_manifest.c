@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 
 #include "btf_base64.h"
+#include "btf_dirtab.h"
 #include "btf_fs.h"
 
 /* ---------------------------------------------------------------- parser */
@@ -47,10 +48,9 @@ static int btf__get_int(const cJSON *o, const char *key, int lo, int hi, int *ou
 }
 
 
-static btf_result btf__parse_rings(const cJSON *o, const char *what, const char *path, btf_dirset *d,
+static btf_result btf__parse_rings(const cJSON *a, const char *what, const char *path, btf_dirset *d,
                                    btf_error *err)
 {
-    const cJSON *a = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(o, what), "rings");
     int n = cJSON_GetArraySize(a);
     if (!cJSON_IsArray(a) || n < 1 || n > BTF_MAX_RINGS)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: \"%s\" has no valid ring list", path, what);
@@ -67,6 +67,75 @@ static btf_result btf__parse_rings(const cJSON *o, const char *what, const char 
     if (r != BTF_OK)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: %s rings invalid", path, what);
     return BTF_OK;
+}
+
+
+/* "triangles": flat list-numbered vertex triples -> the set's table (btf_dirtab_build_list). */
+static btf_result btf__parse_tris(const cJSON *a, const btf_dirset *d, const char *what, const char *path,
+                                  btf_dirtab **tab, btf_error *err)
+{
+    int n = cJSON_GetArraySize(a), nt = n / 3;
+    if (!cJSON_IsArray(a) || n % 3 != 0 || nt < 1 || nt > 4 * (2 * d->n_dirs + 2))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %s \"triangles\" must hold 1..%d vertex triples", path, what,
+                        4 * (2 * d->n_dirs + 2));
+    int(*tris)[3] = malloc(sizeof(int[3]) * (size_t)nt);
+    if (!tris)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    int i = 0;
+    for (const cJSON *e = a->child; e && i < n; e = e->next, i++) {
+        if (!cJSON_IsNumber(e) || e->valuedouble != floor(e->valuedouble) || e->valuedouble < 0 ||
+            e->valuedouble >= 2.0 * d->n_dirs)
+            break;
+        tris[i / 3][i % 3] = (int)e->valuedouble;
+    }
+    btf_error inner = {{0}};
+    btf_result r = i < n ? btf_fail(err, BTF_ERR_FORMAT, "%s: %s triangle vertex %d is not in 0..%d", path, what, i,
+                                    2 * d->n_dirs - 1)
+                         : btf_dirtab_build_list(d, (const int(*)[3])tris, nt, tab, &inner);
+    if (i == n && r != BTF_OK)
+        btf_fail(err, r, "%s: %s: %s", path, what, inner.msg);
+    free(tris);
+    return r;
+}
+
+/* "directions": [{"theta", "phi"}, ...] (index order) -> a list set. */
+static btf_result btf__parse_list(const cJSON *a, const char *what, const char *path, btf_dirset *d, btf_error *err)
+{
+    int n = cJSON_GetArraySize(a);
+    if (!cJSON_IsArray(a) || n < 3 || n > BTF_MAX_LIST_DIRS)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: \"%s\" must list 3..%d directions", path, what, BTF_MAX_LIST_DIRS);
+    float(*dirs)[2] = malloc(sizeof(float[2]) * (size_t)n);
+    if (!dirs)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    int i = 0;
+    for (const cJSON *e = a->child; e && i < n; e = e->next, i++) {
+        const cJSON *t = cJSON_GetObjectItemCaseSensitive(e, "theta"), *p = cJSON_GetObjectItemCaseSensitive(e, "phi");
+        if (!cJSON_IsNumber(t) || !cJSON_IsNumber(p))
+            break;
+        dirs[i][0] = (float)t->valuedouble, dirs[i][1] = (float)p->valuedouble;
+    }
+    btf_error inner = {{0}};
+    btf_result r = i < n ? btf_fail(err, BTF_ERR_FORMAT, "%s: %s direction %d is malformed", path, what, i)
+                         : btf_dirset_make_list((const float(*)[2])dirs, n, d, &inner);
+    if (i == n && r != BTF_OK)
+        btf_fail(err, BTF_ERR_FORMAT, "%s: %s: %s", path, what, inner.msg);
+    free(dirs);
+    return r;
+}
+
+/* "lights" / "views": a ring table, or a direction list with its triangles. */
+static btf_result btf__parse_dirs(const cJSON *m, const char *what, const char *path, btf_dirset *d,
+                                  btf_dirtab **tab, btf_error *err)
+{
+    const cJSON *o = cJSON_GetObjectItemCaseSensitive(m, what);
+    const cJSON *list = cJSON_GetObjectItemCaseSensitive(o, "directions");
+    if (!list)
+        return btf__parse_rings(cJSON_GetObjectItemCaseSensitive(o, "rings"), what, path, d, err);
+    btf_result r = btf__parse_list(list, what, path, d, err);
+    const cJSON *tris = cJSON_GetObjectItemCaseSensitive(o, "triangles");
+    if (r == BTF_OK && tris)
+        r = btf__parse_tris(tris, d, what, path, tab, err);
+    return r;
 }
 
 
@@ -247,9 +316,9 @@ static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *
     snprintf(p->name, sizeof p->name, "%s", cJSON_IsString(name) ? name->valuestring : "");
     if (!btf__get_int(m, "width", 1, BTF_MAX_SIDE, &p->width) || !btf__get_int(m, "height", 1, BTF_MAX_SIDE, &p->height))
         return btf_fail(err, BTF_ERR_RANGE, "%s: \"width\"/\"height\" missing or outside 1..%d", path, BTF_MAX_SIDE);
-    btf_result r = btf__parse_rings(m, "lights", path, &p->lights, err);
+    btf_result r = btf__parse_dirs(m, "lights", path, &p->lights, &p->dirtab[0], err);
     if (r == BTF_OK)
-        r = btf__parse_rings(m, "views", path, &p->views, err);
+        r = btf__parse_dirs(m, "views", path, &p->views, &p->dirtab[1], err);
     if (r != BTF_OK)
         return r;
     if (!btf__get_int(m, "components", 1, BTF_PACKAGE_MAX_CHUNKS, &p->n_comp) ||
@@ -325,13 +394,41 @@ void btf_manifest_clear(btf_package *p)
     }
     free(p->chunk), free(p->tex), free(p->wt), free(p->budget), free(p->rd);
     btf_blocks_free(p->blocks);
+    btf_dirtab_free(p->dirtab[0]);
+    btf_dirtab_free(p->dirtab[1]);
     p->chunk = NULL, p->tex = NULL, p->wt = NULL, p->blocks = NULL, p->budget = NULL, p->rd = NULL, p->n_chunks = 0;
+    p->dirtab[0] = p->dirtab[1] = NULL;
 }
 
 /* ---------------------------------------------------------------- serializer */
 
-static cJSON *btf__rings_json(const btf_dirset *d)
+/* A list set as "directions" and the "triangles" of tab (or of a table made here). */
+static cJSON *btf__list_json(const btf_dirset *d, const btf_dirtab *tab)
 {
+    cJSON *o = cJSON_CreateObject(), *a = cJSON_AddArrayToObject(o, "directions");
+    for (int i = 0; i < d->n_dirs; i++) {
+        cJSON *e = cJSON_CreateObject();
+        cJSON_AddNumberToObject(e, "theta", d->list[i][0]);
+        cJSON_AddNumberToObject(e, "phi", d->list[i][1]);
+        cJSON_AddItemToArray(a, e);
+    }
+    btf_dirtab *own = NULL;
+    if (!tab && btf_dirtab_build(d, &own, NULL) == BTF_OK)
+        tab = own;
+    int nt = tab ? tab->n_tris : 0, (*tris)[3] = nt ? malloc(sizeof(int[3]) * (size_t)nt) : NULL;
+    if (tris) {
+        btf_dirtab_list_tris(tab, tris, nt);
+        cJSON_AddItemToObject(o, "triangles", cJSON_CreateIntArray(&tris[0][0], 3 * nt));
+    }
+    free(tris);
+    btf_dirtab_free(own);
+    return o;
+}
+
+static cJSON *btf__rings_json(const btf_dirset *d, const btf_dirtab *tab)
+{
+    if (btf_dirset_is_list(d))
+        return btf__list_json(d, tab);
     cJSON *o = cJSON_CreateObject(), *a = cJSON_AddArrayToObject(o, "rings");
     for (int r = 0; r < d->n_rings; r++) {
         cJSON *e = cJSON_CreateObject();
@@ -377,8 +474,8 @@ static void btf__print_header(const btf_package *p, cJSON *m)
     cJSON_AddStringToObject(m, "name", p->name);
     cJSON_AddNumberToObject(m, "width", p->width);
     cJSON_AddNumberToObject(m, "height", p->height);
-    cJSON_AddItemToObject(m, "lights", btf__rings_json(&p->lights));
-    cJSON_AddItemToObject(m, "views", btf__rings_json(&p->views));
+    cJSON_AddItemToObject(m, "lights", btf__rings_json(&p->lights, p->dirtab[0]));
+    cJSON_AddItemToObject(m, "views", btf__rings_json(&p->views, p->dirtab[1]));
     cJSON_AddNumberToObject(m, "k", p->k);
     cJSON_AddNumberToObject(m, "components", p->n_comp);
     cJSON_AddStringToObject(m, "center", btf_center_name(p->center));

@@ -96,7 +96,7 @@ typedef struct btf_package {
     int n_levels;           /* spatial levels (1 in version 1); level l has (W >> l) x (H >> l) texels */
     double lod_threshold;   /* version 2: visibility threshold the chunk order was made for ("lod"); 0 if absent */
     char *budget;           /* "budget": what btf_budget_compress chose and measured, as JSON text (malloc'd); NULL if none */
-    struct btf_dirtab *dirtab[2]; /* lights, views as direction tables (btf_dirtab.h), made by btf_package_read; NULL: btf_decode walks the rings */
+    struct btf_dirtab *dirtab[2]; /* lights, views as direction tables (btf_dirtab.h), made by btf_package_read (a list set's from the manifest's triangles), freed by btf_manifest_clear; NULL: btf_decode walks the rings */
     char *rd;               /* version 3 "rd": the steps btf_rd_allocate chose, as JSON text (malloc'd); NULL if none */
 } btf_package;
 

@@ -207,9 +207,7 @@ void btf_package_free(btf_package *p)
         free(p->tex[i]);
         free(p->wt[i]);
     }
-    btf_dirtab_free(p->dirtab[0]);
-    btf_dirtab_free(p->dirtab[1]);
-    btf_manifest_clear(p);
+    btf_manifest_clear(p); /* and the direction tables */
     free(p);
 }
 
@@ -235,9 +233,9 @@ btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error
     }
     for (int i = 0; r == BTF_OK && i < want; i++)
         r = btf__load_chunk(p, dir, i, err);
-    if (r == BTF_OK) /* the decoder's direction tables, as the GPU gets them */
+    if (r == BTF_OK && !p->dirtab[0]) /* the decoder's direction tables, as the GPU gets them */
         r = btf_dirtab_build(&p->lights, &p->dirtab[0], err);
-    if (r == BTF_OK)
+    if (r == BTF_OK && !p->dirtab[1])
         r = btf_dirtab_build(&p->views, &p->dirtab[1], err);
     if (r != BTF_OK) {
         btf_package_free(p);

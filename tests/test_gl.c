@@ -684,6 +684,48 @@ Test(gl, interp_arbitrary_ring_table)
     btf_gl_free(gl);
 }
 
+/* A direction list (no rings): 90 directions on a jittered golden-angle spiral down
+ * to 82 degrees, so triangles reach below the horizon to mirror images. */
+static btf_dirset spiral_list(void)
+{
+    static float dirs[90][2];
+    rng_state = 90909u;
+    for (int i = 0; i < 90; i++) {
+        float z = 1.0f - ((float)i + 0.5f) / 90.0f * (1.0f - cosf(82.0f * 0.017453293f));
+        dirs[i][0] = fmaxf(acosf(z) * 57.29578f + (frand() - 0.5f) * 0.8f, 0.0f);
+        dirs[i][1] = fmodf((float)i * 137.50776f + (frand() - 0.5f) * 3.0f, 360.0f);
+    }
+    btf_dirset d;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_dirset_make_list((const float(*)[2])dirs, 90, &d, &err), BTF_OK, "%s", err.msg);
+    return d;
+}
+
+/* The list set's qhull triangles and mirror images through the same shader, both
+ * backends, angle and vector queries: 1e-4 as for the ring sets (same float32 ops). */
+Test(gl, interp_direction_list_both_backends)
+{
+    btf_dirset d = spiral_list();
+    for (int b = 0; b < 2; b++) {
+        btf_gl *gl = open_gl(b ? BTF_GL_OSMESA : BTF_GL_EGL);
+        btf_shader_program *p = build(gl, "dirs_probe");
+        for (int vector = 0; vector < 2; vector++) {
+            static probe_set s;
+            s.n = 0;
+            rng_state = 515u + (unsigned)vector;
+            if (vector)
+                vector_queries(&s);
+            else
+                angle_queries(&d, &s);
+            double worst = run_probe(gl, p, &d, &s, vector, 1e-4, vector ? "list vectors" : "list angles");
+            cr_log_info("%s list %s: max weight difference %.2e", btf_gl_backend_name(b ? BTF_GL_OSMESA : BTF_GL_EGL),
+                        vector ? "vectors" : "angles", worst);
+        }
+        btf_shader_program_free(gl, p);
+        btf_gl_free(gl);
+    }
+}
+
 /* ---------------------------------------------------------------- PCA decode shader */
 
 #include <dirent.h>
@@ -929,6 +971,8 @@ Test(gl, decode_specialised_matches_cpu)
 Test(gl, decode_matches_cpu_ubo2003_egl) { check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, btf_dirset_ubo2003(), DEC_C); }
 
 Test(gl, decode_matches_cpu_egl_float) { check_decode(BTF_GL_EGL, 8, BTF_GL_RGBA32F); }
+/* A list package: the manifest's triangles, the views' blocks through mirror images. */
+Test(gl, decode_matches_cpu_direction_list_egl) { check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, spiral_list(), DEC_C); }
 Test(gl, decode_matches_cpu_osmesa_float) { check_decode(BTF_GL_OSMESA, 8, BTF_GL_RGBA32F); }
 Test(gl, decode_matches_cpu_16bit_both_backends)
 {

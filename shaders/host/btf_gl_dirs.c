@@ -20,13 +20,13 @@ static void btf__tri_texel(const btf_dirtab *t, int i, int vbase, int tbase, uin
     out[3] = n[2];
 }
 
-/* One set's vertices into the block: xyz, w = index + 1 (0 virtual) + 4096 * block. */
+/* One set's vertices into the block: xyz, w = direction + 1 (0 virtual) + 4096 * block. */
 static void btf__verts(const btf_dirtab *t, const int *block, float *dst)
 {
     for (int v = 0; v < t->n_verts; v++) {
         memcpy(dst + 4 * v, t->vert[v], 3 * sizeof(float));
-        int real = t->vert[v][3] > 0.0f;
-        dst[4 * v + 3] = real ? (float)(v + 1 + 4096 * (block ? block[v] : 0)) : 0.0f;
+        int d = t->vert[v][3] > 0.0f ? t->dir[v] : -1;
+        dst[4 * v + 3] = d >= 0 ? (float)(d + 1 + 4096 * (block ? block[d] : 0)) : 0.0f;
     }
 }
 

@@ -216,14 +216,15 @@ static btf_result btf__upload_weights(btf_gl *gl, btf_gl_package *g, const btf_p
 static btf_result btf__upload_dirs(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
 {
     btf_dirtab *tl = NULL, *tv = NULL;
-    btf_result r = btf_dirtab_build(&p->lights, &tl, err);
-    if (r == BTF_OK)
+    btf_result r = p->dirtab[0] ? BTF_OK : btf_dirtab_build(&p->lights, &tl, err);
+    if (r == BTF_OK && !p->dirtab[1])
         r = btf_dirtab_build(&p->views, &tv, err);
     if (r == BTF_OK)
-        r = btf_gl_dirs_upload(gl, tl, tv, p->blocks->block_of_view, &g->dirs, err);
+        r = btf_gl_dirs_upload(gl, tl ? tl : p->dirtab[0], tv ? tv : p->dirtab[1], p->blocks->block_of_view,
+                               &g->dirs, err);
     btf_dirtab_free(tl);
     btf_dirtab_free(tv);
-    g->outer_cos = cosf(p->lights.rings[p->lights.n_rings - 1].theta_deg * 0.017453292519943295f);
+    g->outer_cos = cosf(btf_dirset_max_theta(&p->lights) * 0.017453292519943295f);
     return r;
 }
 

@@ -6,13 +6,18 @@ import fs from 'node:fs';
 import path from 'node:path';
 import {after, before, describe, it} from 'node:test';
 import {ROOT, assertClean, capture, hasRender, launch, makeLibrary, meanAbsDiff, newPage, requireBuild, sideBySide,
+  writeSpiralList,
   startServer, viewers, waitFor, writePng} from './util.mjs';
 
 // 32x32 texels, 81 x 81 directions: knit with 6 chunks (progressive capture after
 // 1, 2, 4, all), tiles and stone with 3 (three different materials on the embed page);
 // tiles-lod: version 2 with 3 spatial levels (scene budgets; sorts last, so the embed
 // page's first three materials stay version 1).
-const MATERIALS = {knit: ['knit', 6], tiles: ['tiles', 3], stone: ['stone', 3], 'tiles-lod': ['tiles', 6, 3]};
+// tiles-list: an explicit direction list (a spiral, not rings; doc/data-model.md); sorts
+// between tiles and tiles-lod.
+const LIST = writeSpiralList(48, 11);
+const MATERIALS = {knit: ['knit', 6], 'tiles-list': ['tiles', 4, 0, [], ['--sampling', LIST]], tiles: ['tiles', 3],
+  stone: ['stone', 3], 'tiles-lod': ['tiles', 6, 3]};
 let lib, server, desktop;
 
 before(async () => {

@@ -9,7 +9,7 @@ import os from 'node:os';
 import path from 'node:path';
 import {describe, it} from 'node:test';
 import zlib from 'node:zlib';
-import {ROOT} from './util.mjs';
+import {BTF, ROOT, writeSpiralList} from './util.mjs';
 
 const pkgMod = await import('../../client/btf-package.js');
 globalThis.WebSocket ??= class {}; // btf-stream.js only needs it when connecting
@@ -356,4 +356,70 @@ describe('btf-dirtab.js', () => {
       assert.ok(worst < 3.5e-4, `largest step ${worst}`);
     });
   }
+});
+
+// A list set as the C writer puts it in a manifest (btf gen + compress with a direction
+// list): the JS table takes the manifest's triangles, is exact at the directions,
+// continuous through the horizon, and refuses triangles a hostile file could break.
+describe('btf-dirtab.js direction lists', () => {
+  const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-list-'));
+  const list = writeSpiralList(40, 29);
+  const run = (args) => {
+    const r = child.spawnSync(BTF, args, {encoding: 'utf8'});
+    assert.equal(r.status, 0, `btf ${args.join(' ')}: ${r.stderr}`);
+  };
+  run(['gen', 'stone', path.join(dir, 'img'), '--size', '4', '--sampling', list, '--seed', '313']);
+  run(['compress', path.join(dir, 'img'), path.join(dir, 'pkg'), '--sampling', list, '--k', '1', '--components', '2',
+    '--quiet']);
+  const man = JSON.parse(fs.readFileSync(path.join(dir, 'pkg', 'manifest.json'), 'utf8'));
+  fs.rmSync(dir, {recursive: true, force: true});
+  const f = (v) => 0.5 + 0.3 * v[0] - 0.2 * v[1] + 0.4 * v[2] * v[2];
+  it('exact at the listed directions; weights sum to 1; no seam along theta and phi lines', () => {
+    const d = pkgMod.parseManifest(man).lights;
+    assert.equal(d.dirs, 40);
+    const t = tabMod.buildDirtab(d);
+    for (let i = 0; i < t.nDirs; i++) {
+      const r = tabMod.dirtabInterp(t, t.verts[i].slice(0, 3));
+      const own = r.idx.reduce((s, x, k) => s + (x === i ? r.w[k] : 0), 0);
+      assert.ok(own > 1 - 1e-5, `direction ${i}: own weight ${own}`);
+    }
+    // f at the weights' directions; a jump beyond 1e-3 per 0.004 degree step is a seam
+    const at = (th, ph) => {
+      const a = th * Math.PI / 180, b = ph * Math.PI / 180;
+      const r = tabMod.dirtabInterp(t, [Math.sin(a) * Math.cos(b), Math.sin(a) * Math.sin(b), Math.cos(a)]);
+      assert.ok(Math.abs(r.w[0] + r.w[1] + r.w[2] - 1) < 1e-6);
+      return r.idx.reduce((s, x, k) => s + r.w[k] * f(t.verts[x]), 0);
+    };
+    let worst = 0;
+    for (const ph of [3.3, 97, 211.5]) {
+      let prev = at(0.05, ph);
+      for (let th = 0.054; th <= 92; th += 0.004) {
+        const v = at(th, ph);
+        worst = Math.max(worst, Math.abs(v - prev));
+        prev = v;
+      }
+    }
+    for (const th of [40, 84, 89.99]) {
+      let prev = at(th, -2);
+      for (let ph = -1.996; ph <= 362; ph += 0.004) {
+        const v = at(th, ph);
+        worst = Math.max(worst, Math.abs(v - prev));
+        prev = v;
+      }
+    }
+    assert.ok(worst < 1e-3, `largest step ${worst}`);
+  });
+  it('refuses broken triangles with a message', () => {
+    const cases = [
+      [(t) => t.splice(0, 3), /not covered|cover/],                       // a hole
+      [(t) => { [t[1], t[2]] = [t[2], t[1]]; }, /clockwise|hull|edge/],   // flipped
+      [(t) => t.push(...t.slice(0, 3)), /edge/],                          // twice
+      [(t) => { t[0] = 80; }, /not in 0..79/],                             // out of range
+    ];
+    for (const [edit, re] of cases) {
+      const m = structuredClone(man);
+      edit(m.lights.triangles);
+      assert.throws(() => tabMod.buildDirtab(pkgMod.parseManifest(m).lights), re);
+    }
+  });
 });

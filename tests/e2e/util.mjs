@@ -41,19 +41,31 @@ export function hasRender() {
 
 // Library of small packages in a temp dir: name -> [generator kind, components,
 // optional spatial levels (a version-2 package, doc/package-format.md section 10),
-// optional further `btf compress` arguments].
+// optional further `btf compress` arguments, optional further `btf gen` arguments].
 export function makeLibrary(materials) {
   const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-e2e-'));
   const lib = path.join(dir, 'lib');
   fs.mkdirSync(lib);
-  for (const [name, [kind, comps, levels, extra = []]] of Object.entries(materials)) {
+  for (const [name, [kind, comps, levels, extra = [], genExtra = []]] of Object.entries(materials)) {
     const src = path.join(dir, `${name}.btf`);
-    run(BTF, ['gen', kind, src, '--size', '32', '--format', 'btf', '--components', '16']);
+    run(BTF, ['gen', kind, src, '--size', '32', '--format', 'btf', '--components', '16', ...genExtra]);
     run(BTF, ['compress', src, path.join(lib, name), '--k', '3', '--components', String(comps), '--quiet',
       ...(levels ? ['--levels', String(levels)] : []), ...extra]);
     fs.rmSync(src);
   }
   return {dir, lib, remove: () => fs.rmSync(dir, {recursive: true, force: true})};
+}
+
+// A direction list (doc/data-model.md): n directions on a golden-angle spiral down to
+// 80 degrees, rotated by rot degrees, written as JSON to a temp file; returns its path.
+export function writeSpiralList(n, rot) {
+  const dirs = Array.from({length: n}, (_, i) => {
+    const z = 1 - (i + 0.5) / n * (1 - Math.cos(80 * Math.PI / 180));
+    return {theta: Math.acos(z) * 180 / Math.PI, phi: (i * 137.50776 + rot) % 360};
+  });
+  const file = path.join(fs.mkdtempSync(path.join(os.tmpdir(), 'btf-list-')), 'spiral.json');
+  fs.writeFileSync(file, JSON.stringify({directions: dirs}));
+  return file;
 }
 
 // Starts btfd on a free loopback port (extra: more options); resolves {port, url, ws, stop()}.
