@@ -1,5 +1,6 @@
 /* fuzz_dirset.c - libFuzzer target for the direction-set JSON reader
- * (btf_dirset_parse_json, codec/btf_dirset_json.c). An accepted set must be
+ * (btf_dirset_parse_json, codec/btf_dirset_json.c): ring tables and direction
+ * lists. An accepted set must be
  * within the limits and interpolate: finite weights that sum to 1, indices in range. */
 #include <math.h>
 
@@ -16,7 +17,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FUZZ_CHECK(err.msg[0] != 0 && !strchr(err.msg, '\n'));
         return 0;
     }
-    FUZZ_CHECK(d.n_rings >= 1 && d.n_rings <= BTF_MAX_RINGS && d.n_dirs >= 1 && d.n_dirs <= BTF_MAX_DIRS);
+    if (btf_dirset_is_list(&d))
+        FUZZ_CHECK(d.n_dirs >= 3 && d.n_dirs <= BTF_MAX_LIST_DIRS);
+    else
+        FUZZ_CHECK(d.n_rings >= 1 && d.n_rings <= BTF_MAX_RINGS && d.n_dirs >= 1 && d.n_dirs <= BTF_MAX_DIRS);
     static const float probes[][3] = {{0, 0, 1}, {1, 0, 0.2f}, {-0.3f, 0.8f, 0.5f}, {0, 0, -1}, {0.2f, -0.9f, 0.01f}};
     for (size_t i = 0; i < sizeof probes / sizeof probes[0]; i++) {
         btf_interp it = btf_dirset_interp_vec(&d, probes[i]);

@@ -219,3 +219,34 @@ Test(library, levels_write_version_2_and_are_part_of_the_settings)
     cr_assert_eq(build(one), 0);
     cr_expect_eq(version_of("gen-knit-16"), 1, "dropping --levels did not rebuild");
 }
+
+/* --sampling reaches the jobs: an image directory over a direction list (names fit no
+ * built-in set) builds, its manifest lists the directions, and a sampling change rebuilds. */
+Test(library, sampling_reaches_directory_sources)
+{
+    char set[400], img[400], spec[420];
+    snprintf(set, sizeof set, "%s/list.json", g_dir);
+    snprintf(img, sizeof img, "%s/img", g_dir);
+    FILE *f = fopen(set, "w");
+    cr_assert_not_null(f);
+    fputs("{\"directions\": [{\"theta\": 0, \"phi\": 0}, {\"theta\": 33, \"phi\": 10}, {\"theta\": 35, \"phi\": 130},"
+          " {\"theta\": 37, \"phi\": 250}, {\"theta\": 70, \"phi\": 70}, {\"theta\": 72, \"phi\": 190},"
+          " {\"theta\": 74, \"phi\": 310}]}",
+          f);
+    fclose(f);
+    char *gen[] = {"gen", "knit", img, "--size", "4", "--sampling", set, NULL};
+    cr_assert_eq(run_forked(cmd_gen, 7, gen), 0);
+    snprintf(spec, sizeof spec, "goni=%s", img);
+    const char *none[] = {spec, "--components", "2", NULL};
+    cr_expect_neq(build(none), 0, "names of no built-in set accepted without --sampling");
+    const char *with[] = {spec, "--components", "2", "--sampling", set, NULL};
+    cr_assert_eq(build(with), 0);
+    cJSON *j = manifest_of("goni");
+    cJSON *dirs = cJSON_GetObjectItem(cJSON_GetObjectItem(j, "lights"), "directions");
+    cr_expect_eq(cJSON_GetArraySize(dirs), 7);
+    cr_expect(cJSON_IsArray(cJSON_GetObjectItem(cJSON_GetObjectItem(j, "views"), "triangles")));
+    cJSON_Delete(j);
+    long long a = identity("goni");
+    cr_assert_eq(build(with), 0);
+    cr_expect_eq(identity("goni"), a, "an up-to-date package was rebuilt");
+}

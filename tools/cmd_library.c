@@ -50,6 +50,7 @@ typedef struct library_opts {
     int n_src;
     btf_pca_options pca;
     btf_package_options pkg;
+    const char *sampling; /* --sampling S for image-directory sources; NULL: inferred */
     int downsample, levels, jobs, force, quiet;
 } library_opts;
 
@@ -65,7 +66,8 @@ static void library_usage(FILE *f)
 {
     fprintf(f,
             "usage: btf library build SRC... --out LIB [-j N] [--k K] [--components C] [--bits 8|16]\n"
-            "                         [--method M] [--downsample F] [--levels N] [--force] [--quiet]\n"
+            "                         [--method M] [--downsample F] [--levels N] [--sampling S]\n"
+            "                         [--force] [--quiet]\n"
             "\n"
             "Builds one package per SRC into the library directory LIB (what btfd serves), one job\n"
             "per material, at most N at once (default 1). SRC is anything `btf compress` reads\n"
@@ -78,14 +80,15 @@ static void library_usage(FILE *f)
             "per material.\n"
             "  --out LIB        library directory (created if missing)\n"
             "  -j, --jobs N     jobs at once, 1..256 (default 1)\n"
-            "  --k, --components, --bits, --method, --downsample, --levels   as for `btf compress`\n"
+            "  --k, --components, --bits, --method, --downsample, --levels, --sampling\n"
+            "                   as for `btf compress` (the sampling of every directory SRC)\n"
             "  --force          rebuild even when up to date\n"
             "  --quiet          print only failures\n");
     btf_args_exit_codes(f);
 }
 
 static const btf_args_spec library_spec = {
-    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l force!f quiet!q",
+    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l sampling:S force!f quiet!q",
     library_usage, -1};
 
 /* One option or positional of `btf library build` (btf_args_fn). */
@@ -99,6 +102,7 @@ static int library_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'j': return btf_args_int(a, v, 1, LIB_JOBS_MAX, &o->jobs);
     case 'b': return btf_arg_int(v, 8, 16, &o->pkg.bits) && o->pkg.bits % 8 == 0 ? 0 : btf_args_bad(a, v, "8 or 16");
     case 'l': return btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels);
+    case 'S': o->sampling = v; return 0;
     case 'f': o->force = 1; return 0;
     case 'q': o->quiet = 1; return 0;
     default: return btf_args_pca(a, c, v, &pca);
@@ -172,10 +176,10 @@ static int stamp_text(const library_opts *o, const library_job *j, char *buf, si
     source_identity(j->spec, id, sizeof id);
     snprintf(buf, n,
              "{\"source\": \"%s\", \"source_mtime_size\": \"%s\", \"btf\": \"%s\",\n"
-             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d\",\n"
+             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d sampling=%s\",\n"
              " \"manifest_mtime_size\": \"%lld %lld\"}\n",
              j->spec, id, BTF_VERSION, o->pca.k, o->pca.components, o->pkg.bits, (int)o->pca.method, o->downsample,
-             o->levels,
+             o->levels, o->sampling ? o->sampling : "-",
              (long long)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec, (long long)st.st_size);
     return 0;
 }
@@ -208,13 +212,17 @@ static int build_one(const library_opts *o, const library_job *j)
     snprintf(out, sizeof out, "%s/%s", o->out, j->name);
     btf_package_options pkg = o->pkg;
     pkg.name = j->name;
-    btf_source_args sa = {o->downsample, NULL, 0};
+    btf_source_args sa = {o->downsample, o->sampling, 0};
     btf_views views;
     btf_result r = btf_source_open_views(j->spec, &sa, &views, &err); /* one block of views in memory */
     if (r == BTF_OK)
         r = btf_build_package_views(&views, &o->pca, &pkg, o->levels, out, NULL, &err);
     btf_views_close(&views);
-    if (r == BTF_ERR_UNSUPPORTED) { /* read only whole (a thesis package) */
+    btf_dirset set;
+    if (r == BTF_ERR_UNSUPPORTED && o->sampling) /* read only whole (a thesis package) */
+        r = btf_source_sampling(o->sampling, &set, &err) == BTF_OK ? BTF_ERR_UNSUPPORTED : BTF_ERR_FORMAT;
+    lo.sampling = o->sampling ? &set : NULL;
+    if (r == BTF_ERR_UNSUPPORTED) {
         r = btf_source_load(j->spec, &lo, &src, &err);
         if (r == BTF_OK)
             r = btf_build_package(src, &o->pca, &pkg, o->levels, out, NULL, &err);
