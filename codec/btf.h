@@ -130,8 +130,9 @@ typedef struct btf_interp {
 
 /* The 3 measured directions around (theta, phi) in degrees and their
  * barycentric weights; the CPU reference the shaders match. Never NaN.
- * A list set is triangulated on every call (qhull): build a btf_dirtab once
- * (btf_dirtab.h) where many queries follow. */
+ * A list set is triangulated (qhull) on its first query in a thread and the table
+ * kept for the next queries on the same list (one per thread); btf_dirtab.h gives
+ * the table itself. */
 btf_interp btf_dirset_interp(const btf_dirset *d, float theta_deg, float phi_deg);
 /* Same for a direction vector in the local frame (z = normal); need not be unit. */
 btf_interp btf_dirset_interp_vec(const btf_dirset *d, const float v[3]);

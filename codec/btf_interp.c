@@ -21,6 +21,7 @@
 #include "btf_dirtab.h"
 
 #include <math.h>
+#include <string.h>
 
 #define BTF__DEG2RAD 0.017453292519943295f
 /* Two "next" vertices whose phi differ by less than this (degrees) count as
@@ -164,19 +165,31 @@ static btf_interp btf__band(const btf_dirset *d, int lo, btf__v3 p, float phi)
     return r;
 }
 
-/* A list set: through a table made for this one query (btf.h says so). */
+/* The last list set this thread interpolated and its table (made on first use,
+ * replaced when another list comes; reachable until the thread ends). */
+static _Thread_local struct {
+    int n;
+    float list[BTF_MAX_LIST_DIRS][2];
+    btf_dirtab *tab;
+} btf__last_list;
+
+/* A list set: through its table, kept for the next query on the same list. */
 static btf_interp btf__list_interp(const btf_dirset *d, float theta_deg, float phi_deg)
 {
     btf_interp none = {{0, 0, 0}, {1.0f, 0.0f, 0.0f}};
-    btf_dirtab *t = NULL;
-    if (btf_dirtab_build(d, &t, NULL) != BTF_OK)
-        return none;
+    size_t bytes = sizeof(float[2]) * (size_t)d->n_dirs;
+    if (!btf__last_list.tab || btf__last_list.n != d->n_dirs || memcmp(btf__last_list.list, d->list, bytes) != 0) {
+        btf_dirtab_free(btf__last_list.tab);
+        btf__last_list.tab = NULL;
+        if (btf_dirtab_build(d, &btf__last_list.tab, NULL) != BTF_OK)
+            return none;
+        btf__last_list.n = d->n_dirs;
+        memcpy(btf__last_list.list, d->list, bytes);
+    }
     float th = theta_deg == theta_deg ? fminf(fmaxf(theta_deg, 0.0f), 90.0f) * BTF__DEG2RAD : 0.0f;
     float ph = isfinite(phi_deg) ? phi_deg * BTF__DEG2RAD : 0.0f;
     float v[3] = {sinf(th) * cosf(ph), sinf(th) * sinf(ph), cosf(th)};
-    btf_interp r = btf_dirtab_interp_vec(t, v);
-    btf_dirtab_free(t);
-    return r;
+    return btf_dirtab_interp_vec(btf__last_list.tab, v);
 }
 
 btf_interp btf_dirset_interp(const btf_dirset *d, float theta_deg, float phi_deg)

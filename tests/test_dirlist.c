@@ -576,3 +576,29 @@ Test(dirlist, import_thesis_takes_a_list_order)
     cr_expect_eq(cmd_import_thesis(7, bad), 1, "151 directions accepted for an 81-direction package");
     test_rmtree(dir);
 }
+
+/* btf_dirset_interp(_vec) on list sets: the table's result, also when two lists
+ * take turns (the per-thread table is replaced, never mixed up). */
+Test(dirlist, dirset_interp_uses_the_right_table)
+{
+    btf_dirset a = random_list(50, 80.0, 2024u), b = random_list(70, 85.0, 2025u);
+    btf_dirtab *ta = NULL, *tb = NULL;
+    cr_assert_eq(btf_dirtab_build(&a, &ta, NULL), BTF_OK);
+    cr_assert_eq(btf_dirtab_build(&b, &tb, NULL), BTF_OK);
+    for (int q = 0; q < 400; q++) {
+        const btf_dirset *d = q % 3 ? &a : &b;
+        const btf_dirtab *t = q % 3 ? ta : tb;
+        float th = (float)(urand() * 89.0), ph = (float)(urand() * 360.0);
+        float v[3] = {sinf(th * (float)D2R) * cosf(ph * (float)D2R), sinf(th * (float)D2R) * sinf(ph * (float)D2R),
+                      cosf(th * (float)D2R)};
+        btf_interp x = btf_dirset_interp(d, th, ph), y = btf_dirtab_interp_vec(t, v);
+        for (int k = 0; k < 3; k++) {
+            double wx = 0, wy = 0;
+            for (int j = 0; j < 3; j++)
+                wx += x.idx[j] == y.idx[k] ? x.w[j] : 0.0, wy += y.idx[j] == y.idx[k] ? y.w[j] : 0.0;
+            cr_assert(fabs(wx - wy) < 1e-5, "query %d: %g vs %g", q, wx, wy);
+        }
+    }
+    btf_dirtab_free(ta);
+    btf_dirtab_free(tb);
+}
