@@ -98,7 +98,16 @@ typedef struct btf_package {
     char *budget;           /* "budget": what btf_budget_compress chose and measured, as JSON text (malloc'd); NULL if none */
     struct btf_dirtab *dirtab[2]; /* lights, views as direction tables (btf_dirtab.h), made by btf_package_read; NULL: btf_decode walks the rings */
     char *rd;               /* version 3 "rd": the steps btf_rd_allocate chose, as JSON text (malloc'd); NULL if none */
+    uint8_t **q8;           /* version 4: per loaded chunk its level's reconstructed atlas bytes (malloc'd); NULL otherwise */
+    uint8_t **w8q;          /* version 4: per loaded chunk that carried wt-JJ-8.png its bytes (malloc'd); NULL otherwise */
 } btf_package;
+
+/* 1 when the package has spatial levels: version 2 (independent mips) or version 4
+ * (finer levels as residuals over the coarser one, doc/package-format.md section 12). */
+static inline int btf_package_has_levels(const btf_package *p)
+{
+    return p->version == 2 || p->version == 4;
+}
 
 /* Summary of a compression run (optional output of btf_package_compress). */
 typedef struct btf_compress_stats {
