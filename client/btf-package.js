@@ -125,14 +125,15 @@ function parseChunk(name, c, i, nb, lv, version) {
   };
 }
 
-// Version 4 (section 12): each (component, level) once, and a residual level (all but
-// the coarsest) only after the same component's next coarser level. Marks the chunks.
+// Version 4 (section 12): each (component, level) once, and a residual level (a
+// texture named ...-dL.png, L its level, below the coarsest) only after the same
+// component's next coarser level. Marks the chunks (.residual).
 function residualOrder(name, chunks, levels) {
   const seen = new Set();
   chunks.forEach((c, i) => {
     const key = (l) => `${c.component}/${l}`;
     if (seen.has(key(c.level))) fail(name, `chunk ${i}: level ${c.level} of component ${c.component} twice`);
-    c.residual = c.level < levels - 1;
+    c.residual = c.level < levels - 1 && c.tex.endsWith(`-d${c.level}.png`);
     if (c.residual && !seen.has(key(c.level + 1)))
       fail(name, `chunk ${i} (residual level ${c.level} of component ${c.component}) comes before that component's ` +
                `level ${c.level + 1}`);

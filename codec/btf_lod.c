@@ -76,7 +76,9 @@ void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_sele
 typedef struct btf__lod {
     btf_package *p; /* the complete v1 package (owned) */
     int nl, nb, C, W, H, ch, qmax;
-    int resid;       /* 1: version 4, levels < nl-1 stored as residuals */
+    int resid;       /* 1: version 4, levels < nl-1 may be stored as residuals */
+    char *isres;     /* [a*nl+l] version 4: 1 when that level's file is a residual (the smaller coding) */
+    char *w16res;    /* [a] version 4: 1 when the 16-bit weights are wt-JJ-r.z (the smaller coding) */
     double thr;
     float **lev;     /* [a*nl+l] dequantised texels, nb * Wl * Hl; level 0 borrowed from p->tex */
     uint8_t **atlas; /* [a*nl+l] atlas pixels for l >= 1 */
@@ -101,7 +103,7 @@ static void btf__lod_free(btf__lod *s)
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
-    free(s->w8bytes), free(s->w8mult), free(s->w8q);
+    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->w16res);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -332,11 +334,11 @@ static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
 }
 
 /* Level file name of component a: level 0 keeps the v1 name, level l adds -lL;
- * version 4: a residual level l (l < nl-1, level 0 included) adds -dL. */
-static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t n)
+ * version 4: a level stored as a residual (l < nl-1, level 0 included) adds -dL. */
+static void btf__level_name(const btf__lod *s, int a, int l, int residual, char *name, size_t n)
 {
     const char *t = btf__file_ending(&s->p->chunk[a], ".png");
-    if (s->resid && l < s->nl - 1)
+    if (residual)
         snprintf(name, n, "%.*s-d%d.png", (int)(strlen(t) - 4), t, l);
     else if (l == 0)
         snprintf(name, n, "%s", t);
@@ -401,10 +403,10 @@ static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error 
 
 /* Name of component a's 16-bit weights: the v1 "wt-JJ.bin", or in version 4 when
  * the component has 8-bit weights their residual "wt-JJ-r.z". */
-static void btf__w16_name(const btf__lod *s, int a, char *name, size_t n)
+static void btf__w16_name(const btf__lod *s, int a, int residual, char *name, size_t n)
 {
     const char *w = btf__file_ending(&s->p->chunk[a], ".bin");
-    if (s->resid && s->w8q[a])
+    if (residual)
         snprintf(name, n, "%.*s-r.z", (int)(strlen(w) - 4), w);
     else
         snprintf(name, n, "%s", w);
@@ -462,19 +464,34 @@ static btf_result btf__write_residual(const btf__lod *s, int a, int l, const cha
     btf_lod_residual_encode(s->atlas[a * s->nl + l], s->atlas[a * s->nl + l + 1], aw, ah, s->W >> l, s->H >> l, res);
     uint8_t *png = NULL;
     size_t n = 0;
-    btf_result r = btf_png_encode_grey(res, aw, ah, &png, &n, err);
+    btf_result r = btf_png_encode_grey(res, aw, ah, &png, &n, err); /* no filters, zlib 9 */
+    if (r == BTF_OK) /* the image library's adaptive filters, kept when smaller */
+        r = btf_image_write(path, aw, ah, 1, 8, res, err);
+    long long sz = btf_fs_size(path);
     free(res);
-    if (r == BTF_OK)
+    if (r == BTF_OK && (sz < 0 || (size_t)sz > n))
         r = btf_fs_write_atomic(path, png, n, err);
     free(png);
     return r;
+}
+
+/* Version 4: of two codings of one file (plain, alt) the smaller stays, the other is
+ * removed; *chose = 1 when alt stays (ties keep plain), *bytes = the size kept. */
+static btf_result btf__keep_smaller(const char *plain, const char *alt, char *chose, long long *bytes, btf_error *err)
+{
+    long long a = btf_fs_size(plain), b = btf_fs_size(alt);
+    *chose = b >= 0 && b < a;
+    *bytes = *chose ? b : a;
+    if (remove(*chose ? plain : alt) != 0)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot remove (%s)", *chose ? plain : alt, strerror(errno));
+    return BTF_OK;
 }
 
 /* Every texture and weight file into tmp; fills tbytes, wbytes. */
 static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *tmp, btf_error *err)
 {
     const btf_package *p = s->p;
-    char from[8400], to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    char from[8400], to[8400], g[8400], name[BTF_PACKAGE_NAME_MAX + 8];
     btf_result r = BTF_OK;
     for (int a = 0; r == BTF_OK && a < s->C; a++) {
         const char *wf = btf__file_ending(&p->chunk[a], ".bin");
@@ -486,19 +503,23 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
             s->w8bytes[a] = btf_fs_size(to);
         }
         snprintf(from, sizeof from, "%s/%s", in_dir, wf);
-        btf__w16_name(s, a, name, sizeof name);
+        btf__w16_name(s, a, 0, name, sizeof name);
         snprintf(to, sizeof to, "%s/%s", tmp, name);
         if (r == BTF_OK)
-            r = s->resid && s->w8q[a] ? btf__write_w16_residual(s, a, from, to, err) : btf__copy_file(from, to, err);
+            r = btf__copy_file(from, to, err);
         s->wbytes[a] = btf_fs_size(to);
+        if (r == BTF_OK && s->resid && s->w8q[a]) { /* version 4: the residual over the 8-bit weights when smaller */
+            btf__w16_name(s, a, 1, name, sizeof name);
+            snprintf(g, sizeof g, "%s/%s", tmp, name);
+            r = btf__write_w16_residual(s, a, from, g, err);
+            r = r == BTF_OK ? btf__keep_smaller(to, g, &s->w16res[a], &s->wbytes[a], err) : r;
+        }
         if (r == BTF_OK && s->resid)
             r = btf__level0_atlas(s, a, in_dir, err);
         for (int l = 0; r == BTF_OK && l < s->nl; l++) {
-            btf__level_name(s, a, l, name, sizeof name);
+            btf__level_name(s, a, l, 0, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
-            if (s->resid && l < s->nl - 1) {
-                r = btf__write_residual(s, a, l, to, err);
-            } else if (l == 0) {
+            if (l == 0) {
                 snprintf(from, sizeof from, "%s/%s", in_dir, name);
                 r = btf__copy_file(from, to, err);
             } else {
@@ -506,6 +527,12 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
                                     s->atlas[a * s->nl + l], err);
             }
             s->tbytes[a * s->nl + l] = btf_fs_size(to);
+            if (r == BTF_OK && s->resid && l < s->nl - 1) { /* version 4: the residual when smaller */
+                btf__level_name(s, a, l, 1, name, sizeof name);
+                snprintf(g, sizeof g, "%s/%s", tmp, name);
+                r = btf__write_residual(s, a, l, g, err);
+                r = r == BTF_OK ? btf__keep_smaller(to, g, &s->isres[a * s->nl + l], &s->tbytes[a * s->nl + l], err) : r;
+            }
         }
     }
     return r;
@@ -523,14 +550,14 @@ static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info 
     double rmse_end = p->chunk[s->C - 1].rmse, rf_end = p->chunk[s->C - 1].rmse_float;
     c->component = v1->component, c->level = l, c->n_files = 0;
     c->tex_range = v1->tex_range, c->wt_range = v1->wt_range; /* borrowed from the v1 package */
-    btf__level_name(s, a, l, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+    btf__level_name(s, a, l, s->isres[a * s->nl + l], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
     *bytes = s->tbytes[a * s->nl + l];
     if (!seen[a] && l > 0) { /* a coarse first chunk carries the 8-bit weights */
         btf__w8_name(s, a, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
         *bytes += s->w8bytes[a];
     }
     if (l == 0 || (!seen[a] && s->w8bytes[a] == 0)) { /* level 0 carries the 16-bit weights */
-        btf__w16_name(s, a, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+        btf__w16_name(s, a, s->w16res[a], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
         *bytes += s->wbytes[a];
     }
     seen[a] = 1;
@@ -604,7 +631,8 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
     s->w8mult = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
-    if (!s->w8q || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
+    s->isres = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1);
+    if (!s->w8q || !s->isres || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;
 }

@@ -234,12 +234,27 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
 
 
 /* Version 4 (section 12): each (component, level) at most once, and a residual level
- * (every level but the coarsest) only after the same component's next coarser level. */
+ * only after the same component's next coarser level. */
+int btf_package_chunk_residual(const btf_package *p, int i)
+{
+    const btf_chunk_info *ci = &p->chunk[i];
+    if (p->version != 4 || ci->level >= p->n_levels - 1)
+        return 0;
+    char end[24];
+    snprintf(end, sizeof end, "-d%d.png", ci->level);
+    for (int f = 0; f < ci->n_files; f++) {
+        size_t n = strlen(ci->files[f]), e = strlen(end);
+        if (strncmp(ci->files[f], "wt-", 3) && n > e && !strcmp(ci->files[f] + n - e, end))
+            return 1;
+    }
+    return 0;
+}
+
 static btf_result btf__residual_order(const btf_package *p, const char *path, btf_error *err)
 {
     for (int i = 0; i < p->n_chunks; i++) {
         const btf_chunk_info *ci = &p->chunk[i];
-        int coarser = ci->level == p->n_levels - 1;
+        int coarser = !btf_package_chunk_residual(p, i);
         for (int k = 0; k < i; k++) {
             if (p->chunk[k].component != ci->component)
                 continue;

@@ -128,6 +128,11 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
 btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *opt,
                                       const char *out_dir, btf_compress_stats *stats, btf_error *err);
 
+/* Version 4 (doc/package-format.md section 12): 1 when chunk i's texture is a residual
+ * over its component's next coarser level (its name ends "-dL.png", L = its level,
+ * below the coarsest level), 0 when it holds the level's texels directly. */
+int btf_package_chunk_residual(const btf_package *p, int i);
+
 /* Reads the manifest and the data of the first n chunks: n = 0 all (every file must
  * exist), n > 0 exactly the first n, n < 0 as many leading chunks as have their
  * files present (a partially received package). */

@@ -179,7 +179,7 @@ static btf_result btf__residual_level(btf_package *p, int i, const char *path, u
     if (!p->q8 && !(p->q8 = calloc((size_t)p->n_chunks, sizeof *p->q8)))
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     int l = ci->level;
-    if (l == p->n_levels - 1)
+    if (!btf_package_chunk_residual(p, i))
         return BTF_OK;
     int aw = p->atlas_cols * (p->width >> l), ah = p->atlas_rows * (p->height >> l), e = -1;
     for (int k = 0; k < i && e < 0; k++)
