@@ -151,15 +151,21 @@ export function reconstructLevel(pkg, chunk, res, coarse) {
     fail(pkg.name, `${chunk.tex}: ${res.length} residual texels over ${coarse.length} coarse ones, expected ` +
                    `${aw * ah} over ${(aw >> 1) * (ah >> 1)}`);
   const out = new Uint8Array(aw * ah);
+  // bilinear prediction of fine texel (x, y) from the coarse level, clamped to the tile
+  const bil = (x, y) => {
+    const X = x >> 1, Y = y >> 1, x0 = X - X % tcw, y0 = Y - Y % tch;
+    const X2 = Math.min(Math.max(X + (x & 1 ? 1 : -1), x0), x0 + tcw - 1);
+    const Y2 = Math.min(Math.max(Y + (y & 1 ? 1 : -1), y0), y0 + tch - 1);
+    return (9 * coarse[Y * cw + X] + 3 * coarse[Y * cw + X2] + 3 * coarse[Y2 * cw + X] + coarse[Y2 * cw + X2] + 8) >> 4;
+  };
   for (let y = 0; y < ah; y++) {
-    const Y = y >> 1, y0 = Y - Y % tch, Y2 = Math.min(Math.max(Y + (y & 1 ? 1 : -1), y0), y0 + tch - 1);
     for (let x = 0; x < aw; x++) {
-      const i = y * aw + x, X = x >> 1, c = coarse[Y * cw + X];
+      const i = y * aw + x;
       let v;
-      if (x & 1 && y & 1) v = 4 * c + res[i] - 128 - out[i - aw - 1] - out[i - aw] - out[i - 1];
+      if (x & 1 && y & 1) v = 4 * coarse[(y >> 1) * cw + (x >> 1)] + res[i] - 128 - out[i - aw - 1] - out[i - aw] - out[i - 1];
       else {
-        const x0 = X - X % tcw, X2 = Math.min(Math.max(X + (x & 1 ? 1 : -1), x0), x0 + tcw - 1);
-        v = ((9 * c + 3 * coarse[Y * cw + X2] + 3 * coarse[Y2 * cw + X] + coarse[Y2 * cw + X2] + 8) >> 4) + res[i] - 128;
+        const e = (x % tw ? out[i - 1] - bil(x - 1, y) : 0) + (y % th ? out[i - aw] - bil(x, y - 1) : 0);
+        v = bil(x, y) + Math.floor(e / 4) + res[i] - 128;
       }
       out[i] = (v + 1024) & 255;
     }

@@ -695,6 +695,18 @@ static int btf__predict(const uint8_t *coarse, int cw, int tw, int th, int x, in
     return (9 * r[X] + 3 * r[X2] + 3 * r2[X] + r2[X2] + 8) >> 4;
 }
 
+/* Prediction of fine texel (x, y) from the coarse atlas and the already rebuilt fine
+ * texels left and above it in its tile: p + floor((eL + eU) / 4), e = A - p there. */
+static int btf__predict2(const uint8_t *fine, const uint8_t *coarse, int aw, int tw, int th, int x, int y)
+{
+    int cw = aw / 2, e = 0;
+    if (x % tw)
+        e += fine[(size_t)y * aw + x - 1] - btf__predict(coarse, cw, tw / 2, th / 2, x - 1, y);
+    if (y % th)
+        e += fine[(size_t)(y - 1) * aw + x] - btf__predict(coarse, cw, tw / 2, th / 2, x, y - 1);
+    return btf__predict(coarse, cw, tw / 2, th / 2, x, y) + (e + 1024) / 4 - 256; /* floor */
+}
+
 void btf_lod_residual_encode(const uint8_t *fine, const uint8_t *coarse, int aw, int ah, int tw, int th, uint8_t *res)
 {
     int cw = aw / 2;
@@ -703,7 +715,7 @@ void btf_lod_residual_encode(const uint8_t *fine, const uint8_t *coarse, int aw,
             size_t i = (size_t)y * aw + x;
             int v = (x & 1) && (y & 1) ? fine[i - aw - 1] + fine[i - aw] + fine[i - 1] + fine[i] -
                                              4 * coarse[(size_t)(y >> 1) * cw + (x >> 1)]
-                                       : fine[i] - btf__predict(coarse, cw, tw / 2, th / 2, x, y);
+                                       : fine[i] - btf__predict2(fine, coarse, aw, tw, th, x, y);
             res[i] = (uint8_t)((v + 128 + 1024) & 255); /* 1024 = 0 mod 256 keeps it positive */
         }
 }
@@ -716,7 +728,7 @@ void btf_lod_residual_decode(const uint8_t *res, const uint8_t *coarse, int aw, 
             size_t i = (size_t)y * aw + x;
             int v = (x & 1) && (y & 1) ? 4 * coarse[(size_t)(y >> 1) * cw + (x >> 1)] + res[i] - 128 -
                                              fine[i - aw - 1] - fine[i - aw] - fine[i - 1]
-                                       : btf__predict(coarse, cw, tw / 2, th / 2, x, y) + res[i] - 128;
+                                       : btf__predict2(fine, coarse, aw, tw, th, x, y) + res[i] - 128;
             fine[i] = (uint8_t)((v + 1024) & 255);
         }
 }
