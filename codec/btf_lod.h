@@ -12,6 +12,11 @@
  *
  * The client (client/btf-lod.js) implements btf_lod_select with the same rule; the
  * shared cases in tests/e2e/ check both.
+ *
+ * With o.residual = 1 the builder writes version 4 instead (section 12): the same
+ * levels and chunks, each finer level stored as a residual over the next coarser one
+ * where that is smaller, the 16-bit weights over the 8-bit ones; btf_package_read
+ * rebuilds the version-2 levels exactly. 8-bit packages only.
  */
 #ifndef BTF_LOD_H
 #define BTF_LOD_H
