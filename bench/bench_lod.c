@@ -9,6 +9,9 @@
  * Scenes (device pixels across the surface, times the material repeats across it):
  * close-up 1920 px x 1; thumbnail 300 px x 8 (a gallery sphere tiles the material);
  * grid of 12 thumbnails 200 px x 8; phone 1080 px x 2. First frame: manifest + chunk 0.
+ * The same scenes again for version 4 (btf_lod_build with residual levels, section 12 of
+ * doc/package-format.md), prefixed v4_: bytes and the display RMSE against the complete
+ * version-2 package (version 4 rebuilds its levels exactly, so the same as version 2's).
  * Environment: BENCH_TMP (default /tmp/btf-bench-lod), BENCH_LOD_SIDE, BENCH_LOD_THRESHOLD
  * (visibility threshold of the build and the selection, default BTF_LOD_THRESHOLD).
  */
@@ -83,10 +86,11 @@ int main(void)
 {
     const char *tmp = getenv("BENCH_TMP") ? getenv("BENCH_TMP") : "/tmp/btf-bench-lod";
     int side = getenv("BENCH_LOD_SIDE") ? atoi(getenv("BENCH_LOD_SIDE")) : 128;
-    char v1[1024], v2[1024], man[1100];
+    char v1[1024], v2[1024], v4[1024], man[1100], man4[1100];
     mkdir(tmp, 0755);
     snprintf(v1, sizeof v1, "%s/knit-v1", tmp);
     snprintf(v2, sizeof v2, "%s/knit", tmp);
+    snprintf(v4, sizeof v4, "%s/knit-v4", tmp);
     btf_dirset d = btf_dirset_ubo2003();
     btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
     btf *src = NULL;
@@ -110,12 +114,23 @@ int main(void)
     if (btf_lod_build(v1, v2, &lo, &st, &err) != BTF_OK)
         return fprintf(stderr, "%s\n", err.msg), 1;
     printf("lod_build_cpu %.2f s\n", (double)(clock() - t0) / CLOCKS_PER_SEC);
+    btf_lod_stats st4;
+    lo.residual = 1;
+    if (btf_lod_build(v1, v4, &lo, &st4, &err) != BTF_OK)
+        return fprintf(stderr, "%s\n", err.msg), 1;
     btf_package *p = NULL;
     if (btf_package_read(v2, 0, &p, &err) != BTF_OK)
         return fprintf(stderr, "%s\n", err.msg), 1;
     struct stat ms;
     snprintf(man, sizeof man, "%s/manifest.json", v2);
     long long mbytes = stat(man, &ms) == 0 ? (long long)ms.st_size : 0;
+    snprintf(man4, sizeof man4, "%s/manifest.json", v4);
+    long long mbytes4 = stat(man4, &ms) == 0 ? (long long)ms.st_size : 0;
+    printf("package_v4_bytes %lld B\nv2_overhead %.1f %%\nv4_overhead %.1f %%\n", st4.bytes,
+           100.0 * (double)(st.bytes - st.bytes_v1) / (double)st.bytes_v1,
+           100.0 * (double)(st4.bytes - st4.bytes_v1) / (double)st4.bytes_v1);
+    printf("v4_manifest_bytes %lld B\nv4_first_chunk_bytes %lld B\nv4_first_frame_bytes %lld B\n", mbytes4,
+           st4.first_chunk, st4.first_chunk + mbytes4);
     printf("package_v1_bytes %lld B\npackage_v2_bytes %lld B\nchunks %d\nlevels %d\n", st.bytes_v1, st.bytes,
            st.n_chunks, st.levels);
     printf("manifest_bytes %lld B\nfirst_chunk_bytes %lld B\nfirst_frame_bytes %lld B\n", mbytes, st.first_chunk,
@@ -136,6 +151,20 @@ int main(void)
                sc[i].name, s.level, sc[i].name, s.limit, p->n_chunks);
         printf("%s_bytes %lld B\n%s_bytes_everything %lld B\n%s_fraction %.3f\n%s_display_rmse %.3f rmse\n",
                sc[i].name, got, sc[i].name, all, sc[i].name, (double)got / (double)all, sc[i].name, e);
+        btf_package *p4 = NULL, *q4 = NULL;
+        btf_lod_selection s4;
+        if (btf_package_read(v4, 0, &p4, &err) != BTF_OK)
+            return fprintf(stderr, "%s\n", err.msg), 1;
+        btf_lod_select(p4, &v, &s4, NULL);
+        if (btf_package_read(v4, s4.limit, &q4, &err) != BTF_OK)
+            return fprintf(stderr, "%s\n", err.msg), 1;
+        double e4 = display_error(p, q4, s4.level);
+        long long got4 = (s4.bytes + mbytes4) * sc[i].count;
+        printf("v4_%s_chunks %d of %d\nv4_%s_bytes %lld B\nv4_%s_fraction %.3f\nv4_%s_display_rmse %.3f rmse\n",
+               sc[i].name, s4.limit, p4->n_chunks, sc[i].name, got4, sc[i].name, (double)got4 / (double)all, sc[i].name,
+               e4);
+        btf_package_free(p4);
+        btf_package_free(q4);
         fflush(stdout);
     }
     btf_package_free(p);

@@ -5,6 +5,7 @@
 // at a time; version-2 packages as mip levels of per-component slots.
 
 import {buildDirtab, dirtabGpu, CELLS} from './btf-dirtab.js';
+import {reconstructLevel} from './btf-package.js';
 
 const manifests = new Map(); // shaders base URL -> Promise of {manifest, files: Map}
 
@@ -189,6 +190,8 @@ export class GpuPackage {
     this.slotOf = new Map(); // component -> slot (version 2)
     this.loaded = [];        // per slot: {component, fine, coarse, wt16}
     this.q16 = [];           // per slot, per level: Uint16Array of the atlas on the slot's grid (or null)
+    this.q8 = [];            // version 4: per slot, per level, the reconstructed atlas bytes (residuals are over them)
+    this.w8q = new Map();    // version 4: component -> its 8-bit weights (wt-JJ-r.z is a residual over them)
     this.texCopy = [];       // per layer, per level: Uint16Array RGBA
     this.wtCopy = [];        // per layer: Uint32Array RGBA
     this.tq = new Float32Array(0);
@@ -412,7 +415,15 @@ export class GpuPackage {
     else throw new Error(`package ${pkg.name}: chunk ${j} makes the levels of component ${ch.component} ` +
                          'non-contiguous');
     this.layer(s >> 2);
-    this.q16[s][l] = this.requant(j, s, this.readAtlas(bitmap), l);
+    let q = this.readAtlas(bitmap);
+    if (pkg.manifestVersion === 4) { // section 12: a residual level over the component's next coarser one
+      const coarse = this.q8[s] && this.q8[s][l + 1];
+      if (ch.residual && !coarse) throw new Error(`package ${pkg.name}: chunk ${j} is a residual but level ` +
+                                                  `${l + 1} of component ${ch.component} has not arrived`);
+      if (ch.residual) q = reconstructLevel(pkg, ch, q, coarse);
+      (this.q8[s] = this.q8[s] || [])[l] = q;
+    }
+    this.q16[s][l] = this.requant(j, s, q, l);
     this.fillSlot(s);
     const slot = this.loaded[s];
     if (weights && (weights.precise || !slot.wt16 || pkg.version < 2)) {
@@ -470,7 +481,7 @@ export class GpuPackage {
     for (const t of [this.tex, this.wt, this.cells, this.tris]) if (t) gl.deleteTexture(t);
     if (this.ubo) gl.deleteBuffer(this.ubo);
     this.tex = this.wt = this.cells = this.tris = this.ubo = null;
-    this.texCopy = this.wtCopy = this.q16 = [];
+    this.texCopy = this.wtCopy = this.q16 = this.q8 = [];
   }
 }
 

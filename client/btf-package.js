@@ -117,9 +117,10 @@ function parseCompactRanges(name, list, nBlocks) {
   });
 }
 
-// Version-2 header: levels (tiles divisible by 2^(levels-1)), ranges, weights8_step.
+// Version-2 and 4 header: levels (tiles divisible by 2^(levels-1)), ranges, weights8_step.
 function parseLevels(name, m, nb) {
-  if (m.version !== 2) return {levels: 1, ranges: null, wt8Step: []};
+  if (m.version !== 2 && m.version !== 4) return {levels: 1, ranges: null, wt8Step: []};
+  if (m.version === 4 && m.bits !== 8) fail(name, 'version 4 (residual levels) needs "bits": 8');
   if (!isInt(m.levels, 1, 15) || m.width % (1 << (m.levels - 1)) || m.height % (1 << (m.levels - 1)))
     fail(name, '"levels" is invalid for the texture size');
   const ranges = m.ranges === undefined ? null : parseCompactRanges(name, m.ranges, nb);
@@ -153,6 +154,54 @@ function parseChunk(name, c, i, nb, lv, version) {
   };
 }
 
+// Version 4 (section 12): each (component, level) once, and a residual level (a
+// texture named ...-dL.png, L its level, below the coarsest) only after the same
+// component's next coarser level. Marks the chunks (.residual).
+function residualOrder(name, chunks, levels) {
+  const seen = new Set();
+  chunks.forEach((c, i) => {
+    const key = (l) => `${c.component}/${l}`;
+    if (seen.has(key(c.level))) fail(name, `chunk ${i}: level ${c.level} of component ${c.component} twice`);
+    c.residual = c.level < levels - 1 && c.tex.endsWith(`-d${c.level}.png`);
+    if (c.residual && !seen.has(key(c.level + 1)))
+      fail(name, `chunk ${i} (residual level ${c.level} of component ${c.component}) comes before that component's ` +
+               `level ${c.level + 1}`);
+    seen.add(key(c.level));
+  });
+}
+
+// Version 4 residual level (section 12) -> the level's atlas bytes. res: the decoded
+// residual PNG (aw x ah values 0..255, any indexable), coarse: the reconstructed bytes
+// of the component's next coarser level ((aw/2) x (ah/2)); chunk.level gives the tile size.
+export function reconstructLevel(pkg, chunk, res, coarse) {
+  const l = chunk.level, tw = pkg.width >> l, th = pkg.height >> l;
+  const aw = tw * pkg.atlas.cols, ah = th * pkg.atlas.rows, cw = aw >> 1, tcw = tw >> 1, tch = th >> 1;
+  if (res.length !== aw * ah || coarse.length !== (aw >> 1) * (ah >> 1))
+    fail(pkg.name, `${chunk.tex}: ${res.length} residual texels over ${coarse.length} coarse ones, expected ` +
+                   `${aw * ah} over ${(aw >> 1) * (ah >> 1)}`);
+  const out = new Uint8Array(aw * ah);
+  // bilinear prediction of fine texel (x, y) from the coarse level, clamped to the tile
+  const bil = (x, y) => {
+    const X = x >> 1, Y = y >> 1, x0 = X - X % tcw, y0 = Y - Y % tch;
+    const X2 = Math.min(Math.max(X + (x & 1 ? 1 : -1), x0), x0 + tcw - 1);
+    const Y2 = Math.min(Math.max(Y + (y & 1 ? 1 : -1), y0), y0 + tch - 1);
+    return (9 * coarse[Y * cw + X] + 3 * coarse[Y * cw + X2] + 3 * coarse[Y2 * cw + X] + coarse[Y2 * cw + X2] + 8) >> 4;
+  };
+  for (let y = 0; y < ah; y++) {
+    for (let x = 0; x < aw; x++) {
+      const i = y * aw + x;
+      let v;
+      if (x & 1 && y & 1) v = 4 * coarse[(y >> 1) * cw + (x >> 1)] + res[i] - 128 - out[i - aw - 1] - out[i - aw] - out[i - 1];
+      else {
+        const e = (x % tw ? out[i - 1] - bil(x - 1, y) : 0) + (y % th ? out[i - aw] - bil(x, y - 1) : 0);
+        v = bil(x, y) + Math.floor(e / 4) + res[i] - 128;
+      }
+      out[i] = (v + 1024) & 255;
+    }
+  }
+  return out;
+}
+
 // Validates a manifest object and returns the client's view of it. Throws Error
 // naming the material and the field on anything outside doc/package-format.md.
 // Versions 1, 2 (section 10: (component, level) chunks) and 3 (section 11: version
@@ -162,8 +211,8 @@ function parseChunk(name, c, i, nb, lv, version) {
 export function parseManifest(m) {
   const name = m && typeof m.name === 'string' ? m.name : '?';
   if (!m || m.format !== 'btf-package') fail(name, 'manifest "format" is not "btf-package"');
-  if (m.version !== 1 && m.version !== 2 && m.version !== 3) fail(name, `manifest version ${m.version} is not 1, 2 or 3`);
-  const layout = m.version === 2 ? 2 : 1;
+  if (![1, 2, 3, 4].includes(m.version)) fail(name, `manifest version ${m.version} is not 1, 2, 3 or 4`);
+  const layout = m.version === 2 || m.version === 4 ? 2 : 1;
   if (!isInt(m.width, 1, MAX_SIZE) || !isInt(m.height, 1, MAX_SIZE)) fail(name, 'width/height out of range');
   if (m.bits !== 8 && m.bits !== 16) fail(name, '"bits" must be 8 or 16');
   const lights = parseDirset(name, 'lights', m.lights);
@@ -189,6 +238,7 @@ export function parseManifest(m) {
   const lv = parseLevels(name, m, nb);
   const chunks = m.chunks.map((c, i) => parseChunk(name, c, i, nb, lv, layout));
   if (m.version === 3 && !chunks.every((c) => c.wt.endsWith('.z'))) fail(name, 'version 3 needs a wt-*.z file per chunk');
+  if (m.version === 4) residualOrder(name, chunks, lv.levels);
   const comps = [...new Set(chunks.map((c) => c.component))];
   return {
     name, version: layout, manifestVersion: m.version, levels: lv.levels, components: comps, width: m.width, height: m.height, bits: m.bits,
@@ -267,8 +317,26 @@ export async function dequantWeightsZ(pkg, chunk, buf) {
   return dequantQ(pkg, chunk, (i) => q[i]);
 }
 
-// A chunk's 16-bit weights file, whichever coding its name says: a Promise of the Float32Array.
-export async function decodeWeights(pkg, chunk, buf) {
+// Version 4 wt-JJ-r.z (section 12): zlib of two byte planes of the zigzag codes of
+// r = (q16 - s_c q8) mod 65536 (no prediction along the lights), over q8, the
+// component's 8-bit weights (wt-JJ-8.png pixels) -> the same Float32Array as dequantWeights.
+export async function dequantWeightsR(pkg, chunk, buf, q8) {
+  const n = pkg.views.dirs * pkg.lights.dirs * 3;
+  if (buf.byteLength < 1 || buf.byteLength > 2 * n + 1024)
+    fail(pkg.name, `${chunk.wt} has ${buf.byteLength} bytes, expected 1..${2 * n + 1024}`);
+  if (!q8 || q8.length !== n) fail(pkg.name, `${chunk.wt}: the component's 8-bit weights have not arrived before it`);
+  const raw = await inflateExactly(pkg.name, chunk.wt, buf, 2 * n);
+  const sc = chunk.wt8Step;
+  return dequantQ(pkg, chunk, (i) => {
+    const z = raw[i] | (raw[n + i] << 8);
+    return (sc * q8[i] + ((z >>> 1) ^ -(z & 1))) & 0xffff;
+  });
+}
+
+// A chunk's 16-bit weights file, whichever coding its name says: a Promise of the
+// Float32Array (q8: version 4's 8-bit weights of the component, for wt-JJ-r.z).
+export async function decodeWeights(pkg, chunk, buf, q8) {
+  if (pkg.manifestVersion === 4 && chunk.wt.endsWith('-r.z')) return dequantWeightsR(pkg, chunk, buf, q8);
   return chunk.wt.endsWith('.z') ? dequantWeightsZ(pkg, chunk, buf) : dequantWeights(pkg, chunk, buf);
 }
 

@@ -37,8 +37,8 @@ import './btf-render.js';
 import {BtfStream} from './btf-stream.js';
 import {GpuPackage} from './btf-gl.js';
 import {sharedGl, sharedStats} from './btf-context.js';
-import {chunksWithinBytes, dequantWeights, dequantWeights8, dequantWeightsZ, parseManifest, promisedError}
-  from './btf-package.js';
+import {chunksWithinBytes, dequantWeights, dequantWeights8, dequantWeightsR, dequantWeightsZ, parseManifest,
+  promisedError} from './btf-package.js';
 import {LOD_THRESHOLD, lodFootprint, lodSelect} from './btf-lod.js';
 import {Orbit} from './orbit.js';
 import {GEOMETRIES, sceneDefaults} from './scene.js';
@@ -542,8 +542,10 @@ export class BtfViewer extends HTMLElement {
   // wt-JJ-8.png (8-bit coarse), else null (a chunk that lists only its texture).
   async chunkWeights(chunk, data, gpu) {
     if (chunk.wt) {
-      const w = chunk.wt.endsWith('.z') ? await dequantWeightsZ(this.pkg, chunk, data(chunk.wt))
-        : dequantWeights(this.pkg, chunk, data(chunk.wt));
+      const w = this.pkg.manifestVersion === 4 && chunk.wt.endsWith('-r.z')
+        ? await dequantWeightsR(this.pkg, chunk, data(chunk.wt), gpu.w8q.get(chunk.component))
+        : chunk.wt.endsWith('.z') ? await dequantWeightsZ(this.pkg, chunk, data(chunk.wt))
+          : dequantWeights(this.pkg, chunk, data(chunk.wt));
       w.precise = true;
       return w;
     }
@@ -557,6 +559,7 @@ export class BtfViewer extends HTMLElement {
     }
     const px = gpu.readGrey(bm);
     bm.close();
+    gpu.w8q.set(chunk.component, px); // version 4: the component's wt-JJ-r.z is a residual over these
     return dequantWeights8(this.pkg, chunk, px);
   }
 

@@ -14,6 +14,8 @@
 #include "btf_fs.h"
 #include "btf_image.h"
 #include "btf_manifest.h"
+#include "btf_png.h"
+#include "btf_wtz.h"
 
 /* ---------------------------------------------------------------- look-ups */
 
@@ -46,14 +48,14 @@ void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_sele
     int lev = 0;
     while (lev + 1 < p->n_levels && tpp >= (double)(1 << (lev + 1)))
         lev++;
-    out->level = p->version == 2 ? lev : 0;
+    out->level = btf_package_has_levels(p) ? lev : 0;
     int c0 = p->chunk[0].component;
     for (int i = 0; i < p->n_chunks; i++) {
         const btf_chunk_info *ci = &p->chunk[i];
         int first = 1; /* first chunk of its component: count the component once */
         for (int e = 0; e < i && first; e++)
             first = p->chunk[e].component != ci->component;
-        int vis = p->version != 2 || ci->component == c0 || btf__contrib(p, ci->component, out->level) >= thr;
+        int vis = !btf_package_has_levels(p) || ci->component == c0 || btf__contrib(p, ci->component, out->level) >= thr;
         if (vis && first)
             out->n_components++;
         if (vis && ci->level >= out->level) {
@@ -74,6 +76,9 @@ void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_sele
 typedef struct btf__lod {
     btf_package *p; /* the complete v1 package (owned) */
     int nl, nb, C, W, H, ch, qmax;
+    int resid;       /* 1: version 4, levels < nl-1 may be stored as residuals */
+    char *isres;     /* [a*nl+l] version 4: 1 when that level's file is a residual (the smaller coding) */
+    char *w16res;    /* [a] version 4: 1 when the 16-bit weights are wt-JJ-r.z (the smaller coding) */
     double thr;
     float **lev;     /* [a*nl+l] dequantised texels, nb * Wl * Hl; level 0 borrowed from p->tex */
     uint8_t **atlas; /* [a*nl+l] atlas pixels for l >= 1 */
@@ -81,6 +86,7 @@ typedef struct btf__lod {
     long long *tbytes, *wbytes; /* [a*nl+l] texture file bytes; [a] weight file bytes */
     long long *w8bytes;         /* [a] 8-bit weight file bytes (0: none, the first chunk is level 0) */
     int *w8mult;                /* [a] step multiplier of the 8-bit weights (btf__w8_mult) */
+    uint8_t **w8q;              /* [a] the 8-bit weights written (V*L*3), NULL when none */
     int *order;      /* n_chunks * 2: (a, l) in chunk order */
     int n_order;
     double *rmse_full; /* per chunk: RMSE against the complete package */
@@ -95,7 +101,9 @@ static void btf__lod_free(btf__lod *s)
             free(s->atlas[i]);
     }
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
-    free(s->w8bytes), free(s->w8mult);
+    for (int a = 0; s->w8q && a < s->C; a++)
+        free(s->w8q[a]);
+    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->w16res);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -325,11 +333,14 @@ static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
     return NULL;
 }
 
-/* Level file name of component a: level 0 keeps the v1 name, level l adds -lL. */
-static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t n)
+/* Level file name of component a: level 0 keeps the v1 name, level l adds -lL;
+ * version 4: a level stored as a residual (l < nl-1, level 0 included) adds -dL. */
+static void btf__level_name(const btf__lod *s, int a, int l, int residual, char *name, size_t n)
 {
     const char *t = btf__file_ending(&s->p->chunk[a], ".png");
-    if (l == 0)
+    if (residual)
+        snprintf(name, n, "%.*s-d%d.png", (int)(strlen(t) - 4), t, l);
+    else if (l == 0)
         snprintf(name, n, "%s", t);
     else
         snprintf(name, n, "%.*s-l%d.png", (int)(strlen(t) - 4), t, l);
@@ -374,7 +385,7 @@ static int btf__w8_mult(const btf__lod *s, int a)
 
 /* Component a's weights requantised to 8 bits (q8 = round(q16 / (257 m)), the same lo),
  * as a grey PNG of 3L x V pixels (doc/package-format.md section 10). */
-static btf_result btf__write_w8(const btf__lod *s, int a, const char *path, btf_error *err)
+static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error *err)
 {
     const btf_package *p = s->p;
     int L = p->lights.n_dirs, V = p->views.n_dirs;
@@ -386,32 +397,127 @@ static btf_result btf__write_w8(const btf__lod *s, int a, const char *path, btf_
         double x = rg[1] > 0.0f ? ((double)p->wt[a][k] - rg[0]) / (257.0 * s->w8mult[a] * rg[1]) : 0.0;
         q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
     }
-    btf_result r = btf_image_write(path, 3 * L, V, 1, 8, q, err);
-    free(q);
+    s->w8q[a] = q; /* version 4 codes the 16-bit weights over these */
+    return btf_image_write(path, 3 * L, V, 1, 8, q, err);
+}
+
+/* Name of component a's 16-bit weights: the v1 "wt-JJ.bin", or in version 4 when
+ * the component has 8-bit weights their residual "wt-JJ-r.z". */
+static void btf__w16_name(const btf__lod *s, int a, int residual, char *name, size_t n)
+{
+    const char *w = btf__file_ending(&s->p->chunk[a], ".bin");
+    if (residual)
+        snprintf(name, n, "%.*s-r.z", (int)(strlen(w) - 4), w);
+    else
+        snprintf(name, n, "%s", w);
+}
+
+/* Version 4: component a's 16-bit weights (the v1 file's q16) as wt-JJ-r.z, the
+ * btf_wtz stream of r = (q16 - s_c q8) mod 65536 with one light per "view" (section 12). */
+static btf_result btf__write_w16_residual(const btf__lod *s, int a, const char *from, const char *to, btf_error *err)
+{
+    const btf_package *p = s->p;
+    size_t n = (size_t)p->views.n_dirs * p->lights.n_dirs * 3, nd = 0, nz = 0;
+    char *raw = NULL;
+    uint8_t *z = NULL;
+    btf_result r = btf_fs_read(from, 2 * n, &raw, &nd, err);
+    if (r == BTF_OK && nd != 2 * n)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %zu bytes, expected %zu", from, nd, 2 * n);
+    uint16_t *q = r == BTF_OK ? malloc(n * sizeof *q) : NULL;
+    if (r == BTF_OK && !q)
+        r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    unsigned sc = 257u * (unsigned)s->w8mult[a];
+    for (size_t k = 0; q && k < n; k++) {
+        unsigned q16 = (unsigned)(uint8_t)raw[2 * k] | (unsigned)(uint8_t)raw[2 * k + 1] << 8;
+        q[k] = (uint16_t)((q16 - sc * s->w8q[a][k]) & 0xFFFFu);
+    }
+    if (q)
+        r = btf_wtz_encode(q, (int)(n / 3), 1, &z, &nz, err);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(to, z, nz, err);
+    free(raw), free(q), free(z);
     return r;
+}
+
+/* Version 4: component a's level-0 atlas bytes (the v1 PNG's) into s->atlas[a * nl]. */
+static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_error *err)
+{
+    const btf_package *p = s->p;
+    char path[8400];
+    int w, h, ch;
+    snprintf(path, sizeof path, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
+    btf_result r = btf_image_read_u8(path, &w, &h, &ch, &s->atlas[a * s->nl], err);
+    if (r == BTF_OK && (w != p->atlas_cols * s->W || h != p->atlas_rows * s->H || ch != 1))
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, expected the %dx%d grey atlas", path, w, h, ch,
+                     p->atlas_cols * s->W, p->atlas_rows * s->H);
+    return r;
+}
+
+/* Version 4: level l < nl-1 of component a as its residual over level l+1, into path. */
+static btf_result btf__write_residual(const btf__lod *s, int a, int l, const char *path, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
+    uint8_t *res = malloc((size_t)aw * ah);
+    if (!res)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (residual)");
+    btf_lod_residual_encode(s->atlas[a * s->nl + l], s->atlas[a * s->nl + l + 1], aw, ah, s->W >> l, s->H >> l, res);
+    uint8_t *png = NULL;
+    size_t n = 0;
+    btf_result r = btf_png_encode_grey(res, aw, ah, &png, &n, err); /* no filters, zlib 9 */
+    if (r == BTF_OK) /* the image library's adaptive filters, kept when smaller */
+        r = btf_image_write(path, aw, ah, 1, 8, res, err);
+    long long sz = btf_fs_size(path);
+    free(res);
+    if (r == BTF_OK && (sz < 0 || (size_t)sz > n))
+        r = btf_fs_write_atomic(path, png, n, err);
+    free(png);
+    return r;
+}
+
+/* Version 4: of two codings of one file (plain, alt) the smaller stays, the other is
+ * removed; *chose = 1 when alt stays (ties keep plain), *bytes = the size kept. */
+static btf_result btf__keep_smaller(const char *plain, const char *alt, char *chose, long long *bytes, btf_error *err)
+{
+    long long a = btf_fs_size(plain), b = btf_fs_size(alt);
+    *chose = b >= 0 && b < a;
+    *bytes = *chose ? b : a;
+    if (remove(*chose ? plain : alt) != 0)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot remove (%s)", *chose ? plain : alt, strerror(errno));
+    return BTF_OK;
 }
 
 /* Every texture and weight file into tmp; fills tbytes, wbytes. */
 static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *tmp, btf_error *err)
 {
     const btf_package *p = s->p;
-    char from[8400], to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    char from[8400], to[8400], g[8400], name[BTF_PACKAGE_NAME_MAX + 8];
     btf_result r = BTF_OK;
     for (int a = 0; r == BTF_OK && a < s->C; a++) {
         const char *wf = btf__file_ending(&p->chunk[a], ".bin");
-        snprintf(from, sizeof from, "%s/%s", in_dir, wf);
-        snprintf(to, sizeof to, "%s/%s", tmp, wf);
-        r = btf__copy_file(from, to, err);
-        s->wbytes[a] = btf_fs_size(to);
-        if (r == BTF_OK && btf__first_level(s, a) > 0) {
+        if (btf__first_level(s, a) > 0) {
             btf__w8_name(s, a, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
             s->w8mult[a] = btf__w8_mult(s, a);
             r = btf__write_w8(s, a, to, err);
             s->w8bytes[a] = btf_fs_size(to);
         }
+        snprintf(from, sizeof from, "%s/%s", in_dir, wf);
+        btf__w16_name(s, a, 0, name, sizeof name);
+        snprintf(to, sizeof to, "%s/%s", tmp, name);
+        if (r == BTF_OK)
+            r = btf__copy_file(from, to, err);
+        s->wbytes[a] = btf_fs_size(to);
+        if (r == BTF_OK && s->resid && s->w8q[a]) { /* version 4: the residual over the 8-bit weights when smaller */
+            btf__w16_name(s, a, 1, name, sizeof name);
+            snprintf(g, sizeof g, "%s/%s", tmp, name);
+            r = btf__write_w16_residual(s, a, from, g, err);
+            r = r == BTF_OK ? btf__keep_smaller(to, g, &s->w16res[a], &s->wbytes[a], err) : r;
+        }
+        if (r == BTF_OK && s->resid)
+            r = btf__level0_atlas(s, a, in_dir, err);
         for (int l = 0; r == BTF_OK && l < s->nl; l++) {
-            btf__level_name(s, a, l, name, sizeof name);
+            btf__level_name(s, a, l, 0, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
             if (l == 0) {
                 snprintf(from, sizeof from, "%s/%s", in_dir, name);
@@ -421,6 +527,12 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
                                     s->atlas[a * s->nl + l], err);
             }
             s->tbytes[a * s->nl + l] = btf_fs_size(to);
+            if (r == BTF_OK && s->resid && l < s->nl - 1) { /* version 4: the residual when smaller */
+                btf__level_name(s, a, l, 1, name, sizeof name);
+                snprintf(g, sizeof g, "%s/%s", tmp, name);
+                r = btf__write_residual(s, a, l, g, err);
+                r = r == BTF_OK ? btf__keep_smaller(to, g, &s->isres[a * s->nl + l], &s->tbytes[a * s->nl + l], err) : r;
+            }
         }
     }
     return r;
@@ -438,14 +550,14 @@ static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info 
     double rmse_end = p->chunk[s->C - 1].rmse, rf_end = p->chunk[s->C - 1].rmse_float;
     c->component = v1->component, c->level = l, c->n_files = 0;
     c->tex_range = v1->tex_range, c->wt_range = v1->wt_range; /* borrowed from the v1 package */
-    btf__level_name(s, a, l, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+    btf__level_name(s, a, l, s->isres[a * s->nl + l], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
     *bytes = s->tbytes[a * s->nl + l];
     if (!seen[a] && l > 0) { /* a coarse first chunk carries the 8-bit weights */
         btf__w8_name(s, a, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
         *bytes += s->w8bytes[a];
     }
     if (l == 0 || (!seen[a] && s->w8bytes[a] == 0)) { /* level 0 carries the 16-bit weights */
-        snprintf(c->files[c->n_files++], BTF_PACKAGE_NAME_MAX, "%s", btf__file_ending(v1, ".bin"));
+        btf__w16_name(s, a, s->w16res[a], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
         *bytes += s->wbytes[a];
     }
     seen[a] = 1;
@@ -462,7 +574,7 @@ static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info 
 static char *btf__lod_manifest(btf__lod *s, btf_lod_stats *st, btf_error *err)
 {
     btf_package q = *s->p; /* header fields shared with the v1 package; chunks are new */
-    q.version = 2, q.n_levels = s->nl, q.lod_threshold = s->thr, q.n_chunks = s->n_order, q.n_loaded = 0;
+    q.version = s->resid ? 4 : 2, q.n_levels = s->nl, q.lod_threshold = s->thr, q.n_chunks = s->n_order, q.n_loaded = 0;
     q.chunk = calloc((size_t)s->n_order, sizeof *q.chunk);
     char *seen = calloc((size_t)s->C, 1);
     char *out = NULL;
@@ -498,6 +610,10 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
         return btf_fail(err, BTF_ERR_ARG, "%s: already has spatial levels (version %d)", in_dir, p->version);
     s->C = p->n_chunks, s->nb = p->blocks->n_blocks, s->W = p->width, s->H = p->height;
     s->ch = p->bits == 16 ? 3 : 1, s->qmax = p->bits == 16 ? 65535 : 255;
+    s->resid = o && o->residual;
+    if (s->resid && p->bits != 8)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: residual levels (version 4) need 8-bit textures, not %d", in_dir,
+                        p->bits);
     s->thr = o && o->threshold > 0.0 ? o->threshold : BTF_LOD_THRESHOLD;
     if (o && (o->levels < 0 || o->levels > BTF_LOD_MAX_LEVELS))
         return btf_fail(err, BTF_ERR_ARG, "lod: %d levels (1..%d)", o->levels, BTF_LOD_MAX_LEVELS);
@@ -514,8 +630,9 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->contrib = calloc(n, sizeof(double)), s->tbytes = calloc(n, sizeof(long long));
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
-    s->w8mult = calloc((size_t)s->C, sizeof(int));
-    if (!s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
+    s->w8mult = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
+    s->isres = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1);
+    if (!s->w8q || !s->isres || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;
 }
@@ -563,6 +680,57 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
     }
     btf__lod_free(&s);
     return r;
+}
+
+/* Version-4 prediction of fine texel (x, y) from the coarse atlas (tiles of tw x th
+ * coarse texels, cw wide): 9-3-3-1 bilinear of the coarse texel under it and its
+ * neighbours toward (x, y), clamped to the tile, rounded (section 12). */
+static int btf__predict(const uint8_t *coarse, int cw, int tw, int th, int x, int y)
+{
+    int X = x >> 1, Y = y >> 1, x0 = X - X % tw, y0 = Y - Y % th;
+    int X2 = X + ((x & 1) ? 1 : -1), Y2 = Y + ((y & 1) ? 1 : -1);
+    X2 = X2 < x0 ? x0 : X2 > x0 + tw - 1 ? x0 + tw - 1 : X2;
+    Y2 = Y2 < y0 ? y0 : Y2 > y0 + th - 1 ? y0 + th - 1 : Y2;
+    const uint8_t *r = coarse + (size_t)Y * cw, *r2 = coarse + (size_t)Y2 * cw;
+    return (9 * r[X] + 3 * r[X2] + 3 * r2[X] + r2[X2] + 8) >> 4;
+}
+
+/* Prediction of fine texel (x, y) from the coarse atlas and the already rebuilt fine
+ * texels left and above it in its tile: p + floor((eL + eU) / 4), e = A - p there. */
+static int btf__predict2(const uint8_t *fine, const uint8_t *coarse, int aw, int tw, int th, int x, int y)
+{
+    int cw = aw / 2, e = 0;
+    if (x % tw)
+        e += fine[(size_t)y * aw + x - 1] - btf__predict(coarse, cw, tw / 2, th / 2, x - 1, y);
+    if (y % th)
+        e += fine[(size_t)(y - 1) * aw + x] - btf__predict(coarse, cw, tw / 2, th / 2, x, y - 1);
+    return btf__predict(coarse, cw, tw / 2, th / 2, x, y) + (e + 1024) / 4 - 256; /* floor */
+}
+
+void btf_lod_residual_encode(const uint8_t *fine, const uint8_t *coarse, int aw, int ah, int tw, int th, uint8_t *res)
+{
+    int cw = aw / 2;
+    for (int y = 0; y < ah; y++)
+        for (int x = 0; x < aw; x++) {
+            size_t i = (size_t)y * aw + x;
+            int v = (x & 1) && (y & 1) ? fine[i - aw - 1] + fine[i - aw] + fine[i - 1] + fine[i] -
+                                             4 * coarse[(size_t)(y >> 1) * cw + (x >> 1)]
+                                       : fine[i] - btf__predict2(fine, coarse, aw, tw, th, x, y);
+            res[i] = (uint8_t)((v + 128 + 1024) & 255); /* 1024 = 0 mod 256 keeps it positive */
+        }
+}
+
+void btf_lod_residual_decode(const uint8_t *res, const uint8_t *coarse, int aw, int ah, int tw, int th, uint8_t *fine)
+{
+    int cw = aw / 2;
+    for (int y = 0; y < ah; y++)
+        for (int x = 0; x < aw; x++) {
+            size_t i = (size_t)y * aw + x;
+            int v = (x & 1) && (y & 1) ? 4 * coarse[(size_t)(y >> 1) * cw + (x >> 1)] + res[i] - 128 -
+                                             fine[i - aw - 1] - fine[i - aw] - fine[i - 1]
+                                       : btf__predict2(fine, coarse, aw, tw, th, x, y) + res[i] - 128;
+            fine[i] = (uint8_t)((v + 1024) & 255);
+        }
 }
 
 int btf_lod_texel_of(int x, int level, int from)

@@ -12,6 +12,11 @@
  *
  * The client (client/btf-lod.js) implements btf_lod_select with the same rule; the
  * shared cases in tests/e2e/ check both.
+ *
+ * With o.residual = 1 the builder writes version 4 instead (section 12): the same
+ * levels and chunks, each finer level stored as a residual over the next coarser one
+ * where that is smaller, the 16-bit weights over the 8-bit ones; btf_package_read
+ * rebuilds the version-2 levels exactly. 8-bit packages only.
  */
 #ifndef BTF_LOD_H
 #define BTF_LOD_H
@@ -29,6 +34,8 @@ extern "C" {
 typedef struct btf_lod_options {
     int levels;       /* levels including level 0; 0 = as many as keep tiles >= 8 texels, at most 4 */
     double threshold; /* reference visibility threshold used for the chunk order; 0 = BTF_LOD_THRESHOLD */
+    int residual;     /* 1: version 4 (doc/package-format.md section 12): every level but the coarsest stored as
+                       * a residual over the coarser one (8-bit packages only); 0: version 2 (independent mips) */
 } btf_lod_options;
 
 /* Summary of btf_lod_build (optional). Plain value. */
@@ -45,6 +52,19 @@ typedef struct btf_lod_stats {
  * chunks are (component, level) pairs in the order of doc/package-format.md section 10. */
 btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
                          btf_error *err);
+
+/* Version 4 residual coding of one level (doc/package-format.md section 12), on whole
+ * atlases: fine is aw x ah bytes (aw, ah even) in tiles of tw x th texels, coarse the
+ * (aw/2) x (ah/2) atlas of the next coarser level. Texel (x, y) with x or y even
+ * stores (q - pred + 128) mod 256, pred = p + floor((eL + eU) / 4), p = the rounded
+ * 9-3-3-1 bilinear of the coarse texels around it (clamped to its tile), eL, eU = q - p
+ * of its left and upper neighbours in the tile (0 at the tile's edge); (odd x, odd y)
+ * stores the 2x2 cell's (q0 + q1 + q2 + q3 - 4 coarse + 128) mod 256. Decoding
+ * (raster order) inverts it exactly. */
+void btf_lod_residual_encode(const uint8_t *fine, const uint8_t *coarse, int aw, int ah, int tw, int th,
+                             uint8_t *res);
+void btf_lod_residual_decode(const uint8_t *res, const uint8_t *coarse, int aw, int ah, int tw, int th,
+                             uint8_t *fine);
 
 /* Texels per screen pixel of a material W texels wide, repeated `repeat` times
  * across `pixels` device pixels. <= 0 when pixels <= 0 (nothing visible). */

@@ -281,7 +281,7 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
         snprintf(ci->files[i], BTF_PACKAGE_NAME_MAX, "%s", s->valuestring);
     }
     ci->level = 0;
-    if (p->version == 2 && !btf__get_int(c, "level", 0, p->n_levels - 1, &ci->level))
+    if (btf_package_has_levels(p) && !btf__get_int(c, "level", 0, p->n_levels - 1, &ci->level))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: missing or wrong \"level\"", path, id);
     const cJSON *v = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(root, "weights8_step"), ci->component);
     ci->wt8_step = 257.0;
@@ -293,7 +293,7 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
     btf_result r = btf__chunk_numbers(c, ci, path, id, err);
     if (r != BTF_OK)
         return r;
-    if (p->version == 2 && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
+    if (btf_package_has_levels(p) && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
         return btf__component_ranges(ranges, ci, p->blocks->n_blocks, path, id, err);
     r = btf__parse_ranges(c, "tex_range", p->blocks->n_blocks, &ci->tex_range, path, id, err);
     if (r == BTF_OK)
@@ -302,14 +302,52 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
 }
 
 
+/* Version 4 (section 12): each (component, level) at most once, and a residual level
+ * only after the same component's next coarser level. */
+int btf_package_chunk_residual(const btf_package *p, int i)
+{
+    const btf_chunk_info *ci = &p->chunk[i];
+    if (p->version != 4 || ci->level >= p->n_levels - 1)
+        return 0;
+    char end[24];
+    snprintf(end, sizeof end, "-d%d.png", ci->level);
+    for (int f = 0; f < ci->n_files; f++) {
+        size_t n = strlen(ci->files[f]), e = strlen(end);
+        if (strncmp(ci->files[f], "wt-", 3) && n > e && !strcmp(ci->files[f] + n - e, end))
+            return 1;
+    }
+    return 0;
+}
+
+static btf_result btf__residual_order(const btf_package *p, const char *path, btf_error *err)
+{
+    for (int i = 0; i < p->n_chunks; i++) {
+        const btf_chunk_info *ci = &p->chunk[i];
+        int coarser = !btf_package_chunk_residual(p, i);
+        for (int k = 0; k < i; k++) {
+            if (p->chunk[k].component != ci->component)
+                continue;
+            if (p->chunk[k].level == ci->level)
+                return btf_fail(err, BTF_ERR_FORMAT, "%s: chunks %d and %d both hold level %d of component %d", path, k,
+                                i, ci->level, ci->component);
+            coarser |= p->chunk[k].level == ci->level + 1;
+        }
+        if (!coarser)
+            return btf_fail(err, BTF_ERR_FORMAT,
+                            "%s: chunk %d (residual level %d of component %d) comes before that component's level %d",
+                            path, i, ci->level, ci->component, ci->level + 1);
+    }
+    return BTF_OK;
+}
+
 static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *path, btf_error *err)
 {
     const cJSON *fmt = cJSON_GetObjectItemCaseSensitive(m, "format");
     int version;
     if (!cJSON_IsString(fmt) || strcmp(fmt->valuestring, "btf-package") != 0)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: \"format\" is not \"btf-package\"", path);
-    if (!btf__get_int(m, "version", 1, 3, &version))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unsupported \"version\" (this reader knows 1, 2 and 3)", path);
+    if (!btf__get_int(m, "version", 1, 4, &version))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unsupported \"version\" (this reader knows 1, 2, 3 and 4)", path);
     p->version = version;
     p->n_levels = 1;
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(m, "name");
@@ -348,10 +386,12 @@ static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *
         p->lab_stride = 0;
     const cJSON *thr = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(m, "lod"), "threshold");
     p->lod_threshold = cJSON_IsNumber(thr) && thr->valuedouble > 0 && thr->valuedouble <= 1e6 ? thr->valuedouble : 0;
-    if (version == 2 && (!btf__get_int(m, "levels", 1, 15, &p->n_levels) ||
+    if (btf_package_has_levels(p) && (!btf__get_int(m, "levels", 1, 15, &p->n_levels) ||
                          p->width % (1 << (p->n_levels - 1)) || p->height % (1 << (p->n_levels - 1))))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: \"levels\" missing, outside 1..15 or not dividing %dx%d", path,
                         p->width, p->height);
+    if (version == 4 && p->bits != 8)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: version 4 (residual levels) needs \"bits\": 8", path);
     return BTF_OK;
 }
 
@@ -376,6 +416,8 @@ btf_result btf_manifest_parse(const char *text, const char *path, btf_package *p
     }
     for (int i = 0; r == BTF_OK && i < nc; i++)
         r = btf__parse_chunk(cJSON_GetArrayItem(chunks, i), m, p, i, path, err);
+    if (r == BTF_OK && p->version == 4)
+        r = btf__residual_order(p, path, err);
     const cJSON *budget = cJSON_GetObjectItemCaseSensitive(m, "budget");
     if (r == BTF_OK && cJSON_IsObject(budget))
         p->budget = cJSON_PrintUnformatted(budget);
@@ -459,7 +501,7 @@ static double btf__num(const btf_package *p, double x)
     char b[32];
     if (!isfinite(x))
         return 0.0;
-    if (p->version != 2)
+    if (!btf_package_has_levels(p))
         return x;
     snprintf(b, sizeof b, "%.4g", x);
     return strtod(b, NULL);
@@ -560,6 +602,9 @@ static void btf__print_levels(const btf_package *p, cJSON *m)
     cJSON *lod = cJSON_AddObjectToObject(m, "lod");
     cJSON_AddStringToObject(lod, "filter", "box");
     cJSON_AddNumberToObject(lod, "threshold", p->lod_threshold);
+    if (p->version == 4) {
+        cJSON_AddStringToObject(lod, "residual", "bilinear-cell-sum");
+    }
     cJSON_AddItemToObject(m, "ranges", btf__ranges_b64(p));
     cJSON *mult = cJSON_AddArrayToObject(m, "weights8_step");
     for (int c = 0; c < p->n_comp; c++) { /* 0 = no 8-bit weights */
@@ -579,13 +624,13 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
         cJSON_AddItemToArray(files, cJSON_CreateString(ci->files[f]));
     cJSON_AddNumberToObject(c, "bytes", (double)ci->bytes);
     cJSON_AddNumberToObject(c, "rmse", btf__num(p, ci->rmse));
-    if (p->version != 2)
+    if (!btf_package_has_levels(p))
         cJSON_AddNumberToObject(c, "lab", btf__num(p, ci->lab));
     cJSON_AddNumberToObject(c, "psnr", btf__num(p, ci->psnr));
-    if (p->version != 2)
+    if (!btf_package_has_levels(p))
         cJSON_AddNumberToObject(c, "delta_e76", btf__num(p, ci->delta_e76));
     cJSON_AddNumberToObject(c, "rmse_float", btf__num(p, ci->rmse_float));
-    if (p->version != 2) {
+    if (!btf_package_has_levels(p)) {
         cJSON_AddItemToObject(c, "tex_range", btf__ranges_json(ci->tex_range, p->blocks->n_blocks));
         cJSON_AddItemToObject(c, "wt_range", btf__ranges_json(ci->wt_range, p->blocks->n_blocks));
     } else {
@@ -601,7 +646,7 @@ char *btf_manifest_print(const btf_package *p, btf_error *err)
     cJSON *m = cJSON_CreateObject();
     if (m) {
         btf__print_header(p, m);
-        if (p->version == 2)
+        if (btf_package_has_levels(p))
             btf__print_levels(p, m);
         cJSON *budget = p->budget ? cJSON_Parse(p->budget) : NULL;
         if (budget)
@@ -614,7 +659,7 @@ char *btf_manifest_print(const btf_package *p, btf_error *err)
             cJSON_AddItemToArray(chunks, btf__print_chunk(p, a));
     }
     /* version 1 stays readable; version 2 is compact (it travels first) */
-    char *s = m ? (p->version == 2 ? cJSON_PrintUnformatted(m) : cJSON_Print(m)) : NULL;
+    char *s = m ? (btf_package_has_levels(p) ? cJSON_PrintUnformatted(m) : cJSON_Print(m)) : NULL;
     cJSON_Delete(m);
     if (!s)
         btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (manifest)");

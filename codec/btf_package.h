@@ -98,7 +98,16 @@ typedef struct btf_package {
     char *budget;           /* "budget": what btf_budget_compress chose and measured, as JSON text (malloc'd); NULL if none */
     struct btf_dirtab *dirtab[2]; /* lights, views as direction tables (btf_dirtab.h), made by btf_package_read (a list set's from the manifest's triangles), freed by btf_manifest_clear; NULL: btf_decode walks the rings */
     char *rd;               /* version 3 "rd": the steps btf_rd_allocate chose, as JSON text (malloc'd); NULL if none */
+    uint8_t **q8;           /* version 4: per loaded chunk its level's reconstructed atlas bytes (malloc'd); NULL otherwise */
+    uint8_t **w8q;          /* version 4: per loaded chunk that carried wt-JJ-8.png its bytes (malloc'd); NULL otherwise */
 } btf_package;
+
+/* 1 when the package has spatial levels: version 2 (independent mips) or version 4
+ * (finer levels as residuals over the coarser one, doc/package-format.md section 12). */
+static inline int btf_package_has_levels(const btf_package *p)
+{
+    return p->version == 2 || p->version == 4;
+}
 
 /* Summary of a compression run (optional output of btf_package_compress). */
 typedef struct btf_compress_stats {
@@ -118,6 +127,11 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
  * (4 * texels * C per block) and the atlases; docs in doc/package-format.md. */
 btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *opt,
                                       const char *out_dir, btf_compress_stats *stats, btf_error *err);
+
+/* Version 4 (doc/package-format.md section 12): 1 when chunk i's texture is a residual
+ * over its component's next coarser level (its name ends "-dL.png", L = its level,
+ * below the coarsest level), 0 when it holds the level's texels directly. */
+int btf_package_chunk_residual(const btf_package *p, int i);
 
 /* Reads the manifest and the data of the first n chunks: n = 0 all (every file must
  * exist), n > 0 exactly the first n, n < 0 as many leading chunks as have their

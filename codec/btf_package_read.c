@@ -11,6 +11,7 @@
 
 #include "btf_fs.h"
 #include "btf_image.h"
+#include "btf_lod.h"
 #include "btf_manifest.h"
 #include "btf_wtz.h"
 
@@ -34,7 +35,7 @@ static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext, in
 
 /* Version 2 coarse weights (doc/package-format.md section 10): an 8-bit grey PNG of
  * 3L x V pixels, Wt = lo + wt8_step * step * q with the 16-bit [lo, step]. */
-static btf_result btf__load_weights8(const btf_package *p, const char *dir, int i, const char *wf, float *wt,
+static btf_result btf__load_weights8(btf_package *p, const char *dir, int i, const char *wf, float *wt,
                                      btf_error *err)
 {
     int L = p->lights.n_dirs, V = p->views.n_dirs, w, h, ch;
@@ -54,8 +55,12 @@ static btf_result btf__load_weights8(const btf_package *p, const char *dir, int 
         const float *rg = p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
         wt[k] = rg[0] + (float)p->chunk[i].wt8_step * rg[1] * (float)px[k];
     }
+    if (p->version == 4 && (p->w8q || (p->w8q = calloc((size_t)p->n_chunks, sizeof *p->w8q)))) {
+        p->w8q[i] = px; /* the component's wt-JJ-r.z is a residual over these */
+        return BTF_OK;
+    }
     free(px);
-    return BTF_OK;
+    return p->version == 4 ? btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path) : BTF_OK;
 }
 
 
@@ -82,6 +87,39 @@ static btf_result btf__load_weights_z(const btf_package *p, const char *path, in
 }
 
 
+/* Version 4: wt-JJ-r.z (doc/package-format.md section 12), the 16-bit weights as a
+ * btf_wtz stream (one light per "view") of r = (q16 - s_c q8) mod 65536 over the
+ * component's 8-bit weights, which an earlier chunk carried. */
+static btf_result btf__load_weights_r(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
+{
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    size_t nwt = (size_t)V * L * 3, max = btf_wtz_max_bytes(V * L, 1);
+    const uint8_t *q8 = NULL;
+    for (int e = 0; e < i && !q8; e++)
+        if (p->chunk[e].component == p->chunk[i].component && p->w8q && p->w8q[e])
+            q8 = p->w8q[e];
+    if (!q8)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: residual weights, but no earlier chunk of component %d carries its 8-bit weights",
+                        path, p->chunk[i].component);
+    long long sz = btf_fs_size(path);
+    if (sz < 0)
+        return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
+    if (sz < 1 || (unsigned long long)sz > max)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected 1..%zu", path, sz, max);
+    char *z = NULL;
+    size_t nz = 0;
+    uint16_t *q = malloc(nwt * sizeof *q);
+    btf_result r = q ? btf_fs_read(path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    if (r == BTF_OK)
+        r = btf_wtz_decode((const uint8_t *)z, nz, V * L, 1, q, path, err);
+    unsigned sc = (unsigned)p->chunk[i].wt8_step;
+    for (size_t k = 0; r == BTF_OK && k < nwt; k++)
+        wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)],
+                                    (sc * q8[k] + q[k]) & 0xFFFFu);
+    free(z), free(q);
+    return r;
+}
+
 /* Weights of chunk i (dequantised) from its .bin (or version 3 .z) file into wt (V*L*3 floats). */
 static btf_result btf__load_weights(const btf_package *p, const char *dir, int i, const char *wf, float *wt,
                                     btf_error *err)
@@ -93,6 +131,8 @@ static btf_result btf__load_weights(const btf_package *p, const char *dir, int i
     snprintf(path, sizeof path, "%s/%s", dir, wf);
     if (p->version == 3)
         return btf__load_weights_z(p, path, i, wt, err);
+    if (p->version == 4 && strlen(wf) > 2 && !strcmp(wf + strlen(wf) - 2, ".z"))
+        return btf__load_weights_r(p, path, i, wt, err);
     uint8_t *raw = malloc(2 * nwt);
     if (!raw)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
@@ -129,15 +169,45 @@ static btf_result btf__shared_weights(const btf_package *p, int i, float *wt, bt
 }
 
 
+/* Version 4 (doc/package-format.md section 12): chunk i's atlas bytes *px, a residual
+ * when its level is not the coarsest, replaced by the level they reconstruct over the
+ * bytes of the component's next coarser level (an earlier chunk, already loaded),
+ * On failure *px is the caller's to free (NULL when freed here). */
+static btf_result btf__residual_level(btf_package *p, int i, const char *path, uint8_t **px, btf_error *err)
+{
+    const btf_chunk_info *ci = &p->chunk[i];
+    if (!p->q8 && !(p->q8 = calloc((size_t)p->n_chunks, sizeof *p->q8)))
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    int l = ci->level;
+    if (!btf_package_chunk_residual(p, i))
+        return BTF_OK;
+    int aw = p->atlas_cols * (p->width >> l), ah = p->atlas_rows * (p->height >> l), e = -1;
+    for (int k = 0; k < i && e < 0; k++)
+        if (p->chunk[k].component == ci->component && p->chunk[k].level == l + 1 && p->q8[k])
+            e = k;
+    uint8_t *fine = e >= 0 ? malloc((size_t)aw * ah) : NULL;
+    if (fine)
+        btf_lod_residual_decode(*px, p->q8[e], aw, ah, p->width >> l, p->height >> l, fine);
+    free(*px);
+    *px = fine;
+    if (e < 0)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: residual of level %d of component %d, but level %d of it is not loaded before",
+                        path, l, ci->component, l + 1);
+    return fine ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+}
+
+
 /* Loads chunk i's texture (its level's size) and weights (dequantised). */
 static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_error *err)
 {
     const btf_chunk_info *ci = &p->chunk[i];
     const char *tf = btf__chunk_file(ci, ".png", 0);
     const char *wf = p->version == 3 ? btf__chunk_file(ci, ".z", 1) : btf__chunk_file(ci, ".bin", -1);
-    const char *w8 = p->version == 2 && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
+    if (!wf && p->version == 4)
+        wf = btf__chunk_file(ci, ".z", 1);
+    const char *w8 = btf_package_has_levels(p) && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
     char path[4200];
-    if (!tf || (!wf && p->version != 2))
+    if (!tf || (!wf && !btf_package_has_levels(p)))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png texture or no %s weights", dir, i,
                         p->version == 3 ? "wt-*.z" : ".bin");
     int nb = p->blocks->n_blocks, W = p->width >> ci->level, H = p->height >> ci->level;
@@ -154,6 +224,10 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
         return btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, manifest says %dx%d with %d", path, w, h,
                         ch, p->atlas_cols * W, p->atlas_rows * H, ch_want);
     }
+    if (p->version == 4 && (r = btf__residual_level(p, i, path, &px, err)) != BTF_OK) {
+        free(px); /* the caller's on failure (NULL when already freed) */
+        return r;
+    }
     float *tex = malloc((size_t)nb * W * H * sizeof(float));
     float *wt = malloc((size_t)p->views.n_dirs * p->lights.n_dirs * 3 * sizeof(float));
     if (!tex || !wt) {
@@ -169,12 +243,19 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
                 tex[((size_t)b * H + y) * W + x] = btf_package_dequant(rg, v);
             }
     }
-    free(px);
+    if (p->version == 4)
+        p->q8[i] = px; /* the next finer level's residual is over these bytes */
+    else
+        free(px);
     r = wf ? btf__load_weights(p, dir, i, wf, wt, err)
        : w8 ? btf__load_weights8(p, dir, i, w8, wt, err)
             : btf__shared_weights(p, i, wt, err);
     if (r != BTF_OK) {
         free(tex), free(wt);
+        if (p->q8)
+            free(p->q8[i]), p->q8[i] = NULL;
+        if (p->w8q)
+            free(p->w8q[i]), p->w8q[i] = NULL;
         return r;
     }
     for (int e = 0; wf && e < i; e++) /* finer weights replace the coarse ones of earlier levels */
@@ -207,6 +288,13 @@ void btf_package_free(btf_package *p)
         free(p->tex[i]);
         free(p->wt[i]);
     }
+    for (int i = 0; i < p->n_chunks; i++) {
+        if (p->q8)
+            free(p->q8[i]);
+        if (p->w8q)
+            free(p->w8q[i]);
+    }
+    free(p->q8), free(p->w8q);
     btf_manifest_clear(p); /* and the direction tables */
     free(p);
 }

@@ -237,9 +237,11 @@ static btf_result load_parsed(const char *dir, const cJSON *root, btfd_material 
         return btf_fail(err, BTF_ERR_FORMAT, "%s: manifest \"format\" is not \"btf-package\"", dir);
     /* Version 2 (spatial levels) keeps the chunk contract: files, bytes, per-chunk
      * errors (`rmse`; no `lab`, so the metric falls back to rmse below). */
-    /* Version 3 (wt-JJ.z weights) is version 1 with other weight files: the same contract. */
-    if (!cJSON_IsNumber(ver) || (ver->valuedouble != 1 && ver->valuedouble != 2 && ver->valuedouble != 3))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: manifest version is not 1, 2 or 3", dir);
+    /* Version 3 (wt-JJ.z weights) is version 1 with other weight files: the same contract;
+     * version 4 (residual levels) is version 2 with other level files. */
+    if (!cJSON_IsNumber(ver) || (ver->valuedouble != 1 && ver->valuedouble != 2 && ver->valuedouble != 3 &&
+                                 ver->valuedouble != 4))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: manifest version is not 1, 2, 3 or 4", dir);
     int n = cJSON_GetArraySize(chunks);
     if (!cJSON_IsArray(chunks) || n < 1 || n > BTFD_CHUNK_MAX)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: manifest needs 1..%d chunks", dir, BTFD_CHUNK_MAX);

@@ -673,7 +673,7 @@ Test(server, list_over_http_and_websocket_skips_non_packages)
         {"nomanifest", NULL},
         {"badjson", "{\"format\":\"btf-package\",\"version\":1,"},
         {"wrongformat", "{\"format\":\"other\",\"version\":1,\"chunks\":[{\"files\":[\"a\"]}]}"},
-        {"wrongversion", "{\"format\":\"btf-package\",\"version\":4,\"chunks\":[{\"files\":[\"a\"]}]}"},
+        {"wrongversion", "{\"format\":\"btf-package\",\"version\":5,\"chunks\":[{\"files\":[\"a\"]}]}"},
         {"missingfile", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[{\"files\":[\"nope.bin\"]}]}"},
         {"escapingfile", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[{\"files\":[\"../alpha/c0_f0.bin\"]}]}"},
         {"nochunks", "{\"format\":\"btf-package\",\"version\":1,\"chunks\":[]}"},

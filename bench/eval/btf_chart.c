@@ -5,6 +5,7 @@
 
 #include "btf_export.h"
 #include "btf_fs.h"
+#include "btf_lod.h"
 #include "btf_metrics.h"
 #include "btf_package.h"
 #include "btf_render.h"
@@ -436,6 +437,100 @@ static btf_result btf__chart_stream_package(btf_chart *c, const char *name, cons
     return r;
 }
 
+/* Prefix n of a package with levels seen at level 0: per component its finest loaded
+ * level upsampled to W x H (block-major) and its most precise loaded weights. */
+typedef struct btf__chart_lod_ctx {
+    const btf_package *p;
+    float *tex;        /* C * blocks * W * H */
+    const float **wt;  /* C, NULL: component not loaded */
+} btf__chart_lod_ctx;
+
+static void btf__chart_lod_image(const void *ctx, const btf *src, int view, int light, float *out)
+{
+    const btf__chart_lod_ctx *c = ctx;
+    const btf_package *p = c->p;
+    size_t N = (size_t)src->width * src->height;
+    int b = p->blocks->block_of_view[view], L = p->lights.n_dirs;
+    memset(out, 0, 3 * N * sizeof *out);
+    for (int k = 0; k < p->n_comp; k++) {
+        if (!c->wt[k])
+            continue;
+        const float *t = c->tex + ((size_t)k * p->blocks->n_blocks + b) * N, *w = c->wt[k] + ((size_t)view * L + light) * 3;
+        for (size_t i = 0; i < N; i++)
+            out[3 * i] += t[i] * w[0], out[3 * i + 1] += t[i] * w[1], out[3 * i + 2] += t[i] * w[2];
+    }
+}
+
+/* The same package with spatial levels (version 4, btf lod --residual, the default
+ * levels), in its chunk order: the error at level 0 after each chunk. */
+static btf_result btf__chart_stream_levels(btf_chart *c, const char *name, const btf *src,
+                                           const btf_chart_options *o, const char *tmp, btf_error *err)
+{
+    char v1[4200], dir[4200];
+    snprintf(v1, sizeof v1, "%s/levels-v1", tmp);
+    snprintf(dir, sizeof dir, "%s/levels", tmp);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 8;
+    btf_package_options ko = {0};
+    ko.bits = 8, ko.name = "chart";
+    btf_lod_options lo = {0};
+    lo.residual = 1;
+    btf_package *p = NULL;
+    btf_result r = btf_package_compress(src, &po, &ko, v1, NULL, err);
+    if (r == BTF_OK)
+        r = btf_lod_build(v1, dir, &lo, NULL, err);
+    if (r == BTF_OK)
+        r = btf_package_read(dir, 1, &p, err);
+    int n = r == BTF_OK ? p->n_chunks : 0;
+    size_t N = (size_t)src->width * src->height;
+    btf__chart_lod_ctx ctx = {NULL, NULL, NULL};
+    if (r == BTF_OK) {
+        ctx.tex = calloc((size_t)p->n_comp * p->blocks->n_blocks * N, sizeof(float));
+        ctx.wt = calloc((size_t)p->n_comp, sizeof *ctx.wt);
+        if (!ctx.tex || !ctx.wt)
+            r = btf_fail(err, BTF_ERR_NOMEM, "chart: out of memory");
+    }
+    btf_package_free(p);
+    long long bytes = btf__chart_file_bytes(dir, "manifest.json");
+    for (int i = 0; r == BTF_OK && i < n; i++) {
+        btf_package *q = NULL; /* the prefix as a client holds it (8-bit weights until the 16-bit ones) */
+        r = btf_package_read(dir, i + 1, &q, err);
+        for (int k = 0; r == BTF_OK && k < q->n_comp; k++) {
+            int j = btf_package_chunk_at(q, i + 1, k, 0);
+            ctx.wt[k] = j >= 0 ? q->wt[j] : NULL;
+            for (int b = 0; j >= 0 && b < q->blocks->n_blocks; b++)
+                for (int y = 0; y < src->height; y++)
+                    for (int x = 0; x < src->width; x++)
+                        ctx.tex[((size_t)k * q->blocks->n_blocks + b) * N + (size_t)y * src->width + x] =
+                            btf_package_texel(q, j, b, x, y);
+        }
+        ctx.p = q;
+        btf_metrics met;
+        if (r == BTF_OK)
+            r = btf__chart_error(src, btf__chart_lod_image, &ctx, o->threads, &met, err);
+        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
+        if (!s) {
+            btf_package_free(q);
+            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
+            break;
+        }
+        bytes += q->chunk[i].bytes;
+        btf__chart_clean(s->material, sizeof s->material, name);
+        snprintf(s->format, sizeof s->format, "levels");
+        s->step = i + 1;
+        snprintf(s->file, sizeof s->file, "%s%s%s", i == 0 ? "manifest.json " : "", q->chunk[i].files[0],
+                 q->chunk[i].n_files > 1 ? " +weights" : "");
+        s->bytes = bytes;
+        s->lab = met.lab_thesis;
+        s->lab_manifest = NAN;
+        btf_package_free(q);
+    }
+    free(ctx.tex), free(ctx.wt);
+    btf_fs_rmtree(dir, NULL);
+    btf_fs_rmtree(v1, NULL);
+    return r;
+}
+
 static btf_result btf__chart_stream_thesis(btf_chart *c, const char *name, const btf *src,
                                            const btf_chart_options *o, const char *tmp, btf_error *err)
 {
@@ -525,8 +620,12 @@ btf_result btf_chart_add_material(btf_chart *c, const char *name, const btf *src
     double t1 = btf__chart_now();
     if (r == BTF_OK && !o.no_stream)
         r = btf__chart_stream_thesis(c, name, src, &o, tmp, err);
+    double t2 = btf__chart_now();
     if (r == BTF_OK && !o.no_stream)
-        btf__chart_log(&o, "  streaming: package %.1f s, thesis format %.1f s\n", t1 - t0, btf__chart_now() - t1);
+        r = btf__chart_stream_levels(c, name, src, &o, tmp, err);
+    if (r == BTF_OK && !o.no_stream)
+        btf__chart_log(&o, "  streaming: package %.1f s, thesis format %.1f s, package with levels %.1f s\n", t1 - t0,
+                       t2 - t1, btf__chart_now() - t2);
     btf_fs_rmtree(tmp, NULL);
     if (r == BTF_OK && !o.no_methods)
         c->n_materials++; /* materials with method rows (for the mean rows) */

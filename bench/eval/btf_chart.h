@@ -30,7 +30,8 @@
  *   rmse (0..255), bytes, fetches, flops, cost (= fetches + flops), shader_ms,
  *   pareto_cost, pareto_bytes, n_fallback, n_unconverged, note. Material "mean" rows
  *   average the settings that succeeded on every material.
- * - chart-streaming.csv: material, format (package|thesis), step, file (what arrived),
+ * - chart-streaming.csv: material, format (package|thesis|levels: the package with
+ *   residual spatial levels, version 4, its error at level 0), step, file (what arrived),
  *   bytes (cumulative), lab, lab_manifest.
  * - chart-compress-time.csv: label, family, then encode seconds per material and mean.
  * Byte counts: "pca", "lpyr", "phong", "lafortune" count float32 parameters;
@@ -89,7 +90,7 @@ typedef struct btf_chart_row {
 /* One point of a streaming curve; owned by its btf_chart. */
 typedef struct btf_chart_stream_row {
     char material[BTF_CHART_NAME];
-    char format[16];      /* "package" or "thesis" */
+    char format[16];      /* "package", "thesis" or "levels" */
     int step;             /* 1 = after the first chunk / component file */
     char file[96];        /* what arrived at this step */
     long long bytes;      /* received so far */

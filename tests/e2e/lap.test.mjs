@@ -1,0 +1,112 @@
+// lap.test.mjs - package version 4 (doc/package-format.md section 12: levels as
+// residuals over the next coarser level, 16-bit weights as a residual over the 8-bit
+// ones). In node: the client's reader (client/btf-package.js) rebuilds from the
+// version-4 files exactly the level bytes and weights of the version-2 package made
+// from the same version-1 package (which the C reader is checked to do in
+// tests/test_lap.c), and refuses a residual before its coarser level. In headless
+// Chromium against a real btfd: a coarse prefix and the whole package draw the same
+// pixels as their version-2 twin.
+import assert from 'node:assert/strict';
+import {spawnSync} from 'node:child_process';
+import fs from 'node:fs';
+import path from 'node:path';
+import {after, before, describe, it} from 'node:test';
+import {BTF, assertClean, capture, launch, makeLibrary, meanAbsDiff, newPage, readPng, requireBuild, startServer,
+  viewers, waitFor} from './util.mjs';
+
+const pkgMod = await import('../../client/btf-package.js');
+
+let lib, server, desktop;
+
+function btf(args) {
+  const r = spawnSync(BTF, args, {encoding: 'utf8'});
+  assert.equal(r.status, 0, `btf ${args.join(' ')}: ${r.stderr}`);
+}
+
+before(async () => {
+  requireBuild();
+  lib = makeLibrary({'tiles-v1': ['tiles', 4]});
+  const v1 = path.join(lib.lib, 'tiles-v1');
+  btf(['lod', v1, path.join(lib.lib, 'tiles-lod'), '--levels', '3', '--quiet']);
+  btf(['lod', v1, path.join(lib.lib, 'tiles-lap'), '--levels', '3', '--residual', '--quiet']);
+  server = await startServer(lib.lib);
+  desktop = await launch();
+  await desktop.addInitScript(() => { window.__btfCache = false; });
+});
+
+after(async () => {
+  await desktop?.close();
+  await server?.stop();
+  lib?.remove();
+});
+
+const manifestOf = (name) => JSON.parse(fs.readFileSync(path.join(lib.lib, name, 'manifest.json'), 'utf8'));
+// A grey PNG's pixels (readPng gives RGBA).
+function grey(name, file) {
+  const img = readPng(path.join(lib.lib, name, file)), px = new Uint8Array(img.width * img.height);
+  for (let i = 0; i < px.length; i++) px[i] = img.data[4 * i];
+  return {width: img.width, height: img.height, data: px};
+}
+
+describe('version 4 (residual levels)', () => {
+  it('the client reader rebuilds the version-2 levels and weights exactly', async () => {
+    const p2 = pkgMod.parseManifest(manifestOf('tiles-lod')), p4 = pkgMod.parseManifest(manifestOf('tiles-lap'));
+    assert.equal(p4.manifestVersion, 4);
+    assert.equal(p4.version, 2, 'the GPU side sees the version-2 layout');
+    assert.equal(p4.chunks.length, p2.chunks.length);
+    const levels = new Map(), w8 = new Map();
+    let residuals = 0, residualWeights = 0;
+    for (const [j, c4] of p4.chunks.entries()) {
+      const c2 = p2.chunks[j];
+      assert.deepEqual([c4.component, c4.level], [c2.component, c2.level]);
+      const img = grey('tiles-lap', c4.tex);
+      const bytes = c4.residual ? pkgMod.reconstructLevel(p4, c4, img.data, levels.get(`${c4.component}/${c4.level + 1}`))
+        : img.data;
+      residuals += c4.residual ? 1 : 0;
+      levels.set(`${c4.component}/${c4.level}`, bytes);
+      assert.deepEqual(Buffer.from(bytes), Buffer.from(grey('tiles-lod', c2.tex).data), `chunk ${j} (${c4.tex})`);
+      if (c4.wt8) w8.set(c4.component, grey('tiles-lap', c4.wt8).data);
+      if (c4.wt) {
+        const buf = fs.readFileSync(path.join(lib.lib, 'tiles-lap', c4.wt));
+        const w4 = await pkgMod.decodeWeights(p4, c4, buf, w8.get(c4.component));
+        const w2 = pkgMod.dequantWeights(p2, c2, fs.readFileSync(path.join(lib.lib, 'tiles-lod', c2.wt)));
+        assert.deepEqual(w4, w2, `chunk ${j}: ${c4.wt}`);
+        residualWeights += c4.wt.endsWith('-r.z') ? 1 : 0;
+      }
+    }
+    assert.ok(residuals >= 1 && residualWeights >= 1, `${residuals} residual levels, ${residualWeights} residual weights`);
+    // a residual before its coarser level, a residual weight file without the 8-bit weights
+    const m = manifestOf('tiles-lap');
+    m.chunks[0].level = 0;
+    assert.throws(() => pkgMod.parseManifest(m), /comes before|twice/);
+    const cw = p4.chunks.find((c) => c.wt && c.wt.endsWith('-r.z'));
+    await assert.rejects(pkgMod.decodeWeights(p4, cw, fs.readFileSync(path.join(lib.lib, 'tiles-lap', cw.wt)), null),
+      /8-bit weights/);
+    const short = pkgMod.reconstructLevel.bind(null, p4, p4.chunks.find((c) => c.residual));
+    assert.throws(() => short(new Uint8Array(3), new Uint8Array(1)), /residual texels/);
+  });
+
+  it('streams and draws a coarse prefix and the whole package as its version-2 twin', async () => {
+    const page = await newPage(desktop);
+    await page.setViewportSize({width: 400, height: 400});
+    const n = manifestOf('tiles-lap').chunks.length;
+    for (const chunks of [2, n]) {
+      const shots = {};
+      for (const m of ['tiles-lod', 'tiles-lap']) {
+        await page.goto(`${server.url}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
+          `&light-phi=-60&camera-theta=30&width=256&height=256&max-dpr=1&repeat=4&budget-chunks=${chunks}`);
+        await waitFor(page, (k) => {
+          const v = window.__btf && window.__btf.viewers()[0];
+          return v && v.drawnChunks === k && v.frames > 0;
+        }, chunks, `${m} drawn with ${chunks} chunks`);
+        const v = (await viewers(page))[0];
+        assert.equal(v.error, null);
+        shots[m] = await capture(page, 0);
+      }
+      const d = meanAbsDiff(shots['tiles-lod'], shots['tiles-lap']);
+      console.log(`# version 4 vs version 2, ${chunks} of ${n} chunks: mean |difference| ${d.toFixed(4)} of 255`);
+      assert.ok(d < 0.01, `the same pixels (${d})`);
+    }
+    assertClean(desktop);
+  });
+});

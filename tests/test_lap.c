@@ -1,0 +1,322 @@
+/* test_lap.c - package version 4: spatial levels stored as residuals over the next
+ * coarser level (a Laplacian-style pyramid, doc/package-format.md section 12), suite
+ * "lap". Checked against independent computations: the residual transform against a
+ * direct implementation of the section's formulas written here; the version-4
+ * package against the version-2 package built from the same version-1 package (its
+ * levels are the same bytes, so every chunk's texels and weights must be equal, and
+ * so every prefix decode); a coarse prefix copied alone; hostile files. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <zlib.h>
+
+#include "btf_gen.h"
+#include "btf_lod.h"
+#include "btf_package.h"
+#include "test_util.h"
+
+#define SIZE 32
+#define COMPS 5
+#define LEVELS 3
+
+static btf_dirset small_set(void)
+{
+    btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 4, 0.0f}, {60.0f, 6, 15.0f}};
+    btf_dirset d;
+    btf_error err = {0};
+    cr_assert_eq(btf_dirset_make(r, 3, &d, &err), BTF_OK, "%s", err.msg);
+    return d;
+}
+
+/* dir/v1 (a generated tiles material, 8 bits), dir/v2 and dir/v4 made from it. */
+static void make_packages(char *dir, size_t n, long long bytes[3])
+{
+    cr_assert(test_tmpdir(dir, n));
+    btf_dirset d = small_set();
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_TILES);
+    btf *src = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_gen_create(&gp, SIZE, SIZE, &d, &d, BTF_U8, &src, &err), BTF_OK, "%s", err.msg);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = COMPS;
+    btf_package_options ko = {0};
+    char v1[600], v2[600], v4[600];
+    snprintf(v1, sizeof v1, "%s/v1", dir);
+    snprintf(v2, sizeof v2, "%s/v2", dir);
+    snprintf(v4, sizeof v4, "%s/v4", dir);
+    cr_assert_eq(btf_package_compress(src, &po, &ko, v1, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_free(src);
+    btf_lod_options lo = {0};
+    lo.levels = LEVELS;
+    btf_lod_stats s2, s4;
+    cr_assert_eq(btf_lod_build(v1, v2, &lo, &s2, &err), BTF_OK, "%s", err.msg);
+    lo.residual = 1;
+    cr_assert_eq(btf_lod_build(v1, v4, &lo, &s4, &err), BTF_OK, "%s", err.msg);
+    if (bytes)
+        bytes[0] = s2.bytes_v1, bytes[1] = s2.bytes, bytes[2] = s4.bytes;
+}
+
+static btf_package *read_ok(const char *dir, const char *sub, int n)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/%s", dir, sub);
+    btf_package *p = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_read(path, n, &p, &err), BTF_OK, "%s", err.msg);
+    return p;
+}
+
+/* Runs a shell command with one quoted path: "cp P P.bak", "mv P.bak P" and the like. */
+static void run(const char *before, const char *path, const char *after)
+{
+    char cmd[4000];
+    snprintf(cmd, sizeof cmd, "%s'%s'%s", before, path, after);
+    cr_assert_eq(system(cmd), 0, "%s", cmd);
+}
+
+static void backup(const char *path)
+{
+    char cmd[4000];
+    snprintf(cmd, sizeof cmd, "cp '%s' '%s.bak'", path, path);
+    cr_assert_eq(system(cmd), 0);
+}
+
+static void restore(const char *path)
+{
+    char cmd[4000];
+    snprintf(cmd, sizeof cmd, "mv '%s.bak' '%s'", path, path);
+    cr_assert_eq(system(cmd), 0);
+}
+
+/* ---------------------------------------------------------------- the transform */
+
+/* Section 12 written out directly (per 2x2 cell, with the bilinear weights as
+ * fractions and the rounding as floor(x + 1/2)), independent of btf_lod.c. */
+static int ref_pred(const uint8_t *c, int cw, int tcw, int tch, int x, int y)
+{
+    int X = x / 2, Y = y / 2, tx = X / tcw * tcw, ty = Y / tch * tch;
+    int X2 = x % 2 ? X + 1 : X - 1, Y2 = y % 2 ? Y + 1 : Y - 1;
+    if (X2 < tx) X2 = tx;
+    if (X2 > tx + tcw - 1) X2 = tx + tcw - 1;
+    if (Y2 < ty) Y2 = ty;
+    if (Y2 > ty + tch - 1) Y2 = ty + tch - 1;
+    double v = 0.5625 * c[Y * cw + X] + 0.1875 * c[Y * cw + X2] + 0.1875 * c[Y2 * cw + X] + 0.0625 * c[Y2 * cw + X2];
+    return (int)floor(v + 0.5);
+}
+
+static int mod256(int v) { return ((v % 256) + 256) % 256; }
+
+Test(lap, residual_transform_matches_the_formulas_and_inverts)
+{
+    /* tiles of 4x2, 2x2 and 2x4 texels (coarse tiles of 1 texel: no neighbour) in a 3 x 2 atlas */
+    int tws[3][2] = {{4, 2}, {2, 2}, {2, 4}};
+    unsigned seed = 12345;
+    for (int t = 0; t < 3; t++) {
+        int tw = tws[t][0], th = tws[t][1], aw = 3 * tw, ah = 2 * th, cw = aw / 2;
+        uint8_t fine[64], coarse[16], res[64], back[64];
+        for (int rep = 0; rep < 200; rep++) {
+            for (int i = 0; i < aw * ah; i++) {
+                seed = seed * 1103515245u + 12345u;
+                fine[i] = (uint8_t)(rep % 3 == 0 ? ((seed >> 16) & 1) * 255 : (seed >> 16) & 255); /* extremes too */
+            }
+            for (int i = 0; i < aw * ah / 4; i++) {
+                seed = seed * 1103515245u + 12345u;
+                coarse[i] = (uint8_t)(rep % 5 == 0 ? 255u - fine[2 * i] : (seed >> 16) & 255u);
+            }
+            btf_lod_residual_encode(fine, coarse, aw, ah, tw, th, res);
+            for (int y = 0; y < ah; y++)
+                for (int x = 0; x < aw; x++) {
+                    int want;
+                    if (x % 2 && y % 2)
+                        want = mod256(fine[(y - 1) * aw + x - 1] + fine[(y - 1) * aw + x] + fine[y * aw + x - 1] +
+                                      fine[y * aw + x] - 4 * coarse[(y / 2) * cw + x / 2] + 128);
+                    else {
+                        double e = 0.0; /* the rebuilt neighbours' prediction errors, inside the tile */
+                        if (x % tw)
+                            e += fine[y * aw + x - 1] - ref_pred(coarse, cw, tw / 2, th / 2, x - 1, y);
+                        if (y % th)
+                            e += fine[(y - 1) * aw + x] - ref_pred(coarse, cw, tw / 2, th / 2, x, y - 1);
+                        int pred = ref_pred(coarse, cw, tw / 2, th / 2, x, y) + (int)floor(e / 4.0);
+                        want = mod256(fine[y * aw + x] - pred + 128);
+                    }
+                    cr_assert_eq(res[y * aw + x], want, "tile %dx%d texel (%d, %d)", tw, th, x, y);
+                }
+            btf_lod_residual_decode(res, coarse, aw, ah, tw, th, back);
+            cr_assert_eq(memcmp(back, fine, (size_t)aw * ah), 0, "decode(encode(x)) == x, tile %dx%d", tw, th);
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- packages */
+
+/* Every chunk of v4 holds exactly the texels and weights of the same chunk of v2
+ * (same order): the residual coding loses nothing; and v4 is smaller. */
+Test(lap, version4_reconstructs_version2_exactly)
+{
+    char dir[256];
+    long long bytes[3];
+    make_packages(dir, sizeof dir, bytes);
+    btf_package *p2 = read_ok(dir, "v2", 0), *p4 = read_ok(dir, "v4", 0);
+    cr_assert_eq(p4->version, 4);
+    cr_assert_eq(p4->n_chunks, p2->n_chunks);
+    size_t nwt = (size_t)p2->views.n_dirs * p2->lights.n_dirs * 3;
+    int residual_files = 0;
+    for (int i = 0; i < p2->n_chunks; i++) {
+        int l = p2->chunk[i].level;
+        size_t nt = (size_t)p2->blocks->n_blocks * (p2->width >> l) * (p2->height >> l);
+        cr_assert_eq(p4->chunk[i].component, p2->chunk[i].component);
+        cr_assert_eq(p4->chunk[i].level, l);
+        cr_assert_eq(memcmp(p4->tex[i], p2->tex[i], nt * sizeof(float)), 0, "chunk %d (level %d): texels", i, l);
+        cr_assert_eq(memcmp(p4->wt[i], p2->wt[i], nwt * sizeof(float)), 0, "chunk %d: weights", i);
+        for (int f = 0; f < p4->chunk[i].n_files; f++)
+            residual_files += strstr(p4->chunk[i].files[f], "-d") != NULL || strstr(p4->chunk[i].files[f], "-r.z") != NULL;
+    }
+    cr_assert_gt(residual_files, COMPS, "residual levels and weights are really used");
+    cr_assert_lt(bytes[2], bytes[1], "v4 %lld B < v2 %lld B", bytes[2], bytes[1]);
+    /* every prefix decodes the same (decoder, lod blending, 8-bit weights of coarse prefixes) */
+    for (int n = 1; n <= p2->n_chunks; n += 3) {
+        btf_package *a = read_ok(dir, "v2", n), *b = read_ok(dir, "v4", n);
+        for (int k = 0; k < 40; k++) {
+            float u = (float)((k * 7) % 40) / 40.0f + 0.01f, v = (float)((k * 13) % 40) / 40.0f + 0.02f;
+            float li[3] = {0.3f * cosf((float)k), 0.3f * sinf((float)k), 1.0f}, vi[3] = {0.1f, -0.2f, 1.0f};
+            btf_decode_options o = {0};
+            o.filter = BTF_FILTER_BILINEAR, o.lod = (float)(k % 9) * 0.3f;
+            float ra[3], rb[3];
+            btf_decode(a, u, v, li, vi, &o, ra);
+            btf_decode(b, u, v, li, vi, &o, rb);
+            for (int c = 0; c < 3; c++)
+                cr_assert_eq(ra[c], rb[c], "prefix %d sample %d channel %d: %g vs %g", n, k, c, ra[c], rb[c]);
+        }
+        btf_package_free(a);
+        btf_package_free(b);
+    }
+    btf_package_free(p2);
+    btf_package_free(p4);
+    cr_assert_eq(test_rmtree(dir), 0);
+}
+
+/* Chunk 0 of v4 (the coarsest level: no residual) copied alone with the manifest is a
+ * partial package that reads (n < 0: what is there) and renders finite colours, equal
+ * to v2's chunk 0. */
+Test(lap, coarse_prefix_renders_alone)
+{
+    char dir[256], part[700], src[700];
+    make_packages(dir, sizeof dir, NULL);
+    btf_package *p4 = read_ok(dir, "v4", 1);
+    snprintf(part, sizeof part, "%s/part", dir);
+    snprintf(src, sizeof src, "%s/v4", dir);
+    run("mkdir -p ", part, "");
+    for (int f = -1; f < p4->chunk[0].n_files; f++) {
+        char cmd[3000];
+        snprintf(cmd, sizeof cmd, "cp '%s/%s' '%s/'", src, f < 0 ? "manifest.json" : p4->chunk[0].files[f], part);
+        cr_assert_eq(system(cmd), 0);
+    }
+    cr_assert_eq(p4->chunk[0].level, LEVELS - 1, "chunk 0 is the coarsest level");
+    btf_package *q = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_read(part, -1, &q, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(q->n_loaded, 1);
+    btf_package *p2 = read_ok(dir, "v2", 1);
+    int finite = 1, same = 1;
+    for (int k = 0; k < 25; k++) {
+        float li[3] = {0.2f, 0.1f * (float)k, 1.0f}, vi[3] = {0.0f, 0.0f, 1.0f}, a[3], b[3];
+        btf_decode_options o = {0};
+        o.filter = BTF_FILTER_BILINEAR;
+        btf_decode(q, (float)k / 25.0f, 0.5f, li, vi, &o, a);
+        btf_decode(p2, (float)k / 25.0f, 0.5f, li, vi, &o, b);
+        for (int c = 0; c < 3; c++)
+            finite &= isfinite(a[c]), same &= a[c] == b[c];
+    }
+    cr_assert(finite && same, "chunk 0 alone renders as v2's chunk 0");
+    /* the next residual chunk's files without its coarse level make no longer prefix */
+    btf_package_free(q);
+    btf_package_free(p2);
+    btf_package_free(p4);
+    cr_assert_eq(test_rmtree(dir), 0);
+}
+
+/* Hostile version-4 packages: each gets a clear error naming the problem. */
+Test(lap, hostile_packages)
+{
+    char dir[256], v4[700], man[800];
+    make_packages(dir, sizeof dir, NULL);
+    snprintf(v4, sizeof v4, "%s/v4", dir);
+    snprintf(man, sizeof man, "%s/manifest.json", v4);
+    btf_package *p = read_ok(dir, "v4", 0), *q = NULL;
+    btf_error err = {0};
+    /* the first residual level and the first residual weights in the chunk order */
+    int ir = -1, iw = -1;
+    const char *rf = NULL, *wf = NULL;
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; f < p->chunk[i].n_files; f++) {
+            const char *n = p->chunk[i].files[f];
+            if (ir < 0 && strstr(n, "-d"))
+                ir = i, rf = n;
+            if (iw < 0 && strstr(n, "-r.z"))
+                iw = i, wf = n;
+        }
+    cr_assert(ir >= 0 && iw >= 0);
+    char path[1000], cmd[4000];
+    /* 1. a residual texture that is not a PNG */
+    snprintf(path, sizeof path, "%s/%s", v4, rf);
+    backup(path);
+    run("head -c 300 /dev/urandom > ", path, "");
+    cr_assert_neq(btf_package_read(v4, ir + 1, &q, &err), BTF_OK);
+    cr_assert_null(q);
+    cr_assert(strstr(err.msg, rf), "names the file: %s", err.msg);
+    /* 2. a residual texture of the wrong size (the coarser level's file) */
+    snprintf(cmd, sizeof cmd, "cp '%s/%s' '%s'", v4, p->chunk[0].files[0], path);
+    cr_assert_eq(system(cmd), 0);
+    cr_assert_eq(btf_package_read(v4, ir + 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    restore(path);
+    /* 3. residual weights: garbage, then a zlib stream of the wrong length */
+    snprintf(path, sizeof path, "%s/%s", v4, wf);
+    backup(path);
+    run("head -c 500 /dev/urandom > ", path, "");
+    cr_assert_eq(btf_package_read(v4, iw + 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    cr_assert(strstr(err.msg, wf), "%s", err.msg);
+    uint8_t zeros[10] = {0}, z[64];
+    uLongf nz = sizeof z;
+    cr_assert_eq(compress(z, &nz, zeros, sizeof zeros), Z_OK);
+    FILE *f = fopen(path, "wb");
+    cr_assert(f);
+    cr_assert_eq(fwrite(z, 1, nz, f), nz);
+    fclose(f);
+    cr_assert_eq(btf_package_read(v4, iw + 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    restore(path);
+    /* 4. chunk order: chunk 0 (the coarsest level) claimed to be level 0, a residual with nothing before it */
+    backup(man);
+    run("sed -i '0,/\"level\":2,/s//\"level\":0,/' ", man, ""); /* LEVELS - 1 = 2: chunk 0's level */
+    cr_assert_eq(btf_package_read(v4, 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    cr_assert(strstr(err.msg, "comes before") || strstr(err.msg, "both hold"), "%s", err.msg);
+    restore(man);
+    /* 5. a version-4 manifest claiming 16-bit textures */
+    backup(man);
+    run("sed -i 's/\"bits\":8,/\"bits\":16,/' ", man, "");
+    cr_assert_eq(btf_package_read(v4, 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
+    restore(man);
+    /* 6. a 16-bit version-1 package cannot become version 4 */
+    btf_dirset d = small_set();
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_TILES);
+    btf *src = NULL;
+    cr_assert_eq(btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &src, &err), BTF_OK, "%s", err.msg);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 2;
+    btf_package_options ko = {0};
+    ko.bits = 16;
+    char a[700], b[700];
+    snprintf(a, sizeof a, "%s/v1-16", dir);
+    snprintf(b, sizeof b, "%s/v4-16", dir);
+    cr_assert_eq(btf_package_compress(src, &po, &ko, a, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_free(src);
+    btf_lod_options lo = {0};
+    lo.levels = 2, lo.residual = 1;
+    cr_assert_eq(btf_lod_build(a, b, &lo, NULL, &err), BTF_ERR_UNSUPPORTED, "%s", err.msg);
+    /* the untouched package still reads whole */
+    btf_package_free(p);
+    p = read_ok(dir, "v4", 0);
+    btf_package_free(p);
+    cr_assert_eq(test_rmtree(dir), 0);
+}
