@@ -116,7 +116,7 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
 
 // Writes through "PATH.tmp-PID.EXT" and renames; sync: fsync the file before and the
 // directory after (btf_fs_commit_file).
-static btf_result write_image(const char *path, int w, int h, int channels, int bits, const void *pixels, int sync,
+static btf_result write_image(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
                               btf_error *err)
 {
     if (w < 1 || h < 1 || w > kMaxSide || h > kMaxSide || channels < 1 || channels > 4 || (bits != 8 && bits != 16))
@@ -131,6 +131,9 @@ static btf_result write_image(const char *path, int w, int h, int channels, int 
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: no writer for this extension", path);
     ImageSpec spec(w, h, channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
     spec.attribute("oiio:UnassociatedAlpha", 1);
+    spec.attribute("png:compressionLevel", 9); // PNG: deflate level 9 (the writer's default is 6)
+    if (flags & BTF_IMAGE_PNG_UNFILTERED)
+        spec.attribute("png:filter", 0x08); // PNG_FILTER_NONE: libpng's bit for filter type None only
     if (!out->open(tmp, spec))
         return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp.c_str(), one_line(out->geterror()).c_str());
     bool ok = out->write_image(bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16, pixels);
@@ -140,7 +143,7 @@ static btf_result write_image(const char *path, int w, int h, int channels, int 
         std::remove(tmp.c_str());
         return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
     }
-    if (sync)
+    if (!(flags & BTF_IMAGE_UNSYNCED))
         return btf_fs_commit_file(tmp.c_str(), path, err); // fsync, rename, fsync of the directory
     if (std::rename(tmp.c_str(), path) != 0) {
         std::remove(tmp.c_str());
@@ -152,11 +155,17 @@ static btf_result write_image(const char *path, int w, int h, int channels, int 
 extern "C" btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
                                       btf_error *err)
 {
-    return write_image(path, w, h, channels, bits, pixels, 1, err);
+    return write_image(path, w, h, channels, bits, pixels, 0, err);
+}
+
+extern "C" btf_result btf_image_write_flags(const char *path, int w, int h, int channels, int bits, const void *pixels,
+                                            int flags, btf_error *err)
+{
+    return write_image(path, w, h, channels, bits, pixels, flags, err);
 }
 
 extern "C" btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels, int bits,
                                                const void *pixels, btf_error *err)
 {
-    return write_image(path, w, h, channels, bits, pixels, 0, err);
+    return write_image(path, w, h, channels, bits, pixels, BTF_IMAGE_UNSYNCED, err);
 }

@@ -36,6 +36,13 @@ btf_result btf_image_write(const char *path, int w, int h, int channels, int bit
  * would cost ten times the encoding). */
 btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels, int bits, const void *pixels,
                                     btf_error *err);
+/* btf_image_write with flags: BTF_IMAGE_UNSYNCED (as btf_image_write_unsynced) and
+ * BTF_IMAGE_PNG_UNFILTERED (PNG rows stored with filter type None: smaller for data
+ * without spatial correlation, such as prediction residuals). */
+#define BTF_IMAGE_UNSYNCED 1
+#define BTF_IMAGE_PNG_UNFILTERED 2
+btf_result btf_image_write_flags(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
+                                 btf_error *err);
 
 #ifdef __cplusplus
 }

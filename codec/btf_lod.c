@@ -462,16 +462,18 @@ static btf_result btf__write_residual(const btf__lod *s, int a, int l, const cha
     if (!res)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (residual)");
     btf_lod_residual_encode(s->atlas[a * s->nl + l], s->atlas[a * s->nl + l + 1], aw, ah, s->W >> l, s->H >> l, res);
-    uint8_t *png = NULL;
-    size_t n = 0;
-    btf_result r = btf_png_encode_grey(res, aw, ah, &png, &n, err); /* no filters, zlib 9 */
-    if (r == BTF_OK) /* the image library's adaptive filters, kept when smaller */
-        r = btf_image_write(path, aw, ah, 1, 8, res, err);
-    long long sz = btf_fs_size(path);
+    /* the image library's adaptive filters, then filter None (residuals are noise-like,
+     * where the filters often cost bytes): the smaller file is kept */
+    btf_result r = btf_image_write(path, aw, ah, 1, 8, res, err);
+    char alt[BTF_FS_PATH_MAX];
+    snprintf(alt, sizeof alt, "%.*s-unfiltered.png", (int)strlen(path) - 4, path);
+    if (r == BTF_OK)
+        r = btf_image_write_flags(alt, aw, ah, 1, 8, res, BTF_IMAGE_PNG_UNFILTERED | BTF_IMAGE_UNSYNCED, err);
+    long long sz_f = btf_fs_size(path), sz_u = btf_fs_size(alt);
     free(res);
-    if (r == BTF_OK && (sz < 0 || (size_t)sz > n))
-        r = btf_fs_write_atomic(path, png, n, err);
-    free(png);
+    if (r == BTF_OK && sz_u >= 0 && (sz_f < 0 || sz_u < sz_f))
+        return btf_fs_commit_file(alt, path, err);
+    remove(alt);
     return r;
 }
 

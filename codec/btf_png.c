@@ -1,6 +1,5 @@
 /* btf_png.c - PNG structure check with zlib (framing, CRCs, IHDR, inflate size, filters). */
 #include "btf_png.h"
-#include <stdlib.h>
 
 #include <string.h>
 #include <zlib.h>
@@ -174,60 +173,4 @@ btf_result btf_png_check_header(const uint8_t *data, size_t n, const char *what,
     if (!btf_png_is_png(data, n))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: not a PNG file", what);
     return btf__png_walk(data, n, &p, NULL, what, err);
-}
-
-/* ---------------------------------------------------------------- writer */
-
-static void btf__put32(uint8_t *o, uint32_t v)
-{
-    o[0] = (uint8_t)(v >> 24), o[1] = (uint8_t)(v >> 16), o[2] = (uint8_t)(v >> 8), o[3] = (uint8_t)v;
-}
-
-/* One chunk (length, type, data, CRC of type + data) at o; returns the bytes written. */
-static size_t btf__put_chunk(uint8_t *o, const char *type, const uint8_t *data, size_t n)
-{
-    btf__put32(o, (uint32_t)n);
-    memcpy(o + 4, type, 4);
-    if (n)
-        memcpy(o + 8, data, n);
-    btf__put32(o + 8 + n, (uint32_t)crc32(0L, o + 4, (uInt)(n + 4)));
-    return n + 12;
-}
-
-btf_result btf_png_encode_grey(const uint8_t *px, int w, int h, uint8_t **out, size_t *n, btf_error *err)
-{
-    *out = NULL, *n = 0;
-    if (w < 1 || h < 1 || w > 65536 || h > 65536)
-        return btf_fail(err, BTF_ERR_ARG, "png: bad size %dx%d", w, h);
-    size_t raw_n = (size_t)h * ((size_t)w + 1);
-    uLongf zn = compressBound((uLong)raw_n);
-    uint8_t *raw = malloc(raw_n), *buf = malloc((size_t)zn + 64);
-    if (!raw || !buf) {
-        free(raw), free(buf);
-        return btf_fail(err, BTF_ERR_NOMEM, "png: out of memory");
-    }
-    for (int y = 0; y < h; y++) {
-        raw[(size_t)y * (w + 1)] = 0; /* filter: none */
-        memcpy(raw + (size_t)y * (w + 1) + 1, px + (size_t)y * w, (size_t)w);
-    }
-    static const uint8_t sig[8] = {137, 80, 78, 71, 13, 10, 26, 10};
-    uint8_t ihdr[13] = {0};
-    btf__put32(ihdr, (uint32_t)w), btf__put32(ihdr + 4, (uint32_t)h);
-    ihdr[8] = 8; /* bit depth; colour type 0 (grey), compression, filter, interlace 0 */
-    memcpy(buf, sig, 8);
-    size_t o = 8 + btf__put_chunk(buf + 8, "IHDR", ihdr, 13);
-    /* the zlib stream straight into the IDAT chunk's data */
-    int zr = compress2(buf + o + 8, &zn, raw, (uLong)raw_n, 9);
-    free(raw);
-    if (zr != Z_OK) {
-        free(buf);
-        return btf_fail(err, BTF_ERR_NOMEM, "png: deflate failed (%d)", zr);
-    }
-    btf__put32(buf + o, (uint32_t)zn);
-    memcpy(buf + o + 4, "IDAT", 4);
-    btf__put32(buf + o + 8 + zn, (uint32_t)crc32(0L, buf + o + 4, (uInt)(zn + 4)));
-    o += 12 + zn;
-    o += btf__put_chunk(buf + o, "IEND", NULL, 0);
-    *out = buf, *n = o;
-    return BTF_OK;
 }

@@ -33,11 +33,6 @@ btf_result btf_png_check(const uint8_t *data, size_t n, const char *what, btf_er
  * before the image data when it opens a file. */
 btf_result btf_png_check_header(const uint8_t *data, size_t n, const char *what, btf_error *err);
 
-/* Encodes a grey 8-bit image of w x h pixels as a PNG with filter 0 (none) on every
- * row and zlib level 9, the writer of version-4 residual levels (noise-like data,
- * where the adaptive filters cost bytes). *out (malloc'd, *n bytes) on success. */
-btf_result btf_png_encode_grey(const uint8_t *px, int w, int h, uint8_t **out, size_t *n, btf_error *err);
-
 #ifdef __cplusplus
 }
 #endif
