@@ -369,6 +369,34 @@ static void check_streaming_rows_consistent(const char *dir)
             cr_assert_lt(last_lab, first_lab, "%s %s: %g after all, %g after the first", mats[m], fmts[f], last_lab,
                          first_lab);
         }
+    /* the float PCA optimum: one row per package step at the package's bytes, an error
+     * falling with C and, with every component, not above the quantised package's
+     * (quantisation adds noise; 5% for the MAE's ordering on an 8x8 material) */
+    for (int m = 0; m < 2; m++) {
+        int steps = 0;
+        double first = 0.0, last = 0.0, pkg_last = 0.0;
+        for (int r = 1; r < c->rows; r++) {
+            if (strcmp(str(c, r, "material"), mats[m]))
+                continue;
+            if (!strcmp(str(c, r, "format"), "package"))
+                pkg_last = num(c, r, "lab");
+            if (strcmp(str(c, r, "format"), "float"))
+                continue;
+            steps++;
+            int same = 0;
+            for (int q = 1; q < c->rows; q++)
+                same += !strcmp(str(c, q, "material"), mats[m]) && !strcmp(str(c, q, "format"), "package") &&
+                        num(c, q, "step") == (double)steps && num(c, q, "bytes") == num(c, r, "bytes");
+            cr_assert_eq(same, 1, "%s float step %d: not at the package's bytes", mats[m], steps);
+            last = num(c, r, "lab");
+            first = steps == 1 ? last : first;
+            cr_assert(isfinite(last) && last >= 0.0 && isnan(num(c, r, "lab_manifest")));
+        }
+        cr_assert_eq(steps, 8, "%s float: %d steps", mats[m], steps);
+        cr_assert_lt(last, first, "%s float: %g after 8, %g after 1", mats[m], last, first);
+        cr_assert_leq(last, 1.05 * pkg_last, "%s: float optimum %g above the quantised package %g", mats[m], last,
+                      pkg_last);
+    }
     free(c);
 }
 

@@ -207,6 +207,21 @@ static void btf__chart_pkg_image(const void *ctx, const btf *src, int view, int 
             btf_package_value(c->p, view, light, x, y, c->n, out + 3 * ((size_t)y * src->width + x));
 }
 
+/* The float PCA model (before quantisation) and how many of its components to use. */
+typedef struct btf__chart_float_ctx {
+    const btf_pca_model *m;
+    int n;
+} btf__chart_float_ctx;
+
+static void btf__chart_float_image(const void *ctx, const btf *src, int view, int light, float *out)
+{
+    const btf__chart_float_ctx *c = ctx;
+    for (int y = 0; y < src->height; y++)
+        for (int x = 0; x < src->width; x++)
+            for (int ch = 0; ch < 3; ch++)
+                out[3 * ((size_t)y * src->width + x) + ch] = btf_pca_model_value(c->m, view, light, x, y, ch, c->n);
+}
+
 static void btf__chart_thesis_image(const void *ctx, const btf *src, int view, int light, float *out)
 {
     (void)src;
@@ -396,6 +411,35 @@ static btf_result btf__chart_setting(btf_chart *c, btf_chart_row *row, const btf
 
 /* ---------------------------------------------------------------- streaming */
 
+/* The float PCA optimum of the package's k at each C, placed at the bytes the package
+ * has after C chunks: what quantisation and coding cost at each point of the curve. */
+static btf_result btf__chart_stream_float(btf_chart *c, const char *name, const btf *src, const btf_pca_options *po,
+                                          const btf_package *p, long long bytes, btf_error *err)
+{
+    btf_pca_model *m = NULL;
+    btf_result r = btf_pca_compress(src, po, NULL, NULL, &m, err);
+    for (int i = 0; r == BTF_OK && i < p->n_chunks && i < m->n_comp; i++) {
+        btf__chart_float_ctx ctx = {m, i + 1};
+        btf_metrics met;
+        r = btf__chart_error(src, btf__chart_float_image, &ctx, 0, &met, err);
+        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
+        if (!s) {
+            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
+            break;
+        }
+        bytes += p->chunk[i].bytes;
+        btf__chart_clean(s->material, sizeof s->material, name);
+        snprintf(s->format, sizeof s->format, "float");
+        s->step = i + 1;
+        snprintf(s->file, sizeof s->file, "float PCA C=%d", i + 1);
+        s->bytes = bytes;
+        s->lab = met.lab_thesis;
+        s->lab_manifest = NAN;
+    }
+    btf_pca_model_free(m);
+    return r;
+}
+
 static btf_result btf__chart_stream_package(btf_chart *c, const char *name, const btf *src,
                                             const btf_chart_options *o, const char *tmp, btf_error *err)
 {
@@ -432,6 +476,8 @@ static btf_result btf__chart_stream_package(btf_chart *c, const char *name, cons
         s->lab = met.lab_thesis;
         s->lab_manifest = p->chunk[i].lab;
     }
+    if (r == BTF_OK)
+        r = btf__chart_stream_float(c, name, src, &po, p, btf__chart_file_bytes(dir, "manifest.json"), err);
     btf_package_free(p);
     btf_fs_rmtree(dir, NULL);
     return r;

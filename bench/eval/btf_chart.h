@@ -90,7 +90,7 @@ typedef struct btf_chart_row {
 /* One point of a streaming curve; owned by its btf_chart. */
 typedef struct btf_chart_stream_row {
     char material[BTF_CHART_NAME];
-    char format[16];      /* "package", "thesis" or "levels" */
+    char format[16];      /* "package", "thesis", "levels" or "float" (the PCA before quantisation) */
     int step;             /* 1 = after the first chunk / component file */
     char file[96];        /* what arrived at this step */
     long long bytes;      /* received so far */

@@ -247,16 +247,16 @@ static btf_result btf__plot_script(FILE *f, const btf__csv *sa, const btf__csv *
     int sl = btf__csv_col(st, "lab");
     const char *smats[BTF__PLOT_MAX];
     int nsm = btf__csv_distinct(st, sm, -1, NULL, smats, BTF__PLOT_MAX);
-    static const char *const formats[3] = {"package", "thesis", "levels"};
+    static const char *const formats[4] = {"package", "thesis", "levels", "float"};
     fprintf(f, "set terminal %s size 1000,640 font \"DejaVu Sans,11\" background rgb \"white\"\n", term);
     fprintf(f, "set output \"%s/chart-streaming.%s\"\n", out_dir, ext);
     fprintf(f, "set title \"Streaming, error after each chunk (k3 C8): package (solid), thesis format (dashed), "
-               "package with residual levels (dotted)\"\n"
+               "package with residual levels (dotted), float PCA optimum at the package's bytes (dash-dot)\"\n"
                "set xlabel \"bytes received (KiB)\"\nset ylabel \"CIELab error (whole BTF)\"\n"
                "set logscale x\nset logscale y\nset grid\nset key top right font \",9\"\n");
     int any = 0;
     for (int i = 0; i < nsm; i++)
-        for (int k = 0; k < 3; k++) {
+        for (int k = 0; k < 4; k++) {
             fprintf(f, "$s_%d_%d << EOD\n", i, k);
             for (int r = 1; r < st->n_rows; r++)
                 if (!strcmp(st->row[r][sm], smats[i]) && !strcmp(st->row[r][sfm], formats[k]) &&
@@ -271,10 +271,11 @@ static btf_result btf__plot_script(FILE *f, const btf__csv *sa, const btf__csv *
     else {
         fprintf(f, "plot ");
         for (int i = 0; i < nsm; i++)
-            for (int k = 0; k < 3; k++)
-                fprintf(f, "$s_%d_%d using 1:2 with linespoints lc rgb \"%s\" lw 2 dt %d pt %d ps 1.1 "
+            for (int k = 0; k < 4; k++)
+                fprintf(f, "$s_%d_%d using 1:2 with linespoints lc rgb \"%s\" lw %d dt %d pt %d ps 1.1 "
                            "title \"%s %s\", ",
-                        i, k, btf__plot_colours[i % 10], k + 1, k == 2 ? 6 : k ? 4 : 7, smats[i], formats[k]);
+                        i, k, btf__plot_colours[i % 10], k == 3 ? 1 : 2, k + 1, k == 3 ? 1 : k == 2 ? 6 : k ? 4 : 7,
+                        smats[i], formats[k]);
         fprintf(f, "NaN notitle\n");
     }
     fprintf(f, "unset output\nunset logscale\n");
