@@ -320,3 +320,28 @@ Test(lap, hostile_packages)
     btf_package_free(p);
     cr_assert_eq(test_rmtree(dir), 0);
 }
+
+int cmd_compress(int argc, char **argv);
+
+/* `btf compress --levels N --residual` writes version 4 in one step; --residual
+ * alone (no levels) or with 16-bit textures is a usage error. */
+Test(lap, compress_writes_version4_directly)
+{
+    char dir[64], out[128];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/pkg", dir);
+    char *ok[] = {"compress", "gen:tiles:16:90210", out, "--components", "3", "--levels", "3", "--residual", "--quiet",
+                  NULL};
+    cr_assert_eq(cmd_compress(9, ok), 0);
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(p->version, 4);
+    cr_expect_eq(p->n_levels, 3);
+    btf_package_free(p);
+    char *none[] = {"compress", "gen:tiles:16", out, "--residual", "--quiet", NULL};
+    cr_expect_eq(cmd_compress(5, none), 2);
+    char *wide[] = {"compress", "gen:tiles:16", out, "--levels", "2", "--residual", "--bits", "16", "--quiet", NULL};
+    cr_expect_eq(cmd_compress(9, wide), 2);
+    test_rmtree(dir);
+}

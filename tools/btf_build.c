@@ -2,7 +2,6 @@
 #include "btf_build.h"
 
 #include "btf_fs.h"
-#include "btf_lod.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -16,9 +15,9 @@ static btf_result build_v1(const btf *src, btf_views *views, const btf_pca_optio
                : btf_package_compress_views(views, pca, pkg, out, st, err);
 }
 
-/* Version 2: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
+/* Versions 2 and 4: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
 static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_options *pca, btf_package_options pkg,
-                           int levels, const char *out, btf_compress_stats *st, btf_error *err)
+                           const btf_lod_options *lod, const char *out, btf_compress_stats *st, btf_error *err)
 {
     char tmp[4200], name[BTF_PACKAGE_NAME_MAX];
     if (strlen(out) > 4000)
@@ -33,28 +32,27 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
     btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
     if (r != BTF_OK)
         return r;
-    btf_lod_options lo = {0};
-    lo.levels = levels;
     btf_lod_stats ls = {0};
-    r = btf_lod_build(tmp, out, &lo, &ls, err);
+    r = btf_lod_build(tmp, out, lod, &ls, err);
     btf_fs_rmtree(tmp, NULL);
     if (st)
         st->bytes = ls.bytes, st->n_chunks = ls.n_chunks;
     return r;
 }
 
-btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg, int levels,
-                             const char *out, btf_compress_stats *stats, btf_error *err)
+btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg,
+                             const btf_lod_options *lod, const char *out, btf_compress_stats *stats, btf_error *err)
 {
-    if (levels > 0)
-        return build_v2(src, NULL, pca, *pkg, levels, out, stats, err);
+    if (lod && lod->levels > 0)
+        return build_v2(src, NULL, pca, *pkg, lod, out, stats, err);
     return build_v1(src, NULL, pca, pkg, out, stats, err);
 }
 
 btf_result btf_build_package_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *pkg,
-                                   int levels, const char *out, btf_compress_stats *stats, btf_error *err)
+                                   const btf_lod_options *lod, const char *out, btf_compress_stats *stats,
+                                   btf_error *err)
 {
-    if (levels > 0)
-        return build_v2(NULL, src, pca, *pkg, levels, out, stats, err);
+    if (lod && lod->levels > 0)
+        return build_v2(NULL, src, pca, *pkg, lod, out, stats, err);
     return build_v1(NULL, src, pca, pkg, out, stats, err);
 }

@@ -1,9 +1,10 @@
 /* btf_build.h - one package from one loaded BTF, as `btf compress` and
- * `btf library build` write it: version 1, or version 2 with spatial levels.
+ * `btf library build` write it: version 1, or version 2 (4 with residual levels).
  *
- *     btf_build_package(src, &pca, &pkg, 4, "lib/wool", &stats, &err);  // 4 levels
+ *     btf_lod_options lod = {.levels = 4, .residual = 1};
+ *     btf_build_package(src, &pca, &pkg, &lod, "lib/wool", &stats, &err);  // 4 levels, version 4
  *
- * levels 0 is btf_package_compress. levels > 0 compresses into the writer
+ * lod NULL (or lod->levels 0) is btf_package_compress. Levels compress into the writer
  * temporary OUT.tmp-PID-v1 (which the next writer of OUT cleans up if this one
  * dies) and adds the levels into OUT with btf_lod_build; either way OUT appears
  * only complete. pkg->name NULL becomes the last element of OUT.
@@ -11,12 +12,14 @@
 #ifndef BTF_BUILD_H
 #define BTF_BUILD_H
 
+#include "btf_lod.h"
 #include "btf_package.h"
 
-btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg, int levels,
-                             const char *out, btf_compress_stats *stats, btf_error *err);
+btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg,
+                             const btf_lod_options *lod, const char *out, btf_compress_stats *stats, btf_error *err);
 /* The same from a view source (codec/btf_views.h): one block of views in memory. */
 btf_result btf_build_package_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *pkg,
-                                   int levels, const char *out, btf_compress_stats *stats, btf_error *err);
+                                   const btf_lod_options *lod, const char *out, btf_compress_stats *stats,
+                                   btf_error *err);
 
 #endif

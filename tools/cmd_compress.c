@@ -30,7 +30,7 @@ typedef struct compress_opts {
     int in_memory;     /* --in-memory: load the whole input first (the baseline of the view-by-view read) */
     btf_budget budget; /* --max-bytes / --max-error (codec/btf_budget.h); both 0 = none */
     int k_set;         /* --k given: the only candidate of a budget */
-    int levels; /* > 0: write package version 2 with this many spatial levels (codec/btf_lod.h) */
+    btf_lod_options lod; /* levels > 0: package version 2 (4 with residual) with spatial levels (codec/btf_lod.h) */
 } compress_opts;
 
 static void compress_usage(FILE *f)
@@ -65,6 +65,8 @@ static void compress_usage(FILE *f)
             "                   view's nearest lights, with a warning (default: refuse)\n"
             "  --name NAME      material name in the manifest (default: last element of OUT)\n"
             "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n"
+            "  --residual       with --levels: version 4, levels stored as residuals (as `btf lod\n"
+            "                   --residual`; 8-bit textures)\n"
             "  --max-bytes N    the least CIELab error within N bytes (manifest and chunk files):\n"
             "                   k from 1, 3, 9 (or --k) and the chunk count are chosen by\n"
             "                   compressing each k once with up to 16 components (or --components);\n"
@@ -87,7 +89,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l name:n sampling:s fill-missing!F max-bytes:B max-error:E rd!R tex-noise:X in-memory!M quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E rd!R tex-noise:X in-memory!M quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -105,7 +107,8 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
         break;
     case 'g': rc = btf_args_enum(a, v, groupings, 2, &e), o->pca.grouping = (btf_grouping)(e + 1); break;
     case 'c': rc = btf_args_enum(a, v, centers, 2, &e), o->pca.center = (btf_center)(e + 1); break;
-    case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels); break;
+    case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->lod.levels); break;
+    case 'D': o->lod.residual = 1; break;
     case 'n': o->name = v; break;
     case 's': o->src.sampling = v; break;
     case 'F': o->src.fill_missing = 1; break;
@@ -131,8 +134,12 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
     memset(o, 0, sizeof *o);
     o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8;
     int rc = btf_args_parse(&compress_spec, argc, argv, compress_option, o);
-    if (rc == 0 && o->pkg.rd && (o->levels > 0 || o->pkg.bits != 8)) {
+    if (rc == 0 && o->pkg.rd && (o->lod.levels > 0 || o->pkg.bits != 8)) {
         fprintf(stderr, "btf compress: --rd writes version 3: 8-bit textures, no --levels\n");
+        rc = 2;
+    }
+    if (rc == 0 && o->lod.residual && (o->lod.levels < 1 || o->pkg.bits != 8)) {
+        fprintf(stderr, "btf compress: --residual needs --levels N and 8-bit textures\n");
         rc = 2;
     }
     o->pkg.name = o->name;
@@ -173,7 +180,7 @@ static int compress_json(const char *out, const btf_compress_stats *st, double s
 /* --max-bytes / --max-error: the k and chunk count chosen by measuring (codec/btf_budget.h). */
 static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
 {
-    if (o->levels > 0)
+    if (o->lod.levels > 0)
         return btf_fail(err, BTF_ERR_ARG, "--levels with --max-bytes or --max-error: add levels with btf lod afterwards");
     if (o->k_set)
         o->budget.k[0] = o->pca.k, o->budget.n_k = 1;
@@ -202,10 +209,10 @@ static btf_result compress_run(const btf *src, btf_views *views, compress_opts *
     btf_progress pr;
     btf_progress_start(&pr, "compress", "blocks");
     o->pca.progress = btf_progress_update, o->pca.progress_ctx = &pr;
-    btf_result r = !src ? btf_build_package_views(views, &o->pca, &o->pkg, o->levels, o->out, st, err)
+    btf_result r = !src ? btf_build_package_views(views, &o->pca, &o->pkg, &o->lod, o->out, st, err)
                    : o->budget.max_bytes > 0 || o->budget.max_error > 0
                        ? compress_budget(src, o, st, err)
-                       : btf_build_package(src, &o->pca, &o->pkg, o->levels, o->out, st, err);
+                       : btf_build_package(src, &o->pca, &o->pkg, &o->lod, o->out, st, err);
     btf_progress_end(&pr);
     return r;
 }

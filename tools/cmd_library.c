@@ -213,10 +213,12 @@ static int build_one(const library_opts *o, const library_job *j)
     btf_package_options pkg = o->pkg;
     pkg.name = j->name;
     btf_source_args sa = {o->downsample, o->sampling, 0};
+    btf_lod_options lod = {0};
+    lod.levels = o->levels;
     btf_views views;
     btf_result r = btf_source_open_views(j->spec, &sa, &views, &err); /* one block of views in memory */
     if (r == BTF_OK)
-        r = btf_build_package_views(&views, &o->pca, &pkg, o->levels, out, NULL, &err);
+        r = btf_build_package_views(&views, &o->pca, &pkg, &lod, out, NULL, &err);
     btf_views_close(&views);
     btf_dirset set;
     if (r == BTF_ERR_UNSUPPORTED && o->sampling) /* read only whole (a thesis package) */
@@ -225,7 +227,7 @@ static int build_one(const library_opts *o, const library_job *j)
     if (r == BTF_ERR_UNSUPPORTED) {
         r = btf_source_load(j->spec, &lo, &src, &err);
         if (r == BTF_OK)
-            r = btf_build_package(src, &o->pca, &pkg, o->levels, out, NULL, &err);
+            r = btf_build_package(src, &o->pca, &pkg, &lod, out, NULL, &err);
     }
     btf_free(src);
     stamp_path(o, j, path, sizeof path);
