@@ -4,6 +4,7 @@
 #include "btf_rd.h"
 
 #include <cblas.h>
+#include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,19 +29,19 @@ typedef struct btf__rd {
     double *energy;        /* C: |T_j W_j^T|^2 summed over blocks: the error of leaving j out */
     long long *rt, *rw;    /* the same: bytes */
     float *gt, *gw;        /* the ladders' noise values */
-    uint8_t *atlas;        /* aw x ah scratch */
+    float *wnorm;          /* C x nb: |W_j| per block (computed before the threads start) */
     uint16_t *q;           /* V*L*3 scratch */
 } btf__rd;
 
-/* Texture of component j at noise g: the atlas into r->atlas, the added squared error returned. */
-static double btf__rd_tex(btf__rd *r, int j, float g)
+/* Texture of component j at noise g: the atlas into atlas (aw x ah), the added squared error returned. */
+static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
 {
     double d = 0.0;
-    memset(r->atlas, 0, (size_t)r->aw * r->ah);
+    memset(atlas, 0, (size_t)r->aw * r->ah);
     for (int b = 0; b < r->nb; b++) {
         const btf_pca_block *pb = &r->m->block[b];
         const float *t = pb->t + (size_t)j * r->rows;
-        float wn = cblas_snrm2(pb->cols, pb->w + (size_t)j * pb->cols, 1), rg[2];
+        float wn = r->wnorm[(size_t)j * r->nb + b], rg[2];
         btf_rd_range(t, (size_t)r->rows, 255u, rg);
         rg[1] = btf_rd_step(rg[1], g, pb->cols, wn);
         int tx0 = (b % r->par->atlas_cols) * r->W, ty0 = (b / r->par->atlas_cols) * r->H;
@@ -49,7 +50,7 @@ static double btf__rd_tex(btf__rd *r, int j, float g)
             for (int x = 0; x < r->W; x++) {
                 float v = t[(size_t)y * r->W + x];
                 unsigned qv = btf_rd_quant(v, rg, 255u);
-                r->atlas[(size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)] = (uint8_t)qv;
+                atlas[(size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)] = (uint8_t)qv;
                 double dv = (double)v - (double)(rg[0] + rg[1] * (float)qv);
                 e += dv * dv;
             }
@@ -85,31 +86,69 @@ static double btf__rd_wt(btf__rd *r, int j, float g)
     return d;
 }
 
+/* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the atlas
+ * written as the package would write it (its bytes on disk), in scratch/rd-candidate-T.png
+ * for thread T, with the thread's own atlas buffer. */
+static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
+{
+    char path[BTF_FS_PATH_MAX];
+    snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
+    r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
+    btf_result res = btf_image_write_unsynced(path, r->aw, r->ah, 1, 8, atlas, err);
+    long long s = res == BTF_OK ? btf_fs_size(path) : -1;
+    remove(path);
+    if (res == BTF_OK && s < 0)
+        res = btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
+    r->rt[n] = s;
+    return res;
+}
+
+/* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
+static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
+{
+    r->wnorm = malloc(sizeof(float) * (size_t)r->C * (size_t)r->nb);
+    if (!r->wnorm)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (norms)");
+    for (int j = 0; j < r->C; j++)
+        for (int b = 0; b < r->nb; b++)
+            r->wnorm[(size_t)j * r->nb + b] =
+                cblas_snrm2(r->m->block[b].cols, r->m->block[b].w + (size_t)j * r->m->block[b].cols, 1);
+    btf_result res = BTF_OK;
+#pragma omp parallel
+    {
+        uint8_t *atlas = malloc((size_t)r->aw * r->ah);
+        btf_error e = {{0}};
+        btf_result mine = atlas ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (atlas)");
+#pragma omp for schedule(dynamic, 1)
+        for (int n = 0; n < r->C * BTF__RD_NT; n++)
+            if (mine == BTF_OK)
+                mine = btf__rd_tex_candidate(r, n, atlas, omp_get_thread_num(), &e);
+#pragma omp critical(btf__rd_result)
+        if (mine != BTF_OK && res == BTF_OK) {
+            res = mine;
+            if (err)
+                *err = e;
+        }
+        free(atlas);
+    }
+    return res;
+}
+
 /* Every candidate of every component: rates and distortions. */
 static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
 {
-    char path[BTF_FS_PATH_MAX];
-    snprintf(path, sizeof path, "%s/rd-candidate.png", r->par->scratch);
+    btf_result res = btf__rd_measure_tex(r, err);
+    if (res != BTF_OK)
+        return res;
     for (int j = 0; j < r->C; j++) {
-        for (int i = 0; i < BTF__RD_NT; i++) {
-            r->dt[(size_t)j * BTF__RD_NT + i] = btf__rd_tex(r, j, r->gt[i]);
-            btf_result res = btf_image_write_unsynced(path, r->aw, r->ah, 1, 8, r->atlas, err);
-            long long s = res == BTF_OK ? btf_fs_size(path) : -1;
-            remove(path);
-            if (res != BTF_OK)
-                return res;
-            if (s < 0)
-                return btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
-            r->rt[(size_t)j * BTF__RD_NT + i] = s;
-        }
         for (int i = 0; i < BTF__RD_NW; i++) {
             r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i]);
             uint8_t *z = NULL;
             size_t nz = 0;
-            btf_result res = btf_wtz_encode(r->q, r->V, r->L, &z, &nz, err);
+            btf_result rc = btf_wtz_encode(r->q, r->V, r->L, &z, &nz, err);
             free(z);
-            if (res != BTF_OK)
-                return res;
+            if (rc != BTF_OK)
+                return rc;
             r->rw[(size_t)j * BTF__RD_NW + i] = (long long)nz;
         }
     }
@@ -169,7 +208,7 @@ void btf_rd_result_free(btf_rd_result *r)
 
 static void btf__rd_free(btf__rd *r)
 {
-    free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->atlas), free(r->q);
+    free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->q), free(r->wnorm);
 }
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err)
@@ -189,13 +228,12 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     r.rt = calloc((size_t)r.C * BTF__RD_NT, sizeof(long long));
     r.rw = calloc((size_t)r.C * BTF__RD_NW, sizeof(long long));
     r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
-    r.atlas = malloc((size_t)r.aw * r.ah);
     r.q = malloc((size_t)r.V * r.L * 3 * sizeof(uint16_t));
     out->tex_noise = calloc((size_t)r.C, sizeof(float));
     out->wt_noise = calloc((size_t)r.C, sizeof(float));
     int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
     btf_result res = BTF_OK;
-    if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !r.atlas || !r.q || !out->tex_noise || !out->wt_noise ||
+    if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !r.q || !out->tex_noise || !out->wt_noise ||
         !it || !iw)
         res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
     for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
