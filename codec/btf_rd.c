@@ -4,6 +4,7 @@
 #include "btf_rd.h"
 
 #include <cblas.h>
+#include <math.h>
 #include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -198,6 +199,56 @@ static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long
     return d;
 }
 
+/* One ladder notch finer for component j (tex: texture, else weights) from choice *at:
+ * the error it removes and the bytes it adds; 0 when already at the finest step. */
+static int btf__rd_notch(const btf__rd *r, int j, int tex, const int *at, double *dd, long long *ds)
+{
+    int n = tex ? BTF__RD_NT : BTF__RD_NW, a = *at;
+    const double *d = (tex ? r->dt : r->dw) + (size_t)j * n;
+    const long long *s = (tex ? r->rt : r->rw) + (size_t)j * n;
+    if (a <= 0)
+        return 0;
+    *dd = d[a] - d[a - 1], *ds = s[a - 1] - s[a];
+    return 1;
+}
+
+/* With a byte budget: what lambda's choice leaves of max_bytes, spent one ladder notch
+ * finer at a time where the measured error drop per byte is largest (the ladder is
+ * discrete, so the bisected slope alone stops short of the budget). Components that
+ * lambda left out stay out; *bytes is kept the way btf__rd_at counts it. */
+static void btf__rd_fill(const btf__rd *r, double lambda, long long max_bytes, int *it, int *iw, long long *bytes)
+{
+    unsigned char *kept = malloc((size_t)r->C);
+    if (!kept)
+        return; /* lambda's choice stands */
+    for (int j = 0; j < r->C; j++) { /* as btf__rd_at decided at lambda */
+        double dj = r->dt[(size_t)j * BTF__RD_NT + it[j]] + r->dw[(size_t)j * BTF__RD_NW + iw[j]];
+        long long sj = r->rt[(size_t)j * BTF__RD_NT + it[j]] + r->rw[(size_t)j * BTF__RD_NW + iw[j]];
+        kept[j] = j == 0 || dj + lambda * (double)sj < r->energy[j];
+    }
+    for (;;) {
+        int bj = -1, btex = 0;
+        double best = 0.0;
+        long long bds = 0;
+        for (int j = 0; j < r->C; j++)
+            for (int tex = 0; tex < 2 && kept[j]; tex++) {
+                double dd = 0.0;
+                long long ds = 0;
+                if (!btf__rd_notch(r, j, tex, tex ? &it[j] : &iw[j], &dd, &ds) || !(dd > 0.0) ||
+                    *bytes + ds > max_bytes)
+                    continue;
+                double gain = ds > 0 ? dd / (double)ds : INFINITY;
+                if (gain > best)
+                    best = gain, bj = j, btex = tex, bds = ds;
+            }
+        if (bj < 0)
+            break;
+        (btex ? it : iw)[bj]--;
+        *bytes += bds;
+    }
+    free(kept);
+}
+
 void btf_rd_result_free(btf_rd_result *r)
 {
     if (!r)
@@ -264,6 +315,12 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         out->lambda = exp(par->max_bytes > 0 ? hi : lo);
         out->n_kept = r.C;
         out->d_rd = btf__rd_at(&r, out->lambda, it, iw, &out->bytes_rd, par->max_bytes > 0 ? &out->n_kept : NULL);
+        if (par->max_bytes > 0 && out->bytes_rd <= par->max_bytes) {
+            btf__rd_fill(&r, out->lambda, par->max_bytes, it, iw, &out->bytes_rd);
+            out->d_rd = 0.0;
+            for (int j = 0; j < r.C; j++)
+                out->d_rd += r.dt[(size_t)j * BTF__RD_NT + it[j]] + r.dw[(size_t)j * BTF__RD_NW + iw[j]];
+        }
         out->n_comp = r.C;
         for (int j = 0; j < r.C; j++)
             out->tex_noise[j] = r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
