@@ -8,8 +8,10 @@
 // Data (filled by the host, C: btf_gl_dirs_upload; browser: client/btf-gl.js):
 //   btf_dirs_block   std140 uniform block, vec4 u_btf_verts[BTF_GL_MAX_VERTS]: the vertices
 //                    of both sets (lights first, then views), each set followed by its
-//                    two virtual poles: xyz = unit vector, w = direction index + 1 within
-//                    its set (0 = virtual pole: weight dropped, the others renormalised)
+//                    two virtual poles (ring sets) or by the mirror images below the
+//                    horizon its triangles use (list sets): xyz = unit vector, w =
+//                    direction index + 1 within its set (a mirror image: the direction it
+//                    mirrors; 0 = virtual pole: weight dropped, the others renormalised)
 //   u_btf_dir_cells  RGBA32UI, 64 x 128: set s, cell (i, j) at texel (i, j + 64 s) = the
 //                    texel of a triangle containing the cell centre (below)
 //   u_btf_dir_tris   RGBA32UI, 1024 x rows: triangle t at (t & 1023, t >> 10) =
