@@ -64,11 +64,12 @@ static btf_result btf__load_weights8(btf_package *p, const char *dir, int i, con
 }
 
 
-/* Version 3: wt-JJ.z (doc/package-format.md section 11), the file size checked before reading. */
-static btf_result btf__load_weights_z(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
+/* A btf_wtz stream of rows x cols x 3 values at path into a new *q (malloc'd, the
+ * caller frees it), the file size checked against the stream's bound before reading. */
+static btf_result btf__read_wtz(const char *path, int rows, int cols, uint16_t **q, btf_error *err)
 {
-    int L = p->lights.n_dirs, V = p->views.n_dirs;
-    size_t nwt = (size_t)V * L * 3, max = btf_wtz_max_bytes(V, L);
+    size_t n = (size_t)rows * cols * 3, max = btf_wtz_max_bytes(rows, cols);
+    *q = NULL;
     long long sz = btf_fs_size(path);
     if (sz < 0)
         return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
@@ -76,13 +77,28 @@ static btf_result btf__load_weights_z(const btf_package *p, const char *path, in
         return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected 1..%zu", path, sz, max);
     char *z = NULL;
     size_t nz = 0;
-    uint16_t *q = malloc(nwt * sizeof *q);
-    btf_result r = q ? btf_fs_read(path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    uint16_t *v = malloc(n * sizeof *v);
+    btf_result r = v ? btf_fs_read(path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     if (r == BTF_OK)
-        r = btf_wtz_decode((const uint8_t *)z, nz, V, L, q, path, err);
+        r = btf_wtz_decode((const uint8_t *)z, nz, rows, cols, v, path, err);
+    free(z);
+    if (r != BTF_OK)
+        free(v);
+    else
+        *q = v;
+    return r;
+}
+
+/* Version 3: wt-JJ.z (doc/package-format.md section 11). */
+static btf_result btf__load_weights_z(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
+{
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    size_t nwt = (size_t)V * L * 3;
+    uint16_t *q = NULL;
+    btf_result r = btf__read_wtz(path, V, L, &q, err);
     for (size_t k = 0; r == BTF_OK && k < nwt; k++)
         wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)], q[k]);
-    free(z), free(q);
+    free(q);
     return r;
 }
 
@@ -93,7 +109,7 @@ static btf_result btf__load_weights_z(const btf_package *p, const char *path, in
 static btf_result btf__load_weights_r(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
 {
     int L = p->lights.n_dirs, V = p->views.n_dirs;
-    size_t nwt = (size_t)V * L * 3, max = btf_wtz_max_bytes(V * L, 1);
+    size_t nwt = (size_t)V * L * 3;
     const uint8_t *q8 = NULL;
     for (int e = 0; e < i && !q8; e++)
         if (p->chunk[e].component == p->chunk[i].component && p->w8q && p->w8q[e])
@@ -101,22 +117,13 @@ static btf_result btf__load_weights_r(const btf_package *p, const char *path, in
     if (!q8)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: residual weights, but no earlier chunk of component %d carries its 8-bit weights",
                         path, p->chunk[i].component);
-    long long sz = btf_fs_size(path);
-    if (sz < 0)
-        return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
-    if (sz < 1 || (unsigned long long)sz > max)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected 1..%zu", path, sz, max);
-    char *z = NULL;
-    size_t nz = 0;
-    uint16_t *q = malloc(nwt * sizeof *q);
-    btf_result r = q ? btf_fs_read(path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    if (r == BTF_OK)
-        r = btf_wtz_decode((const uint8_t *)z, nz, V * L, 1, q, path, err);
+    uint16_t *q = NULL;
+    btf_result r = btf__read_wtz(path, V * L, 1, &q, err);
     unsigned sc = (unsigned)p->chunk[i].wt8_step;
     for (size_t k = 0; r == BTF_OK && k < nwt; k++)
         wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)],
                                     (sc * q8[k] + q[k]) & 0xFFFFu);
-    free(z), free(q);
+    free(q);
     return r;
 }
 
