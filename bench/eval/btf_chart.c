@@ -116,6 +116,33 @@ static btf_chart_stream_row *btf__chart_stream_add(btf_chart *c, btf_error *err)
     return r;
 }
 
+/* Appends one streaming row: what had arrived at `step` (file, printf-style), the bytes
+ * received so far and the errors then (lab_manifest NAN where a format has none). */
+static btf_result btf__chart_stream_put(btf_chart *c, const char *name, const char *format, int step, long long bytes,
+                                        double lab, double lab_manifest, btf_error *err, const char *file, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 9, 10)))
+#endif
+    ;
+static btf_result btf__chart_stream_put(btf_chart *c, const char *name, const char *format, int step, long long bytes,
+                                        double lab, double lab_manifest, btf_error *err, const char *file, ...)
+{
+    btf_chart_stream_row *s = btf__chart_stream_add(c, err);
+    if (!s)
+        return BTF_ERR_NOMEM;
+    btf__chart_clean(s->material, sizeof s->material, name);
+    snprintf(s->format, sizeof s->format, "%s", format);
+    s->step = step;
+    va_list ap;
+    va_start(ap, file);
+    vsnprintf(s->file, sizeof s->file, file, ap);
+    va_end(ap);
+    s->bytes = bytes;
+    s->lab = lab;
+    s->lab_manifest = lab_manifest;
+    return BTF_OK;
+}
+
 /* ---------------------------------------------------------------- temporary dirs */
 
 
@@ -422,19 +449,9 @@ static btf_result btf__chart_stream_float(btf_chart *c, const char *name, const 
         btf__chart_float_ctx ctx = {m, i + 1};
         btf_metrics met;
         r = btf__chart_error(src, btf__chart_float_image, &ctx, 0, &met, err);
-        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
-        if (!s) {
-            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
-            break;
-        }
         bytes += p->chunk[i].bytes;
-        btf__chart_clean(s->material, sizeof s->material, name);
-        snprintf(s->format, sizeof s->format, "float");
-        s->step = i + 1;
-        snprintf(s->file, sizeof s->file, "float PCA C=%d", i + 1);
-        s->bytes = bytes;
-        s->lab = met.lab_thesis;
-        s->lab_manifest = NAN;
+        if (r == BTF_OK)
+            r = btf__chart_stream_put(c, name, "float", i + 1, bytes, met.lab_thesis, NAN, err, "float PCA C=%d", i + 1);
     }
     btf_pca_model_free(m);
     return r;
@@ -461,20 +478,11 @@ static btf_result btf__chart_stream_package(btf_chart *c, const char *name, cons
         met.lab_thesis = p->chunk[i].lab;
         if (o->verify_stream)
             r = btf__chart_error(src, btf__chart_pkg_image, &ctx, o->threads, &met, err);
-        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
-        if (!s) {
-            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
-            break;
-        }
         bytes += p->chunk[i].bytes;
-        btf__chart_clean(s->material, sizeof s->material, name);
-        snprintf(s->format, sizeof s->format, "package");
-        s->step = i + 1;
-        snprintf(s->file, sizeof s->file, "%s%s%s", i == 0 ? "manifest.json " : "", p->chunk[i].files[0],
-                 p->chunk[i].n_files > 1 ? " +weights" : "");
-        s->bytes = bytes;
-        s->lab = met.lab_thesis;
-        s->lab_manifest = p->chunk[i].lab;
+        if (r == BTF_OK)
+            r = btf__chart_stream_put(c, name, "package", i + 1, bytes, met.lab_thesis, p->chunk[i].lab, err, "%s%s%s",
+                                      i == 0 ? "manifest.json " : "", p->chunk[i].files[0],
+                                      p->chunk[i].n_files > 1 ? " +weights" : "");
     }
     if (r == BTF_OK)
         r = btf__chart_stream_float(c, name, src, &po, p, btf__chart_file_bytes(dir, "manifest.json"), err);
@@ -554,21 +562,12 @@ static btf_result btf__chart_stream_levels(btf_chart *c, const char *name, const
         btf_metrics met;
         if (r == BTF_OK)
             r = btf__chart_error(src, btf__chart_lod_image, &ctx, o->threads, &met, err);
-        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
-        if (!s) {
-            btf_package_free(q);
-            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
-            break;
+        if (r == BTF_OK) {
+            bytes += q->chunk[i].bytes;
+            r = btf__chart_stream_put(c, name, "levels", i + 1, bytes, met.lab_thesis, NAN, err, "%s%s%s",
+                                      i == 0 ? "manifest.json " : "", q->chunk[i].files[0],
+                                      q->chunk[i].n_files > 1 ? " +weights" : "");
         }
-        bytes += q->chunk[i].bytes;
-        btf__chart_clean(s->material, sizeof s->material, name);
-        snprintf(s->format, sizeof s->format, "levels");
-        s->step = i + 1;
-        snprintf(s->file, sizeof s->file, "%s%s%s", i == 0 ? "manifest.json " : "", q->chunk[i].files[0],
-                 q->chunk[i].n_files > 1 ? " +weights" : "");
-        s->bytes = bytes;
-        s->lab = met.lab_thesis;
-        s->lab_manifest = NAN;
         btf_package_free(q);
     }
     free(ctx.tex), free(ctx.wt);
@@ -609,18 +608,10 @@ static btf_result btf__chart_stream_thesis(btf_chart *c, const char *name, const
                 p.sigma[b * p.C + i] = i <= j ? sigma[b * p.C + i] : 0.0f;
         btf_metrics met;
         r = btf__chart_error(src, btf__chart_thesis_image, &p, o->threads, &met, err);
-        btf_chart_stream_row *s = r == BTF_OK ? btf__chart_stream_add(c, err) : NULL;
-        if (!s) {
-            r = r == BTF_OK ? BTF_ERR_NOMEM : r;
-            break;
-        }
         bytes += btf__chart_file_bytes(dir, file);
-        btf__chart_clean(s->material, sizeof s->material, name);
-        snprintf(s->format, sizeof s->format, "thesis");
-        s->step = j + 1;
-        snprintf(s->file, sizeof s->file, "%s%s", j == 0 ? "meta.json R.png " : "", file);
-        s->bytes = bytes;
-        s->lab = met.lab_thesis;
+        if (r == BTF_OK)
+            r = btf__chart_stream_put(c, name, "thesis", j + 1, bytes, met.lab_thesis, NAN, err, "%s%s",
+                                      j == 0 ? "meta.json R.png " : "", file);
     }
     free(sigma);
     btf_thesis_free(&p);
