@@ -145,7 +145,7 @@ function parseChunk(name, c, i, nb, lv, version) {
   const r = own ? null : lv.ranges && lv.ranges[component];
   if (!own && !r) fail(name, `chunk ${i}: no "ranges" entry for component ${component}`);
   return {
-    id: i, component, level, contrib: c.contrib, files: c.files.slice(), tex, wt, wt8,
+    id: i, component, level, contrib: c.contrib, files: c.files.slice(), tex, wt, wt8, predictor: c.predictor,
     bytes: Number.isFinite(c.bytes) ? c.bytes : 0,
     rmse: c.rmse, lab: c.lab, psnr: c.psnr, deltaE: c.delta_e76,
     texRange: own ? parseRanges(name, c.tex_range, nb, i, 'tex_range') : r.tex,
@@ -163,6 +163,11 @@ function residualOrder(name, chunks, levels) {
     const key = (l) => `${c.component}/${l}`;
     if (seen.has(key(c.level))) fail(name, `chunk ${i}: level ${c.level} of component ${c.component} twice`);
     c.residual = c.level < levels - 1 && c.tex.endsWith(`-d${c.level}.png`);
+    const pr = c.predictor;
+    if (pr !== undefined && (!c.residual || !Array.isArray(pr) || pr.length !== 3 * PRED_N ||
+        !pr.every((v) => isInt(v, -PRED_MAX, PRED_MAX))))
+      fail(name, `chunk ${i}: "predictor" is not ${3 * PRED_N} integers within +-${PRED_MAX} of a residual level`);
+    c.pred = pr === undefined ? DEFAULT_PRED : Int32Array.from(pr);
     if (c.residual && !seen.has(key(c.level + 1)))
       fail(name, `chunk ${i} (residual level ${c.level} of component ${c.component}) comes before that component's ` +
                `level ${c.level + 1}`);
@@ -170,33 +175,53 @@ function residualOrder(name, chunks, levels) {
   });
 }
 
+// Version 4 residual predictor (section 12, a chunk's "predictor"): per texel class
+// (even x and y, odd x, odd y) 6 weights of (eL, eU, eUR, eUL, D, 1), in 64ths; a
+// residual chunk that lists none has the default p + floor((eL + eU) / 4).
+const PRED_N = 6, PRED_MAX = 4096;
+const DEFAULT_PRED = Int32Array.from([16, 16, 0, 0, 0, 0, 16, 16, 0, 0, 0, 0, 16, 16, 0, 0, 0, 0]);
+
+// The 9-3-3-1 bilinear prediction of every fine texel from the coarse level, clamped
+// to its tile (tiles of tw x th fine texels, the atlas aw x ah).
+function bilinearLevel(coarse, aw, ah, tw, th) {
+  const cw = aw >> 1, tcw = tw >> 1, tch = th >> 1, P = new Int16Array(aw * ah);
+  for (let y = 0; y < ah; y++) {
+    const Y = y >> 1, y0 = Y - (Y % tch), Y2 = Math.min(Math.max(Y + (y & 1 ? 1 : -1), y0), y0 + tch - 1);
+    for (let x = 0; x < aw; x++) {
+      const X = x >> 1, x0 = X - (X % tcw), X2 = Math.min(Math.max(X + (x & 1 ? 1 : -1), x0), x0 + tcw - 1);
+      P[y * aw + x] = (9 * coarse[Y * cw + X] + 3 * coarse[Y * cw + X2] + 3 * coarse[Y2 * cw + X] + coarse[Y2 * cw + X2] + 8) >> 4;
+    }
+  }
+  return P;
+}
+
 // Version 4 residual level (section 12) -> the level's atlas bytes. res: the decoded
 // residual PNG (aw x ah values 0..255, any indexable), coarse: the reconstructed bytes
-// of the component's next coarser level ((aw/2) x (ah/2)); chunk.level gives the tile size.
+// of the component's next coarser level ((aw/2) x (ah/2)); chunk.level gives the tile
+// size, chunk.pred the predictor.
 export function reconstructLevel(pkg, chunk, res, coarse) {
   const l = chunk.level, tw = pkg.width >> l, th = pkg.height >> l;
-  const aw = tw * pkg.atlas.cols, ah = th * pkg.atlas.rows, cw = aw >> 1, tcw = tw >> 1, tch = th >> 1;
+  const aw = tw * pkg.atlas.cols, ah = th * pkg.atlas.rows, cw = aw >> 1;
   if (res.length !== aw * ah || coarse.length !== (aw >> 1) * (ah >> 1))
     fail(pkg.name, `${chunk.tex}: ${res.length} residual texels over ${coarse.length} coarse ones, expected ` +
                    `${aw * ah} over ${(aw >> 1) * (ah >> 1)}`);
-  const out = new Uint8Array(aw * ah);
-  // bilinear prediction of fine texel (x, y) from the coarse level, clamped to the tile
-  const bil = (x, y) => {
-    const X = x >> 1, Y = y >> 1, x0 = X - X % tcw, y0 = Y - Y % tch;
-    const X2 = Math.min(Math.max(X + (x & 1 ? 1 : -1), x0), x0 + tcw - 1);
-    const Y2 = Math.min(Math.max(Y + (y & 1 ? 1 : -1), y0), y0 + tch - 1);
-    return (9 * coarse[Y * cw + X] + 3 * coarse[Y * cw + X2] + 3 * coarse[Y2 * cw + X] + coarse[Y2 * cw + X2] + 8) >> 4;
-  };
+  const P = bilinearLevel(coarse, aw, ah, tw, th), w = chunk.pred || DEFAULT_PRED, out = new Uint8Array(aw * ah);
   for (let y = 0; y < ah; y++) {
+    const ty = y % th;
     for (let x = 0; x < aw; x++) {
-      const i = y * aw + x;
+      const i = y * aw + x, C4 = 4 * coarse[(y >> 1) * cw + (x >> 1)];
       let v;
-      if (x & 1 && y & 1) v = 4 * coarse[(y >> 1) * cw + (x >> 1)] + res[i] - 128 - out[i - aw - 1] - out[i - aw] - out[i - 1];
+      if (x & 1 && y & 1) v = C4 + res[i] - 128 - out[i - aw - 1] - out[i - aw] - out[i - 1];
       else {
-        const e = (x % tw ? out[i - 1] - bil(x - 1, y) : 0) + (y % th ? out[i - aw] - bil(x, y - 1) : 0);
-        v = bil(x, y) + Math.floor(e / 4) + res[i] - 128;
+        const tx = x % tw, k = PRED_N * ((x & 1) + 2 * (y & 1)), c = (y & ~1) * aw + (x & ~1);
+        const eL = tx > 0 ? out[i - 1] - P[i - 1] : 0, eU = ty > 0 ? out[i - aw] - P[i - aw] : 0;
+        const eUR = ty > 0 && tx < tw - 1 ? out[i - aw + 1] - P[i - aw + 1] : 0;
+        const eUL = ty > 0 && tx > 0 ? out[i - aw - 1] - P[i - aw - 1] : 0;
+        const d = C4 - (P[c] + P[c + 1] + P[c + aw] + P[c + aw + 1]);
+        const s = w[k] * eL + w[k + 1] * eU + w[k + 2] * eUR + w[k + 3] * eUL + w[k + 4] * d + w[k + 5];
+        v = P[i] + Math.floor(s / 64) + res[i] - 128;
       }
-      out[i] = (v + 1024) & 255;
+      out[i] = v & 255; // mod 256 (two's complement)
     }
   }
   return out;

@@ -13,6 +13,7 @@
 
 #include "btf_fs.h"
 #include "btf_image.h"
+#include "btf_lap.h"
 #include "btf_manifest.h"
 #include "btf_png.h"
 #include "btf_wtz.h"
@@ -78,6 +79,7 @@ typedef struct btf__lod {
     int nl, nb, C, W, H, ch, qmax;
     int resid;       /* 1: version 4, levels < nl-1 may be stored as residuals */
     char *isres;     /* [a*nl+l] version 4: 1 when that level's file is a residual (the smaller coding) */
+    btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
     char *w16res;    /* [a] version 4: 1 when the 16-bit weights are wt-JJ-r.z (the smaller coding) */
     double thr;
     float **lev;     /* [a*nl+l] dequantised texels, nb * Wl * Hl; level 0 borrowed from p->tex */
@@ -103,7 +105,7 @@ static void btf__lod_free(btf__lod *s)
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
-    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->w16res);
+    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->w16res), free(s->pred);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -453,18 +455,23 @@ static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_
     return r;
 }
 
-/* Version 4: level l < nl-1 of component a as its residual over level l+1, into path. */
-static btf_result btf__write_residual(const btf__lod *s, int a, int l, const char *path, btf_error *err)
+/* Version 4: level l < nl-1 of component a as its residual over level l+1 with the
+ * least-squares predictor (kept in s->pred), into path. */
+static btf_result btf__write_residual(btf__lod *s, int a, int l, const char *path, btf_error *err)
 {
     const btf_package *p = s->p;
     int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
+    const uint8_t *fine = s->atlas[a * s->nl + l], *coarse = s->atlas[a * s->nl + l + 1];
     uint8_t *res = malloc((size_t)aw * ah);
     if (!res)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (residual)");
-    btf_lod_residual_encode(s->atlas[a * s->nl + l], s->atlas[a * s->nl + l + 1], aw, ah, s->W >> l, s->H >> l, res);
+    btf_lap_pred *pr = &s->pred[a * s->nl + l];
+    *pr = btf_lap_pred_fit(fine, coarse, aw, ah, s->W >> l, s->H >> l);
+    btf_result r = btf_lap_encode(fine, coarse, aw, ah, s->W >> l, s->H >> l, pr, res, err);
     /* the image library's adaptive filters, then filter None (residuals are noise-like,
      * where the filters often cost bytes): the smaller file is kept */
-    btf_result r = btf_image_write(path, aw, ah, 1, 8, res, err);
+    if (r == BTF_OK)
+        r = btf_image_write(path, aw, ah, 1, 8, res, err);
     char alt[BTF_FS_PATH_MAX];
     snprintf(alt, sizeof alt, "%.*s-unfiltered.png", (int)strlen(path) - 4, path);
     if (r == BTF_OK)
@@ -553,6 +560,9 @@ static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info 
     c->component = v1->component, c->level = l, c->n_files = 0;
     c->tex_range = v1->tex_range, c->wt_range = v1->wt_range; /* borrowed from the v1 package */
     btf__level_name(s, a, l, s->isres[a * s->nl + l], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+    c->has_pred = s->isres[a * s->nl + l];
+    if (c->has_pred)
+        c->pred = s->pred[a * s->nl + l];
     *bytes = s->tbytes[a * s->nl + l];
     if (!seen[a] && l > 0) { /* a coarse first chunk carries the 8-bit weights */
         btf__w8_name(s, a, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
@@ -633,8 +643,8 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
     s->w8mult = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
-    s->isres = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1);
-    if (!s->w8q || !s->isres || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
+    s->isres = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
+    if (!s->w8q || !s->isres || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;
 }
@@ -682,57 +692,6 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
     }
     btf__lod_free(&s);
     return r;
-}
-
-/* Version-4 prediction of fine texel (x, y) from the coarse atlas (tiles of tw x th
- * coarse texels, cw wide): 9-3-3-1 bilinear of the coarse texel under it and its
- * neighbours toward (x, y), clamped to the tile, rounded (section 12). */
-static int btf__predict(const uint8_t *coarse, int cw, int tw, int th, int x, int y)
-{
-    int X = x >> 1, Y = y >> 1, x0 = X - X % tw, y0 = Y - Y % th;
-    int X2 = X + ((x & 1) ? 1 : -1), Y2 = Y + ((y & 1) ? 1 : -1);
-    X2 = X2 < x0 ? x0 : X2 > x0 + tw - 1 ? x0 + tw - 1 : X2;
-    Y2 = Y2 < y0 ? y0 : Y2 > y0 + th - 1 ? y0 + th - 1 : Y2;
-    const uint8_t *r = coarse + (size_t)Y * cw, *r2 = coarse + (size_t)Y2 * cw;
-    return (9 * r[X] + 3 * r[X2] + 3 * r2[X] + r2[X2] + 8) >> 4;
-}
-
-/* Prediction of fine texel (x, y) from the coarse atlas and the already rebuilt fine
- * texels left and above it in its tile: p + floor((eL + eU) / 4), e = A - p there. */
-static int btf__predict2(const uint8_t *fine, const uint8_t *coarse, int aw, int tw, int th, int x, int y)
-{
-    int cw = aw / 2, e = 0;
-    if (x % tw)
-        e += fine[(size_t)y * aw + x - 1] - btf__predict(coarse, cw, tw / 2, th / 2, x - 1, y);
-    if (y % th)
-        e += fine[(size_t)(y - 1) * aw + x] - btf__predict(coarse, cw, tw / 2, th / 2, x, y - 1);
-    return btf__predict(coarse, cw, tw / 2, th / 2, x, y) + (e + 1024) / 4 - 256; /* floor */
-}
-
-void btf_lod_residual_encode(const uint8_t *fine, const uint8_t *coarse, int aw, int ah, int tw, int th, uint8_t *res)
-{
-    int cw = aw / 2;
-    for (int y = 0; y < ah; y++)
-        for (int x = 0; x < aw; x++) {
-            size_t i = (size_t)y * aw + x;
-            int v = (x & 1) && (y & 1) ? fine[i - aw - 1] + fine[i - aw] + fine[i - 1] + fine[i] -
-                                             4 * coarse[(size_t)(y >> 1) * cw + (x >> 1)]
-                                       : fine[i] - btf__predict2(fine, coarse, aw, tw, th, x, y);
-            res[i] = (uint8_t)((v + 128 + 1024) & 255); /* 1024 = 0 mod 256 keeps it positive */
-        }
-}
-
-void btf_lod_residual_decode(const uint8_t *res, const uint8_t *coarse, int aw, int ah, int tw, int th, uint8_t *fine)
-{
-    int cw = aw / 2;
-    for (int y = 0; y < ah; y++)
-        for (int x = 0; x < aw; x++) {
-            size_t i = (size_t)y * aw + x;
-            int v = (x & 1) && (y & 1) ? 4 * coarse[(size_t)(y >> 1) * cw + (x >> 1)] + res[i] - 128 -
-                                             fine[i - aw - 1] - fine[i - aw] - fine[i - 1]
-                                       : btf__predict2(fine, coarse, aw, tw, th, x, y) + res[i] - 128;
-            fine[i] = (uint8_t)((v + 1024) & 255);
-        }
 }
 
 int btf_lod_texel_of(int x, int level, int from)

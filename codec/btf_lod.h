@@ -53,19 +53,6 @@ typedef struct btf_lod_stats {
 btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
                          btf_error *err);
 
-/* Version 4 residual coding of one level (doc/package-format.md section 12), on whole
- * atlases: fine is aw x ah bytes (aw, ah even) in tiles of tw x th texels, coarse the
- * (aw/2) x (ah/2) atlas of the next coarser level. Texel (x, y) with x or y even
- * stores (q - pred + 128) mod 256, pred = p + floor((eL + eU) / 4), p = the rounded
- * 9-3-3-1 bilinear of the coarse texels around it (clamped to its tile), eL, eU = q - p
- * of its left and upper neighbours in the tile (0 at the tile's edge); (odd x, odd y)
- * stores the 2x2 cell's (q0 + q1 + q2 + q3 - 4 coarse + 128) mod 256. Decoding
- * (raster order) inverts it exactly. */
-void btf_lod_residual_encode(const uint8_t *fine, const uint8_t *coarse, int aw, int ah, int tw, int th,
-                             uint8_t *res);
-void btf_lod_residual_decode(const uint8_t *res, const uint8_t *coarse, int aw, int ah, int tw, int th,
-                             uint8_t *fine);
-
 /* Texels per screen pixel of a material W texels wide, repeated `repeat` times
  * across `pixels` device pixels. <= 0 when pixels <= 0 (nothing visible). */
 /* Texel (along one axis, inside a tile) of level `from` that texel x of level `level`

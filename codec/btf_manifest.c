@@ -260,6 +260,29 @@ static btf_result btf__chunk_numbers(const cJSON *c, btf_chunk_info *ci, const c
     return BTF_OK;
 }
 
+/* Version 4: the "predictor" of a residual level (section 12: 18 integers within
+ * +-BTF_LAP_PRED_MAX), or the default one when the chunk lists none. */
+static btf_result btf__parse_pred(const cJSON *c, const btf_package *p, int id, const char *path, btf_error *err)
+{
+    btf_chunk_info *ci = &p->chunk[id];
+    const cJSON *a = cJSON_GetObjectItemCaseSensitive(c, "predictor");
+    ci->pred = btf_lap_pred_default();
+    ci->has_pred = a != NULL;
+    if (!a)
+        return BTF_OK;
+    if (!btf_package_chunk_residual(p, id) || !cJSON_IsArray(a) || cJSON_GetArraySize(a) != 3 * BTF_LAP_PRED_N)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: \"predictor\" is not %d integers of a residual level", path,
+                        id, 3 * BTF_LAP_PRED_N);
+    for (int k = 0; k < 3 * BTF_LAP_PRED_N; k++) {
+        const cJSON *v = cJSON_GetArrayItem(a, k);
+        if (!cJSON_IsNumber(v) || v->valuedouble != floor(v->valuedouble) || fabs(v->valuedouble) > BTF_LAP_PRED_MAX)
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d: \"predictor\" entry %d is not an integer within +-%d",
+                            path, id, k, BTF_LAP_PRED_MAX);
+        ci->pred.w[k / BTF_LAP_PRED_N][k % BTF_LAP_PRED_N] = (int)v->valuedouble;
+    }
+    return BTF_OK;
+}
+
 static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_package *p, int id, const char *path,
                                    btf_error *err)
 {
@@ -291,6 +314,8 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
     if (v && v->valuedouble >= 1.0)
         ci->wt8_step = v->valuedouble;
     btf_result r = btf__chunk_numbers(c, ci, path, id, err);
+    if (r == BTF_OK)
+        r = btf__parse_pred(c, p, id, path, err);
     if (r != BTF_OK)
         return r;
     if (btf_package_has_levels(p) && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
@@ -637,6 +662,11 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
         cJSON_AddNumberToObject(c, "level", ci->level);
         cJSON_AddNumberToObject(c, "contrib", btf__num(p, ci->contrib));
         cJSON_AddNumberToObject(c, "rmse_full", btf__num(p, ci->rmse_full));
+    }
+    if (ci->has_pred) {
+        cJSON *pr = cJSON_AddArrayToObject(c, "predictor");
+        for (int k = 0; k < 3 * BTF_LAP_PRED_N; k++)
+            cJSON_AddItemToArray(pr, cJSON_CreateNumber(ci->pred.w[k / BTF_LAP_PRED_N][k % BTF_LAP_PRED_N]));
     }
     return c;
 }

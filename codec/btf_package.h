@@ -23,6 +23,7 @@
 #include <stdint.h>
 
 #include "btf.h"
+#include "btf_lap.h"
 #include "btf_pca.h"
 
 #ifdef __cplusplus
@@ -74,6 +75,8 @@ typedef struct btf_chunk_info {
     double contrib;   /* version 2: RMS (0..255) of this component's contribution seen at this level; 0 if absent */
     double wt8_step;  /* version 2: 8-bit weights are lo + wt8_step * step * q ("weights8_step"; 257 if absent) */
     double rmse_full; /* version 2: RMS (0..255) of what the prefix up to this chunk still lacks at level 0 */
+    int has_pred;      /* version 4: the manifest lists "predictor" for this residual level */
+    btf_lap_pred pred; /* version 4: the residual's predictor (btf_lap_pred_default when !has_pred) */
 } btf_chunk_info;
 
 /* A package read from disk (or just written); owned by the caller, btf_package_free. */

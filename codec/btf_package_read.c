@@ -192,15 +192,20 @@ static btf_result btf__residual_level(btf_package *p, int i, const char *path, u
     for (int k = 0; k < i && e < 0; k++)
         if (p->chunk[k].component == ci->component && p->chunk[k].level == l + 1 && p->q8[k])
             e = k;
-    uint8_t *fine = e >= 0 ? malloc((size_t)aw * ah) : NULL;
-    if (fine)
-        btf_lod_residual_decode(*px, p->q8[e], aw, ah, p->width >> l, p->height >> l, fine);
-    free(*px);
-    *px = fine;
-    if (e < 0)
+    if (e < 0) {
+        free(*px);
+        *px = NULL;
         return btf_fail(err, BTF_ERR_FORMAT, "%s: residual of level %d of component %d, but level %d of it is not loaded before",
                         path, l, ci->component, l + 1);
-    return fine ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    }
+    uint8_t *fine = malloc((size_t)aw * ah);
+    btf_result r = fine ? btf_lap_decode(*px, p->q8[e], aw, ah, p->width >> l, p->height >> l, &ci->pred, fine, err)
+                        : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    free(*px);
+    *px = r == BTF_OK ? fine : NULL;
+    if (r != BTF_OK)
+        free(fine);
+    return r;
 }
 
 

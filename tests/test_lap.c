@@ -13,6 +13,7 @@
 #include <zlib.h>
 
 #include "btf_gen.h"
+#include "btf_lap.h"
 #include "btf_lod.h"
 #include "btf_package.h"
 #include "test_util.h"
@@ -108,45 +109,135 @@ static int ref_pred(const uint8_t *c, int cw, int tcw, int tch, int x, int y)
 
 static int mod256(int v) { return ((v % 256) + 256) % 256; }
 
+/* Texel (x, y)'s bilinear prediction error q - p, 0 outside its tile (dx, dy: offset). */
+static double ref_err(const uint8_t *fine, const uint8_t *c, int aw, int tw, int th, int x, int y, int dx, int dy)
+{
+    int nx = x + dx, ny = y + dy;
+    if (nx / tw != x / tw || ny / th != y / th || nx < 0 || ny < 0)
+        return 0.0;
+    return fine[ny * aw + nx] - ref_pred(c, aw / 2, tw / 2, th / 2, nx, ny);
+}
+
+/* The residual byte of texel (x, y) by section 12's formulas (pr: the predictor). */
+static int ref_residual(const uint8_t *fine, const uint8_t *c, int aw, int tw, int th, const btf_lap_pred *pr, int x,
+                        int y)
+{
+    int cw = aw / 2;
+    if (x % 2 && y % 2)
+        return mod256(fine[(y - 1) * aw + x - 1] + fine[(y - 1) * aw + x] + fine[y * aw + x - 1] + fine[y * aw + x] -
+                      4 * c[(y / 2) * cw + x / 2] + 128);
+    int x0 = x / 2 * 2, y0 = y / 2 * 2;
+    double d = 4.0 * c[(y / 2) * cw + x / 2];
+    for (int k = 0; k < 4; k++)
+        d -= ref_pred(c, cw, tw / 2, th / 2, x0 + k % 2, y0 + k / 2);
+    double f[6] = {ref_err(fine, c, aw, tw, th, x, y, -1, 0), ref_err(fine, c, aw, tw, th, x, y, 0, -1),
+                   ref_err(fine, c, aw, tw, th, x, y, 1, -1), ref_err(fine, c, aw, tw, th, x, y, -1, -1), d, 1.0};
+    const int *w = pr->w[x % 2 + 2 * (y % 2)];
+    double s = 0.0;
+    for (int k = 0; k < 6; k++)
+        s += w[k] * f[k];
+    int pred = ref_pred(c, cw, tw / 2, th / 2, x, y) + (int)floor(s / 64.0);
+    return mod256(fine[y * aw + x] - pred + 128);
+}
+
+static unsigned lcg(unsigned *seed)
+{
+    *seed = *seed * 1103515245u + 12345u;
+    return *seed >> 16;
+}
+
+/* The default predictor is the one version 4 had before predictors were listed:
+ * p + floor((eL + eU) / 4). */
+Test(lap, default_predictor_is_a_quarter_of_the_left_and_upper_errors)
+{
+    btf_lap_pred d = btf_lap_pred_default();
+    for (int c = 0; c < 3; c++)
+        for (int k = 0; k < 6; k++)
+            cr_assert_eq(d.w[c][k], k < 2 ? 16 : 0, "class %d weight %d", c, k);
+}
+
 Test(lap, residual_transform_matches_the_formulas_and_inverts)
 {
-    /* tiles of 4x2, 2x2 and 2x4 texels (coarse tiles of 1 texel: no neighbour) in a 3 x 2 atlas */
-    int tws[3][2] = {{4, 2}, {2, 2}, {2, 4}};
+    /* tiles of 4x2, 2x2, 2x4 and 6x4 texels (coarse tiles of 1 texel: no neighbour) in a 3 x 2 atlas */
+    int tws[4][2] = {{4, 2}, {2, 2}, {2, 4}, {6, 4}};
     unsigned seed = 12345;
-    for (int t = 0; t < 3; t++) {
-        int tw = tws[t][0], th = tws[t][1], aw = 3 * tw, ah = 2 * th, cw = aw / 2;
-        uint8_t fine[64], coarse[16], res[64], back[64];
+    btf_error err = {0};
+    for (int t = 0; t < 4; t++) {
+        int tw = tws[t][0], th = tws[t][1], aw = 3 * tw, ah = 2 * th;
+        uint8_t fine[144], coarse[36], res[144], back[144];
         for (int rep = 0; rep < 200; rep++) {
-            for (int i = 0; i < aw * ah; i++) {
-                seed = seed * 1103515245u + 12345u;
-                fine[i] = (uint8_t)(rep % 3 == 0 ? ((seed >> 16) & 1) * 255 : (seed >> 16) & 255); /* extremes too */
-            }
-            for (int i = 0; i < aw * ah / 4; i++) {
-                seed = seed * 1103515245u + 12345u;
-                coarse[i] = (uint8_t)(rep % 5 == 0 ? 255u - fine[2 * i] : (seed >> 16) & 255u);
-            }
-            btf_lod_residual_encode(fine, coarse, aw, ah, tw, th, res);
+            for (int i = 0; i < aw * ah; i++)
+                fine[i] = (uint8_t)(rep % 3 == 0 ? (lcg(&seed) & 1) * 255 : lcg(&seed) & 255); /* extremes too */
+            for (int i = 0; i < aw * ah / 4; i++)
+                coarse[i] = (uint8_t)(rep % 5 == 0 ? 255u - fine[2 * i] : lcg(&seed) & 255u);
+            btf_lap_pred pr = btf_lap_pred_default();
+            if (rep % 2) /* any weights within the bound, the extremes too */
+                for (int k = 0; k < 18; k++)
+                    pr.w[k / 6][k % 6] = rep % 7 == 1 ? (k % 2 ? BTF_LAP_PRED_MAX : -BTF_LAP_PRED_MAX)
+                                                       : (int)(lcg(&seed) % 257) - 128;
+            cr_assert_eq(btf_lap_encode(fine, coarse, aw, ah, tw, th, &pr, res, &err), BTF_OK, "%s", err.msg);
             for (int y = 0; y < ah; y++)
-                for (int x = 0; x < aw; x++) {
-                    int want;
-                    if (x % 2 && y % 2)
-                        want = mod256(fine[(y - 1) * aw + x - 1] + fine[(y - 1) * aw + x] + fine[y * aw + x - 1] +
-                                      fine[y * aw + x] - 4 * coarse[(y / 2) * cw + x / 2] + 128);
-                    else {
-                        double e = 0.0; /* the rebuilt neighbours' prediction errors, inside the tile */
-                        if (x % tw)
-                            e += fine[y * aw + x - 1] - ref_pred(coarse, cw, tw / 2, th / 2, x - 1, y);
-                        if (y % th)
-                            e += fine[(y - 1) * aw + x] - ref_pred(coarse, cw, tw / 2, th / 2, x, y - 1);
-                        int pred = ref_pred(coarse, cw, tw / 2, th / 2, x, y) + (int)floor(e / 4.0);
-                        want = mod256(fine[y * aw + x] - pred + 128);
-                    }
-                    cr_assert_eq(res[y * aw + x], want, "tile %dx%d texel (%d, %d)", tw, th, x, y);
-                }
-            btf_lod_residual_decode(res, coarse, aw, ah, tw, th, back);
+                for (int x = 0; x < aw; x++)
+                    cr_assert_eq(res[y * aw + x], ref_residual(fine, coarse, aw, tw, th, &pr, x, y),
+                                 "tile %dx%d texel (%d, %d), rep %d", tw, th, x, y, rep);
+            cr_assert_eq(btf_lap_decode(res, coarse, aw, ah, tw, th, &pr, back, &err), BTF_OK, "%s", err.msg);
             cr_assert_eq(memcmp(back, fine, (size_t)aw * ah), 0, "decode(encode(x)) == x, tile %dx%d", tw, th);
         }
     }
+}
+
+/* The fitted predictor recovers a known linear model: fine texels made as p + the
+ * given weights over their features + noise (the generator's own arithmetic, in
+ * double, independent of the fit). The features are themselves made of that noise,
+ * so a weight's standard error is about 1/sqrt(N) = 1/64 with N = 4096 texels per
+ * class, 1 in units of 1/64: the fitted weights must be within 4 (4 sigma) of the
+ * planted ones. And the fitted residual has less energy than the default's. */
+Test(lap, fitted_predictor_recovers_a_planted_model)
+{
+    enum { TW = 16, TH = 16, AW = 8 * TW, AH = 8 * TH };
+    static uint8_t fine[AW * AH], coarse[AW * AH / 4];
+    unsigned seed = 777;
+    const int want[3][6] = {{20, -10, 6, 0, 12, 32}, {-16, 8, 0, 10, 16, 32}, {12, -20, 8, -4, 24, 32}};
+    for (int i = 0; i < AW * AH / 4; i++)
+        coarse[i] = (uint8_t)(96 + lcg(&seed) % 64);
+    /* raster order: each texel from the already made ones, as the decoder would */
+    for (int y = 0; y < AH; y++)
+        for (int x = 0; x < AW; x++) {
+            double v;
+            if (x % 2 && y % 2) {
+                v = 4.0 * coarse[(y / 2) * (AW / 2) + x / 2] - fine[(y - 1) * AW + x - 1] - fine[(y - 1) * AW + x] -
+                    fine[y * AW + x - 1] + (double)(lcg(&seed) % 4) - 2.0;
+            } else {
+                int x0 = x / 2 * 2, y0 = y / 2 * 2;
+                double d = 4.0 * coarse[(y / 2) * (AW / 2) + x / 2];
+                for (int k = 0; k < 4; k++)
+                    d -= ref_pred(coarse, AW / 2, TW / 2, TH / 2, x0 + k % 2, y0 + k / 2);
+                double f[5] = {ref_err(fine, coarse, AW, TW, TH, x, y, -1, 0), ref_err(fine, coarse, AW, TW, TH, x, y, 0, -1),
+                               ref_err(fine, coarse, AW, TW, TH, x, y, 1, -1), ref_err(fine, coarse, AW, TW, TH, x, y, -1, -1), d};
+                const int *w = want[x % 2 + 2 * (y % 2)];
+                double s = 0.0;
+                for (int k = 0; k < 5; k++)
+                    s += w[k] / 64.0 * f[k];
+                v = ref_pred(coarse, AW / 2, TW / 2, TH / 2, x, y) + s + ((double)(lcg(&seed) % 1001) / 1000.0 - 0.5) * 6.0;
+            }
+            fine[y * AW + x] = (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : lround(v));
+        }
+    btf_lap_pred pr = btf_lap_pred_fit(fine, coarse, AW, AH, TW, TH);
+    for (int c = 0; c < 3; c++)
+        for (int k = 0; k < 5; k++)
+            cr_assert(abs(pr.w[c][k] - want[c][k]) <= 4, "class %d weight %d: fitted %d, planted %d", c, k, pr.w[c][k],
+                      want[c][k]);
+    /* the fitted residual has less energy than the default's */
+    static uint8_t res[AW * AH];
+    double e[2] = {0.0, 0.0};
+    btf_lap_pred d = btf_lap_pred_default();
+    btf_error err = {0};
+    for (int m = 0; m < 2; m++) {
+        cr_assert_eq(btf_lap_encode(fine, coarse, AW, AH, TW, TH, m ? &pr : &d, res, &err), BTF_OK, "%s", err.msg);
+        for (int i = 0; i < AW * AH; i++)
+            e[m] += (res[i] - 128.0) * (res[i] - 128.0);
+    }
+    cr_assert(e[1] < 0.8 * e[0], "fitted residual energy %.0f against the default's %.0f", e[1], e[0]);
 }
 
 /* ---------------------------------------------------------------- packages */
@@ -291,6 +382,27 @@ Test(lap, hostile_packages)
     run("sed -i '0,/\"level\":2,/s//\"level\":0,/' ", man, ""); /* LEVELS - 1 = 2: chunk 0's level */
     cr_assert_eq(btf_package_read(v4, 1, &q, &err), BTF_ERR_FORMAT, "%s", err.msg);
     cr_assert(strstr(err.msg, "comes before") || strstr(err.msg, "both hold"), "%s", err.msg);
+    restore(man);
+    /* 4b. predictors: too short, out of range, not an integer, on a level that is no residual */
+    const char *bad_pred[] = {"s/\"predictor\":\\[[-0-9]*,/\"predictor\":[/", "s/\"predictor\":\\[[-0-9]*,/\"predictor\":[4097,/",
+                              "s/\"predictor\":\\[[-0-9]*,/\"predictor\":[0.5,/",
+                              "0,/\"level\":2,/s//\"level\":2,\"predictor\":[0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0],/"};
+    for (int k = 0; k < 4; k++) {
+        backup(man);
+        snprintf(cmd, sizeof cmd, "sed -i '%s' '%s'", bad_pred[k], man);
+        cr_assert_eq(system(cmd), 0, "%s", cmd);
+        cr_assert_eq(btf_package_read(v4, 1, &q, &err), BTF_ERR_FORMAT, "case %d: %s", k, err.msg);
+        cr_assert(strstr(err.msg, "predictor"), "case %d names the field: %s", k, err.msg);
+        restore(man);
+    }
+    /* 4c. the reader uses the listed predictor: another valid one rebuilds other texels */
+    backup(man);
+    run("sed -i 's/\"predictor\":\\[[-0-9]*,/\"predictor\":[99,/' ", man, "");
+    btf_package *p2 = read_ok(dir, "v2", 0), *pm = read_ok(dir, "v4", 0);
+    size_t nt = (size_t)p2->blocks->n_blocks * (p2->width >> p2->chunk[ir].level) * (p2->height >> p2->chunk[ir].level);
+    cr_assert_neq(memcmp(pm->tex[ir], p2->tex[ir], nt * sizeof(float)), 0, "chunk %d rebuilt with another predictor", ir);
+    btf_package_free(p2);
+    btf_package_free(pm);
     restore(man);
     /* 5. a version-4 manifest claiming 16-bit textures */
     backup(man);

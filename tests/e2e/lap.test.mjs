@@ -84,6 +84,18 @@ describe('version 4 (residual levels)', () => {
       /8-bit weights/);
     const short = pkgMod.reconstructLevel.bind(null, p4, p4.chunks.find((c) => c.residual));
     assert.throws(() => short(new Uint8Array(3), new Uint8Array(1)), /residual texels/);
+    // predictors (the C writer lists one per residual level): refused when malformed
+    const ir = m.chunks.findIndex((c) => c.predictor);
+    assert.ok(ir >= 0 && p4.chunks[ir].residual, 'a residual level lists its predictor');
+    for (const bad of [m.chunks[ir].predictor.slice(1), [...m.chunks[ir].predictor.slice(1), 4097],
+      [...m.chunks[ir].predictor.slice(1), 0.5], 'x']) {
+      const mb = manifestOf('tiles-lap');
+      mb.chunks[ir].predictor = bad;
+      assert.throws(() => pkgMod.parseManifest(mb), /"predictor"/, JSON.stringify(bad));
+    }
+    const mc = manifestOf('tiles-lap');
+    mc.chunks[p4.chunks.findIndex((c) => !c.residual)].predictor = m.chunks[ir].predictor;
+    assert.throws(() => pkgMod.parseManifest(mc), /"predictor"/, 'on a level that is no residual');
   });
 
   it('streams and draws a coarse prefix and the whole package as its version-2 twin', async () => {
