@@ -16,7 +16,8 @@
  *   thesis format's error after the files that fit in the same bytes in its own order
  *   (meta.json + R.png + 0.png, then 1.png, ...); lap_MAT_F_v1_lab = version 1's
  *   (no levels) the same way. -1 = nothing renders within those bytes.
- * Environment: BENCH_TMP (default /tmp/btf-bench-lap), BTF_SHARED, BENCH_LAP_SIDE (64).
+ * Environment: BENCH_TMP (default /tmp/btf-bench-lap), BTF_SHARED, BENCH_LAP_SIDE (64),
+ * BENCH_LAP_ONLY (knit, tiles or wool: that material alone, e.g. the wool at 256).
  */
 #include "btf.h"
 #include "btf_export.h"
@@ -215,7 +216,10 @@ int main(void)
     btf_error err = {0};
     struct { const char *name; btf_gen_kind kind; unsigned seed; } gen[] = {
         {"knit", BTF_GEN_KNIT, 4343}, {"tiles", BTF_GEN_TILES, 4344}};
+    const char *only = getenv("BENCH_LAP_ONLY");
     for (size_t i = 0; i < sizeof gen / sizeof gen[0]; i++) {
+        if (only && strcmp(only, gen[i].name))
+            continue;
         btf_gen_params gp = btf_gen_defaults(gen[i].kind);
         gp.seed = gen[i].seed;
         btf *src = NULL;
@@ -229,6 +233,8 @@ int main(void)
     char wool[1200];
     snprintf(wool, sizeof wool, "%s/data/thesis-ubo2003/wool", shared ? shared : "../shared");
     btf_thesis_pkg tp = {0};
+    if (only && strcmp(only, "wool"))
+        return 0;
     if (btf_thesis_read(wool, &tp, &err) == BTF_OK) {
         btf *src = NULL;
         fprintf(stderr, "bench_lap: thesis wool at %dx%d\n", side, side);

@@ -131,7 +131,8 @@ static void rm_dir_files(const char *dir)
 {
     static const char *const names[] = {"chart-speed-accuracy.csv", "chart-streaming.csv", "chart-compress-time.csv",
                                         "chart-speed-accuracy.svg", "chart-streaming.svg",  "chart-compress-time.svg",
-                                        "chart-speed-accuracy.png", "chart-streaming.png",  "chart-compress-time.png"};
+                                        "chart-speed-accuracy.png", "chart-streaming.png",  "chart-compress-time.png",
+                                        "chart-streaming-k.svg",    "chart-streaming-k.png"};
     char path[4096];
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
         snprintf(path, sizeof path, "%s/%s", dir, names[i]);
@@ -369,32 +370,36 @@ static void check_streaming_rows_consistent(const char *dir)
             cr_assert_lt(last_lab, first_lab, "%s %s: %g after all, %g after the first", mats[m], fmts[f], last_lab,
                          first_lab);
         }
-    /* the float PCA optimum: one row per package step at the package's bytes, an error
-     * falling with C and, with every component, not above the quantised package's
-     * (quantisation adds noise; 5% for the MAE's ordering on an 8x8 material) */
-    for (int m = 0; m < 2; m++) {
+    /* the float PCA optimum at k = 3, 1 and every view: one row per package step at the
+     * package's bytes, an error falling with C and, with every component, not above the
+     * quantised package's (quantisation adds noise; 5% for the MAE's ordering on an 8x8
+     * material) */
+    static const char *const pkgs[3] = {"package", "package-k1", "package-kall"},
+                             *const floats[3] = {"float", "float-k1", "float-kall"};
+    for (int m = 0; m < 6; m++) {
+        const char *fpkg = pkgs[m / 2], *ffl = floats[m / 2];
         int steps = 0;
         double first = 0.0, last = 0.0, pkg_last = 0.0;
         for (int r = 1; r < c->rows; r++) {
-            if (strcmp(str(c, r, "material"), mats[m]))
+            if (strcmp(str(c, r, "material"), mats[m % 2]))
                 continue;
-            if (!strcmp(str(c, r, "format"), "package"))
+            if (!strcmp(str(c, r, "format"), fpkg))
                 pkg_last = num(c, r, "lab");
-            if (strcmp(str(c, r, "format"), "float"))
+            if (strcmp(str(c, r, "format"), ffl))
                 continue;
             steps++;
             int same = 0;
             for (int q = 1; q < c->rows; q++)
-                same += !strcmp(str(c, q, "material"), mats[m]) && !strcmp(str(c, q, "format"), "package") &&
+                same += !strcmp(str(c, q, "material"), mats[m % 2]) && !strcmp(str(c, q, "format"), fpkg) &&
                         num(c, q, "step") == (double)steps && num(c, q, "bytes") == num(c, r, "bytes");
-            cr_assert_eq(same, 1, "%s float step %d: not at the package's bytes", mats[m], steps);
+            cr_assert_eq(same, 1, "%s %s step %d: not at the package's bytes", mats[m % 2], ffl, steps);
             last = num(c, r, "lab");
             first = steps == 1 ? last : first;
             cr_assert(isfinite(last) && last >= 0.0 && isnan(num(c, r, "lab_manifest")));
         }
-        cr_assert_eq(steps, 8, "%s float: %d steps", mats[m], steps);
-        cr_assert_lt(last, first, "%s float: %g after 8, %g after 1", mats[m], last, first);
-        cr_assert_leq(last, 1.05 * pkg_last, "%s: float optimum %g above the quantised package %g", mats[m], last,
+        cr_assert_eq(steps, 8, "%s %s: %d steps", mats[m % 2], ffl, steps);
+        cr_assert_lt(last, first, "%s %s: %g after 8, %g after 1", mats[m % 2], ffl, last, first);
+        cr_assert_leq(last, 1.05 * pkg_last, "%s: %s %g above the quantised package %g", mats[m % 2], ffl, last,
                       pkg_last);
     }
     free(c);
@@ -517,8 +522,8 @@ static void check_plot_writes_svg_and_png(const char *dir)
         return; /* gnuplot not installed: rendering not checked */
     btf_error err;
     cr_assert_eq(btf_chart_plot(dir, dir, &err), BTF_OK, "%s", err.msg);
-    static const char *const names[] = {"speed-accuracy", "streaming", "compress-time"};
-    for (int i = 0; i < 3; i++) {
+    static const char *const names[] = {"speed-accuracy", "streaming", "compress-time", "streaming-k"};
+    for (int i = 0; i < 4; i++) {
         char path[4096];
         unsigned char head[8] = {0};
         snprintf(path, sizeof path, "%s/chart-%s.png", dir, names[i]);

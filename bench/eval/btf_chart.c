@@ -440,8 +440,9 @@ static btf_result btf__chart_setting(btf_chart *c, btf_chart_row *row, const btf
 
 /* The float PCA optimum of the package's k at each C, placed at the bytes the package
  * has after C chunks: what quantisation and coding cost at each point of the curve. */
-static btf_result btf__chart_stream_float(btf_chart *c, const char *name, const btf *src, const btf_pca_options *po,
-                                          const btf_package *p, long long bytes, btf_error *err)
+static btf_result btf__chart_stream_float(btf_chart *c, const char *name, const char *format, const btf *src,
+                                          const btf_pca_options *po, const btf_package *p, long long bytes,
+                                          btf_error *err)
 {
     btf_pca_model *m = NULL;
     btf_result r = btf_pca_compress(src, po, NULL, NULL, &m, err);
@@ -451,19 +452,26 @@ static btf_result btf__chart_stream_float(btf_chart *c, const char *name, const 
         r = btf__chart_error(src, btf__chart_float_image, &ctx, 0, &met, err);
         bytes += p->chunk[i].bytes;
         if (r == BTF_OK)
-            r = btf__chart_stream_put(c, name, "float", i + 1, bytes, met.lab_thesis, NAN, err, "float PCA C=%d", i + 1);
+            r = btf__chart_stream_put(c, name, format, i + 1, bytes, met.lab_thesis, NAN, err, "float PCA k%d C=%d",
+                                      po->k, i + 1);
     }
     btf_pca_model_free(m);
     return r;
 }
 
+/* The package of k views per block (C = 8) after each chunk, and the float PCA
+ * optimum of the same k: formats "package"/"float" at k = 3, "package-k1"/"float-k1"
+ * at k = 1 (PCA-RF), "package-kall"/"float-kall" at k = every view (PCA-BTF). */
 static btf_result btf__chart_stream_package(btf_chart *c, const char *name, const btf *src,
-                                            const btf_chart_options *o, const char *tmp, btf_error *err)
+                                            const btf_chart_options *o, const char *tmp, int k, btf_error *err)
 {
-    char dir[4200];
+    char dir[4200], fpkg[16], ffloat[16];
+    const char *suffix = k == 3 ? "" : k == 1 ? "-k1" : "-kall";
     snprintf(dir, sizeof dir, "%s/package", tmp);
+    snprintf(fpkg, sizeof fpkg, "package%s", suffix);
+    snprintf(ffloat, sizeof ffloat, "float%s", suffix);
     btf_pca_options po = {0};
-    po.k = 3, po.components = 8;
+    po.k = k, po.components = 8;
     btf_package_options ko = {0};
     ko.bits = 8, ko.name = "chart";
     ko.lab_max_texels = src->width * src->height; /* manifest numbers over every texel */
@@ -480,12 +488,12 @@ static btf_result btf__chart_stream_package(btf_chart *c, const char *name, cons
             r = btf__chart_error(src, btf__chart_pkg_image, &ctx, o->threads, &met, err);
         bytes += p->chunk[i].bytes;
         if (r == BTF_OK)
-            r = btf__chart_stream_put(c, name, "package", i + 1, bytes, met.lab_thesis, p->chunk[i].lab, err, "%s%s%s",
+            r = btf__chart_stream_put(c, name, fpkg, i + 1, bytes, met.lab_thesis, p->chunk[i].lab, err, "%s%s%s",
                                       i == 0 ? "manifest.json " : "", p->chunk[i].files[0],
                                       p->chunk[i].n_files > 1 ? " +weights" : "");
     }
     if (r == BTF_OK)
-        r = btf__chart_stream_float(c, name, src, &po, p, btf__chart_file_bytes(dir, "manifest.json"), err);
+        r = btf__chart_stream_float(c, name, ffloat, src, &po, p, btf__chart_file_bytes(dir, "manifest.json"), err);
     btf_package_free(p);
     btf_fs_rmtree(dir, NULL);
     return r;
@@ -653,16 +661,19 @@ btf_result btf_chart_add_material(btf_chart *c, const char *name, const btf *src
     }
     double t0 = btf__chart_now();
     if (r == BTF_OK && !o.no_stream)
-        r = btf__chart_stream_package(c, name, src, &o, tmp, err);
+        r = btf__chart_stream_package(c, name, src, &o, tmp, 3, err);
     double t1 = btf__chart_now();
+    for (int i = 0; i < 2 && r == BTF_OK && !o.no_stream && !o.quick; i++) /* PCA-RF and PCA-BTF */
+        r = btf__chart_stream_package(c, name, src, &o, tmp, i ? src->views.n_dirs : 1, err);
+    double t1k = btf__chart_now();
     if (r == BTF_OK && !o.no_stream)
         r = btf__chart_stream_thesis(c, name, src, &o, tmp, err);
     double t2 = btf__chart_now();
     if (r == BTF_OK && !o.no_stream)
         r = btf__chart_stream_levels(c, name, src, &o, tmp, err);
     if (r == BTF_OK && !o.no_stream)
-        btf__chart_log(&o, "  streaming: package %.1f s, thesis format %.1f s, package with levels %.1f s\n", t1 - t0,
-                       t2 - t1, btf__chart_now() - t2);
+        btf__chart_log(&o, "  streaming: package %.1f s, k = 1 and all %.1f s, thesis format %.1f s, package with "
+                       "levels %.1f s\n", t1 - t0, t1k - t1, t2 - t1k, btf__chart_now() - t2);
     btf_fs_rmtree(tmp, NULL);
     if (r == BTF_OK && !o.no_methods)
         c->n_materials++; /* materials with method rows (for the mean rows) */

@@ -31,8 +31,11 @@
  *   pareto_cost, pareto_bytes, n_fallback, n_unconverged, note. Material "mean" rows
  *   average the settings that succeeded on every material.
  * - chart-streaming.csv: material, format (package|thesis|levels: the package with
- *   residual spatial levels, version 4, its error at level 0), step, file (what arrived),
- *   bytes (cumulative), lab, lab_manifest.
+ *   residual spatial levels, version 4, its error at level 0|float: the float PCA of
+ *   the package's k at the package's bytes after the same number of chunks;
+ *   package-k1, float-k1, package-kall, float-kall: the same at k = 1 and k = every
+ *   view, not in quick runs), step, file (what arrived), bytes (cumulative), lab,
+ *   lab_manifest.
  * - chart-compress-time.csv: label, family, then encode seconds per material and mean.
  * Byte counts: "pca", "lpyr", "phong", "lafortune" count float32 parameters;
  * "pca-q" and the streaming rows count the files a client receives.
@@ -90,7 +93,8 @@ typedef struct btf_chart_row {
 /* One point of a streaming curve; owned by its btf_chart. */
 typedef struct btf_chart_stream_row {
     char material[BTF_CHART_NAME];
-    char format[16];      /* "package", "thesis", "levels" or "float" (the PCA before quantisation) */
+    char format[16];      /* "package", "thesis", "levels", "float" (the PCA before quantisation), or
+                           * "package-k1", "float-k1", "package-kall", "float-kall" */
     int step;             /* 1 = after the first chunk / component file */
     char file[96];        /* what arrived at this step */
     long long bytes;      /* received so far */

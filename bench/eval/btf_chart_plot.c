@@ -199,6 +199,49 @@ static void btf__plot_styles(FILE *f)
 
 /* ---------------------------------------------------------------- script */
 
+/* The k figure: per material a panel with the package and its float PCA optimum at
+ * k = 1, 3 and every view (rows package-k1, float-k1, ...); an empty panel when a
+ * run has no such rows (quick runs). */
+static void btf__plot_stream_k(FILE *f, const btf__csv *st, const char *const *smats, int nsm, const char *out_dir,
+                               const char *term, const char *ext)
+{
+    static const char *const formats[6] = {"package-k1", "float-k1", "package", "float", "package-kall", "float-kall"};
+    static const char *const titles[6] = {"k1 package", "k1 float optimum", "k3 package", "k3 float optimum",
+                                          "k all package", "k all float optimum"};
+    int sm = btf__csv_col(st, "material"), sfm = btf__csv_col(st, "format"), sb = btf__csv_col(st, "bytes");
+    int sl = btf__csv_col(st, "lab"), cols = nsm < 1 ? 1 : nsm;
+    fprintf(f, "set terminal %s size %d,520 font \"DejaVu Sans,11\" background rgb \"white\"\n", term, 80 + 420 * cols);
+    fprintf(f, "set output \"%s/chart-streaming-k.%s\"\n", out_dir, ext);
+    fprintf(f, "set multiplot layout 1,%d title \"Error after each chunk (C = 1..8) at k = 1, 3 and every view: "
+               "package (solid) and the float PCA optimum of the same k at the package's bytes (dash-dot)\"\n", cols);
+    fprintf(f, "set xlabel \"bytes received (KiB)\"\nset ylabel \"CIELab error (whole BTF)\"\n"
+               "set logscale x\nset logscale y\nset grid\nset key top right font \",8\"\n");
+    for (int i = 0; i < nsm || i == 0; i++) {
+        int any = 0;
+        for (int k = 0; k < 6; k++) {
+            fprintf(f, "$k_%d_%d << EOD\n", i, k);
+            for (int r = 1; i < nsm && r < st->n_rows; r++)
+                if (!strcmp(st->row[r][sm], smats[i]) && !strcmp(st->row[r][sfm], formats[k]) &&
+                    isfinite(btf__csv_num(st, r, sl))) {
+                    fprintf(f, "%.6g %.6g\n", btf__csv_num(st, r, sb) / 1024.0, btf__csv_num(st, r, sl));
+                    any = 1;
+                }
+            fprintf(f, "EOD\n");
+        }
+        fprintf(f, "set title \"%s\"\n", i < nsm ? smats[i] : "no materials");
+        if (!any) {
+            fprintf(f, "plot [1:10][1:10] NaN notitle\n");
+            continue;
+        }
+        fprintf(f, "plot ");
+        for (int k = 0; k < 6; k++)
+            fprintf(f, "$k_%d_%d using 1:2 with linespoints lc rgb \"%s\" lw %d dt %d pt %d ps 1.0 title \"%s\", ", i, k,
+                    btf__plot_colours[k / 2], k % 2 ? 1 : 2, k % 2 ? 4 : 1, k % 2 ? 6 : 7, titles[k]);
+        fprintf(f, "NaN notitle\n");
+    }
+    fprintf(f, "unset multiplot\nunset output\nunset logscale\nunset title\n");
+}
+
 /* Writes the data blocks and plot commands of all three charts for one terminal. */
 static btf_result btf__plot_script(FILE *f, const btf__csv *sa, const btf__csv *st, const btf__csv *ct,
                                    const char *out_dir, const char *term, const char *ext, btf_error *err)
@@ -279,6 +322,7 @@ static btf_result btf__plot_script(FILE *f, const btf__csv *sa, const btf__csv *
         fprintf(f, "NaN notitle\n");
     }
     fprintf(f, "unset output\nunset logscale\n");
+    btf__plot_stream_k(f, st, smats, nsm, out_dir, term, ext);
 
     /* compression time: clustered bars, one cluster per setting, one bar per material */
     fprintf(f, "set terminal %s size 1500,600 font \"DejaVu Sans,11\" background rgb \"white\"\n", term);
