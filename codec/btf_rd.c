@@ -88,14 +88,16 @@ static double btf__rd_wt(btf__rd *r, int j, float g)
 }
 
 /* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the atlas
- * written as the package would write it (its bytes on disk), in scratch/rd-candidate-T.png
- * for thread T, with the thread's own atlas buffer. */
+ * written as the package would write it (its bytes on disk, the smallest of the PNG
+ * filter choices), in scratch/rd-candidate-T.png for thread T, with the thread's own
+ * atlas buffer. */
 static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
 {
     char path[BTF_FS_PATH_MAX];
     snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
     r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
-    btf_result res = btf_image_write_unsynced(path, r->aw, r->ah, 1, 8, atlas, err);
+    btf_result res = btf_image_write_flags(path, r->aw, r->ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_SMALLEST,
+                                           err);
     long long s = res == BTF_OK ? btf_fs_size(path) : -1;
     remove(path);
     if (res == BTF_OK && s < 0)

@@ -338,7 +338,8 @@ static btf_result write_component(const char *dir, const btf_thesis_pkg *p, int 
         px[t] = quant(p->L[t * p->C + j]);
     char path[PATH_MAX_LEN];
     btf_result r = part_path(path, dir, j) ? btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir)
-                                           : btf_image_write(path, p->S / 2, (p->S / 2) * p->nb, 4, 8, px, err);
+                                           : btf_image_write_flags(path, p->S / 2, (p->S / 2) * p->nb, 4, 8, px,
+                                                                   BTF_IMAGE_PNG_SMALLEST, err);
     free(px);
     return r;
 }
@@ -375,7 +376,8 @@ static btf_result write_weights(const char *dir, const btf_thesis_pkg *p, int r_
         }
     char path[PATH_MAX_LEN];
     btf_result r = part_path(path, dir, PART_R) ? btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir)
-                                                : btf_image_write(path, r_size, r_size, 4, 8, px, err);
+                                                : btf_image_write_flags(path, r_size, r_size, 4, 8, px,
+                                                                        BTF_IMAGE_PNG_SMALLEST, err);
     free(px);
     return r;
 }
