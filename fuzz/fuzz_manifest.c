@@ -19,7 +19,9 @@ static void check_round_trip(const btf_package *a)
     FUZZ_CHECK(b.n_chunks == a->n_chunks && b.version == a->version && b.n_levels == a->n_levels);
     for (int i = 0; i < a->n_chunks; i++)
         FUZZ_CHECK(b.chunk[i].component == a->chunk[i].component && b.chunk[i].level == a->chunk[i].level &&
-                   b.chunk[i].bytes == a->chunk[i].bytes && b.chunk[i].n_files == a->chunk[i].n_files);
+                   b.chunk[i].bytes == a->chunk[i].bytes && b.chunk[i].n_files == a->chunk[i].n_files &&
+                   b.chunk[i].has_pred == a->chunk[i].has_pred &&
+                   !memcmp(&b.chunk[i].pred, &a->chunk[i].pred, sizeof a->chunk[i].pred));
     btf_manifest_clear(&b);
     free(text);
 }

@@ -1,7 +1,8 @@
 /* fuzz_package.c - libFuzzer target for the package reader's files
  * (btf_package_read, codec/btf_package_read.c). A small valid package is made
  * once; each input replaces one of its files (first byte: 0 texture PNG, 1
- * weights .bin, 2 manifest.json, 3 an 8-bit weights PNG of a version-2 package),
+ * weights .bin, 2 manifest.json, 3 an 8-bit weights PNG of a version-2 package,
+ * 4 the manifest and 5 a residual level PNG of a version-4 package),
  * with PNG checksums repaired so mutations reach the decoder. An accepted
  * package must decode to finite values; the original file is put back after. */
 #include <math.h>
@@ -14,9 +15,10 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-/* The two packages (v1 and v2) every input starts from; made once per process. */
+/* The packages (v1, v2, v4) every input starts from; made once per process. */
 typedef struct fuzz_pkgs {
-    char v1[300], v2[300];
+    char v1[300], v2[300], v4[300];
+    char residual[64]; /* v4's residual level file, or "manifest.json" when the writer kept none */
 } fuzz_pkgs;
 
 static const fuzz_pkgs *fuzz_packages(void)
@@ -31,6 +33,7 @@ static const fuzz_pkgs *fuzz_packages(void)
     btf *b = NULL;
     snprintf(p.v1, sizeof p.v1, "%s/v1", fuzz_dir());
     snprintf(p.v2, sizeof p.v2, "%s/v2", fuzz_dir());
+    snprintf(p.v4, sizeof p.v4, "%s/v4", fuzz_dir());
     btf_pca_options po = {0};
     po.k = 2, po.components = 2;
     btf_lod_options lo = {0};
@@ -41,7 +44,21 @@ static const fuzz_pkgs *fuzz_packages(void)
         fprintf(stderr, "fuzz_package: setup failed: %s\n", err.msg);
         abort();
     }
+    lo.residual = 1;
+    if (btf_lod_build(p.v1, p.v4, &lo, NULL, &err) != BTF_OK) {
+        fprintf(stderr, "fuzz_package: setup failed: %s\n", err.msg);
+        abort();
+    }
     btf_free(b);
+    snprintf(p.residual, sizeof p.residual, "manifest.json");
+    char path[400];
+    for (int j = 0; j < 2; j++) {
+        snprintf(path, sizeof path, "%s/tex-%02d-d0.png", p.v4, j);
+        if (btf_fs_size(path) > 0) {
+            snprintf(p.residual, sizeof p.residual, "tex-%02d-d0.png", j);
+            break;
+        }
+    }
     return &p;
 }
 
@@ -66,9 +83,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (size < 1)
         return 0;
     const fuzz_pkgs *pk = fuzz_packages();
-    static const char *names[4] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png"};
-    int which = data[0] % 4;
-    const char *dir = which == 3 ? pk->v2 : pk->v1;
+    const char *names[6] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png", "manifest.json", pk->residual};
+    int which = data[0] % 6;
+    const char *dir = which >= 4 ? pk->v4 : which == 3 ? pk->v2 : pk->v1;
     char path[1024], *orig = NULL;
     size_t n = 0;
     snprintf(path, sizeof path, "%s/%s", dir, names[which]);
