@@ -80,38 +80,46 @@ static int16_t *btf__lap_scratch(const uint8_t *coarse, int aw, int ah, int tw, 
     return P;
 }
 
-btf_result btf_lap_encode(const uint8_t *fine, const uint8_t *coarse, int aw, int ah, int tw, int th,
-                          const btf_lap_pred *pred, uint8_t *res, btf_error *err)
+/* What texel (x, y) is expected to be from what came before it in raster order: the
+ * prediction, or for the last texel of a cell 4 coarse - the cell's other three. */
+static int btf__lap_expect(const btf_lap_pred *pr, const uint8_t *fine, const int16_t *P, const uint8_t *coarse,
+                           int aw, int tw, int th, int x, int y)
+{
+    size_t i = (size_t)y * aw + x;
+    if ((x & 1) && (y & 1))
+        return 4 * coarse[(size_t)(y >> 1) * (aw / 2) + (x >> 1)] - btf__lap_cell3(fine, aw, i);
+    return btf__lap_predict(pr, fine, P, coarse, aw, tw, th, x, y);
+}
+
+/* The transform (decode = 0: in = fine, out = res) or its inverse (decode = 1: in =
+ * res, out = fine), one raster pass; both see the same fine texels before (x, y). */
+static btf_result btf__lap_code(const uint8_t *in, uint8_t *out, const uint8_t *coarse, int aw, int ah, int tw,
+                                int th, const btf_lap_pred *pred, int decode, btf_error *err)
 {
     int16_t *P = btf__lap_scratch(coarse, aw, ah, tw, th, err);
     if (!P)
         return BTF_ERR_NOMEM;
+    const uint8_t *fine = decode ? out : in;
     for (int y = 0; y < ah; y++)
         for (int x = 0; x < aw; x++) {
             size_t i = (size_t)y * aw + x;
-            int v = (x & 1) && (y & 1) ? btf__lap_cell3(fine, aw, i) + fine[i] - 4 * coarse[(size_t)(y >> 1) * (aw / 2) + (x >> 1)]
-                                       : fine[i] - btf__lap_predict(pred, fine, P, coarse, aw, tw, th, x, y);
-            res[i] = (uint8_t)(v + 128); /* mod 256 */
+            int e = btf__lap_expect(pred, fine, P, coarse, aw, tw, th, x, y);
+            out[i] = (uint8_t)(decode ? e + in[i] - 128 : in[i] - e + 128); /* mod 256 */
         }
     free(P);
     return BTF_OK;
 }
 
+btf_result btf_lap_encode(const uint8_t *fine, const uint8_t *coarse, int aw, int ah, int tw, int th,
+                          const btf_lap_pred *pred, uint8_t *res, btf_error *err)
+{
+    return btf__lap_code(fine, res, coarse, aw, ah, tw, th, pred, 0, err);
+}
+
 btf_result btf_lap_decode(const uint8_t *res, const uint8_t *coarse, int aw, int ah, int tw, int th,
                           const btf_lap_pred *pred, uint8_t *fine, btf_error *err)
 {
-    int16_t *P = btf__lap_scratch(coarse, aw, ah, tw, th, err);
-    if (!P)
-        return BTF_ERR_NOMEM;
-    for (int y = 0; y < ah; y++)
-        for (int x = 0; x < aw; x++) {
-            size_t i = (size_t)y * aw + x;
-            int v = (x & 1) && (y & 1) ? 4 * coarse[(size_t)(y >> 1) * (aw / 2) + (x >> 1)] - btf__lap_cell3(fine, aw, i)
-                                       : btf__lap_predict(pred, fine, P, coarse, aw, tw, th, x, y);
-            fine[i] = (uint8_t)(v + res[i] - 128); /* mod 256 */
-        }
-    free(P);
-    return BTF_OK;
+    return btf__lap_code(res, fine, coarse, aw, ah, tw, th, pred, 1, err);
 }
 
 /* The normal equations of class cls (G = sum f f^T, b = sum f t, t = q - p). */
