@@ -59,13 +59,7 @@ static int corpus_size(const char *name)
     char dir[1024], rel[256];
     snprintf(rel, sizeof rel, "fuzz/corpus/%s", name);
     repo_path(dir, sizeof dir, rel);
-    DIR *d = opendir(dir);
-    int n = 0;
-    for (struct dirent *e; d && (e = readdir(d));)
-        n += e->d_name[0] != '.';
-    if (d)
-        closedir(d);
-    return n;
+    return test_count_files(dir);
 }
 
 Test(fuzz, every_corpus_replays)

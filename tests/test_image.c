@@ -2,7 +2,6 @@
  * (BTF_IMAGE_PNG_SMALLEST, codec/btf_image.h). Checked against the writer's own
  * default encoding of the same pixels and against the pixels themselves. */
 #include <criterion/criterion.h>
-#include <dirent.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,18 +17,6 @@ static unsigned lcg(unsigned *s)
     return *s >> 16;
 }
 
-/* Files in dir (temporaries left behind would show here). */
-static int count_files(const char *dir)
-{
-    DIR *d = opendir(dir);
-    int n = 0;
-    for (struct dirent *e; d && (e = readdir(d));)
-        n += e->d_name[0] != '.';
-    if (d)
-        closedir(d);
-    return n;
-}
-
 /* One image written both ways: the smallest choice decodes to the same samples, is no
  * larger than the default (adaptive) encoding, and leaves no temporary file. */
 static long long check_one(const char *dir, int w, int h, int ch, int bits, const void *px, long long *adaptive)
@@ -40,7 +27,7 @@ static long long check_one(const char *dir, int w, int h, int ch, int bits, cons
     snprintf(s, sizeof s, "%s/s.png", dir);
     cr_assert_eq(btf_image_write(a, w, h, ch, bits, px, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(btf_image_write_flags(s, w, h, ch, bits, px, BTF_IMAGE_PNG_SMALLEST, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(count_files(dir), 2, "temporary files left in %s", dir);
+    cr_assert_eq(test_count_files(dir), 2, "temporary files left in %s", dir);
     size_t n = (size_t)w * h * ch;
     if (bits == 8) {
         uint8_t *back = NULL;

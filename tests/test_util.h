@@ -28,6 +28,18 @@ static inline int test_tmpdir(char *buf, size_t n)
     return mkdtemp(buf) != NULL;
 }
 
+/* Entries of dir whose names do not start with '.'; 0 when dir cannot be opened. */
+static inline int test_count_files(const char *dir)
+{
+    DIR *d = opendir(dir);
+    int n = 0;
+    for (struct dirent *e; d && (e = readdir(d));)
+        n += e->d_name[0] != '.';
+    if (d)
+        closedir(d);
+    return n;
+}
+
 /* Removes path and, for a directory, everything under it (no symlinks followed).
  * 0 on success or when path does not exist, -1 otherwise. */
 static inline int test_rmtree(const char *path)
