@@ -199,6 +199,22 @@ static void btf__plot_styles(FILE *f)
 
 /* ---------------------------------------------------------------- script */
 
+/* Data block $name of one streaming curve: (KiB, CIELab) of material mat's rows of
+ * the format, in CSV order; mat NULL gives an empty block. Returns the points written. */
+static int btf__plot_curve(FILE *f, const btf__csv *st, const char *name, const char *mat, const char *format)
+{
+    int sm = btf__csv_col(st, "material"), sfm = btf__csv_col(st, "format"), sb = btf__csv_col(st, "bytes");
+    int sl = btf__csv_col(st, "lab"), n = 0;
+    fprintf(f, "$%s << EOD\n", name);
+    for (int r = 1; mat && r < st->n_rows; r++)
+        if (!strcmp(st->row[r][sm], mat) && !strcmp(st->row[r][sfm], format) && isfinite(btf__csv_num(st, r, sl))) {
+            fprintf(f, "%.6g %.6g\n", btf__csv_num(st, r, sb) / 1024.0, btf__csv_num(st, r, sl));
+            n++;
+        }
+    fprintf(f, "EOD\n");
+    return n;
+}
+
 /* The k figure: per material a panel with the package and its float PCA optimum at
  * k = 1, 3 and every view (rows package-k1, float-k1, ...); an empty panel when a
  * run has no such rows (quick runs). */
@@ -208,8 +224,7 @@ static void btf__plot_stream_k(FILE *f, const btf__csv *st, const char *const *s
     static const char *const formats[6] = {"package-k1", "float-k1", "package", "float", "package-kall", "float-kall"};
     static const char *const titles[6] = {"k1 package", "k1 float optimum", "k3 package", "k3 float optimum",
                                           "k all package", "k all float optimum"};
-    int sm = btf__csv_col(st, "material"), sfm = btf__csv_col(st, "format"), sb = btf__csv_col(st, "bytes");
-    int sl = btf__csv_col(st, "lab"), cols = nsm < 1 ? 1 : nsm;
+    int cols = nsm < 1 ? 1 : nsm;
     fprintf(f, "set terminal %s size %d,520 font \"DejaVu Sans,11\" background rgb \"white\"\n", term, 80 + 420 * cols);
     fprintf(f, "set output \"%s/chart-streaming-k.%s\"\n", out_dir, ext);
     fprintf(f, "set multiplot layout 1,%d title \"Error after each chunk (C = 1..8) at k = 1, 3 and every view: "
@@ -219,14 +234,9 @@ static void btf__plot_stream_k(FILE *f, const btf__csv *st, const char *const *s
     for (int i = 0; i < nsm || i == 0; i++) {
         int any = 0;
         for (int k = 0; k < 6; k++) {
-            fprintf(f, "$k_%d_%d << EOD\n", i, k);
-            for (int r = 1; i < nsm && r < st->n_rows; r++)
-                if (!strcmp(st->row[r][sm], smats[i]) && !strcmp(st->row[r][sfm], formats[k]) &&
-                    isfinite(btf__csv_num(st, r, sl))) {
-                    fprintf(f, "%.6g %.6g\n", btf__csv_num(st, r, sb) / 1024.0, btf__csv_num(st, r, sl));
-                    any = 1;
-                }
-            fprintf(f, "EOD\n");
+            char name[32];
+            snprintf(name, sizeof name, "k_%d_%d", i, k);
+            any += btf__plot_curve(f, st, name, i < nsm ? smats[i] : NULL, formats[k]);
         }
         fprintf(f, "set title \"%s\"\n", i < nsm ? smats[i] : "no materials");
         if (!any) {
@@ -286,8 +296,7 @@ static btf_result btf__plot_script(FILE *f, const btf__csv *sa, const btf__csv *
     fprintf(f, "unset multiplot\nunset output\nunset logscale\nunset label\nset offsets 0, 0, 0, 0\n");
 
     /* streaming */
-    int sm = btf__csv_col(st, "material"), sfm = btf__csv_col(st, "format"), sb = btf__csv_col(st, "bytes");
-    int sl = btf__csv_col(st, "lab");
+    int sm = btf__csv_col(st, "material");
     const char *smats[BTF__PLOT_MAX];
     int nsm = btf__csv_distinct(st, sm, -1, NULL, smats, BTF__PLOT_MAX);
     static const char *const formats[4] = {"package", "thesis", "levels", "float"};
@@ -300,14 +309,9 @@ static btf_result btf__plot_script(FILE *f, const btf__csv *sa, const btf__csv *
     int any = 0;
     for (int i = 0; i < nsm; i++)
         for (int k = 0; k < 4; k++) {
-            fprintf(f, "$s_%d_%d << EOD\n", i, k);
-            for (int r = 1; r < st->n_rows; r++)
-                if (!strcmp(st->row[r][sm], smats[i]) && !strcmp(st->row[r][sfm], formats[k]) &&
-                    isfinite(btf__csv_num(st, r, sl))) {
-                    fprintf(f, "%.6g %.6g\n", btf__csv_num(st, r, sb) / 1024.0, btf__csv_num(st, r, sl));
-                    any = 1;
-                }
-            fprintf(f, "EOD\n");
+            char name[32];
+            snprintf(name, sizeof name, "s_%d_%d", i, k);
+            any += btf__plot_curve(f, st, name, smats[i], formats[k]);
         }
     if (!any)
         fprintf(f, "plot [1:10][1:10] NaN notitle\n");
