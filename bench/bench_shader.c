@@ -55,7 +55,7 @@
 #define MAT 64       /* material side */
 #define NCOMP 16     /* components in the package */
 #define MAPN 512     /* thesis lookup map side */
-#define FRAMES 5
+#define FRAMES 9
 
 static int die(const char *what, const btf_error *err)
 {
@@ -240,26 +240,41 @@ typedef struct frame_cost {
     double wall_ms, cpu_ms;
 } frame_cost;
 
-/* Draws FRAMES + 1 frames into t with the program in use. */
-static frame_cost time_frames(btf_gl *gl, const scene *s, const btf_gl_target *t)
+/* One program under test: setup() makes it current (program, textures, uniforms)
+ * before each of its frames; the frames of every case alternate, so a slow spell
+ * of the machine falls on all of them alike. */
+typedef struct bench_case {
+    int (*setup)(btf_gl *gl, void *ctx);
+    void *ctx;
+    double wall[FRAMES], cpu[FRAMES];
+    frame_cost cost; /* out */
+} bench_case;
+
+/* Draws FRAMES + 1 frames of each case into t, interleaved (case 0, 1, ..., 0, 1, ...);
+ * the first round is the warm-up. Returns non-zero when a setup fails. */
+static int time_frames(btf_gl *gl, const scene *s, const btf_gl_target *t, bench_case *c, int n)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    double wall[FRAMES], cpu[FRAMES];
     btf_gl_target_bind(gl, t);
     f->BindVertexArray(s->vao);
-    for (int i = -1; i < FRAMES; i++) {
-        double t0 = now_s(), c0 = cpu_s();
-        f->ClearColor(0, 0, 0, 1);
-        f->Clear(GL_COLOR_BUFFER_BIT);
-        f->DrawElements(GL_TRIANGLES, s->n_indices, GL_UNSIGNED_INT, 0);
-        f->Finish();
-        if (i >= 0) {
-            wall[i] = (now_s() - t0) * 1e3;
-            cpu[i] = (cpu_s() - c0) * 1e3;
+    for (int i = -1; i < FRAMES; i++)
+        for (int k = 0; k < n; k++) {
+            if (c[k].setup(gl, c[k].ctx))
+                return 1;
+            f->Finish();
+            double t0 = now_s(), c0 = cpu_s();
+            f->ClearColor(0, 0, 0, 1);
+            f->Clear(GL_COLOR_BUFFER_BIT);
+            f->DrawElements(GL_TRIANGLES, s->n_indices, GL_UNSIGNED_INT, 0);
+            f->Finish();
+            if (i >= 0) {
+                c[k].wall[i] = (now_s() - t0) * 1e3;
+                c[k].cpu[i] = (cpu_s() - c0) * 1e3;
+            }
         }
-    }
-    frame_cost c = {median(wall, FRAMES), median(cpu, FRAMES)};
-    return c;
+    for (int k = 0; k < n; k++)
+        c[k].cost = (frame_cost){median(c[k].wall, FRAMES), median(c[k].cpu, FRAMES)};
+    return 0;
 }
 
 /* ---------------------------------------------------------------- reference and error */
@@ -489,6 +504,42 @@ static void thesis_free(btf_gl *gl, thesis_data *t)
         btf_gl_texture_free(gl, tex[i]);
 }
 
+/* The thesis program with its data for one C; owned by run(). */
+typedef struct thesis_ctx {
+    const scene *s;
+    const btf_package *p;
+    GLuint prog;
+    thesis_data td;
+} thesis_ctx;
+
+static int thesis_setup(btf_gl *gl, void *ctx)
+{
+    thesis_ctx *tc = ctx;
+    btf_error err = {{0}};
+    btf_gl_fn(gl)->UseProgram(tc->prog);
+    thesis_bind(gl, tc->prog, tc->p, &tc->td);
+    scene_uniforms(gl, tc->prog, tc->s);
+    return btf_gl_check(gl, "thesis setup", &err) != BTF_OK ? die("thesis", &err) : 0;
+}
+
+/* The one-fetch textured surface; owned by run(). */
+typedef struct textured_ctx {
+    const scene *s;
+    GLuint prog, tex;
+} textured_ctx;
+
+static int textured_setup(btf_gl *gl, void *ctx)
+{
+    textured_ctx *xc = ctx;
+    const btf_gl_api *f = btf_gl_fn(gl);
+    f->UseProgram(xc->prog);
+    scene_uniforms(gl, xc->prog, xc->s);
+    f->ActiveTexture(GL_TEXTURE0);
+    f->BindTexture(GL_TEXTURE_2D, xc->tex);
+    f->Uniform1i(f->GetUniformLocation(xc->prog, "u_tex"), 0);
+    return 0;
+}
+
 /* ---------------------------------------------------------------- main */
 
 /* Texture fetches per fragment, from the sources:
@@ -513,31 +564,57 @@ static int shader_alu(int C) { return 270 + 360 * ((C + 3) / 4); }
 static int thesis_fetches(int C) { return 4 + 30 * ((C + 3) / 4); }
 static int thesis_alu(int C) { return 84 + 582 * ((C + 3) / 4); }
 
-/* Frame cost of package g with the render program specialised for it (C = 0: all
- * chunks), nearest, lod from derivatives; the program is left in *prog. */
-static frame_cost product_frames(btf_gl *gl, const scene *s, const btf_gl_target *t, const btf_gl_package *g, int C,
-                                 btf_shader_program **prog)
+/* The product program specialised for package g at C chunks (C = 0: all), as btf
+ * render builds it (btf_gl_package_defines): nearest texels, lod from derivatives.
+ * Owned by the run that made it, which frees prog (btf_shader_program_free). */
+typedef struct product_ctx {
+    const scene *s;
+    const btf_gl_package *g;
+    int C;
+    btf_shader_program *prog;
+} product_ctx;
+
+/* Builds pc->prog from the shaders in dir (NULL: the usual place, btf_shader_desc). */
+static int product_build(btf_gl *gl, product_ctx *pc, const char *dir)
 {
     btf_error err = {{0}};
     btf_shader_define defs[BTF_GL_PACKAGE_DEFINES];
     char vals[BTF_GL_PACKAGE_DEFINES][16];
-    btf_shader_desc sd = {.program = "render", .defines = defs, .n_defines = btf_gl_package_defines(g, 0, C, defs, vals)};
-    btf_shader_program_free(gl, *prog);
-    *prog = NULL;
-    frame_cost none = {-1, -1};
-    if (btf_shader_build(gl, &sd, prog, NULL, &err) != BTF_OK) {
-        die("product program", &err);
-        return none;
-    }
-    btf_gl_fn(gl)->UseProgram((*prog)->id);
-    if (btf_gl_package_bind(gl, g, *prog, 0, &err) != BTF_OK) {
-        die("bind", &err);
-        return none;
-    }
-    btf_gl_decode_settings ds = {0, 1, C};
-    btf_gl_package_settings(gl, g, *prog, &ds);
-    scene_uniforms(gl, (*prog)->id, s);
-    return time_frames(gl, s, t);
+    btf_shader_desc sd = {.dir = dir, .program = "render", .defines = defs};
+    sd.n_defines = btf_gl_package_defines(pc->g, 0, pc->C, defs, vals);
+    btf_shader_program_free(gl, pc->prog);
+    pc->prog = NULL;
+    if (btf_shader_build(gl, &sd, &pc->prog, NULL, &err) != BTF_OK)
+        return die("product program", &err);
+    return 0;
+}
+
+static int product_setup(btf_gl *gl, void *ctx)
+{
+    product_ctx *pc = ctx;
+    btf_error err = {{0}};
+    btf_gl_fn(gl)->UseProgram(pc->prog->id);
+    if (btf_gl_package_bind(gl, pc->g, pc->prog, 0, &err) != BTF_OK)
+        return die("bind", &err);
+    btf_gl_decode_settings ds = {0, 1, pc->C};
+    btf_gl_package_settings(gl, pc->g, pc->prog, &ds);
+    scene_uniforms(gl, pc->prog->id, pc->s);
+    return 0;
+}
+
+/* Draws one frame of case c into t (for the error measurement). */
+static int draw_once(btf_gl *gl, const scene *s, const btf_gl_target *t, const bench_case *c)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    btf_gl_target_bind(gl, t);
+    f->BindVertexArray(s->vao);
+    if (c->setup(gl, c->ctx))
+        return 1;
+    f->ClearColor(0, 0, 0, 1);
+    f->Clear(GL_COLOR_BUFFER_BIT);
+    f->DrawElements(GL_TRIANGLES, s->n_indices, GL_UNSIGNED_INT, 0);
+    f->Finish();
+    return 0;
 }
 
 /* Version 2 (spatial levels, 3 levels) of the same package against version 1, all
@@ -554,21 +631,21 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     if (btf_lod_build(dir1, dir2, &lo, NULL, &err) != BTF_OK || btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
         btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err))
         return die("levels package", &err);
-    btf_shader_program *prog = NULL;
-    double c1[2], c2[2];
-    for (int r = 0; r < 2; r++) {
-        c1[r] = product_frames(gl, s, t, g1, 0, &prog).cpu_ms;
-        c2[r] = product_frames(gl, s, t, g2, 0, &prog).cpu_ms;
+    product_ctx pc[2] = {{s, g1, 0, NULL}, {s, g2, 0, NULL}};
+    bench_case c[2] = {{.setup = product_setup, .ctx = &pc[0]}, {.setup = product_setup, .ctx = &pc[1]}};
+    int rc = product_build(gl, &pc[0], NULL) || product_build(gl, &pc[1], NULL) || time_frames(gl, s, t, c, 2);
+    if (!rc) {
+        double v1 = c[0].cost.cpu_ms, v2 = c[1].cost.cpu_ms;
+        printf("levels_v1_C%d_cpu_ms %.2f ms\nlevels_v2_C%d_cpu_ms %.2f ms\n", p1->n_loaded, v1, p1->n_loaded, v2);
+        printf("levels_v2_over_v1_cpu_ratio %.3f x\n", v2 / v1);
     }
-    double v1 = fmin(c1[0], c1[1]), v2 = fmin(c2[0], c2[1]);
-    printf("levels_v1_C%d_cpu_ms %.2f ms\nlevels_v2_C%d_cpu_ms %.2f ms\n", p1->n_loaded, v1, p1->n_loaded, v2);
-    printf("levels_v2_over_v1_cpu_ratio %.3f x\n", v2 / v1);
-    btf_shader_program_free(gl, prog);
+    btf_shader_program_free(gl, pc[0].prog);
+    btf_shader_program_free(gl, pc[1].prog);
     btf_gl_package_free(gl, g1);
     btf_gl_package_free(gl, g2);
     btf_package_free(p2);
     remove_dir(dir2);
-    return 0;
+    return rc;
 }
 
 /* One C of the comparison, for the summary table. */
@@ -632,20 +709,20 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
 
-    f->UseProgram(textured);
-    scene_uniforms(gl, textured, &s);
-    f->ActiveTexture(GL_TEXTURE0);
-    f->BindTexture(GL_TEXTURE_2D, tex);
-    f->Uniform1i(f->GetUniformLocation(textured, "u_tex"), 0);
-    frame_cost ms_tex = time_frames(gl, &s, t);
+    textured_ctx xc = {&s, textured, tex};
+    bench_case cx = {.setup = textured_setup, .ctx = &xc};
     double e_tex, m_tex;
     ref_decode(p, &ref, 0);
-    if (render_error(gl, t, &ref, &e_tex, &m_tex))
+    if (time_frames(gl, &s, t, &cx, 1) || draw_once(gl, &s, t, &cx) || render_error(gl, t, &ref, &e_tex, &m_tex))
         return 1;
+    frame_cost ms_tex = cx.cost;
     printf("textured_ms %.2f ms\ntextured_cpu_ms %.2f ms\n", ms_tex.wall_ms, ms_tex.cpu_ms);
     printf("textured_fetches 1 per_fragment\ntextured_alu 4 per_fragment_est\n");
     printf("textured_rmse_vs_all_chunks %.3f 0..255\n", e_tex);
 
+    /* BENCH_ALT_SHADERS=DIR: a third case, the product program assembled from DIR's
+     * shader files (same host layout), for A/B runs of a shader change. */
+    const char *alt = getenv("BENCH_ALT_SHADERS");
     static const int Cs[5] = {1, 2, 4, 8, 16};
     bench_row rows[5];
     int n_rows = 0;
@@ -656,38 +733,40 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         ref_decode(p, &ref, C);
         /* product: the program specialised for the package (no levels), the filter
          * (nearest) and C, as btf render builds it (btf_gl_package_defines) */
-        frame_cost ms_s = product_frames(gl, &s, t, g, C, &prog);
-        if (ms_s.cpu_ms < 0)
+        product_ctx pc = {&s, g, C, prog}, pa = {&s, g, C, NULL};
+        thesis_ctx tc = {.s = &s, .p = p, .prog = thesis};
+        bench_case c[3] = {{.setup = product_setup, .ctx = &pc}, {.setup = thesis_setup, .ctx = &tc},
+                           {.setup = product_setup, .ctx = &pa}};
+        int n_cases = alt ? 3 : 2;
+        if (product_build(gl, &pc, NULL) || (alt && product_build(gl, &pa, alt)) || thesis_create(gl, p, C, &tc.td))
             return 1;
-        double e_s, m_s;
-        if (render_error(gl, t, &ref, &e_s, &m_s))
+        prog = pc.prog;
+        double e[3], m[3];
+        if (time_frames(gl, &s, t, c, n_cases))
             return 1;
-        /* thesis */
-        thesis_data td;
-        if (thesis_create(gl, p, C, &td))
-            return 1;
-        f->UseProgram(thesis);
-        thesis_bind(gl, thesis, p, &td);
-        scene_uniforms(gl, thesis, &s);
-        if (btf_gl_check(gl, "thesis setup", &err) != BTF_OK)
-            return die("thesis", &err);
-        frame_cost ms_t = time_frames(gl, &s, t);
-        double e_t, m_t;
-        if (render_error(gl, t, &ref, &e_t, &m_t))
-            return 1;
-        thesis_free(gl, &td);
+        for (int i = 0; i < n_cases; i++)
+            if (draw_once(gl, &s, t, &c[i]) || render_error(gl, t, &ref, &e[i], &m[i]))
+                return 1;
+        thesis_free(gl, &tc.td);
+        btf_shader_program_free(gl, pa.prog);
+        frame_cost ms_s = c[0].cost, ms_t = c[1].cost;
         printf("shader_C%d_ms %.2f ms\nthesis_C%d_ms %.2f ms\n", C, ms_s.wall_ms, C, ms_t.wall_ms);
         printf("shader_C%d_cpu_ms %.2f ms\nthesis_C%d_cpu_ms %.2f ms\n", C, ms_s.cpu_ms, C, ms_t.cpu_ms);
         printf("thesis_over_shader_C%d_cpu_ratio %.3f x\nshader_over_textured_C%d_cpu_ratio %.2f x\n", C,
                ms_t.cpu_ms / ms_s.cpu_ms, C, ms_s.cpu_ms / ms_tex.cpu_ms);
-        printf("shader_C%d_rmse %.3f 0..255\nshader_C%d_max_err %.1f 0..255\n", C, e_s, C, m_s);
-        printf("thesis_C%d_rmse %.3f 0..255\nthesis_C%d_max_err %.1f 0..255\n", C, e_t, C, m_t);
+        printf("shader_C%d_rmse %.3f 0..255\nshader_C%d_max_err %.1f 0..255\n", C, e[0], C, m[0]);
+        printf("thesis_C%d_rmse %.3f 0..255\nthesis_C%d_max_err %.1f 0..255\n", C, e[1], C, m[1]);
+        if (alt)
+            printf("alt_C%d_cpu_ms %.2f ms\nthesis_over_alt_C%d_cpu_ratio %.3f x\nalt_over_shader_C%d_cpu_ratio %.3f x\n"
+                   "alt_C%d_rmse %.3f 0..255\nalt_C%d_max_err %.1f 0..255\n",
+                   C, c[2].cost.cpu_ms, C, ms_t.cpu_ms / c[2].cost.cpu_ms, C, c[2].cost.cpu_ms / ms_s.cpu_ms, C, e[2], C,
+                   m[2]);
         printf("shader_C%d_fetches %d per_fragment\nthesis_C%d_fetches %d per_fragment\n", C, shader_fetches(C), C,
                thesis_fetches(C));
         printf("shader_C%d_alu %d per_fragment_est\nthesis_C%d_alu %d per_fragment_est\n", C, shader_alu(C), C,
                thesis_alu(C));
         fflush(stdout);
-        rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, e_s, m_s, e_t, m_t};
+        rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, e[0], m[0], e[1], m[1]};
     }
     print_table(rows, n_rows);
     if (!getenv("BENCH_MAX_C") && run_levels(gl, p, dir, &s, t))
