@@ -224,7 +224,7 @@ export function dirtabGpu(lights, views, viewBlock) {
     t.tris.forEach((_, i) => texel(t, s, i, tris, 4 * (tbase[s] + i)));
     if (t.tris.length) for (let c = 0; c < CELLS * CELLS; c++) texel(t, s, t.cells[c], cells, 4 * (s * CELLS * CELLS + c));
   });
-  return {ubo, cells, tris, rows, viewBase: vbase[1], triWidth: TRI_W};
+  return {ubo, cells, tris, rows, triWidth: TRI_W};
 }
 
 // Interpolation of a direction vector (local frame, any length): the JS twin of

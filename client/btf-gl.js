@@ -198,7 +198,6 @@ export class GpuPackage {
     this.wq = new Float32Array(0);
     const tabs = [buildDirtab(pkg.lights), buildDirtab(pkg.views)];
     const d = dirtabGpu(tabs[0], tabs[1], pkg.viewBlock);
-    this.viewBase = d.viewBase;
     this.outerCos = Math.cos(pkg.lights.maxTheta * Math.PI / 180);
     this.ubo = gl.createBuffer();
     gl.bindBuffer(gl.UNIFORM_BUFFER, this.ubo);
@@ -458,7 +457,6 @@ export class GpuPackage {
     gl.uniform4fv(prog.loc('u_btf_wq'), wq);
     gl.uniform2i(prog.loc('u_btf_size'), pkg.width, pkg.height);
     gl.uniform1i(prog.loc('u_btf_atlas_cols'), pkg.atlas.cols);
-    gl.uniform1i(prog.loc('u_btf_view_base'), this.viewBase);
     gl.uniform1f(prog.loc('u_btf_outer_cos'), this.outerCos);
     gl.uniform1i(prog.loc('u_btf_chunks'), used);
     gl.uniform1i(prog.loc('u_btf_levels'), this.levels);

@@ -19,7 +19,7 @@
 //   u_btf_wt   RGBA32UI array, layer h = slots 4h..4h+3, texel (light, view): channel c =
 //              slot 4h+c as R (bits 0..10) | G (11..21) | B (22..31);
 //              W = u_btf_wq[6h + ch] + u_btf_wq[6h + 3 + ch] * q per colour channel ch
-//   The view's block: bits 12.. of the view vertex's .w in btf_dirs_block.
+//   The view's block: btf_interp.blk (bits 12.. of the view vertex's .w in btf_dirs_block).
 // Per fragment: 2 direction texels, then per view sample (3): one u_btf_tex texel per
 // 8 slots (4 bilinear, twice between two levels) and per light sample (3) one
 // u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/8) + 3 ceil(C/4)) texels, nearest.
@@ -34,7 +34,6 @@ uniform vec4 u_btf_tq[BTF_MAX_CHUNKS / 2];     // per 4 slots: lo, step of T
 uniform vec4 u_btf_wq[BTF_MAX_CHUNKS / 4 * 6]; // per 4 slots: lo R, G, B, step R, G, B of W
 uniform ivec2 u_btf_size;    // W, H texels of the material (= one atlas tile)
 uniform int u_btf_atlas_cols;
-uniform int u_btf_view_base; // first view vertex in btf_dirs_block
 uniform int u_btf_chunks;    // slots to use, 1..uploaded (version 1: chunks)
 uniform int u_btf_levels;    // spatial levels N (0 or 1: none)
 uniform float u_btf_lod;     // lod of btf_decode (0 = finest)
@@ -142,15 +141,14 @@ vec3 btf_quad(int h, vec4 T, int vi, btf_interp il)
     return vec3(dot(T, wr), dot(T, wg), dot(T, wb));
 }
 
-// One view sample: view vi (its block's tile), every slot in use. With BTF_QUADS
+// One view sample: view vi of block b, every slot in use. With BTF_QUADS
 // (host specialisation: the number of 4-slot layers in use, 1..16) the layers are
 // written out with constant indices; without it, a loop (a SIMD software rasteriser
 // gathers a uniform array lane by lane when the index is a loop variable, and runs
 // a loop's body at least once).
 #define BTF__QUAD(h) btf_quad(h, u_btf_tq[2 * (h)] + u_btf_tq[2 * (h) + 1] * btf_tex_quad(h, tile, l0, xy0, a0, l1, xy1, a1, f), vi, il)
-vec3 btf_view_sample(int vi, btf_interp il, int l0, ivec4 xy0, vec2 a0, int l1, ivec4 xy1, vec2 a1, float f)
+vec3 btf_view_sample(int vi, int b, btf_interp il, int l0, ivec4 xy0, vec2 a0, int l1, ivec4 xy1, vec2 a1, float f)
 {
-    int b = int(u_btf_verts[u_btf_view_base + vi].w) >> 12;
     ivec2 tile = btf_divmod(b, u_btf_atlas_cols).yx * u_btf_size; // level-0 tile of block b
 #ifdef BTF_QUADS
     vec3 s = BTF__QUAD(0);
@@ -219,9 +217,9 @@ vec3 btf_decode_lod(vec2 uv, vec3 light, vec3 view, float lod)
     ivec4 xy0 = btf_texel_taps(uv, l0, a0), xy1 = btf_texel_taps(uv, l1, a1);
     btf_interp il = btf_dirs_interp_vec(0, light);
     btf_interp iv = btf_dirs_interp_vec(1, view);
-    vec3 rgb = iv.w.x * btf_view_sample(iv.idx.x, il, l0, xy0, a0, l1, xy1, a1, f);
-    rgb += iv.w.y * btf_view_sample(iv.idx.y, il, l0, xy0, a0, l1, xy1, a1, f);
-    rgb += iv.w.z * btf_view_sample(iv.idx.z, il, l0, xy0, a0, l1, xy1, a1, f);
+    vec3 rgb = iv.w.x * btf_view_sample(iv.idx.x, iv.blk.x, il, l0, xy0, a0, l1, xy1, a1, f);
+    rgb += iv.w.y * btf_view_sample(iv.idx.y, iv.blk.y, il, l0, xy0, a0, l1, xy1, a1, f);
+    rgb += iv.w.z * btf_view_sample(iv.idx.z, iv.blk.z, il, l0, xy0, a0, l1, xy1, a1, f);
     return rgb;
 }
 

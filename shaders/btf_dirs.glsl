@@ -22,7 +22,8 @@
 // Public:  btf_interp btf_dirs_interp_vec(int set, vec3 v)   set 0 lights, 1 views;
 //          v in the local frame (z = normal), any length; NaN/Inf/zero = the normal,
 //          z < 0 = the horizon at the same azimuth. Unused weight slots are 0 and
-//          repeat a valid index.
+//          repeat a valid index (and its block). blk: each direction's block (views;
+//          0 for lights), so the decoder reads no vertex again.
 //          vec3 btf_dirs_vec(float theta_deg, float phi_deg)
 
 #ifndef BTF_GL_MAX_VERTS
@@ -39,7 +40,8 @@ uniform highp usampler2D u_btf_dir_cells;
 uniform highp usampler2D u_btf_dir_tris;
 
 struct btf_interp {
-    ivec3 idx;
+    ivec3 idx; // direction indices within the set
+    ivec3 blk; // view sets: each direction's block (bits 12.. of the vertex .w); lights: 0
     vec3 w;
 };
 
@@ -86,28 +88,29 @@ btf_interp btf_dirs_interp_vec(int set, vec3 v)
     vec3 p = btf_dirs_query(v);
     ivec2 c = btf_dirs_cell(p);
     uvec4 t = texelFetch(u_btf_dir_cells, ivec2(c.x, c.y + BTF_DIRS_CELLS * set), 0);
-    ivec3 tv;
-    vec3 w;
+    vec3 w, real; // real: the vertices' .w, read once with their vectors
     for (int s = 0; s <= BTF_DIRS_MAX_STEPS; s++) {
-        tv = ivec3(int(t.x & 0xFFFFu), int(t.x >> 16), int(t.y));
-        vec3 x = u_btf_verts[tv.x].xyz, y = u_btf_verts[tv.y].xyz, z = u_btf_verts[tv.z].xyz;
-        w = vec3(btf_dirs_det(p, y, z), btf_dirs_det(p, z, x), btf_dirs_det(p, x, y));
+        vec4 x = u_btf_verts[int(t.x & 0xFFFFu)], y = u_btf_verts[int(t.x >> 16)], z = u_btf_verts[int(t.y)];
+        real = vec3(x.w, y.w, z.w);
+        w = vec3(btf_dirs_det(p, y.xyz, z.xyz), btf_dirs_det(p, z.xyz, x.xyz), btf_dirs_det(p, x.xyz, y.xyz));
         int k = w.x <= w.y && w.x <= w.z ? 0 : w.y <= w.z ? 1 : 2;
         uint n = k == 0 ? t.z & 0xFFFFu : k == 1 ? t.z >> 16 : t.w;
         if (w[k] >= 0.0 || s == BTF_DIRS_MAX_STEPS || n == 0xFFFFu)
             break;
         t = texelFetch(u_btf_dir_tris, ivec2(int(n & 1023u), int(n >> 10)), 0);
     }
-    vec3 real = vec3(u_btf_verts[tv.x].w, u_btf_verts[tv.y].w, u_btf_verts[tv.z].w);
-    ivec3 idx = (ivec3(real) & 4095) - 1; // bits 12.. of a view vertex: its block
-    int first = real.x > 0.0 ? idx.x : real.y > 0.0 ? idx.y : idx.z;
-    w = max(w, 0.0) * step(0.5, real); // a virtual pole's weight is dropped
+    ivec3 iw = ivec3(real), idx = (iw & 4095) - 1, blk = iw >> 12; // bits 12.. of a view vertex: its block
+    bvec3 on = greaterThan(real, vec3(0.0)); // false: a virtual pole
+    int k = on.x ? 0 : on.y ? 1 : 2;         // the first real vertex
+    w = max(w, 0.0) * vec3(on);              // a virtual pole's weight is dropped
     float sum = w.x + w.y + w.z;
     btf_interp r;
-    r.idx = ivec3(real.x > 0.0 ? idx.x : first, real.y > 0.0 ? idx.y : first, real.z > 0.0 ? idx.z : first);
+    r.idx = ivec3(on.x ? idx.x : idx[k], on.y ? idx.y : idx[k], on.z ? idx.z : idx[k]);
+    r.blk = ivec3(on.x ? blk.x : blk[k], on.y ? blk.y : blk[k], on.z ? blk.z : blk[k]);
     r.w = w / sum;
     if (!(sum > 1e-30)) { // a query at a virtual pole: all weight to the first real vertex
-        r.idx.x = first;
+        r.idx.x = idx[k];
+        r.blk.x = blk[k];
         r.w = vec3(1.0, 0.0, 0.0);
     }
     return r;

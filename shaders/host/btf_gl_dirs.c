@@ -65,7 +65,6 @@ btf_result btf_gl_dirs_upload(btf_gl *gl, const btf_dirtab *lights, const btf_di
     }
     if (r == BTF_OK)
         r = btf_gl_texture_create(gl, BTF__TRI_W, rows > 0 ? rows : 1, BTF_GL_RGBA32UI, tris, &out->tris, err);
-    out->view_base = vbase[1];
     free(verts);
     free(cells);
     free(tris);
@@ -95,9 +94,6 @@ btf_result btf_gl_dirs_bind(btf_gl *gl, const btf_gl_dirs *d, const btf_shader_p
         f->BindTexture(GL_TEXTURE_2D, tex[i]);
         f->Uniform1i(loc, first_unit + i);
     }
-    GLint vb = f->GetUniformLocation(prog->id, "u_btf_view_base");
-    if (vb >= 0)
-        f->Uniform1i(vb, d->view_base);
     return btf_gl_check(gl, "binding the direction tables", err);
 }
 

@@ -27,7 +27,6 @@ typedef struct btf_gl_dirs {
     GLuint ubo;     /* btf_dirs_block */
     GLuint cells;   /* u_btf_dir_cells */
     GLuint tris;    /* u_btf_dir_tris */
-    int view_base;  /* first view vertex (u_btf_view_base) */
 } btf_gl_dirs;
 
 /* Uploads both tables (views may be NULL: lights only); view_block (n views, may be NULL = all 0) goes into bits 12..
@@ -35,7 +34,7 @@ typedef struct btf_gl_dirs {
 btf_result btf_gl_dirs_upload(btf_gl *gl, const btf_dirtab *lights, const btf_dirtab *views, const int *view_block,
                               btf_gl_dirs *out, btf_error *err);
 /* Binds the two textures to units first_unit, first_unit + 1 and the block to uniform
- * buffer binding 0, and sets u_btf_view_base, of prog (in use). */
+ * buffer binding 0, of prog (in use). */
 btf_result btf_gl_dirs_bind(btf_gl *gl, const btf_gl_dirs *d, const btf_shader_program *prog, int first_unit,
                             btf_error *err);
 void btf_gl_dirs_free(btf_gl *gl, btf_gl_dirs *d);
