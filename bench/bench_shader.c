@@ -124,8 +124,9 @@ static GLuint compile_stage(const btf_gl_api *f, GLenum stage, const char *src, 
 }
 
 /* The product vertex stage (btf_render.vert, assembled as the manifest says) with a
- * benchmark fragment file from shaders/bench/, after the same prefix lines. */
-static GLuint build_bench_program(btf_gl *gl, const char *frag_file)
+ * benchmark fragment file from shaders/bench/, after the same prefix lines and the
+ * define lines `defs` (may be ""). */
+static GLuint build_bench_program(btf_gl *gl, const char *frag_file, const char *defs)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
     btf_shader_desc sd = {.program = "render"};
@@ -141,9 +142,9 @@ static GLuint build_bench_program(btf_gl *gl, const char *frag_file)
     char *body = read_text(path), *src = NULL;
     const char *marker = strstr(vs->text, "// ---- ");
     size_t np = marker ? (size_t)(marker - vs->text) : 0; /* the prefix lines */
-    if (body && marker && (src = malloc(np + strlen(body) + 64))) {
+    if (body && marker && (src = malloc(np + strlen(defs) + strlen(body) + 64))) {
         memcpy(src, vs->text, np);
-        sprintf(src + np, "// ---- bench/%s\n%s", frag_file, body);
+        sprintf(src + np, "%s// ---- bench/%s\n%s", defs, frag_file, body);
     }
     GLuint prog = 0;
     GLuint v = src ? compile_stage(f, GL_VERTEX_SHADER, vs->text, "btf_render.vert") : 0;
@@ -648,6 +649,109 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     return rc;
 }
 
+/* ---------------------------------------------------------------- fetch costs */
+
+#define FETCH_KINDS 7
+#define FETCH_SIDE 256
+static const char *fetch_names[FETCH_KINDS] = {"rgba8_texelfetch", "rgba8_texture", "rgba16ui_texelfetch",
+                                               "rgba32ui_texelfetch", "r32ui_texelfetch", "ubo_vec4", "none"};
+
+/* The textures and block of shaders/bench/fetch.frag; owned by run_fetch. */
+typedef struct fetch_data {
+    GLuint tex[4]; /* RGBA8, RGBA16UI, RGBA32UI, R32UI */
+    GLuint ubo;
+} fetch_data;
+
+/* One program of fetch.frag (kind, count) with its data; owned by run_fetch. */
+typedef struct fetch_ctx {
+    const scene *s;
+    const fetch_data *d;
+    int kind;
+    GLuint prog;
+} fetch_ctx;
+
+static int fetch_setup(btf_gl *gl, void *ctx)
+{
+    fetch_ctx *fc = ctx;
+    const btf_gl_api *f = btf_gl_fn(gl);
+    static const int int_tex[FETCH_KINDS] = {0, 0, 1, 2, 3, 0, 0}; /* u_fu per kind */
+    f->UseProgram(fc->prog);
+    scene_uniforms(gl, fc->prog, fc->s);
+    f->ActiveTexture(GL_TEXTURE0);
+    f->BindTexture(GL_TEXTURE_2D, fc->d->tex[0]);
+    f->Uniform1i(f->GetUniformLocation(fc->prog, "u_f8"), 0);
+    f->ActiveTexture(GL_TEXTURE1);
+    f->BindTexture(GL_TEXTURE_2D, fc->d->tex[int_tex[fc->kind] ? int_tex[fc->kind] : 1]);
+    f->Uniform1i(f->GetUniformLocation(fc->prog, "u_fu"), 1);
+    GLuint block = f->GetUniformBlockIndex(fc->prog, "fetch_block");
+    if (block != GL_INVALID_INDEX)
+        f->UniformBlockBinding(fc->prog, block, 1);
+    f->BindBufferBase(GL_UNIFORM_BUFFER, 1, fc->d->ubo);
+    return 0;
+}
+
+/* 256 x 256 textures of every format fetch.frag reads, filled with noise. */
+static int fetch_data_create(btf_gl *gl, fetch_data *d)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    static const GLenum ifmt[4] = {GL_RGBA8, GL_RGBA16UI, GL_RGBA32UI, GL_R32UI};
+    static const GLenum fmt[4] = {GL_RGBA, GL_RGBA_INTEGER, GL_RGBA_INTEGER, GL_RED_INTEGER};
+    static const GLenum type[4] = {GL_UNSIGNED_BYTE, GL_UNSIGNED_SHORT, GL_UNSIGNED_INT, GL_UNSIGNED_INT};
+    uint32_t *noise = malloc((size_t)FETCH_SIDE * FETCH_SIDE * 4 * sizeof(uint32_t));
+    if (!noise)
+        return die("fetch data: out of memory", NULL);
+    uint32_t x = 2463534242u; /* xorshift32 */
+    for (size_t i = 0; i < (size_t)FETCH_SIDE * FETCH_SIDE * 4; i++) {
+        x ^= x << 13, x ^= x >> 17, x ^= x << 5;
+        noise[i] = x;
+    }
+    f->GenTextures(4, d->tex);
+    f->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    for (int i = 0; i < 4; i++) {
+        f->BindTexture(GL_TEXTURE_2D, d->tex[i]);
+        f->TexImage2D(GL_TEXTURE_2D, 0, (GLint)ifmt[i], FETCH_SIDE, FETCH_SIDE, 0, fmt[i], type[i], noise);
+        f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        f->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    }
+    f->GenBuffers(1, &d->ubo);
+    f->BindBuffer(GL_UNIFORM_BUFFER, d->ubo);
+    f->BufferData(GL_UNIFORM_BUFFER, 1024 * 16, noise, GL_STATIC_DRAW);
+    f->BindBuffer(GL_UNIFORM_BUFFER, 0);
+    free(noise);
+    btf_error err = {{0}};
+    return btf_gl_check(gl, "fetch data", &err) != BTF_OK ? die("fetch data", &err) : 0;
+}
+
+/* The cost of one read of each kind: fetch.frag with 4 and with 16 reads per fragment,
+ * all 14 programs interleaved frame by frame; (t16 - t4) / 12 is the CPU time one
+ * more read of that kind adds to a 1280x720 frame. */
+static int run_fetch(btf_gl *gl, const scene *s, const btf_gl_target *t)
+{
+    fetch_data d;
+    memset(&d, 0, sizeof d);
+    fetch_ctx fc[2 * FETCH_KINDS];
+    bench_case c[2 * FETCH_KINDS];
+    int rc = fetch_data_create(gl, &d);
+    for (int i = 0; i < 2 * FETCH_KINDS && !rc; i++) {
+        char defs[96];
+        snprintf(defs, sizeof defs, "#define FETCH_N %d\n#define FETCH_KIND %d\n", i % 2 ? 16 : 4, i / 2);
+        fc[i] = (fetch_ctx){s, &d, i / 2, build_bench_program(gl, "fetch.frag", defs)};
+        c[i] = (bench_case){.setup = fetch_setup, .ctx = &fc[i]};
+        rc = fc[i].prog == 0;
+    }
+    if (!rc)
+        rc = time_frames(gl, s, t, c, 2 * FETCH_KINDS);
+    for (int k = 0; k < FETCH_KINDS && !rc; k++)
+        printf("fetch_%s_cpu_ms %.3f ms_per_read\n", fetch_names[k], (c[2 * k + 1].cost.cpu_ms - c[2 * k].cost.cpu_ms) / 12);
+    for (int i = 0; i < 2 * FETCH_KINDS; i++)
+        if (fc[i].prog)
+            btf_gl_fn(gl)->DeleteProgram(fc[i].prog);
+    btf_gl_fn(gl)->DeleteBuffers(1, &d.ubo);
+    for (int i = 0; i < 4; i++)
+        btf_gl_texture_free(gl, d.tex[i]);
+    return rc;
+}
+
 /* One C of the comparison, for the summary table. */
 typedef struct bench_row {
     int C;
@@ -685,7 +789,7 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     btf_gl_package *g = NULL;
     if (btf_gl_package_upload(gl, p, dir, &g, &err))
         return die("product package", &err);
-    GLuint thesis = build_bench_program(gl, "thesis.frag"), textured = build_bench_program(gl, "textured.frag");
+    GLuint thesis = build_bench_program(gl, "thesis.frag", ""), textured = build_bench_program(gl, "textured.frag", "");
     if (!thesis || !textured)
         return 1;
     /* textured: the package's value for light = view = normal, RGBA8, bilinear, tiled */
@@ -769,7 +873,7 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, e[0], m[0], e[1], m[1]};
     }
     print_table(rows, n_rows);
-    if (!getenv("BENCH_MAX_C") && run_levels(gl, p, dir, &s, t))
+    if (!getenv("BENCH_MAX_C") && (run_levels(gl, p, dir, &s, t) || run_fetch(gl, &s, t)))
         return 1;
     printf("renderer %s\n", btf_gl_renderer(gl));
     btf_gl_texture_free(gl, tex);
