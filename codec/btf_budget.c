@@ -40,10 +40,10 @@ static long long btf__prefix_bytes(btf_package *p, int n)
 /* The best prefix of p under b (see btf_budget); n_chunks 0 when none fits. */
 static btf_budget_choice btf__best_prefix(btf_package *p, const btf_budget *b, int *met)
 {
-    btf_budget_choice c = {p->k, 0, btf__prefix_bytes(p, 1), 0.0, 0.0, 0}, low = c; /* none: what one chunk needs */
+    btf_budget_choice c = {p->k, 0, btf__prefix_bytes(p, 1), 0.0, 0.0, 0, BTF_CENTER_DEFAULT}, low = c; /* none: what one chunk needs */
     *met = 0;
     for (int n = 1; n <= p->n_chunks; n++) {
-        btf_budget_choice t = {p->k, n, btf__prefix_bytes(p, n), p->chunk[n - 1].lab, p->chunk[n - 1].rmse, 0};
+        btf_budget_choice t = {p->k, n, btf__prefix_bytes(p, n), p->chunk[n - 1].lab, p->chunk[n - 1].rmse, 0, BTF_CENTER_DEFAULT};
         if (low.n_chunks == 0 || t.lab < low.lab)
             low = t;
         if (b->max_bytes > 0 && t.bytes <= b->max_bytes && (c.n_chunks == 0 || t.lab < c.lab))
@@ -66,6 +66,8 @@ static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
     cJSON_AddNumberToObject(o, "k", res->k);
     if (res->rd_fit)
         cJSON_AddStringToObject(o, "rd_steps", "fitted");
+    if (res->center == BTF_CENTER_ROW)
+        cJSON_AddStringToObject(o, "center", "row");
     cJSON_AddNumberToObject(o, "chunks", res->n_chunks);
     cJSON_AddNumberToObject(o, "bytes", (double)res->bytes);
     cJSON_AddNumberToObject(o, "lab", res->lab);
@@ -76,6 +78,8 @@ static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
         cJSON_AddNumberToObject(e, "k", c->k);
         if (c->rd_fit)
             cJSON_AddStringToObject(e, "rd_steps", "fitted");
+        if (c->center == BTF_CENTER_ROW)
+            cJSON_AddStringToObject(e, "center", "row");
         cJSON_AddNumberToObject(e, "chunks", c->n_chunks);
         cJSON_AddNumberToObject(e, "bytes", (double)c->bytes);
         cJSON_AddNumberToObject(e, "lab", c->lab);
@@ -177,6 +181,43 @@ static btf_result btf__budget_try(const btf *src, btf_pca_options po, const btf_
     return r;
 }
 
+/* The candidate list of a search: settings in, measurements out; owned by
+ * btf_budget_compress for one call. */
+typedef struct btf__search {
+    const btf *src;
+    btf_pca_options pca;
+    btf_package_options po;
+    const btf_budget *b;
+    const char *out;
+    char dir[BTF_BUDGET_MAX_CANDIDATES][BTF_FS_PATH_MAX];
+    btf_budget_result rs;
+    int best, best_met;
+} btf__search;
+
+/* Compresses candidate i (k, rd_fit and center already in rs.candidate[i]) and keeps
+ * it as the best if it beats the best so far. */
+static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
+{
+    btf_budget_choice *c = &s->rs.candidate[i];
+    int k = c->k, fit = c->rd_fit, met = 0;
+    btf_center center = c->center;
+    snprintf(s->dir[i], sizeof s->dir[i], "%s.tmp-%ld-k%d%s%s", s->out, (long)getpid(), k, fit ? "f" : "",
+             center == BTF_CENTER_ROW ? "r" : "");
+    s->po.rd_max_bytes = fit ? s->b->max_bytes : 0;
+    btf_pca_options pca = s->pca;
+    pca.center = center;
+    btf_result r = btf__budget_try(s->src, pca, &s->po, k, s->b, s->dir[i], c, &met, err);
+    c->rd_fit = fit, c->center = center;
+    s->rs.n_candidates = i + 1;
+    const btf_budget_choice *bc = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
+    int better = c->n_chunks > 0 && (!bc || met > s->best_met ||
+                                     (met == s->best_met && (s->b->max_bytes > 0 || !met ? c->lab < bc->lab
+                                                                                          : c->bytes < bc->bytes)));
+    if (r == BTF_OK && better)
+        s->best = i, s->best_met = met;
+    return r;
+}
+
 btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
                                const btf_budget *budget, const char *out, btf_budget_result *res, btf_error *err)
 {
@@ -192,26 +233,23 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
         snprintf(name, sizeof name, "%s", slash && slash[1] ? slash + 1 : out);
         po.name = name;
     }
-    int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), best = -1, best_met = 0;
-    int fit[BTF_BUDGET_MAX_K] = {0}, nt = nk;
-    for (int i = 0; po.rd && budget->max_bytes > 0 && i < nk && nt < BTF_BUDGET_MAX_K; i++)
-        ks[nt] = ks[i], fit[nt++] = 1; /* version 3: each k also with steps fitted to the bytes */
-    char dir[BTF_BUDGET_MAX_K][BTF_FS_PATH_MAX];
-    for (int i = 0; r == BTF_OK && i < nt; i++) {
-        int met = 0;
-        snprintf(dir[i], sizeof dir[i], "%s.tmp-%ld-k%d%s", out, (long)getpid(), ks[i], fit[i] ? "f" : "");
-        po.rd_max_bytes = fit[i] ? budget->max_bytes : 0;
-        r = btf__budget_try(src, pca ? *pca : (btf_pca_options){0}, &po, ks[i], budget, dir[i], &rs.candidate[i], &met,
-                            err);
-        rs.candidate[i].rd_fit = fit[i];
-        rs.n_candidates = i + 1;
-        const btf_budget_choice *c = &rs.candidate[i], *bc = best >= 0 ? &rs.candidate[best] : NULL;
-        int better = c->n_chunks > 0 && (!bc || met > best_met ||
-                                         (met == best_met && (budget->max_bytes > 0 || !met ? c->lab < bc->lab
-                                                                                            : c->bytes < bc->bytes)));
-        if (r == BTF_OK && better)
-            best = i, best_met = met;
+    btf__search *sr = calloc(1, sizeof *sr);
+    if (!sr)
+        return btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
+    *sr = (btf__search){src, pca ? *pca : (btf_pca_options){0}, po, budget, out, {{0}}, {0}, -1, 0};
+    int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
+    for (int fit = 0; fit < (po.rd && budget->max_bytes > 0 ? 2 : 1); fit++) /* version 3: also steps fitted to the bytes */
+        for (int i = 0; i < nk; i++)
+            sr->rs.candidate[nt++] = (btf_budget_choice){.k = ks[i], .rd_fit = fit, .center = sr->pca.center};
+    for (int i = 0; r == BTF_OK && i < nt; i++)
+        r = btf__budget_eval(sr, i, err);
+    if (r == BTF_OK && sr->best >= 0 && sr->pca.center == BTF_CENTER_DEFAULT) { /* the best, centred */
+        sr->rs.candidate[nt] = sr->rs.candidate[sr->best];
+        sr->rs.candidate[nt].center = BTF_CENTER_ROW;
+        r = btf__budget_eval(sr, nt, err);
     }
+    rs = sr->rs;
+    int best = sr->best, best_met = sr->best_met;
     if (r == BTF_OK && best < 0) {
         long long need = rs.candidate[0].bytes;
         for (int i = 1; i < rs.n_candidates; i++)
@@ -221,14 +259,15 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     }
     if (r == BTF_OK) {
         const btf_budget_choice *c = &rs.candidate[best];
-        rs.k = c->k, rs.rd_fit = c->rd_fit, rs.n_chunks = c->n_chunks, rs.bytes = c->bytes, rs.lab = c->lab, rs.rmse = c->rmse;
-        rs.met = best_met;
-        r = btf__budget_finish(dir[best], budget, &rs, err);
+        rs.k = c->k, rs.rd_fit = c->rd_fit, rs.center = c->center, rs.n_chunks = c->n_chunks, rs.bytes = c->bytes;
+        rs.lab = c->lab, rs.rmse = c->rmse, rs.met = best_met;
+        r = btf__budget_finish(sr->dir[best], budget, &rs, err);
         if (r == BTF_OK)
-            r = btf_fs_replace_dir(dir[best], out, btf_manifest_owns_dir, NULL, err);
+            r = btf_fs_replace_dir(sr->dir[best], out, btf_manifest_owns_dir, NULL, err);
     }
     for (int i = 0; i < rs.n_candidates; i++)
-        btf_fs_rmtree(dir[i], NULL);
+        btf_fs_rmtree(sr->dir[i], NULL);
+    free(sr);
     if (res)
         *res = rs;
     return r;

@@ -87,9 +87,11 @@ Test(budget, max_error_is_reached_with_the_fewest_chunks)
     double target = p->chunk[p->n_chunks / 2].lab; /* reachable at about half the chunks */
     btf_budget b = {0};
     b.max_error = target, b.k[0] = 1, b.n_k = 1;
+    btf_pca_options po = {0}; /* the reference's centring: no centred retry */
+    po.center = BTF_CENTER_NONE;
     btf_budget_result res;
     btf_error err = {0};
-    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     cr_expect(res.met);
     cr_expect_leq(res.lab, target);
     int first = 0;
@@ -113,7 +115,7 @@ Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
     btf_budget_result res;
     btf_error err = {0};
     cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
-    cr_expect_eq(res.n_candidates, 3);
+    cr_expect_eq(res.n_candidates, 4, "k 1, 3, 9 and the best of them with row centring");
     for (int i = 0; i < res.n_candidates; i++)
         if (res.candidate[i].n_chunks > 0)
             cr_expect_geq(res.candidate[i].lab + 1e-12, res.lab, "k %d beats the choice", res.candidate[i].k);
@@ -125,6 +127,45 @@ Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
     cr_expect_eq(btf_package_read(out, 0, &p, &err), BTF_OK, "the refused budget touched the earlier package: %s",
                  err.msg);
     btf_package_free(p);
+    btf_free(src);
+    test_rmtree(dir);
+}
+
+/* The best candidate is tried once more with row centring, unless the caller chose a
+ * centring; the choice is the lower error either way, and the package says how it
+ * was made (its manifest's "center" and the budget record). */
+Test(budget, the_best_candidate_is_retried_with_row_centring)
+{
+    char dir[64], out[128];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    btf *src = material();
+    btf_budget b = {0};
+    b.max_bytes = 60000, b.k[0] = 1, b.k[1] = 3, b.n_k = 2;
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(res.n_candidates, 3);
+    const btf_budget_choice *c = res.candidate, *best = c[0].lab <= c[1].lab ? &c[0] : &c[1];
+    cr_expect_eq(c[0].center, BTF_CENTER_DEFAULT);
+    cr_expect_eq(c[1].center, BTF_CENTER_DEFAULT);
+    cr_expect_eq(c[2].center, BTF_CENTER_ROW);
+    cr_expect_eq(c[2].k, best->k, "the retry is the best uncentred candidate's k");
+    const btf_budget_choice *win = c[2].n_chunks > 0 && c[2].lab < best->lab ? &c[2] : best;
+    cr_expect_eq(res.center, win->center);
+    cr_expect_eq(res.k, win->k);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(p->center, win->center == BTF_CENTER_ROW ? BTF_CENTER_ROW : BTF_CENTER_NONE, "package center %d",
+                 (int)p->center);
+    cr_expect(p->budget && strstr(p->budget, "\"center\":\"row\""), "the record lists the centred candidate: %s",
+              p->budget ? p->budget : "none");
+    btf_package_free(p);
+    btf_pca_options po = {0}; /* a centring of the caller's: no retry */
+    po.center = BTF_CENTER_NONE;
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(res.n_candidates, 2);
+    cr_expect_eq(res.center, BTF_CENTER_NONE);
     btf_free(src);
     test_rmtree(dir);
 }

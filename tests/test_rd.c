@@ -315,10 +315,14 @@ Test(rd, budget_tries_fitted_and_equal_noise_steps_and_keeps_the_lower_error)
     btf_budget_result res;
     btf_error err = {0};
     cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(res.n_candidates, 2);
+    cr_assert_eq(res.n_candidates, 3, "equal-noise, fitted, and the better of them with row centring");
     cr_assert_eq(res.candidate[0].rd_fit, 0);
     cr_assert_eq(res.candidate[1].rd_fit, 1);
     const btf_budget_choice *lo = res.candidate[0].lab <= res.candidate[1].lab ? &res.candidate[0] : &res.candidate[1];
+    cr_assert_eq(res.candidate[2].rd_fit, lo->rd_fit);
+    cr_assert_eq(res.candidate[2].center, BTF_CENTER_ROW);
+    if (res.candidate[2].n_chunks > 0 && res.candidate[2].lab < lo->lab)
+        lo = &res.candidate[2];
     cr_assert_eq(res.rd_fit, lo->rd_fit);
     cr_assert_eq(res.lab, lo->lab);
     btf_package *p = read_ok(out);

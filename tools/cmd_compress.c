@@ -192,11 +192,13 @@ static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress
     st->bytes = res.bytes, st->n_chunks = res.n_chunks, st->lab = res.lab, st->rmse = res.rmse;
     if (!o->quiet && !o->json) {
         for (int i = 0; i < res.n_candidates; i++)
-            fprintf(stderr, "btf compress: k %-3d %2d chunks %10lld bytes  Lab %.3f%s\n", res.candidate[i].k,
+            fprintf(stderr, "btf compress: k %-3d %2d chunks %10lld bytes  Lab %.3f%s%s\n", res.candidate[i].k,
                     res.candidate[i].n_chunks, res.candidate[i].bytes, res.candidate[i].lab,
-                    res.candidate[i].rd_fit ? "  (rd steps fitted to the bytes)" : "");
-        fprintf(stderr, "btf compress: chose k %d, %d chunks, %lld bytes, Lab %.3f%s\n", res.k, res.n_chunks,
-                res.bytes, res.lab, res.met ? "" : " (the error target is not reached: the lowest error)");
+                    res.candidate[i].rd_fit ? "  (rd steps fitted to the bytes)" : "",
+                    res.candidate[i].center == BTF_CENTER_ROW ? "  (row centring)" : "");
+        fprintf(stderr, "btf compress: chose k %d%s, %d chunks, %lld bytes, Lab %.3f%s\n", res.k,
+                res.center == BTF_CENTER_ROW ? " (row centring)" : "", res.n_chunks, res.bytes, res.lab,
+                res.met ? "" : " (the error target is not reached: the lowest error)");
     }
     return BTF_OK;
 }
