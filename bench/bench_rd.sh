@@ -8,7 +8,7 @@
 # for the component textures of the first material (below).
 # Run by bench/run.sh (results: bench/results/rd.txt); needs `make build` and jq.
 #   RD_MATERIALS="gen:tiles:64:4242 ..." bash bench/bench_rd.sh   # other materials
-#   RD_LARGE=0 bash bench/bench_rd.sh       # skip the 256x256 material (2: add the thesis wool at 256x256)
+#   RD_LARGE=0 bash bench/bench_rd.sh       # skip the 256x256 material (2: add the thesis wool and corduroy at 256x256)
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 BUILD=${BUILD:-build}
@@ -23,7 +23,9 @@ for m in wool corduroy; do
 done
 if [[ ${RD_LARGE:-1} != 0 ]]; then
     mats+=(tiles256=gen:tiles:256:5151)
-    [[ ${RD_LARGE:-1} == 2 && -f $SHARED/data/thesis-ubo2003/wool/meta.json ]] && mats+=("wool256=$SHARED/data/thesis-ubo2003/wool")
+    for m in wool corduroy; do
+        [[ ${RD_LARGE:-1} == 2 && -f $SHARED/data/thesis-ubo2003/$m/meta.json ]] && mats+=("${m}256=$SHARED/data/thesis-ubo2003/$m")
+    done
 fi
 [[ -n ${RD_MATERIALS:-} ]] && read -r -a mats <<<"$RD_MATERIALS"
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_rd.XXXXXX")
