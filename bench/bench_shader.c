@@ -674,14 +674,14 @@ static int fetch_setup(btf_gl *gl, void *ctx)
 {
     fetch_ctx *fc = ctx;
     const btf_gl_api *f = btf_gl_fn(gl);
-    static const int int_tex[FETCH_KINDS] = {0, 0, 1, 2, 3, 0, 0}; /* u_fu per kind */
+    static const int int_tex[FETCH_KINDS] = {1, 1, 1, 2, 3, 1, 1}; /* u_fu per kind (any integer one if unread) */
     f->UseProgram(fc->prog);
     scene_uniforms(gl, fc->prog, fc->s);
     f->ActiveTexture(GL_TEXTURE0);
     f->BindTexture(GL_TEXTURE_2D, fc->d->tex[0]);
     f->Uniform1i(f->GetUniformLocation(fc->prog, "u_f8"), 0);
     f->ActiveTexture(GL_TEXTURE1);
-    f->BindTexture(GL_TEXTURE_2D, fc->d->tex[int_tex[fc->kind] ? int_tex[fc->kind] : 1]);
+    f->BindTexture(GL_TEXTURE_2D, fc->d->tex[int_tex[fc->kind]]);
     f->Uniform1i(f->GetUniformLocation(fc->prog, "u_fu"), 1);
     GLuint block = f->GetUniformBlockIndex(fc->prog, "fetch_block");
     if (block != GL_INVALID_INDEX)

@@ -40,10 +40,11 @@ static long long btf__prefix_bytes(btf_package *p, int n)
 /* The best prefix of p under b (see btf_budget); n_chunks 0 when none fits. */
 static btf_budget_choice btf__best_prefix(btf_package *p, const btf_budget *b, int *met)
 {
-    btf_budget_choice c = {p->k, 0, btf__prefix_bytes(p, 1), 0.0, 0.0, 0, BTF_CENTER_DEFAULT}, low = c; /* none: what one chunk needs */
+    btf_budget_choice c = {.k = p->k, .bytes = btf__prefix_bytes(p, 1)}, low = c; /* none: what one chunk needs */
     *met = 0;
     for (int n = 1; n <= p->n_chunks; n++) {
-        btf_budget_choice t = {p->k, n, btf__prefix_bytes(p, n), p->chunk[n - 1].lab, p->chunk[n - 1].rmse, 0, BTF_CENTER_DEFAULT};
+        btf_budget_choice t = {.k = p->k, .n_chunks = n, .bytes = btf__prefix_bytes(p, n), .lab = p->chunk[n - 1].lab,
+                               .rmse = p->chunk[n - 1].rmse};
         if (low.n_chunks == 0 || t.lab < low.lab)
             low = t;
         if (b->max_bytes > 0 && t.bytes <= b->max_bytes && (c.n_chunks == 0 || t.lab < c.lab))
@@ -198,16 +199,16 @@ typedef struct btf__search {
  * it as the best if it beats the best so far. */
 static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
 {
-    btf_budget_choice *c = &s->rs.candidate[i];
-    int k = c->k, fit = c->rd_fit, met = 0;
-    btf_center center = c->center;
-    snprintf(s->dir[i], sizeof s->dir[i], "%s.tmp-%ld-k%d%s%s", s->out, (long)getpid(), k, fit ? "f" : "",
-             center == BTF_CENTER_ROW ? "r" : "");
-    s->po.rd_max_bytes = fit ? s->b->max_bytes : 0;
+    btf_budget_choice *c = &s->rs.candidate[i], got = {0};
+    int met = 0;
+    snprintf(s->dir[i], sizeof s->dir[i], "%s.tmp-%ld-k%d%s%s", s->out, (long)getpid(), c->k, c->rd_fit ? "f" : "",
+             c->center == BTF_CENTER_ROW ? "r" : "");
+    s->po.rd_max_bytes = c->rd_fit ? s->b->max_bytes : 0;
     btf_pca_options pca = s->pca;
-    pca.center = center;
-    btf_result r = btf__budget_try(s->src, pca, &s->po, k, s->b, s->dir[i], c, &met, err);
-    c->rd_fit = fit, c->center = center;
+    pca.center = c->center;
+    btf_result r = btf__budget_try(s->src, pca, &s->po, c->k, s->b, s->dir[i], &got, &met, err);
+    got.rd_fit = c->rd_fit, got.center = c->center; /* the settings it was made with */
+    *c = got;
     s->rs.n_candidates = i + 1;
     const btf_budget_choice *bc = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
     int better = c->n_chunks > 0 && (!bc || met > s->best_met ||
@@ -238,7 +239,8 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
         return btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
     *sr = (btf__search){src, pca ? *pca : (btf_pca_options){0}, po, budget, out, {{0}}, {0}, -1, 0};
     int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
-    for (int fit = 0; fit < (po.rd && budget->max_bytes > 0 ? 2 : 1); fit++) /* version 3: also steps fitted to the bytes */
+    int fits = po.rd && budget->max_bytes > 0 ? 2 : 1; /* version 3: each k also with steps fitted to the bytes */
+    for (int fit = 0; fit < fits; fit++)
         for (int i = 0; i < nk; i++)
             sr->rs.candidate[nt++] = (btf_budget_choice){.k = ks[i], .rd_fit = fit, .center = sr->pca.center};
     for (int i = 0; r == BTF_OK && i < nt; i++)

@@ -14,9 +14,9 @@
  * (btf_package_options.rd_max_bytes) and the equal-noise error's steps; the error
  * measured (CIELab, which the squared error of the allocation only approximates)
  * decides. Unless pca sets a centring, the best candidate is then tried once more
- * with the thesis's row centring (component 0 = the texel's mean): on materials that
- * are the sum of a mean and a few terms (the thesis's own reconstructions, 256x256)
- * its textures deflate to 15% fewer bytes at the same error. The best candidate's
+ * with the thesis's row centring (component 0 = the texel's mean), which wins on
+ * materials made of a mean and a few terms (the thesis corduroy at 256x256: 15% fewer
+ * bytes at the same error). The best candidate's
  * package is cut to the chosen prefix and replaces OUT like btf_package_compress.
  */
 #ifndef BTF_BUDGET_H
