@@ -27,7 +27,7 @@ pkg__or_stop = $(if $(filter PKG-CONFIG-FAILED,$(1)),$(error pkg-config $(2): $(
 
 # --- Rooms: each folder one archive, one include path, dependencies one way ---
 # codec/        product library: formats, PCA, decoder, levels, metrics, file helpers
-CODEC_PKGS := OpenImageIO libcjson lapacke openblas zlib qhull_r
+CODEC_PKGS := OpenImageIO libcjson lapacke openblas zlib qhull_r libwebp
 CODEC_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/*.c)) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/*.cpp))
 CODEC_LIB  := $(BUILD)/codec/libbtfcodec.a
 $(CODEC_OBJ): INC := -Icodec

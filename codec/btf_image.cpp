@@ -2,6 +2,7 @@
 #include "btf_image.h"
 #include "btf_fs.h"
 #include "btf_png.h"
+#include "btf_webp.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -41,11 +42,14 @@ static btf_result check_file(const char *path, int header_only, btf_error *err)
     std::fclose(f);
     size_t len = strlen(path);
     int png = (n >= 4 && !memcmp(head, "\x89PNG", 4)) || (len > 4 && !strcasecmp(path + len - 4, ".png"));
-    if (!png) /* PNG by its magic or its name: checked (a damaged signature included); others go to OIIO */
+    int webp = (n >= 4 && !memcmp(head, "RIFF", 4)) || (len > 5 && !strcasecmp(path + len - 5, ".webp"));
+    if (!png && !webp) /* PNG or WebP by its magic or its name: checked; others go to OIIO */
         return BTF_OK;
     char *data = nullptr;
     btf_result r = btf_fs_read(path, (size_t)1 << 30, &data, &n, err);
-    if (r == BTF_OK)
+    if (r == BTF_OK && webp && !png)
+        r = btf_webp_check((const uint8_t *)data, n, path, nullptr, nullptr, err);
+    else if (r == BTF_OK)
         r = header_only ? btf_png_check_header((const uint8_t *)data, n, path, err)
                         : btf_png_check((const uint8_t *)data, n, path, err);
     free(data);
@@ -95,6 +99,11 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
                         s.nchannels, s.depth);
     size_t n = (size_t)s.width * (size_t)s.height * (size_t)s.nchannels;
     long long file = btf_fs_size(path);
+    if (!strcmp(in->format_name(), "webp") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO &&
+        n > BTF_IMAGE_MAX_WEBP_FLOOR)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: a %lld-byte WebP claims %dx%dx%d pixels (over %dx its size and %d MiB)",
+                        path, file, s.width, s.height, s.nchannels, BTF_IMAGE_MAX_PNG_RATIO,
+                        BTF_IMAGE_MAX_WEBP_FLOOR >> 20);
     if (!strcmp(in->format_name(), "png") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: a %lld-byte PNG cannot hold %dx%dx%d pixels (deflate expands at most %dx)",
                         path, file, s.width, s.height, s.nchannels, BTF_IMAGE_MAX_PNG_RATIO);
@@ -176,30 +185,131 @@ static btf_result encode_smallest_png(const std::string &tmp, const std::string 
     return r;
 }
 
-// Writes through "PATH.tmp-PID.EXT" and renames; sync: fsync the file before and the
-// directory after (btf_fs_commit_file).
-static btf_result write_image(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
-                              btf_error *err)
+// Bytes into the new file tmp (stdio; the caller syncs and renames).
+static btf_result write_bytes(const std::string &tmp, const char *path, const uint8_t *data, size_t n, btf_error *err)
 {
-    if (w < 1 || h < 1 || w > kMaxSide || h > kMaxSide || channels < 1 || channels > 4 || (bits != 8 && bits != 16))
-        return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%dx%d/%d", path, w, h, channels, bits);
-    std::string final_path(path);
-    std::string ext = final_path.substr(final_path.find_last_of('.') == std::string::npos ? final_path.size()
-                                                                                          : final_path.find_last_of('.'));
-    // keep the extension last so OpenImageIO picks the format from the temp name
-    std::string tmp = final_path + ".tmp-" + std::to_string((long)getpid()) + ext;
+    FILE *f = std::fopen(tmp.c_str(), "wb");
+    if (!f)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot create", tmp.c_str());
+    bool ok = std::fwrite(data, 1, n, f) == n;
+    ok = std::fclose(f) == 0 && ok;
+    if (!ok) {
+        std::remove(tmp.c_str());
+        return btf_fail(err, BTF_ERR_IO, "%s: write failed", path);
+    }
+    return BTF_OK;
+}
+
+// WebP (grey 8-bit only) through libwebp: OpenImageIO 2.4's WebP writer imports the
+// pixels through YUV, so its "lossless" files do not give the same bytes back.
+static btf_result encode_webp(const std::string &tmp, const char *path, int w, int h, int channels, int bits,
+                              const void *pixels, btf_error *err)
+{
+    if (channels != 1 || bits != 8)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: WebP is written for 8-bit grey images only", path);
+    uint8_t *buf = nullptr;
+    size_t n = 0;
+    btf_result r = btf_webp_encode_grey((const uint8_t *)pixels, w, h, &buf, &n, err);
+    if (r == BTF_OK)
+        r = write_bytes(tmp, path, buf, n, err);
+    free(buf);
+    return r;
+}
+
+// "PATH.tmp-PID.EXT" for path, the extension kept last so OpenImageIO picks the
+// format from the temp name; ext gets ".EXT" (empty without one).
+static std::string temp_path(const char *path, std::string *ext)
+{
+    std::string p(path);
+    size_t dot = p.find_last_of('.');
+    *ext = dot == std::string::npos ? std::string() : p.substr(dot);
+    return p + ".tmp-" + std::to_string((long)getpid()) + *ext;
+}
+
+// Encodes into tmp as path's extension says (PNG with the flags' filter choice).
+static btf_result encode_any(const std::string &tmp, const std::string &ext, const char *path, int w, int h,
+                             int channels, int bits, const void *pixels, int flags, btf_error *err)
+{
     int png = ext == ".png" || ext == ".PNG";
-    btf_result r = png && (flags & BTF_IMAGE_PNG_SMALLEST)
-                       ? encode_smallest_png(tmp, ext, path, w, h, channels, bits, pixels, err)
-                       : encode_image(tmp, path, w, h, channels, bits, pixels,
-                                      png && (flags & BTF_IMAGE_PNG_UNFILTERED) ? 0x08 : 0, err);
-    if (r != BTF_OK)
-        return r;
+    if (ext == ".webp" || ext == ".WEBP")
+        return encode_webp(tmp, path, w, h, channels, bits, pixels, err);
+    if (png && (flags & BTF_IMAGE_PNG_SMALLEST))
+        return encode_smallest_png(tmp, ext, path, w, h, channels, bits, pixels, err);
+    return encode_image(tmp, path, w, h, channels, bits, pixels, png && (flags & BTF_IMAGE_PNG_UNFILTERED) ? 0x08 : 0,
+                        err);
+}
+
+// tmp into place at path: fsync of the file and the directory unless BTF_IMAGE_UNSYNCED.
+static btf_result commit(const std::string &tmp, const char *path, int flags, btf_error *err)
+{
     if (!(flags & BTF_IMAGE_UNSYNCED))
         return btf_fs_commit_file(tmp.c_str(), path, err); // fsync, rename, fsync of the directory
     if (std::rename(tmp.c_str(), path) != 0) {
         std::remove(tmp.c_str());
         return btf_fail(err, BTF_ERR_IO, "%s: cannot rename temporary file", path);
+    }
+    return BTF_OK;
+}
+
+static int bad_params(int w, int h, int channels, int bits)
+{
+    return w < 1 || h < 1 || w > kMaxSide || h > kMaxSide || channels < 1 || channels > 4 || (bits != 8 && bits != 16);
+}
+
+// Writes through "PATH.tmp-PID.EXT" and renames.
+static btf_result write_image(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
+                              btf_error *err)
+{
+    if (bad_params(w, h, channels, bits))
+        return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%dx%d/%d", path, w, h, channels, bits);
+    std::string ext, tmp = temp_path(path, &ext);
+    btf_result r = encode_any(tmp, ext, path, w, h, channels, bits, pixels, flags, err);
+    return r == BTF_OK ? commit(tmp, path, flags, err) : r;
+}
+
+extern "C" btf_result btf_image_write_smallest(const char *stem, int w, int h, const uint8_t *grey, int flags,
+                                               const char **ext, long long *bytes, btf_error *err)
+{
+    std::string png = std::string(stem) + ".png", webp = std::string(stem) + ".webp", pext, wext;
+    *ext = ".png", *bytes = -1;
+    if (bad_params(w, h, 1, 8))
+        return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%d", png.c_str(), w, h);
+    std::string ptmp = temp_path(png.c_str(), &pext), wtmp = temp_path(webp.c_str(), &wext);
+    btf_result r = encode_any(ptmp, pext, png.c_str(), w, h, 1, 8, grey, flags, err);
+    long long pn = r == BTF_OK ? btf_fs_size(ptmp.c_str()) : -1, wn = -1;
+    if (r == BTF_OK && !(flags & BTF_IMAGE_NO_WEBP)) {
+        r = encode_webp(wtmp, webp.c_str(), w, h, 1, 8, grey, err);
+        wn = r == BTF_OK ? btf_fs_size(wtmp.c_str()) : -1;
+    }
+    if (r == BTF_OK && (pn < 0 || ((flags & BTF_IMAGE_NO_WEBP) == 0 && wn < 0)))
+        r = btf_fail(err, BTF_ERR_IO, "%s: encoded file vanished", stem);
+    int use_webp = r == BTF_OK && wn >= 0 && wn < pn;
+    std::remove((use_webp ? ptmp : wtmp).c_str());
+    if (r != BTF_OK) {
+        std::remove(ptmp.c_str());
+        return r;
+    }
+    *ext = use_webp ? ".webp" : ".png", *bytes = use_webp ? wn : pn;
+    return use_webp ? commit(wtmp, webp.c_str(), flags, err) : commit(ptmp, png.c_str(), flags, err);
+}
+
+extern "C" btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
+{
+    int ch = 0;
+    btf_result r = btf_image_read_u8(path, w, h, &ch, pixels, err);
+    if (r != BTF_OK || ch == 1)
+        return r;
+    uint8_t *px = *pixels;
+    size_t n = (size_t)*w * (size_t)*h;
+    for (size_t i = 0; i < n; i++) {
+        const uint8_t *p = px + i * (size_t)ch;
+        if (ch < 3 || p[1] != p[0] || p[2] != p[0] || (ch == 4 && p[3] != 255)) {
+            free(px);
+            *pixels = nullptr;
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: not a grey image (%d channels that differ at pixel %zu)", path,
+                            ch, i);
+        }
+        px[i] = p[0];
     }
     return BTF_OK;
 }

@@ -3,7 +3,7 @@
  *     uint8_t *px; int w, h, ch;
  *     if (btf_image_read_u8("a.png", &w, &h, &ch, &px, &err) == BTF_OK) { ...; free(px); }
  *
- * Reads any format OpenImageIO reads (PNG, JPEG, ...) as 8-bit, interleaved,
+ * Reads any format OpenImageIO reads (PNG, JPEG, WebP, ...) as 8-bit, interleaved,
  * row 0 first, with alpha left unassociated (never premultiplied).
  * Writes go to "<path>.tmp-<pid>", are fsynced and renamed into place on success.
  */
@@ -22,6 +22,9 @@ extern "C" {
 /* Decoded bytes per PNG file byte, at most: deflate cannot expand further (about
  * 1032:1), so a PNG whose header claims more pixels is refused before allocating. */
 #define BTF_IMAGE_MAX_PNG_RATIO 1100
+/* A lossless WebP may decode to more than that ratio (a flat atlas is a few dozen
+ * bytes); it is refused only when it would also decode to more than this many bytes. */
+#define BTF_IMAGE_MAX_WEBP_FLOOR (64 << 20)
 
 /* Reads an image; *pixels is malloc'd (w*h*ch bytes), caller frees. A PNG whose
  * header claims more than BTF_IMAGE_MAX_PNG_RATIO bytes per file byte is refused. */
@@ -46,8 +49,19 @@ btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels
 #define BTF_IMAGE_UNSYNCED 1
 #define BTF_IMAGE_PNG_UNFILTERED 2
 #define BTF_IMAGE_PNG_SMALLEST 4
+#define BTF_IMAGE_NO_WEBP 8
 btf_result btf_image_write_flags(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
                                  btf_error *err);
+/* An 8-bit grey image as STEM.png (with flags' PNG choices) or, when it is smaller,
+ * STEM.webp, lossless (doc/package-format.md section 4; never with BTF_IMAGE_NO_WEBP);
+ * *ext gets ".png" or ".webp" (static strings), *bytes the file's size. Only the
+ * chosen file is left. */
+btf_result btf_image_write_smallest(const char *stem, int w, int h, const uint8_t *grey, int flags, const char **ext,
+                                    long long *bytes, btf_error *err);
+/* Reads an image as grey (malloc'd w*h bytes, caller frees): one channel as it is,
+ * or three or four whose R, G and B agree (alpha 255), as a grey WebP holds them;
+ * any other image is BTF_ERR_FORMAT. */
+btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err);
 
 #ifdef __cplusplus
 }
