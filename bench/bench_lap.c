@@ -6,8 +6,12 @@
  * thesis wool reconstructed at 64x64 when $BTF_SHARED has it): version 1 (k = 3,
  * C = 8), versions 2 and 4 made from it (4 levels, btf_lod_build), and the thesis
  * format of the same source (btf_export_thesis, k = 3, C = 8). Printed:
- *   lap_MAT_v1_bytes, _v2_bytes, _v4_bytes (every file, manifest included) and the
- *   overheads of v2 and v4 over v1 in percent;
+ *   lap_MAT_v1_bytes, _v2_bytes, _v4_bytes (every file, manifest included; version 4
+ *   as written by default, each texture file the smaller of PNG and lossless WebP),
+ *   _v4png_bytes (version 4 with PNG only), _v1best_bytes (version 1 with each
+ *   texture counted at the smaller of its PNG and the lossless WebP of its pixels:
+ *   the level-less package at the same file coding) and the overheads of v2, v4png
+ *   and v4 over v1 and of v4 over v1best in percent;
  *   at 10, 25, 50 and 100% of the version-4 package's bytes B (manifest included):
  *   lap_MAT_F_v4_lab = the CIELab error (the thesis's, over every texel and measured
  *   pair, as btf eval) of the longest prefix of its chunk order within F% of B,
@@ -22,10 +26,12 @@
 #include "btf.h"
 #include "btf_export.h"
 #include "btf_gen.h"
+#include "btf_image.h"
 #include "btf_lod.h"
 #include "btf_metrics.h"
 #include "btf_package.h"
 #include "btf_thesis.h"
+#include "btf_webp.h"
 
 #include <dirent.h>
 #include <stdio.h>
@@ -39,6 +45,33 @@ static long long file_bytes(const char *dir, const char *name)
     struct stat st;
     snprintf(path, sizeof path, "%s/%s", dir, name);
     return stat(path, &st) == 0 ? (long long)st.st_size : 0;
+}
+
+/* dir_bytes with every tex-* file counted at the smaller of its size and the
+ * lossless WebP of its grey pixels (codec/btf_webp.h). */
+static long long dir_bytes_best(const char *dir)
+{
+    DIR *d = opendir(dir);
+    long long n = 0;
+    for (struct dirent *e; d && (e = readdir(d));) {
+        if (e->d_name[0] == '.')
+            continue;
+        long long b = file_bytes(dir, e->d_name);
+        char path[2200];
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        int w, h;
+        uint8_t *px = NULL, *webp = NULL;
+        size_t nw = 0;
+        btf_error err = {0};
+        if (!strncmp(e->d_name, "tex-", 4) && btf_image_read_grey(path, &w, &h, &px, &err) == BTF_OK &&
+            btf_webp_encode_grey(px, w, h, &webp, &nw, &err) == BTF_OK && (long long)nw < b)
+            b = (long long)nw;
+        free(px), free(webp);
+        n += b;
+    }
+    if (d)
+        closedir(d);
+    return n;
 }
 
 static long long dir_bytes(const char *dir)
@@ -165,10 +198,11 @@ static void die(const btf_error *e)
 
 static void material(const char *name, const btf *src, const char *tmp)
 {
-    char v1[1200], v2[1200], v4[1200], th[1200];
+    char v1[1200], v2[1200], v4[1200], v4p[1200], th[1200];
     snprintf(v1, sizeof v1, "%s/%s-v1", tmp, name);
     snprintf(v2, sizeof v2, "%s/%s-v2", tmp, name);
     snprintf(v4, sizeof v4, "%s/%s-v4", tmp, name);
+    snprintf(v4p, sizeof v4p, "%s/%s-v4png", tmp, name);
     snprintf(th, sizeof th, "%s/%s-thesis", tmp, name);
     btf_error err = {0};
     btf_pca_options po = {0};
@@ -183,6 +217,9 @@ static void material(const char *name, const btf *src, const char *tmp)
     lo.residual = 1;
     if (btf_lod_build(v1, v4, &lo, NULL, &err) != BTF_OK)
         die(&err);
+    lo.png_only = 1;
+    if (btf_lod_build(v1, v4p, &lo, NULL, &err) != BTF_OK)
+        die(&err);
     btf_export_options eo = {0};
     eo.k = 3, eo.components = 8;
     if (btf_export_thesis(src, &eo, th, NULL, &err) != BTF_OK)
@@ -190,8 +227,11 @@ static void material(const char *name, const btf *src, const char *tmp)
     long long b1 = dir_bytes(v1), b2 = dir_bytes(v2), b4 = dir_bytes(v4), bt = dir_bytes(th);
     printf("lap_%s_v1_bytes %lld B\nlap_%s_v2_bytes %lld B\nlap_%s_v4_bytes %lld B\nlap_%s_thesis_bytes %lld B\n", name,
            b1, name, b2, name, b4, name, bt);
-    printf("lap_%s_v2_overhead %.1f %%\nlap_%s_v4_overhead %.1f %%\n", name, 100.0 * (b2 - b1) / b1, name,
-           100.0 * (b4 - b1) / b1);
+    long long b4p = dir_bytes(v4p), b1b = dir_bytes_best(v1);
+    printf("lap_%s_v4png_bytes %lld B\nlap_%s_v1best_bytes %lld B\n", name, b4p, name, b1b);
+    printf("lap_%s_v2_overhead %.1f %%\nlap_%s_v4png_overhead %.1f %%\nlap_%s_v4_overhead %.1f %%\n", name,
+           100.0 * (b2 - b1) / b1, name, 100.0 * (b4p - b1) / b1, name, 100.0 * (b4 - b1) / b1);
+    printf("lap_%s_v4_over_v1best %.1f %%\n", name, 100.0 * (b4 - b1b) / b1b);
     printf("# %s: share of B | bytes | v4 chunks / Lab | thesis Lab | v1 chunks / Lab\n", name);
     const int pct[4] = {10, 25, 50, 100};
     for (int i = 0; i < 4; i++) {

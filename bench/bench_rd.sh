@@ -2,10 +2,12 @@
 # bench/bench_rd.sh - CIELab error at equal bytes against the thesis format (issue 14):
 # per material, `btf export-thesis --k 3 --components 8` (the baseline: its bytes B
 # and its error), then `btf compress --max-bytes B` as version 1 (equal-noise steps,
-# raw 16-bit weights) and as version 3 (`--rd`: rate-distortion steps, deflated
-# weights), each measured by `btf eval` against the source (lab_mae: the thesis's
-# CIELab error). Ratios are to the thesis in the same run. Then WebP against PNG
-# for the component textures of the first material (below).
+# raw 16-bit weights), as version 3 with PNG textures only (`--rd --png`, "v3png":
+# rate-distortion steps, deflated weights) and as version 3 as written by default
+# (each texture the smaller of PNG and lossless WebP), each measured by `btf eval`
+# against the source (lab_mae: the thesis's CIELab error). Ratios are to the thesis
+# in the same run. Then lossy WebP against PNG for the component textures of the
+# first material (below).
 # Run by bench/run.sh (results: bench/results/rd.txt); needs `make build` and jq.
 #   RD_MATERIALS="gen:tiles:64:4242 ..." bash bench/bench_rd.sh   # other materials
 #   RD_LARGE=0 bash bench/bench_rd.sh       # skip the 256x256 material (2: add the thesis wool and corduroy at 256x256)
@@ -32,7 +34,7 @@ tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_rd.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 
 lab() { "$BTF" eval "$1" "$2" --json | jq -r .lab_mae; }
-echo "# material: thesis bytes / Lab | v1 (--max-bytes) bytes / Lab / ratio | v3 (--rd --max-bytes) bytes / Lab / ratio / k, chunks"
+echo "# material: thesis bytes / Lab | v1 (--max-bytes) bytes / Lab / ratio | v3png (--rd --png) | v3 (--rd --max-bytes) bytes / Lab / ratio / k, chunks"
 first_v3=
 for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
@@ -46,10 +48,11 @@ for spec in "${mats[@]}"; do
     tb=$(find "$tmp/$name-thesis" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
     tl=$(lab "$src" "$tmp/$name-thesis")
     "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --quiet
+    "$BTF" compress "$src" "$tmp/$name-v3png" --max-bytes "$tb" --rd --png --quiet
     "$BTF" compress "$src" "$tmp/$name-v3" --max-bytes "$tb" --rd --quiet
-    [[ -z $first_v3 ]] && first_v3=$tmp/$name-v3 first_src=$src
+    [[ -z $first_v3 ]] && first_v3=$tmp/$name-v3png first_src=$src
     row="# $name: $tb / $(printf %.3f "$tl")"
-    for v in v1 v3; do
+    for v in v1 v3png v3; do
         d=$tmp/$name-$v
         b=$(find "$d" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
         l=$(lab "$src" "$d")
@@ -65,21 +68,14 @@ for spec in "${mats[@]}"; do
     echo "$row"
 done
 
-# WebP for the component textures (oiiotool; grey replicated into RGB, WebP has no
-# 1-channel images): the first material's version-3 package with every tex-JJ.png
-# replaced by its WebP at quality Q (decoded back to grey PNG for btf eval; bytes =
-# the WebP files + weights + manifest) against a PNG version 3 at the same bytes.
-# OpenImageIO's "lossless" WebP is measured too (its size; it is not bit-exact here).
+# Lossy WebP for the component textures (oiiotool; grey replicated into RGB, WebP has
+# no 1-channel images): the first material's PNG-only version-3 package with every
+# tex-JJ.png replaced by its WebP at quality Q (decoded back to grey PNG for btf eval;
+# bytes = the WebP files + weights + manifest) against version 3 as written by
+# default (PNG or lossless WebP per texture) at the same bytes.
 if [[ -n $first_v3 ]] && command -v oiiotool >/dev/null && oiiotool --help 2>/dev/null | grep 'Output formats' | grep -q webp; then
     src=${first_src}
-    echo "# webp: quality | webp package bytes / Lab | png (--rd --max-bytes same) bytes / Lab"
-    png=0 webpl=0
-    for f in "$first_v3"/tex-*.png; do
-        oiiotool "$f" --ch Y,Y,Y --compression lossless -o "$tmp/t.webp"
-        png=$((png + $(stat -c %s "$f"))) webpl=$((webpl + $(stat -c %s "$tmp/t.webp")))
-    done
-    echo "rd_webp_lossless_png_bytes $png B"
-    echo "rd_webp_lossless_webp_bytes $webpl B"
+    echo "# webp: quality | lossy webp package bytes / Lab | v3 (--rd --max-bytes same) bytes / Lab"
     for q in 95 80; do
         d=$tmp/webp$q
         cp -r "$first_v3" "$d"

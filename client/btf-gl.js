@@ -466,7 +466,8 @@ export class GpuPackage {
     gl.uniform1i(prog.loc('u_btf_wrap'), wrap);
   }
 
-  // Pixels of a grey PNG (wt-JJ-8.png) decoded by the browser, exactly the PNG's bytes.
+  // Pixels of a grey image decoded by the browser (a PNG such as wt-JJ-8.png, or a
+  // lossless WebP texture with R = G = B): exactly the file's grey bytes.
   readGrey(bitmap) {
     const n = bitmap.width * bitmap.height, px = this.readBack(bitmap, true), out = new Uint8Array(n);
     for (let i = 0; i < n; i++) out[i] = px[4 * i];

@@ -515,7 +515,9 @@ export class BtfViewer extends HTMLElement {
     const chunk = this.pkg.chunks[j];
     const files = sub.chunks[j];
     const data = (name) => files[chunk.files.indexOf(name)];
-    const bitmap = await createImageBitmap(new Blob([data(chunk.tex)], {type: 'image/png'}),
+    // a texture is a PNG or (versions 3 and 4) a lossless WebP: doc/package-format.md section 4
+    const type = chunk.tex.endsWith('.webp') ? 'image/webp' : 'image/png';
+    const bitmap = await createImageBitmap(new Blob([data(chunk.tex)], {type}),
                                            {premultiplyAlpha: 'none', colorSpaceConversion: 'none'});
     if (!this.current(sub, gpu)) return bitmap.close();
     const wt = await this.chunkWeights(chunk, data, gpu);

@@ -79,6 +79,8 @@ typedef struct btf__lod {
     int nl, nb, C, W, H, ch, qmax;
     int resid;       /* 1: version 4, levels < nl-1 may be stored as residuals */
     char *isres;     /* [a*nl+l] version 4: 1 when that level's file is a residual (the smaller coding) */
+    char *iswebp;    /* [a*nl+l] version 4: 1 when that level's file is a lossless WebP (smaller than the PNG) */
+    int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
     btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
     char *w16res;    /* [a] version 4: 1 when the 16-bit weights are wt-JJ-r.z (the smaller coding) */
     double thr;
@@ -105,7 +107,7 @@ static void btf__lod_free(btf__lod *s)
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
-    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->w16res), free(s->pred);
+    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->iswebp), free(s->w16res), free(s->pred);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -335,17 +337,27 @@ static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
     return NULL;
 }
 
-/* Level file name of component a: level 0 keeps the v1 name, level l adds -lL;
- * version 4: a level stored as a residual (l < nl-1, level 0 included) adds -dL. */
-static void btf__level_name(const btf__lod *s, int a, int l, int residual, char *name, size_t n)
+/* Level file name of component a without its extension: level 0 keeps the v1 name,
+ * level l adds -lL; version 4: a level stored as a residual (l < nl-1, level 0
+ * included) adds -dL. */
+static void btf__level_stem(const btf__lod *s, int a, int l, int residual, char *name, size_t n)
 {
     const char *t = btf__file_ending(&s->p->chunk[a], ".png");
     if (residual)
-        snprintf(name, n, "%.*s-d%d.png", (int)(strlen(t) - 4), t, l);
+        snprintf(name, n, "%.*s-d%d", (int)(strlen(t) - 4), t, l);
     else if (l == 0)
-        snprintf(name, n, "%s", t);
+        snprintf(name, n, "%.*s", (int)(strlen(t) - 4), t);
     else
-        snprintf(name, n, "%.*s-l%d.png", (int)(strlen(t) - 4), t, l);
+        snprintf(name, n, "%.*s-l%d", (int)(strlen(t) - 4), t, l);
+}
+
+/* The name of the file that holds level l of component a, as written. */
+static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t n)
+{
+    size_t k = (size_t)a * s->nl + l;
+    btf__level_stem(s, a, l, s->isres[k], name, n);
+    size_t e = strlen(name);
+    snprintf(name + e, n - e, "%s", s->iswebp[k] ? ".webp" : ".png");
 }
 
 /* Name of component a's 8-bit weights: "wt-JJ.bin" -> "wt-JJ-8.png". */
@@ -441,6 +453,18 @@ static btf_result btf__write_w16_residual(const btf__lod *s, int a, const char *
     return r;
 }
 
+/* A grey level file: stem.png (the smallest PNG filter choice), or stem.webp when
+ * WebP is allowed (s->webp) and smaller; *webp = 1 then, *bytes the size kept. */
+static btf_result btf__write_level_file(const btf__lod *s, const char *stem, int w, int h, const uint8_t *px,
+                                        char *webp, long long *bytes, btf_error *err)
+{
+    const char *ext = ".png";
+    btf_result r = btf_image_write_smallest(stem, w, h, px, BTF_IMAGE_PNG_SMALLEST | (s->webp ? 0 : BTF_IMAGE_NO_WEBP),
+                                            &ext, bytes, err);
+    *webp = !strcmp(ext, ".webp");
+    return r;
+}
+
 /* Version 4: component a's level-0 atlas bytes (the v1 PNG's) into s->atlas[a * nl]. */
 static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_error *err)
 {
@@ -448,7 +472,8 @@ static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_
     char path[8400];
     int w, h, ch;
     snprintf(path, sizeof path, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
-    btf_result r = btf_image_read_u8(path, &w, &h, &ch, &s->atlas[a * s->nl], err);
+    btf_result r = btf_image_read_grey(path, &w, &h, &s->atlas[a * s->nl], err);
+    ch = 1;
     if (r == BTF_OK && (w != p->atlas_cols * s->W || h != p->atlas_rows * s->H || ch != 1))
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, expected the %dx%d grey atlas", path, w, h, ch,
                      p->atlas_cols * s->W, p->atlas_rows * s->H);
@@ -456,8 +481,10 @@ static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_
 }
 
 /* Version 4: level l < nl-1 of component a as its residual over level l+1 with the
- * least-squares predictor (kept in s->pred), into path. */
-static btf_result btf__write_residual(btf__lod *s, int a, int l, const char *path, btf_error *err)
+ * least-squares predictor (kept in s->pred), into stem.png or stem.webp (*webp = 1);
+ * *bytes its size. */
+static btf_result btf__write_residual(btf__lod *s, int a, int l, const char *stem, char *webp, long long *bytes,
+                                      btf_error *err)
 {
     const btf_package *p = s->p;
     int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
@@ -470,7 +497,7 @@ static btf_result btf__write_residual(btf__lod *s, int a, int l, const char *pat
     btf_result r = btf_lap_encode(fine, coarse, aw, ah, s->W >> l, s->H >> l, pr, res, err);
     /* the smallest PNG filter choice (residuals are noise-like, where filter None often wins) */
     if (r == BTF_OK)
-        r = btf_image_write_flags(path, aw, ah, 1, 8, res, BTF_IMAGE_PNG_SMALLEST, err);
+        r = btf__write_level_file(s, stem, aw, ah, res, webp, bytes, err);
     free(res);
     return r;
 }
@@ -485,6 +512,46 @@ static btf_result btf__keep_smaller(const char *plain, const char *alt, char *ch
     if (remove(*chose ? plain : alt) != 0)
         return btf_fail(err, BTF_ERR_IO, "%s: cannot remove (%s)", *chose ? plain : alt, strerror(errno));
     return BTF_OK;
+}
+
+/* Level l of component a into tmp: the direct file (level 0 copied from the v1
+ * package unless WebP may replace it) and, for version 4 below the coarsest level,
+ * the residual, the smaller kept; fills tbytes, isres, iswebp. */
+static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir, const char *tmp, btf_error *err)
+{
+    const btf_package *p = s->p;
+    size_t k = (size_t)a * s->nl + l;
+    char to[8400], g[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
+    btf_result r;
+    btf__level_stem(s, a, l, 0, name, sizeof name);
+    snprintf(to, sizeof to, "%s/%s", tmp, name);
+    if (l == 0 && !s->webp) {
+        char from[8400];
+        snprintf(from, sizeof from, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
+        snprintf(to, sizeof to, "%s/%s.png", tmp, name);
+        r = btf__copy_file(from, to, err);
+        s->tbytes[k] = btf_fs_size(to);
+    } else if (s->ch == 1) {
+        r = btf__write_level_file(s, to, aw, ah, s->atlas[k], &s->iswebp[k], &s->tbytes[k], err);
+        snprintf(to + strlen(to), sizeof to - strlen(to), "%s", s->iswebp[k] ? ".webp" : ".png");
+    } else {
+        snprintf(to + strlen(to), sizeof to - strlen(to), ".png");
+        r = btf_image_write_flags(to, aw, ah, s->ch, 8, s->atlas[k], BTF_IMAGE_PNG_SMALLEST, err);
+        s->tbytes[k] = btf_fs_size(to);
+    }
+    if (r != BTF_OK || !s->resid || l == s->nl - 1)
+        return r;
+    char rwebp = 0;
+    long long rbytes = -1;
+    btf__level_stem(s, a, l, 1, name, sizeof name);
+    snprintf(g, sizeof g, "%s/%s", tmp, name);
+    r = btf__write_residual(s, a, l, g, &rwebp, &rbytes, err);
+    snprintf(g + strlen(g), sizeof g - strlen(g), "%s", rwebp ? ".webp" : ".png");
+    r = r == BTF_OK ? btf__keep_smaller(to, g, &s->isres[k], &s->tbytes[k], err) : r;
+    if (r == BTF_OK && s->isres[k])
+        s->iswebp[k] = rwebp;
+    return r;
 }
 
 /* Every texture and weight file into tmp; fills tbytes, wbytes. */
@@ -516,24 +583,8 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
         }
         if (r == BTF_OK && s->resid)
             r = btf__level0_atlas(s, a, in_dir, err);
-        for (int l = 0; r == BTF_OK && l < s->nl; l++) {
-            btf__level_name(s, a, l, 0, name, sizeof name);
-            snprintf(to, sizeof to, "%s/%s", tmp, name);
-            if (l == 0) {
-                snprintf(from, sizeof from, "%s/%s", in_dir, name);
-                r = btf__copy_file(from, to, err);
-            } else {
-                r = btf_image_write_flags(to, p->atlas_cols * (s->W >> l), p->atlas_rows * (s->H >> l), s->ch, 8,
-                                          s->atlas[a * s->nl + l], BTF_IMAGE_PNG_SMALLEST, err);
-            }
-            s->tbytes[a * s->nl + l] = btf_fs_size(to);
-            if (r == BTF_OK && s->resid && l < s->nl - 1) { /* version 4: the residual when smaller */
-                btf__level_name(s, a, l, 1, name, sizeof name);
-                snprintf(g, sizeof g, "%s/%s", tmp, name);
-                r = btf__write_residual(s, a, l, g, err);
-                r = r == BTF_OK ? btf__keep_smaller(to, g, &s->isres[a * s->nl + l], &s->tbytes[a * s->nl + l], err) : r;
-            }
-        }
+        for (int l = 0; r == BTF_OK && l < s->nl; l++)
+            r = btf__write_level(s, a, l, in_dir, tmp, err);
     }
     return r;
 }
@@ -550,7 +601,7 @@ static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info 
     double rmse_end = p->chunk[s->C - 1].rmse, rf_end = p->chunk[s->C - 1].rmse_float;
     c->component = v1->component, c->level = l, c->n_files = 0;
     c->tex_range = v1->tex_range, c->wt_range = v1->wt_range; /* borrowed from the v1 package */
-    btf__level_name(s, a, l, s->isres[a * s->nl + l], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+    btf__level_name(s, a, l, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
     c->has_pred = s->isres[a * s->nl + l];
     if (c->has_pred)
         c->pred = s->pred[a * s->nl + l];
@@ -614,6 +665,7 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->C = p->n_chunks, s->nb = p->blocks->n_blocks, s->W = p->width, s->H = p->height;
     s->ch = p->bits == 16 ? 3 : 1, s->qmax = p->bits == 16 ? 65535 : 255;
     s->resid = o && o->residual;
+    s->webp = s->resid && !o->png_only;
     if (s->resid && p->bits != 8)
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: residual levels (version 4) need 8-bit textures, not %d", in_dir,
                         p->bits);
@@ -634,8 +686,8 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
     s->w8mult = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
-    s->isres = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
-    if (!s->w8q || !s->isres || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
+    s->isres = calloc(n, 1), s->iswebp = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
+    if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;
 }

@@ -36,6 +36,7 @@ typedef struct btf_lod_options {
     double threshold; /* reference visibility threshold used for the chunk order; 0 = BTF_LOD_THRESHOLD */
     int residual;     /* 1: version 4 (doc/package-format.md section 12): every level but the coarsest stored as
                        * a residual over the coarser one (8-bit packages only); 0: version 2 (independent mips) */
+    int png_only;     /* with residual: 1 = every texture file a PNG; 0 = each the smaller of PNG and lossless WebP */
 } btf_lod_options;
 
 /* Summary of btf_lod_build (optional). Plain value. */

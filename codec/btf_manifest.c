@@ -334,13 +334,15 @@ int btf_package_chunk_residual(const btf_package *p, int i)
     const btf_chunk_info *ci = &p->chunk[i];
     if (p->version != 4 || ci->level >= p->n_levels - 1)
         return 0;
-    char end[24];
-    snprintf(end, sizeof end, "-d%d.png", ci->level);
-    for (int f = 0; f < ci->n_files; f++) {
-        size_t n = strlen(ci->files[f]), e = strlen(end);
-        if (strncmp(ci->files[f], "wt-", 3) && n > e && !strcmp(ci->files[f] + n - e, end))
-            return 1;
-    }
+    char end[2][24];
+    snprintf(end[0], sizeof end[0], "-d%d.png", ci->level);
+    snprintf(end[1], sizeof end[1], "-d%d.webp", ci->level); /* section 4: either encoding */
+    for (int f = 0; f < ci->n_files; f++)
+        for (int x = 0; x < 2; x++) {
+            size_t n = strlen(ci->files[f]), e = strlen(end[x]);
+            if (strncmp(ci->files[f], "wt-", 3) && n > e && !strcmp(ci->files[f] + n - e, end[x]))
+                return 1;
+        }
     return 0;
 }
 

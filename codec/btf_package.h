@@ -56,6 +56,9 @@ typedef struct btf_package_options {
     /* With rd: > 0 = steps for the least error within this many bytes instead of the
      * equal-noise error (btf_rd_params.max_bytes; set by btf_budget for --max-bytes). */
     long long rd_max_bytes;
+    /* With rd: 1 = every texture a PNG; 0 = per texture the smaller of a PNG and a
+     * lossless WebP (doc/package-format.md section 4). */
+    int png_only;
     /* Test hook: called before the writer creates package file number i (0-based);
      * a nonzero return makes that write fail like a full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);

@@ -214,21 +214,25 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
 {
     const btf_chunk_info *ci = &p->chunk[i];
     const char *tf = btf__chunk_file(ci, ".png", 0);
+    if (!tf)
+        tf = btf__chunk_file(ci, ".webp", 0); /* versions 3 and 4: a lossless WebP (section 4) */
     const char *wf = p->version == 3 ? btf__chunk_file(ci, ".z", 1) : btf__chunk_file(ci, ".bin", -1);
     if (!wf && p->version == 4)
         wf = btf__chunk_file(ci, ".z", 1);
     const char *w8 = btf_package_has_levels(p) && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
     char path[4200];
     if (!tf || (!wf && !btf_package_has_levels(p)))
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png texture or no %s weights", dir, i,
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png or .webp texture or no %s weights", dir, i,
                         p->version == 3 ? "wt-*.z" : ".bin");
     int nb = p->blocks->n_blocks, W = p->width >> ci->level, H = p->height >> ci->level;
     int ch_want = p->bits == 16 ? 3 : 1, w, h, ch;
     uint8_t *px = NULL;
     snprintf(path, sizeof path, "%s/%s", dir, tf);
     btf_result r = btf_image_info(path, &w, &h, &ch, err); /* the header first: no decode of a wrong size */
+    if (ch_want == 1 && r == BTF_OK && ch >= 3)
+        ch = 1; /* three or four channels of one grey (a WebP): btf_image_read_grey checks they agree */
     if (r == BTF_OK && w == p->atlas_cols * W && h == p->atlas_rows * H && ch == ch_want)
-        r = btf_image_read_u8(path, &w, &h, &ch, &px, err);
+        r = ch == 1 ? btf_image_read_grey(path, &w, &h, &px, err) : btf_image_read_u8(path, &w, &h, &ch, &px, err);
     if (r != BTF_OK)
         return r;
     if (w != p->atlas_cols * W || h != p->atlas_rows * H || ch != ch_want) {

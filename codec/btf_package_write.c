@@ -46,6 +46,7 @@ typedef struct btf__writer {
     char *rd_json;        /* version 3: the manifest's "rd" record (malloc'd), NULL otherwise */
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
+    const char **tex_ext; /* C: ".png" or ".webp", the extension of component j's texture file once written */
     uint16_t **qwt;       /* C arrays V*L*3 */
     float **tex_range;    /* C arrays n_blocks*2 */
     float **wt_range;     /* C arrays n_blocks*2 */
@@ -73,6 +74,7 @@ static void btf__writer_free(btf__writer *w)
             free(w->wt_range[j]);
     }
     free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise), free(w->rd_json);
+    free(w->tex_ext);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
     free(w->ref);
@@ -100,6 +102,7 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->tex_range = calloc((size_t)C, sizeof *w->tex_range);
     w->wt_range = calloc((size_t)C, sizeof *w->wt_range);
     w->tnoise = calloc((size_t)C, sizeof(float)), w->wnoise = calloc((size_t)C, sizeof(float));
+    w->tex_ext = calloc((size_t)C, sizeof *w->tex_ext);
     w->Pq = calloc((size_t)C, sizeof(double)), w->Pf = calloc((size_t)C, sizeof(double));
     w->Qq = calloc(C2, sizeof(double)), w->Qf = calloc(C2, sizeof(double));
     w->TT = calloc(C2, sizeof(double)), w->WW = calloc(C2, sizeof(double));
@@ -111,7 +114,7 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
     w->ref = malloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
-    int ok = w->ref && w->tnoise && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
+    int ok = w->ref && w->tnoise && w->tex_ext && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
              w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
     for (int j = 0; ok && j < C; j++) {
@@ -400,7 +403,7 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
         btf_chunk_info *c = &p.chunk[a];
         int j = order[a];
         c->component = j, c->n_files = 2, c->bytes = bytes[j];
-        snprintf(c->files[0], BTF_PACKAGE_NAME_MAX, "tex-%02d.png", j);
+        snprintf(c->files[0], BTF_PACKAGE_NAME_MAX, "tex-%02d%s", j, w->tex_ext[j]);
         snprintf(c->files[1], BTF_PACKAGE_NAME_MAX, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
         c->rmse = rmse[a], c->lab = lab[a].lab_thesis, c->delta_e76 = lab[a].delta_e76, c->rmse_float = rmse_float[a];
         c->psnr = rmse[a] > 0 ? 20.0 * log10(255.0 / rmse[a]) : 999.0;
@@ -409,6 +412,26 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
     char *s = btf_manifest_print(&p, err);
     free(p.chunk);
     return s;
+}
+
+/* Component j's atlas as tmp/tex-JJ.png, or for version 3 (8 bits) the smaller of
+ * that and tmp/tex-JJ.webp unless o->png_only (doc/package-format.md section 4);
+ * *bytes its size. */
+static btf_result btf__write_texture(btf__writer *w, const btf_package_options *o, const char *tmp, int j,
+                                     long long *bytes, btf_error *err)
+{
+    char path[8192];
+    snprintf(path, sizeof path, "%s/tex-%02d", tmp, j);
+    w->tex_ext[j] = ".png";
+    if (w->version == 3 && w->ch == 1)
+        return btf_image_write_smallest(path, w->aw, w->ah, w->atlas[j],
+                                        BTF_IMAGE_PNG_SMALLEST | (o->png_only ? BTF_IMAGE_NO_WEBP : 0), &w->tex_ext[j],
+                                        bytes, err);
+    size_t n = strlen(path);
+    snprintf(path + n, sizeof path - n, ".png");
+    btf_result r = btf_image_write_flags(path, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST, err);
+    *bytes = btf_fs_size(path);
+    return r;
 }
 
 /* Writes every file into tmp, chooses the order and writes the manifest. */
@@ -428,11 +451,10 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
     }
     for (int j = 0; j < C && r == BTF_OK; j++) {
         snprintf(file, sizeof file, "tex-%02d.png", j);
-        snprintf(path, sizeof path, "%s/%s", tmp, file);
         r = btf__hook(o, &counter, file, err);
+        long long s1 = -1;
         if (r == BTF_OK)
-            r = btf_image_write_flags(path, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST, err);
-        long long s1 = btf_fs_size(path);
+            r = btf__write_texture(w, o, tmp, j, &s1, err);
         snprintf(file, sizeof file, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
         snprintf(path, sizeof path, "%s/%s", tmp, file);
         if (r == BTF_OK)
@@ -501,9 +523,9 @@ static char *btf__rd_json(const btf_rd_result *rr)
 /* Version 3: steps by rate-distortion from the float model m, then every block's
  * matrix rebuilt once to quantise it and accumulate the exact error sums. */
 static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
-                                   long long o_max_bytes, const char *tmp, btf_rd_result *keep, btf_error *err)
+                                   long long o_max_bytes, int png_only, const char *tmp, btf_rd_result *keep, btf_error *err)
 {
-    btf_rd_params par = {m, w->acols, w->arows, noise, tmp, o_max_bytes};
+    btf_rd_params par = {m, w->acols, w->arows, noise, tmp, o_max_bytes, png_only};
     btf_rd_result rr;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)
@@ -608,7 +630,7 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
         btf_pca_model *m = NULL;
         r = btf_pca_compress_views(src, &po, o.rd ? NULL : btf__on_block, &w, o.rd ? &m : NULL, err);
         if (r == BTF_OK && o.rd)
-            r = btf__rd_quantise(&w, src, m, noise, o.rd_max_bytes, tmp, o.rd_out, err);
+            r = btf__rd_quantise(&w, src, m, noise, o.rd_max_bytes, o.png_only, tmp, o.rd_out, err);
         btf_pca_model_free(m);
         t1 = btf__now();
     }

@@ -12,6 +12,7 @@
 
 #include "btf_fs.h"
 #include "btf_image.h"
+#include "btf_webp.h"
 #include "btf_wtz.h"
 
 #define BTF__RD_TEX_LO (-8) /* texture ladder: tex_noise * 2^(i/2), i = LO..HI */
@@ -89,8 +90,8 @@ static double btf__rd_wt(btf__rd *r, int j, float g)
 
 /* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the atlas
  * written as the package would write it (its bytes on disk, the smallest of the PNG
- * filter choices), in scratch/rd-candidate-T.png for thread T, with the thread's own
- * atlas buffer. */
+ * filter choices, or the lossless WebP when that is smaller and allowed), in
+ * scratch/rd-candidate-T.png for thread T, with the thread's own atlas buffer. */
 static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
 {
     char path[BTF_FS_PATH_MAX];
@@ -100,6 +101,12 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int t
                                            err);
     long long s = res == BTF_OK ? btf_fs_size(path) : -1;
     remove(path);
+    uint8_t *webp = NULL;
+    size_t nw = 0;
+    if (res == BTF_OK && s >= 0 && !r->par->png_only &&
+        (res = btf_webp_encode_grey(atlas, r->aw, r->ah, &webp, &nw, err)) == BTF_OK && (long long)nw < s)
+        s = (long long)nw;
+    free(webp);
     if (res == BTF_OK && s < 0)
         res = btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
     r->rt[n] = s;

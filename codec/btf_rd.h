@@ -34,6 +34,7 @@ typedef struct btf_rd_params {
      * kept when its energy exceeds its quantised cost D + lambda R, lambda the
      * smallest slope that fits (btf_budget). */
     long long max_bytes;
+    int png_only;               /* 1: texture bytes as PNG; 0: the smaller of PNG and lossless WebP, as written */
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */

@@ -2,8 +2,8 @@
  * (btf_package_read, codec/btf_package_read.c). A small valid package is made
  * once; each input replaces one of its files (first byte: 0 texture PNG, 1
  * weights .bin, 2 manifest.json, 3 an 8-bit weights PNG of a version-2 package,
- * 4 the manifest and 5 a residual level PNG of a version-4 package),
- * with PNG checksums repaired so mutations reach the decoder. An accepted
+ * 4 the manifest and 5 a residual level of a version-4 package: a lossless WebP,
+ * as the writer keeps it where smaller, or a PNG), with PNG checksums repaired so mutations reach the decoder. An accepted
  * package must decode to finite values; the original file is put back after. */
 #include <math.h>
 
@@ -52,12 +52,11 @@ static const fuzz_pkgs *fuzz_packages(void)
     btf_free(b);
     snprintf(p.residual, sizeof p.residual, "manifest.json");
     char path[400];
-    for (int j = 0; j < 2; j++) {
-        snprintf(path, sizeof path, "%s/tex-%02d-d0.png", p.v4, j);
-        if (btf_fs_size(path) > 0) {
-            snprintf(p.residual, sizeof p.residual, "tex-%02d-d0.png", j);
-            break;
-        }
+    for (int j = 0; j < 4 && !strcmp(p.residual, "manifest.json"); j++) {
+        const char *ext = j < 2 ? "webp" : "png"; /* a lossless WebP where the writer found it smaller */
+        snprintf(path, sizeof path, "%s/tex-%02d-d0.%s", p.v4, j % 2, ext);
+        if (btf_fs_size(path) > 0)
+            snprintf(p.residual, sizeof p.residual, "tex-%02d-d0.%s", j % 2, ext);
     }
     return &p;
 }

@@ -55,6 +55,9 @@ static void make_packages(char *dir, size_t n, long long bytes[3])
     cr_assert_eq(btf_lod_build(v1, v2, &lo, &s2, &err), BTF_OK, "%s", err.msg);
     lo.residual = 1;
     cr_assert_eq(btf_lod_build(v1, v4, &lo, &s4, &err), BTF_OK, "%s", err.msg);
+    lo.png_only = 1; /* the same with every texture a PNG (doc/package-format.md section 4) */
+    snprintf(v4, sizeof v4, "%s/v4png", dir);
+    cr_assert_eq(btf_lod_build(v1, v4, &lo, NULL, &err), BTF_OK, "%s", err.msg);
     if (bytes)
         bytes[0] = s2.bytes_v1, bytes[1] = s2.bytes, bytes[2] = s4.bytes;
 }
@@ -265,6 +268,18 @@ Test(lap, version4_reconstructs_version2_exactly)
             residual_files += strstr(p4->chunk[i].files[f], "-d") != NULL || strstr(p4->chunk[i].files[f], "-r.z") != NULL;
     }
     cr_assert_gt(residual_files, COMPS, "residual levels and weights are really used");
+    /* textures as lossless WebP where smaller: the same texels as the PNG-only twin */
+    btf_package *pp = read_ok(dir, "v4png", 0);
+    int webp = 0, webp_png = 0;
+    for (int i = 0; i < p4->n_chunks; i++) {
+        int l = p4->chunk[i].level;
+        size_t nt = (size_t)p4->blocks->n_blocks * (p4->width >> l) * (p4->height >> l);
+        webp += strstr(p4->chunk[i].files[0], ".webp") != NULL;
+        webp_png += strstr(pp->chunk[i].files[0], ".webp") != NULL;
+        cr_assert_eq(memcmp(p4->tex[i], pp->tex[i], nt * sizeof(float)), 0, "chunk %d: WebP vs PNG texels", i);
+    }
+    cr_assert(webp >= 1 && webp_png == 0, "%d WebP textures, %d in the --png twin", webp, webp_png);
+    btf_package_free(pp);
     cr_assert_lt(bytes[2], bytes[1], "v4 %lld B < v2 %lld B", bytes[2], bytes[1]);
     /* every prefix decodes the same (decoder, lod blending, 8-bit weights of coarse prefixes) */
     for (int n = 1; n <= p2->n_chunks; n += 3) {

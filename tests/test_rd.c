@@ -11,9 +11,11 @@
 
 #include "btf_budget.h"
 #include "btf_cli.h"
+#include "btf_image.h"
 #include "btf_lod.h"
 #include "btf_package.h"
 #include "btf_rd.h"
+#include "btf_webp.h"
 #include "btf_wtz.h"
 #include "test_gen_util.h"
 #include "test_util.h"
@@ -104,8 +106,9 @@ Test(rd, smaller_package_at_equal_error)
         sum += pb->chunk[i].bytes;
     }
     cr_assert_eq(sum, bb);
-    /* the allocation's reference rate is exactly package a's atlases plus its 16-bit
-     * weights (wt-JJ.bin) as they would deflate in wt-JJ.z */
+    /* the allocation's reference rate is exactly package a's atlases (each the smaller
+     * of its PNG and the lossless WebP of the same pixels) plus its 16-bit weights
+     * (wt-JJ.bin) as they would deflate in wt-JJ.z */
     long long ref = 0;
     size_t nw = (size_t)pa->views.n_dirs * pa->lights.n_dirs * 3;
     uint16_t *q = malloc(nw * sizeof *q);
@@ -114,7 +117,14 @@ Test(rd, smaller_package_at_equal_error)
         char path[1024];
         snprintf(path, sizeof path, "%s/%s", a, pa->chunk[i].files[0]);
         cr_assert_eq(stat(path, &st), 0);
-        ref += st.st_size;
+        int w, h;
+        uint8_t *px = NULL, *webp = NULL;
+        size_t nwebp = 0;
+        btf_error e2 = {0};
+        cr_assert_eq(btf_image_read_grey(path, &w, &h, &px, &e2), BTF_OK, "%s", e2.msg);
+        cr_assert_eq(btf_webp_encode_grey(px, w, h, &webp, &nwebp, &e2), BTF_OK, "%s", e2.msg);
+        ref += (long long)nwebp < (long long)st.st_size ? (long long)nwebp : (long long)st.st_size;
+        free(px), free(webp);
         snprintf(path, sizeof path, "%s/%s", a, pa->chunk[i].files[1]);
         FILE *f = fopen(path, "rb");
         cr_assert_not_null(f);

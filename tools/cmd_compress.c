@@ -40,7 +40,7 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--max-bytes N | --max-error E] [--rd] [--tex-noise X]\n"
+            "                           [--max-bytes N | --max-error E] [--rd] [--png] [--tex-noise X]\n"
             "                           [--in-memory] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
@@ -77,6 +77,8 @@ static void compress_usage(FILE *f)
             "  --rd             package version 3: texture and weight steps per component chosen\n"
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
             "                   steps, weights deflated (wt-JJ.z); 8-bit textures, no --levels\n"
+            "  --png            with --rd, --max-bytes, --max-error or --residual: every texture\n"
+            "                   a PNG (default: each the smaller of a PNG and a lossless WebP)\n"
             "  --tex-noise X    RMS quantisation noise per component of the 8-bit textures\n"
             "                   (0..255 scale, default 0.5); with --rd the total it amounts to\n"
             "  --quiet          print nothing on success\n"
@@ -89,7 +91,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E rd!R tex-noise:X in-memory!M quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E rd!R png!P tex-noise:X in-memory!M quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -115,6 +117,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'q': o->quiet = 1; break;
     case 'M': o->in_memory = 1; break;
     case 'R': o->pkg.rd = 1; break;
+    case 'P': o->pkg.png_only = o->lod.png_only = 1; break;
     case 'X': {
         double x = 0.0;
         rc = btf_args_double(a, v, 0.01, 64.0, &x), o->pkg.tex_noise = (float)x;

@@ -22,7 +22,7 @@ typedef struct lod_opts {
 
 static void lod_usage(FILE *f)
 {
-    fprintf(f, "usage: btf lod IN_PKG OUT_PKG [--levels N] [--threshold T] [--residual] [--quiet] [--json]\n"
+    fprintf(f, "usage: btf lod IN_PKG OUT_PKG [--levels N] [--threshold T] [--residual] [--png] [--quiet] [--json]\n"
                "\n"
                "Writes OUT_PKG (a different directory) as package version 2: the version-1\n"
                "package IN_PKG plus per-component mip levels, chunks ordered coarse first.\n"
@@ -31,6 +31,8 @@ static void lod_usage(FILE *f)
                "  --threshold T   visibility threshold (RMS on 0..255) of the chunk order (default %.1f)\n"
                "  --residual      version 4: every level but the coarsest stored as a residual over\n"
                "                  the next coarser one (doc/package-format.md section 12); 8 bits only\n"
+               "  --png           with --residual: every texture a PNG (default: each the smaller\n"
+               "                  of a PNG and a lossless WebP, doc/package-format.md section 4)\n"
                "  --quiet         print nothing on success\n"
                "  --json          print one JSON object on stdout instead of the text: path\n"
                "                  (OUT_PKG), bytes, chunks, levels, bytes_v1 (IN_PKG's chunk files),\n"
@@ -56,6 +58,7 @@ static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
             return btf_args_bad(a, v, "a number > 0 and <= 1e6");
         break;
     case 'r': o->lod.residual = 1; break;
+    case 'P': o->lod.png_only = 1; break;
     case 'q': o->quiet = 1; break;
     case 'j': o->json = 1; break;
     }
@@ -65,7 +68,7 @@ static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int lod_parse(int argc, char **argv, lod_opts *o)
 {
-    static const btf_args_spec spec = {"lod", "levels:l threshold:t residual!r quiet!q json!j", lod_usage, 2};
+    static const btf_args_spec spec = {"lod", "levels:l threshold:t residual!r png!P quiet!q json!j", lod_usage, 2};
     memset(o, 0, sizeof *o);
     return btf_args_parse(&spec, argc, argv, lod_option, o);
 }

@@ -29,6 +29,7 @@ before(async () => {
   const v1 = path.join(lib.lib, 'tiles-v1');
   btf(['lod', v1, path.join(lib.lib, 'tiles-lod'), '--levels', '3', '--quiet']);
   btf(['lod', v1, path.join(lib.lib, 'tiles-lap'), '--levels', '3', '--residual', '--quiet']);
+  btf(['lod', v1, path.join(lib.lib, 'tiles-lap-png'), '--levels', '3', '--residual', '--png', '--quiet']);
   server = await startServer(lib.lib);
   desktop = await launch();
   await desktop.addInitScript(() => { window.__btfCache = false; });
@@ -41,16 +42,27 @@ after(async () => {
 });
 
 const manifestOf = (name) => JSON.parse(fs.readFileSync(path.join(lib.lib, name, 'manifest.json'), 'utf8'));
-// A grey PNG's pixels (readPng gives RGBA).
+// A grey texture's pixels (readPng gives RGBA). A lossless WebP texture (section 4:
+// R = G = B) is first turned into a PNG of its R channel by oiiotool (OpenImageIO,
+// a decoder independent of the client's code under test).
 function grey(name, file) {
-  const img = readPng(path.join(lib.lib, name, file)), px = new Uint8Array(img.width * img.height);
+  let src = path.join(lib.lib, name, file);
+  if (file.endsWith('.webp')) {
+    const png = path.join(lib.dir, `${name}-${file}.png`);
+    const r = spawnSync('oiiotool', [src, '--ch', 'R', '-o', png], {encoding: 'utf8'});
+    assert.equal(r.status, 0, `oiiotool ${src}: ${r.stderr}`);
+    src = png;
+  }
+  const img = readPng(src), px = new Uint8Array(img.width * img.height);
   for (let i = 0; i < px.length; i++) px[i] = img.data[4 * i];
   return {width: img.width, height: img.height, data: px};
 }
 
 describe('version 4 (residual levels)', () => {
-  it('the client reader rebuilds the version-2 levels and weights exactly', async () => {
-    const p2 = pkgMod.parseManifest(manifestOf('tiles-lod')), p4 = pkgMod.parseManifest(manifestOf('tiles-lap'));
+  // name: the version-4 package; its textures are lossless WebP where that is smaller
+  // (section 4), or every one a PNG (--png); returns how many are WebP.
+  async function rebuildsExactly(name) {
+    const p2 = pkgMod.parseManifest(manifestOf('tiles-lod')), p4 = pkgMod.parseManifest(manifestOf(name));
     assert.equal(p4.manifestVersion, 4);
     assert.equal(p4.version, 2, 'the GPU side sees the version-2 layout');
     assert.equal(p4.chunks.length, p2.chunks.length);
@@ -59,15 +71,15 @@ describe('version 4 (residual levels)', () => {
     for (const [j, c4] of p4.chunks.entries()) {
       const c2 = p2.chunks[j];
       assert.deepEqual([c4.component, c4.level], [c2.component, c2.level]);
-      const img = grey('tiles-lap', c4.tex);
+      const img = grey(name, c4.tex);
       const bytes = c4.residual ? pkgMod.reconstructLevel(p4, c4, img.data, levels.get(`${c4.component}/${c4.level + 1}`))
         : img.data;
       residuals += c4.residual ? 1 : 0;
       levels.set(`${c4.component}/${c4.level}`, bytes);
       assert.deepEqual(Buffer.from(bytes), Buffer.from(grey('tiles-lod', c2.tex).data), `chunk ${j} (${c4.tex})`);
-      if (c4.wt8) w8.set(c4.component, grey('tiles-lap', c4.wt8).data);
+      if (c4.wt8) w8.set(c4.component, grey(name, c4.wt8).data);
       if (c4.wt) {
-        const buf = fs.readFileSync(path.join(lib.lib, 'tiles-lap', c4.wt));
+        const buf = fs.readFileSync(path.join(lib.lib, name, c4.wt));
         const w4 = await pkgMod.decodeWeights(p4, c4, buf, w8.get(c4.component));
         const w2 = pkgMod.dequantWeights(p2, c2, fs.readFileSync(path.join(lib.lib, 'tiles-lod', c2.wt)));
         assert.deepEqual(w4, w2, `chunk ${j}: ${c4.wt}`);
@@ -75,6 +87,14 @@ describe('version 4 (residual levels)', () => {
       }
     }
     assert.ok(residuals >= 1 && residualWeights >= 1, `${residuals} residual levels, ${residualWeights} residual weights`);
+    return p4.chunks.filter((c) => c.tex.endsWith('.webp')).length;
+  }
+
+  it('the client reader rebuilds the version-2 levels and weights exactly', async () => {
+    const webp = await rebuildsExactly('tiles-lap');
+    assert.ok(webp >= 1, 'the default package has WebP textures (the test covers them)');
+    assert.equal(await rebuildsExactly('tiles-lap-png'), 0, '--png: every texture a PNG');
+    const p4 = pkgMod.parseManifest(manifestOf('tiles-lap'));
     // a residual before its coarser level, a residual weight file without the 8-bit weights
     const m = manifestOf('tiles-lap');
     m.chunks[0].level = 0;
