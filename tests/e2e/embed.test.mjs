@@ -371,6 +371,10 @@ describe('a second visit', () => {
       await page.goto(`${pages.url}one.html`);
       await waitFor(page, () => window.__btf?.viewers()[0]?.drawnChunks === 3, null, 'three chunks drawn');
       assert.ok(await coverage(page, 0) > 0.1, 'drawn');
+      // the chunks are kept after they are drawn: closing the browser before the last
+      // write lands would test the timing of this script, not the resume
+      await waitFor(page, (url) => import(url).then((c) => c.cacheIndex()).then((ix) =>
+        Object.values(ix.entries).some((e) => e.chunks.length === 3)), `${server.url}btf-cache.js`, 'three chunks kept');
       const m = frames.text.find((x) => x.type === 'manifest');
       assertClean(ctx);
       return {bytes: frames.binary, resumed: m.resumed, held: m.held, etag: m.etag};
