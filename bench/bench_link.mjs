@@ -4,7 +4,7 @@
 // throttling proxy of tests/e2e/throttle.mjs (one token bucket per direction, fixed one-way
 // delay 20 ms = 40 ms RTT) at 1, 4 and 16 Mbit/s: time to first frame and to complete (ms
 // from navigation start), link utilisation over the whole load (bytes over the link / (rate
-// x first byte to last chunk byte)) and over the stream alone (binary frames, browser side).
+// x first byte to last chunk byte)) and over the stream alone (its WebSocket connection, timed at the link).
 // Package: `btf gen knit --size 32`, 16 components (16 chunks, about 1 MB), whole package.
 // Chromium with SwiftShader (software GL): the frames after the last byte cost CPU time.
 import {launch, makeLibrary, servePages, startServer} from '../tests/e2e/util.mjs';

@@ -10,9 +10,8 @@ const PIECE = 4096;
 // One direction src -> dst of one connection through the bucket of the link's direction
 // (`lane`, shared by every connection: the browser opens several): a FIFO of pieces, each
 // with the time it leaves the link, delivered in order by one timer.
-function pipe(src, dst, {bps, delayMs, queue}, lane) {
+function pipe(src, dst, {bps, delayMs, queue}, lane, conn) {
   let waiting = 0, timer = null; // bytes not yet delivered
-  const stats = lane;
   const fifo = [];
   const deliver = () => {
     timer = null;
@@ -21,9 +20,11 @@ function pipe(src, dst, {bps, delayMs, queue}, lane) {
       const {piece} = fifo.shift();
       waiting -= piece.length;
       if (!dst.destroyed) dst.write(piece);
-      stats.bytes += piece.length;
-      stats.last = now;
-      stats.first ??= now - (piece.length * 8 * 1000) / bps; // when its first bit went out
+      for (const stats of [lane, conn]) {
+        stats.bytes += piece.length;
+        stats.last = now;
+        stats.first ??= now - (piece.length * 8 * 1000) / bps; // when its first bit went out
+      }
     }
     if (waiting <= queue / 2 && src.isPaused()) src.resume();
     if (fifo.length) timer = setTimeout(deliver, fifo[0].at - now);
@@ -47,9 +48,10 @@ function pipe(src, dst, {bps, delayMs, queue}, lane) {
 }
 
 // Resolves {port, url, down, close()}; target: the loopback port behind it; down: bytes
-// delivered towards the client and when the first and last were (ms, performance.now()).
+// delivered towards the client and when the first and last were (ms, performance.now()),
+// and down.conns the same per connection.
 export function startThrottle({target, bps = 4e6, delayMs = 20, queue = 64 * 1024}) {
-  const sockets = new Set(), down = {bytes: 0, first: null, last: null, free: 0},
+  const sockets = new Set(), down = {bytes: 0, first: null, last: null, free: 0, conns: []},
     up = {bytes: 0, first: null, last: null, free: 0};
   const srv = net.createServer((client) => {
     const upstream = net.connect(target, '127.0.0.1');
@@ -58,8 +60,10 @@ export function startThrottle({target, bps = 4e6, delayMs = 20, queue = 64 * 102
       s.on('close', () => sockets.delete(s));
       s.setNoDelay(true);
     }
-    pipe(client, upstream, {bps, delayMs, queue}, up);
-    pipe(upstream, client, {bps, delayMs, queue}, down);
+    const conn = {bytes: 0, first: null, last: null};
+    down.conns.push(conn);
+    pipe(client, upstream, {bps, delayMs, queue}, up, {bytes: 0, first: null, last: null});
+    pipe(upstream, client, {bps, delayMs, queue}, down, conn);
   });
   return new Promise((resolve) => srv.listen(0, '127.0.0.1', () => resolve({
     port: srv.address().port, url: `http://127.0.0.1:${srv.address().port}/`, down,
@@ -75,7 +79,9 @@ export function startThrottle({target, bps = 4e6, delayMs = 20, queue = 64 * 102
 // Resolves {firstFrameMs, completeMs (from navigation start), bytes (over the link, towards
 // the browser), utilisation: bytes / (link rate x time from the first byte to the last
 // chunk byte), i.e. the share of the link the viewer used while loading; streamUtilisation:
-// the same over the WebSocket's binary frames alone (first to last piece, browser side)}.
+// the same over the stream's connection alone (the one that carried the most bytes: the
+// WebSocket), timed at the link from its first byte to its last, so a browser main
+// thread busy drawing while pieces arrive does not count as link time}.
 export async function measureLink(ctx, {btfdPort, pagesUrl, page: pageName, bps, delayMs}) {
   const link = await startThrottle({target: btfdPort, bps, delayMs});
   try {
@@ -90,10 +96,11 @@ export async function measureLink(ctx, {btfdPort, pagesUrl, page: pageName, bps,
       await new Promise((r) => setTimeout(r, 50));
     }
     const r = await page.evaluate(() => {
-      const v = window.__btf.viewers()[0], s = window.__btf.streams()[0];
-      return {firstFrameMs: v.firstFrameAt, completeMs: v.completeAt, pieces: s.pieces, first: s.pieces.firstBytes};
+      const v = window.__btf.viewers()[0];
+      return {firstFrameMs: v.firstFrameAt, completeMs: v.completeAt};
     });
-    const d = link.down, stream = ((r.pieces.bytes - r.first) * 8 * 1000) / (r.pieces.last - r.pieces.first);
+    const d = link.down, ws = d.conns.reduce((a, c) => (c.bytes > a.bytes ? c : a));
+    const stream = (ws.bytes * 8 * 1000) / (ws.last - ws.first);
     return {firstFrameMs: r.firstFrameMs, completeMs: r.completeMs, bytes: d.bytes,
             utilisation: (d.bytes * 8 * 1000) / (d.last - d.first) / bps, streamUtilisation: stream / bps};
   } finally {
