@@ -470,12 +470,11 @@ static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_
 {
     const btf_package *p = s->p;
     char path[8400];
-    int w, h, ch;
+    int w, h;
     snprintf(path, sizeof path, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
-    btf_result r = btf_image_read_grey(path, &w, &h, &s->atlas[a * s->nl], err);
-    ch = 1;
-    if (r == BTF_OK && (w != p->atlas_cols * s->W || h != p->atlas_rows * s->H || ch != 1))
-        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, expected the %dx%d grey atlas", path, w, h, ch,
+    btf_result r = btf_image_read_grey(path, &w, &h, &s->atlas[a * s->nl], err); /* refuses what is not grey */
+    if (r == BTF_OK && (w != p->atlas_cols * s->W || h != p->atlas_rows * s->H))
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d, expected the %dx%d grey atlas", path, w, h,
                      p->atlas_cols * s->W, p->atlas_rows * s->H);
     return r;
 }
