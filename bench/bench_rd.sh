@@ -6,7 +6,10 @@
 # rate-distortion steps, deflated weights) and as version 3 as written by default
 # (each texture the smaller of PNG and lossless WebP), each measured by `btf eval`
 # against the source (lab_mae: the thesis's CIELab error). Ratios are to the thesis
-# in the same run. Then lossy WebP against PNG for the component textures of the
+# in the same run. Beside them, the floor of the thesis format's own k and C: the
+# error of `btf compress --k 3 --components 8 --bits 16 --center none` (16-bit
+# textures and weights: the best rank-8 blocks' own error, by `btf eval`), so a
+# ratio no 8-component k = 3 package can reach shows as such. Then lossy WebP against PNG for the component textures of the
 # first material (below).
 # Run by bench/run.sh (results: bench/results/rd.txt); needs `make build` and jq.
 #   RD_MATERIALS="gen:tiles:64:4242 ..." bash bench/bench_rd.sh   # other materials
@@ -34,7 +37,7 @@ tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_rd.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 
 lab() { "$BTF" eval "$1" "$2" --json | jq -r .lab_mae; }
-echo "# material: thesis bytes / Lab | v1 (--max-bytes) bytes / Lab / ratio | v3png (--rd --png) | v3 (--rd --max-bytes) bytes / Lab / ratio / k, chunks"
+echo "# material: thesis bytes / Lab | v1 (--max-bytes) bytes / Lab / ratio | v3png (--rd --png) | v3 (--rd --max-bytes) bytes / Lab / ratio / k, chunks | floor: 16-bit k 3, C 8 Lab (ratio)"
 first_v3=
 for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
@@ -63,6 +66,13 @@ for spec in "${mats[@]}"; do
         row+=" | $b / $(printf %.3f "$l") / ${r}x"
     done
     row+=" / k $(jq .budget.k "$tmp/$name-v3/manifest.json"), $(jq .budget.chunks "$tmp/$name-v3/manifest.json") chunks"
+    # the floor at k 3, C 8: 16-bit steps, no centring (the best rank-8 blocks)
+    "$BTF" compress "$src" "$tmp/$name-floor" --k 3 --components 8 --bits 16 --center none --quiet
+    fl=$(lab "$src" "$tmp/$name-floor")
+    rm -rf "$tmp/$name-floor"
+    echo "rd_${name}_float8_lab $(printf %.4f "$fl") lab"
+    echo "rd_${name}_float8_lab_ratio $(awk -v a="$fl" -v t="$tl" 'BEGIN { printf "%.3f", a / t }') x"
+    row+=" | floor k 3, C 8: $(printf %.3f "$fl") ($(awk -v a="$fl" -v t="$tl" 'BEGIN { printf "%.3f", a / t }')x)"
     echo "rd_${name}_thesis_bytes $tb B"
     echo "rd_${name}_thesis_lab $(printf %.4f "$tl") lab"
     echo "$row"
