@@ -8,11 +8,13 @@ import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
-import {measureLink} from './throttle.mjs';
-import {BTF, assertClean, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor, watchFrames, writePng}
+import {measureLink, startThrottle} from './throttle.mjs';
+import {BTF, assertClean, capture, launch, makeLibrary, meanAbsDiff, newPage, requireBuild, servePages, startServer, viewers, waitFor, watchFrames, writePng}
   from './util.mjs';
 
-const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3], wide: ['knit', 16]};
+const MATERIALS = {knit: ['knit', 6], stone: ['stone', 3], tiles: ['tiles', 3], wide: ['knit', 16],
+  // version 4 (residual levels), textures PNG or lossless WebP as written by default, and its PNG-only twin
+  lap: ['stone', 4, 3, ['--residual']], 'lap-png': ['stone', 4, 3, ['--residual', '--png']]};
 let lib, server, pages, desktop;
 
 // The README snippet (script from btfd, element with no src: the script's origin), plus `body`.
@@ -56,6 +58,15 @@ before(async () => {
     </script>${viewer('material="knit" light="fixed" budget-chunks="3" loading="eager"')}`),
     // ?link=PORT: the script (so shaders and stream too) through a throttled link (throttle.mjs)
     slow: (req) => linkPage(new URL(req.url, 'http://x').searchParams.get('link'), 'wide'),
+    twins: (req) => {
+      const port = new URL(req.url, 'http://x').searchParams.get('link');
+      const v = (m) => `<btf-viewer material="${m}" light="fixed" budget-chunks="1000" max-dpr="1" loading="eager"
+        style="display:block;width:160px;height:160px"></btf-viewer>`;
+      return `<!doctype html><html><head><meta charset="utf-8">
+        <meta name="viewport" content="width=device-width, initial-scale=1"><link rel="icon" href="data:,">
+        <script type="module" src="http://127.0.0.1:${port}/btf-viewer.js"></script></head>
+        <body style="margin:0">${v('lap')}${v('lap-png')}</body></html>`;
+    },
     forty: () => snippet(Array.from({length: 40}, (_, i) =>
       viewer(`material="${['knit', 'stone', 'tiles'][i % 3]}" light="fixed" budget-chunks="1" max-dpr="1"`,
         'width:96px;height:96px')).join('')),
@@ -436,6 +447,42 @@ describe('a second visit', () => {
       assert.ok(!third.resumed && third.etag !== first.etag && third.bytes > 100000, JSON.stringify(third));
     } finally {
       fs.rmSync(profile, {recursive: true, force: true});
+    }
+  });
+});
+
+describe('lossless WebP textures in the field', () => {
+  it('a phone on another origin behind a 1.6 Mbit/s, 150 ms link draws the WebP package as its PNG twin', async () => {
+    const files = (m) => fs.readdirSync(path.join(lib.lib, m));
+    assert.ok(files('lap').some((f) => f.endsWith('.webp')), `lap has WebP textures: ${files('lap')}`);
+    assert.ok(!files('lap-png').some((f) => f.endsWith('.webp')), 'lap-png has none');
+    const bytes = files('lap').reduce((a, f) => a + fs.statSync(path.join(lib.lib, 'lap', f)).size, 0);
+    const link = await startThrottle({target: server.port, bps: 1.6e6, delayMs: 75});
+    const phone = await launch({viewport: {width: 390, height: 700}, deviceScaleFactor: 2, isMobile: true,
+      hasTouch: true});
+    try {
+      const page = await newPage(phone);
+      await page.goto(`${pages.url}twins.html?link=${link.port}`);
+      assert.notEqual(new URL(pages.url).origin, `http://127.0.0.1:${link.port}`);
+      await waitFor(page, () => {
+        const vs = window.__btf?.viewers() || [];
+        return vs.length === 2 && vs.every((v) => v.complete && v.drawnChunks === v.ownLimit && v.frames > 0);
+      }, null, 'both packages streamed through the link and drawn', 120000);
+      const vs = await viewers(page);
+      assert.deepEqual(vs.map((v) => v.error), [null, null]);
+      assert.equal(vs[0].drawnChunks, vs[1].drawnChunks);
+      const streamed = vs[0].streamBytes + vs[1].streamBytes;
+      assert.ok(vs[0].streamBytes > 0 && streamed <= link.down.bytes,
+        `both streams came over the link: ${streamed} of its ${link.down.bytes} bytes (WebP package ${bytes})`);
+      const d = meanAbsDiff(await capture(page, 0), await capture(page, 1));
+      console.log(`# WebP vs PNG twin on a phone, 1.6 Mbit/s: ${vs[0].drawnChunks} chunks each, ` +
+        `${link.down.bytes} bytes over the link, mean |difference| ${d.toFixed(4)} of 255`);
+      assert.ok(d < 0.01, `the same pixels (${d})`);
+      assert.ok(await coverage(page, 0) > 0.1, 'the WebP package covers > 10% of its canvas');
+      assertClean(phone);
+    } finally {
+      await phone.close();
+      await link.close();
     }
   });
 });
