@@ -169,3 +169,48 @@ Test(budget, the_best_candidate_is_retried_with_row_centring)
     btf_free(src);
     test_rmtree(dir);
 }
+
+/* A budget that holds every component of the best candidate tries it again with
+ * 1.5x the components (the renderer's limit and the blocks permitting), keeps the
+ * larger one only when it wins, and grows nothing when the caller fixes the count. */
+Test(budget, a_candidate_keeping_every_component_is_tried_with_more)
+{
+    char dir[64], out[128], ref[128];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    snprintf(ref, sizeof ref, "%s/ref", dir);
+    btf *src = material();
+    btf_budget b = {0};
+    b.max_bytes = 50000000, b.k[0] = 3, b.n_k = 1; /* holds any package of this material */
+    btf_package_options opt = {0};
+    opt.bits = 16; /* fine steps: every further component lowers the error (8 bits stop at about 8) */
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, &opt, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_geq(res.n_candidates, 3, "k 3, its centred retry, then the best with more components");
+    const btf_budget_choice *c = res.candidate, *best = c[0].lab <= c[1].lab ? &c[0] : &c[1];
+    cr_expect_eq(c[0].components, BTF_BUDGET_COMPONENTS);
+    cr_expect_eq(best->n_chunks, best->components, "the budget holds every chunk of the first two");
+    cr_expect_eq(c[2].components, BTF_BUDGET_COMPONENTS * 3 / 2, "components %d", c[2].components);
+    cr_expect_eq(c[2].k, best->k);
+    cr_expect_eq(c[2].center, best->center, "the grown candidate keeps the best one's centring");
+    for (int i = 0; i < res.n_candidates; i++)
+        if (c[i].n_chunks > 0)
+            cr_expect_geq(c[i].lab + 1e-12, res.lab, "candidate %d beats the choice", i);
+    /* the choice's error, recomputed by an independent compression with its settings */
+    btf_pca_options po = {0};
+    po.k = res.k, po.components = res.components, po.center = res.center == BTF_CENTER_ROW ? BTF_CENTER_ROW
+                                                                                         : BTF_CENTER_NONE;
+    cr_assert_eq(btf_package_compress(src, &po, &opt, ref, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read(ref, 1, &p, &err), BTF_OK, "%s", err.msg);
+    cr_assert_leq(res.n_chunks, p->n_chunks);
+    cr_expect_float_eq(p->chunk[res.n_chunks - 1].lab, res.lab, 1e-9, "reference %.6f, chosen %.6f",
+                       p->chunk[res.n_chunks - 1].lab, res.lab);
+    btf_package_free(p);
+    b.max_components = BTF_BUDGET_COMPONENTS; /* fixed by the caller: no growth */
+    cr_assert_eq(btf_budget_compress(src, NULL, &opt, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(res.n_candidates, 2, "k 3 and its centred retry only");
+    btf_free(src);
+    test_rmtree(dir);
+}

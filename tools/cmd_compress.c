@@ -30,6 +30,7 @@ typedef struct compress_opts {
     int in_memory;     /* --in-memory: load the whole input first (the baseline of the view-by-view read) */
     btf_budget budget; /* --max-bytes / --max-error (codec/btf_budget.h); both 0 = none */
     int k_set;         /* --k given: the only candidate of a budget */
+    int components_set; /* --components given: a budget's fixed component count */
     btf_lod_options lod; /* levels > 0: package version 2 (4 with residual) with spatial levels (codec/btf_lod.h) */
 } compress_opts;
 
@@ -69,7 +70,8 @@ static void compress_usage(FILE *f)
             "                   --residual`; 8-bit textures)\n"
             "  --max-bytes N    the least CIELab error within N bytes (manifest and chunk files):\n"
             "                   k from 1, 3, 9 (or --k) and the chunk count are chosen by\n"
-            "                   compressing each k once with up to 16 components (or --components);\n"
+            "                   compressing each k once with up to 16 components (or --components;\n"
+            "                   without it the best k again with 24, 36, 56, 64 while it keeps them all);\n"
             "                   the choice and every candidate are recorded in the manifest (\"budget\")\n"
             "  --max-error E    the fewest bytes whose CIELab error is <= E (as btf eval reports it)\n"
             "  --in-memory      load the whole input before compressing (the same package; the\n"
@@ -126,7 +128,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'j': o->json = 1; break;
     case 'B': rc = btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes); break;
     case 'E': rc = btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error); break;
-    default: rc = btf_args_pca(a, c, v, &pca), o->k_set |= c == 'k';
+    default: rc = btf_args_pca(a, c, v, &pca), o->k_set |= c == 'k', o->components_set |= c == 'C';
     }
     return rc;
 }
@@ -187,7 +189,7 @@ static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress
         return btf_fail(err, BTF_ERR_ARG, "--levels with --max-bytes or --max-error: add levels with btf lod afterwards");
     if (o->k_set)
         o->budget.k[0] = o->pca.k, o->budget.n_k = 1;
-    o->budget.max_components = o->pca.components > 8 ? o->pca.components : 16;
+    o->budget.max_components = o->components_set ? o->pca.components : 0; /* 0: 16, more while all are kept */
     btf_budget_result res;
     btf_result r = btf_budget_compress(src, &o->pca, &o->pkg, &o->budget, o->out, &res, err);
     if (r != BTF_OK)
@@ -195,8 +197,8 @@ static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress
     st->bytes = res.bytes, st->n_chunks = res.n_chunks, st->lab = res.lab, st->rmse = res.rmse;
     if (!o->quiet && !o->json) {
         for (int i = 0; i < res.n_candidates; i++)
-            fprintf(stderr, "btf compress: k %-3d %2d chunks %10lld bytes  Lab %.3f%s%s\n", res.candidate[i].k,
-                    res.candidate[i].n_chunks, res.candidate[i].bytes, res.candidate[i].lab,
+            fprintf(stderr, "btf compress: k %-3d %2d of %2d chunks %10lld bytes  Lab %.3f%s%s\n", res.candidate[i].k,
+                    res.candidate[i].n_chunks, res.candidate[i].components, res.candidate[i].bytes, res.candidate[i].lab,
                     res.candidate[i].rd_fit ? "  (rd steps fitted to the bytes)" : "",
                     res.candidate[i].center == BTF_CENTER_ROW ? "  (row centring)" : "");
         fprintf(stderr, "btf compress: chose k %d%s, %d chunks, %lld bytes, Lab %.3f%s\n", res.k,
