@@ -10,7 +10,8 @@
 # HIT, byte-exact, immutable headers, ranges), and 200 WebSocket clients
 # ($BUILD/resume_clients) that must all complete, every chunk once, while one
 # btfd is killed (SIGKILL) in the middle, and again while one drains (SIGTERM,
-# clients get 1001). Prints one line per check and last
+# clients get 1001), and once more (SIGKILL) on a version-4 package with lossless
+# WebP textures. Prints one line per check and last
 # "deploy: N passed, M failed"; exits 1 when a check failed. Everything it
 # started is killed on exit.
 set -uo pipefail
@@ -62,9 +63,9 @@ mkdir -p "$lib"
 check "library: btf compress gen:knit:16" "$btf" compress gen:knit:16 "$lib/knit" --quiet
 etag=
 base=
-up() { # up NAME: a fresh cluster; sets port, pids, base
+up() { # up NAME [LIB]: a fresh cluster; sets port, pids, base
     local d=$work/cluster-$1
-    server/deploy/cluster.sh start "$lib" "$d" 2 >>"$work/check.log" 2>&1 || return 1
+    server/deploy/cluster.sh start "${2:-$lib}" "$d" 2 >>"$work/check.log" 2>&1 || return 1
     # shellcheck disable=SC1091
     source "$d/cluster.env"
     port=$NGINX_PORT
@@ -97,12 +98,14 @@ range_ok() {
 }
 cached_after_kill() { [[ $(cache_status wt-01.bin) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.bin"; }
 old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.bin") == 404 ]]; }
-# failover SIG: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
+# failover SIG [MATERIAL LIB]: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
 failover() {
-    timeout 100 "$clients" "$port" knit "$lib" 200 "${pids[0]}" 0.4 30 "$1" >"$work/clients-$1.txt" || { cat "$work/clients-$1.txt"; return 1; }
-    cat "$work/clients-$1.txt"
-    [[ $(awk '$1 == "clients_resumed" {print $2}' "$work/clients-$1.txt") -gt 0 ]]
+    local out=$work/clients-$1${2:+-$2}.txt
+    timeout 100 "$clients" "$port" "${2:-knit}" "${3:-$lib}" 200 "${pids[0]}" 0.4 30 "$1" >"$out" || { cat "$out"; return 1; }
+    cat "$out"
+    [[ $(awk '$1 == "clients_resumed" {print $2}' "$out") -gt 0 ]]
 }
+has_webp() { compgen -G "$1/*.webp" >/dev/null; }
 goaway_seen() { [[ $(awk '$1 == "goaway_1001" {print $2}' "$work/clients-TERM.txt") -gt 0 ]]; }
 drained_exit() { # the drained btfd ends by itself, exit status 0
     for _ in $(seq 150); do kill -0 "${pids[0]}" 2>/dev/null || break; sleep 0.1; done
@@ -126,6 +129,17 @@ check "200 clients, one btfd drained (SIGTERM) mid-way: all complete, none twice
 check "the drained btfd's clients were told 1001 going away" goaway_seen
 check "the drained btfd exits by itself" drained_exit
 check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-b"
+
+# a version-4 package (residual levels, lossless WebP textures) through the same failover
+lib4=$work/lib4
+mkdir -p "$lib4"
+check "library: btf compress gen:stone:32 --levels 3 --residual" \
+    "$btf" compress gen:stone:32 "$lib4/lap" --components 4 --levels 3 --residual --quiet
+check "the version-4 package holds WebP textures" has_webp "$lib4/lap"
+check "cluster: a fresh nginx + 2 btfd (version 4)" up c "$lib4"
+check "200 clients of a WebP package, one btfd SIGKILLed mid-way: all complete, none twice, resumed" \
+    failover KILL lap "$lib4"
+check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-c"
 
 echo "deploy: $pass passed, $fail failed"
 ((fail == 0))
