@@ -9,8 +9,8 @@
 # in the same run. Beside them, the floor of the thesis format's own k and C: the
 # error of `btf compress --k 3 --components 8 --bits 16 --center none` (16-bit
 # textures and weights: the best rank-8 blocks' own error, by `btf eval`), so a
-# ratio no 8-component k = 3 package can reach shows as such. Then lossy WebP against PNG for the component textures of the
-# first material (below).
+# ratio no 8-component k = 3 package can reach shows as such. Then lossy WebP
+# against PNG for the component textures of the first material (below).
 # Run by bench/run.sh (results: bench/results/rd.txt); needs `make build` and jq.
 #   RD_MATERIALS="gen:tiles:64:4242 ..." bash bench/bench_rd.sh   # other materials
 #   RD_LARGE=0 bash bench/bench_rd.sh       # skip the 256x256 material (2: add the thesis wool and corduroy at 256x256)
@@ -70,9 +70,10 @@ for spec in "${mats[@]}"; do
     "$BTF" compress "$src" "$tmp/$name-floor" --k 3 --components 8 --bits 16 --center none --quiet
     fl=$(lab "$src" "$tmp/$name-floor")
     rm -rf "$tmp/$name-floor"
+    fr=$(awk -v a="$fl" -v t="$tl" 'BEGIN { printf "%.3f", a / t }')
     echo "rd_${name}_float8_lab $(printf %.4f "$fl") lab"
-    echo "rd_${name}_float8_lab_ratio $(awk -v a="$fl" -v t="$tl" 'BEGIN { printf "%.3f", a / t }') x"
-    row+=" | floor k 3, C 8: $(printf %.3f "$fl") ($(awk -v a="$fl" -v t="$tl" 'BEGIN { printf "%.3f", a / t }')x)"
+    echo "rd_${name}_float8_lab_ratio $fr x"
+    row+=" | floor k 3, C 8: $(printf %.3f "$fl") (${fr}x)"
     echo "rd_${name}_thesis_bytes $tb B"
     echo "rd_${name}_thesis_lab $(printf %.4f "$tl") lab"
     echo "$row"
