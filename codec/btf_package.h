@@ -59,6 +59,9 @@ typedef struct btf_package_options {
     /* With rd: 1 = every texture a PNG; 0 = per texture the smaller of a PNG and a
      * lossless WebP (doc/package-format.md section 4). */
     int png_only;
+    /* With rd: NULL, or the measured ladders of an earlier compression to reuse when
+     * this one's PCA model is the same (btf_rd_params.ladder; btf_budget's pairs). */
+    struct btf_rd_ladder *rd_ladder;
     /* Test hook: called before the writer creates package file number i (0-based);
      * a nonzero return makes that write fail like a full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);

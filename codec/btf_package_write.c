@@ -523,10 +523,10 @@ static char *btf__rd_json(const btf_rd_result *rr)
 /* Version 3: steps by rate-distortion from the float model m, then every block's
  * matrix rebuilt once to quantise it and accumulate the exact error sums. */
 static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
-                                   long long o_max_bytes, int png_only, const char *tmp, btf_rd_result *keep, btf_error *err)
+                                   const btf_package_options *o, const char *tmp, btf_error *err)
 {
-    btf_rd_params par = {m, w->acols, w->arows, noise, tmp, o_max_bytes, png_only};
-    btf_rd_result rr;
+    btf_rd_params par = {m, w->acols, w->arows, noise, tmp, o->rd_max_bytes, o->png_only, o->rd_ladder};
+    btf_rd_result rr, *keep = o->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)
         return r;
@@ -630,7 +630,7 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
         btf_pca_model *m = NULL;
         r = btf_pca_compress_views(src, &po, o.rd ? NULL : btf__on_block, &w, o.rd ? &m : NULL, err);
         if (r == BTF_OK && o.rd)
-            r = btf__rd_quantise(&w, src, m, noise, o.rd_max_bytes, o.png_only, tmp, o.rd_out, err);
+            r = btf__rd_quantise(&w, src, m, noise, &o, tmp, err);
         btf_pca_model_free(m);
         t1 = btf__now();
     }

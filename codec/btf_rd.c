@@ -21,12 +21,16 @@
 #define BTF__RD_WT_HI 6
 #define BTF__RD_NT (BTF__RD_TEX_HI - BTF__RD_TEX_LO + 1)
 #define BTF__RD_NW (BTF__RD_WT_HI - BTF__RD_WT_LO + 2)
+#define BTF__RD_RATE_TILES 9 /* texture rates measured on whole atlas rows holding about this many tiles */
 
 /* Measured candidates of one allocation; lives for one btf_rd_allocate call. */
 typedef struct btf__rd {
     const btf_rd_params *par;
     const btf_pca_model *m;
-    int C, nb, W, H, rows, L, V, aw, ah;
+    int C, nb, W, H, rows, L, V, aw;
+    int *sub_row;          /* per atlas row of tiles: its row in the rate sample, -1 = not sampled */
+    int sub_rows;          /* tile rows in the rate sample (its atlas is aw x sub_rows * H) */
+    double rate_scale;     /* tiles of the atlas / tiles in the sample */
     double *dt, *dw;       /* C x NT, C x NW: added squared error */
     double *energy;        /* C: |T_j W_j^T|^2 summed over blocks: the error of leaving j out */
     long long *rt, *rw;    /* the same: bytes */
@@ -35,24 +39,52 @@ typedef struct btf__rd {
     uint16_t *q;           /* V*L*3 scratch */
 } btf__rd;
 
-/* Texture of component j at noise g: the atlas into atlas (aw x ah), the added squared error returned. */
+/* The rate sample: whole rows of the atlas's tile grid, evenly spaced among the full
+ * ones, about BTF__RD_RATE_TILES tiles (all rows when the grid has no more). A row
+ * keeps its neighbours and its width, so its files deflate as in the whole atlas;
+ * the texture rates are the sample's bytes times rate_scale. 0, or -1 without memory. */
+static int btf__rd_sample(btf__rd *r)
+{
+    int cols = r->par->atlas_cols, rows = r->par->atlas_rows, full = r->nb / cols;
+    int want = (BTF__RD_RATE_TILES + cols - 1) / cols;
+    r->sub_row = malloc(sizeof(int) * (size_t)rows);
+    if (!r->sub_row)
+        return -1;
+    if (full < 1 || want >= full) { /* too few rows to choose from: every row */
+        for (int i = 0; i < rows; i++)
+            r->sub_row[i] = i;
+        r->sub_rows = rows, r->rate_scale = 1.0;
+        return 0;
+    }
+    for (int i = 0; i < rows; i++)
+        r->sub_row[i] = -1;
+    for (int i = 0; i < want; i++)
+        r->sub_row[(int)(((double)i + 0.5) * full / want)] = i;
+    r->sub_rows = want, r->rate_scale = (double)r->nb / ((double)want * cols);
+    return 0;
+}
+
+/* Texture of component j at noise g: the rate sample's atlas into atlas (aw x
+ * sub_rows * H), the added squared error of every block returned. */
 static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
 {
     double d = 0.0;
-    memset(atlas, 0, (size_t)r->aw * r->ah);
+    memset(atlas, 0, (size_t)r->aw * r->sub_rows * r->H);
     for (int b = 0; b < r->nb; b++) {
         const btf_pca_block *pb = &r->m->block[b];
         const float *t = pb->t + (size_t)j * r->rows;
         float wn = r->wnorm[(size_t)j * r->nb + b], rg[2];
         btf_rd_range(t, (size_t)r->rows, 255u, rg);
         rg[1] = btf_rd_step(rg[1], g, pb->cols, wn);
-        int tx0 = (b % r->par->atlas_cols) * r->W, ty0 = (b / r->par->atlas_cols) * r->H;
+        int sub = r->sub_row[b / r->par->atlas_cols];
+        int tx0 = (b % r->par->atlas_cols) * r->W, ty0 = sub * r->H;
         double e = 0.0;
         for (int y = 0; y < r->H; y++)
             for (int x = 0; x < r->W; x++) {
                 float v = t[(size_t)y * r->W + x];
                 unsigned qv = btf_rd_quant(v, rg, 255u);
-                atlas[(size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)] = (uint8_t)qv;
+                if (sub >= 0)
+                    atlas[(size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)] = (uint8_t)qv;
                 double dv = (double)v - (double)(rg[0] + rg[1] * (float)qv);
                 e += dv * dv;
             }
@@ -88,28 +120,29 @@ static double btf__rd_wt(btf__rd *r, int j, float g)
     return d;
 }
 
-/* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the atlas
- * written as the package would write it (its bytes on disk, the smallest of the PNG
- * filter choices, or the lossless WebP when that is smaller and allowed), in
- * scratch/rd-candidate-T.png for thread T, with the thread's own atlas buffer. */
+/* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the rate
+ * sample's atlas written as the package would write the atlas (its bytes on disk, the
+ * smallest of the PNG filter choices, or the lossless WebP when that is smaller and
+ * allowed) times rate_scale, in scratch/rd-candidate-T.png for thread T, with the
+ * thread's own atlas buffer. */
 static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
 {
     char path[BTF_FS_PATH_MAX];
     snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
     r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
-    btf_result res = btf_image_write_flags(path, r->aw, r->ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_SMALLEST,
-                                           err);
+    int ah = r->sub_rows * r->H;
+    btf_result res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_SMALLEST, err);
     long long s = res == BTF_OK ? btf_fs_size(path) : -1;
     remove(path);
     uint8_t *webp = NULL;
     size_t nw = 0;
     if (res == BTF_OK && s >= 0 && !r->par->png_only &&
-        (res = btf_webp_encode_grey(atlas, r->aw, r->ah, &webp, &nw, err)) == BTF_OK && (long long)nw < s)
+        (res = btf_webp_encode_grey(atlas, r->aw, ah, &webp, &nw, err)) == BTF_OK && (long long)nw < s)
         s = (long long)nw;
     free(webp);
     if (res == BTF_OK && s < 0)
         res = btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
-    r->rt[n] = s;
+    r->rt[n] = s < 0 ? s : (long long)llround((double)s * r->rate_scale);
     return res;
 }
 
@@ -123,10 +156,12 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
         for (int b = 0; b < r->nb; b++)
             r->wnorm[(size_t)j * r->nb + b] =
                 cblas_snrm2(r->m->block[b].cols, r->m->block[b].w + (size_t)j * r->m->block[b].cols, 1);
+    if (btf__rd_sample(r) != 0)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (rate sample)");
     btf_result res = BTF_OK;
 #pragma omp parallel
     {
-        uint8_t *atlas = malloc((size_t)r->aw * r->ah);
+        uint8_t *atlas = malloc((size_t)r->aw * r->sub_rows * r->H);
         btf_error e = {{0}};
         btf_result mine = atlas ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (atlas)");
 #pragma omp for schedule(dynamic, 1)
@@ -258,6 +293,61 @@ static void btf__rd_fill(const btf__rd *r, double lambda, long long max_bytes, i
     free(kept);
 }
 
+/* What identifies r's model for btf_rd_ladder: its sizes, the noise and file choice
+ * of the ladders, and a sum over every block's first texel and weights. */
+static void btf__rd_key(const btf__rd *r, double key[8])
+{
+    double sum = 0.0;
+    for (int b = 0; b < r->nb; b++)
+        for (int j = 0; j < r->C; j++) {
+            const btf_pca_block *pb = &r->m->block[b];
+            sum += (double)pb->t[(size_t)j * r->rows] * (j + 1) + (double)pb->w[(size_t)j * pb->cols] * (b + 1);
+        }
+    double k[8] = {r->C, r->nb, r->W, r->H, (double)r->V * 65536.0 + r->L, r->par->tex_noise, r->par->png_only, sum};
+    memcpy(key, k, sizeof k);
+}
+
+/* The ladders of r: from par->ladder when it holds this model's, else measured (and
+ * stored there when there is one). */
+static btf_result btf__rd_ladder_use(btf__rd *r, btf_error *err)
+{
+    btf_rd_ladder *l = r->par->ladder;
+    double key[8];
+    btf__rd_key(r, key);
+    size_t nt = (size_t)r->C * BTF__RD_NT, nw = (size_t)r->C * BTF__RD_NW, c = (size_t)r->C;
+    if (l && l->n_comp == r->C && !memcmp(l->key, key, sizeof key)) {
+        memcpy(r->dt, l->dt, nt * sizeof(double)), memcpy(r->rt, l->rt, nt * sizeof(long long));
+        memcpy(r->dw, l->dw, nw * sizeof(double)), memcpy(r->rw, l->rw, nw * sizeof(long long));
+        memcpy(r->energy, l->energy, c * sizeof(double));
+        return BTF_OK;
+    }
+    btf_result res = btf__rd_measure(r, err);
+    if (res != BTF_OK || !l)
+        return res;
+    btf_rd_ladder_free(l);
+    l->dt = malloc(nt * sizeof(double)), l->rt = malloc(nt * sizeof(long long));
+    l->dw = malloc(nw * sizeof(double)), l->rw = malloc(nw * sizeof(long long));
+    l->energy = malloc(c * sizeof(double));
+    if (!l->dt || !l->rt || !l->dw || !l->rw || !l->energy) {
+        btf_rd_ladder_free(l); /* no reuse next time; this allocation goes on */
+        return BTF_OK;
+    }
+    memcpy(l->dt, r->dt, nt * sizeof(double)), memcpy(l->rt, r->rt, nt * sizeof(long long));
+    memcpy(l->dw, r->dw, nw * sizeof(double)), memcpy(l->rw, r->rw, nw * sizeof(long long));
+    memcpy(l->energy, r->energy, c * sizeof(double));
+    memcpy(l->key, key, sizeof key);
+    l->n_comp = r->C, l->n_tex = BTF__RD_NT, l->n_wt = BTF__RD_NW;
+    return BTF_OK;
+}
+
+void btf_rd_ladder_free(btf_rd_ladder *l)
+{
+    if (!l)
+        return;
+    free(l->dt), free(l->dw), free(l->energy), free(l->rt), free(l->rw);
+    memset(l, 0, sizeof *l);
+}
+
 void btf_rd_result_free(btf_rd_result *r)
 {
     if (!r)
@@ -269,6 +359,7 @@ void btf_rd_result_free(btf_rd_result *r)
 static void btf__rd_free(btf__rd *r)
 {
     free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->q), free(r->wnorm);
+    free(r->sub_row);
 }
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err)
@@ -281,7 +372,7 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     btf__rd r = {0};
     r.par = par, r.m = m, r.C = m->n_comp, r.nb = m->blocks->n_blocks, r.W = m->width, r.H = m->height;
     r.rows = r.W * r.H, r.L = m->lights.n_dirs, r.V = m->views.n_dirs;
-    r.aw = par->atlas_cols * r.W, r.ah = par->atlas_rows * r.H;
+    r.aw = par->atlas_cols * r.W;
     r.dt = calloc((size_t)r.C * BTF__RD_NT, sizeof(double));
     r.dw = calloc((size_t)r.C * BTF__RD_NW, sizeof(double));
     r.energy = calloc((size_t)r.C, sizeof(double));
@@ -301,7 +392,7 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     for (int i = 1; res == BTF_OK && i < BTF__RD_NW; i++) /* gw[0] = 0: the full 16-bit range */
         r.gw[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_WT_LO + i - 1));
     if (res == BTF_OK)
-        res = btf__rd_measure(&r, err);
+        res = btf__rd_ladder_use(&r, err);
     if (res == BTF_OK) {
         /* reference: every texture at tex_noise (ladder index -LO), 16-bit weights (index 0) */
         out->d_target = 0.0, out->bytes_equal = 0;

@@ -3,8 +3,10 @@
  * step multiplier, chosen with one Lagrange multiplier (equal slope) so that the
  * quantisation adds the same squared error as the equal-noise allocation of
  * section 4 with fewer bytes. Used by the package writer (btf_package_options.rd).
+ * Texture rates of atlases over 9 tiles are measured on a sample of whole tile rows
+ * and scaled (section 11), so bytes_equal and bytes_rd are estimates there.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0};  // 0: the equal-noise error
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL};  // equal-noise error, PNG or WebP, no ladder reuse
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -23,6 +25,18 @@
 extern "C" {
 #endif
 
+/* The measured ladders of one model (rates and distortions of every candidate step),
+ * kept so that a second allocation for the same model skips the measuring (the
+ * budget search allocates twice per k: equal-noise error and fitted to the bytes).
+ * Owned by the caller: zero it, pass it in btf_rd_params.ladder, btf_rd_ladder_free. */
+typedef struct btf_rd_ladder {
+    double key[8];          /* the model's sizes, noise, png_only and a sum over its values */
+    int n_comp;             /* 0 = empty */
+    int n_tex, n_wt;        /* candidate steps per component: dt, rt hold n_comp x n_tex, dw, rw n_comp x n_wt */
+    double *dt, *dw, *energy;
+    long long *rt, *rw;
+} btf_rd_ladder;
+
 /* Inputs of one allocation; plain value, its pointers are borrowed for the call. */
 typedef struct btf_rd_params {
     const btf_pca_model *model; /* the float PCA of the package */
@@ -35,6 +49,9 @@ typedef struct btf_rd_params {
      * smallest slope that fits (btf_budget). */
     long long max_bytes;
     int png_only;               /* 1: texture bytes as PNG; 0: the smaller of PNG and lossless WebP, as written */
+    /* NULL, or ladders to reuse when they were measured on this model (same key),
+     * else measured and stored there for the next call */
+    btf_rd_ladder *ladder;
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */
@@ -51,6 +68,7 @@ typedef struct btf_rd_result {
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err);
 void btf_rd_result_free(btf_rd_result *r);
+void btf_rd_ladder_free(btf_rd_ladder *l);
 
 /* Quantisation step for values of range step `range_step` (full range / qmax) whose
  * RMS noise, spread over n samples by a factor of norm, is to be `noise` (0..255
