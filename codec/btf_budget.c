@@ -10,6 +10,7 @@
 
 #include "btf_fs.h"
 #include "btf_manifest.h"
+#include "btf_rd.h"
 
 /* The candidate k values: the budget's, else 1, 3 and 9, within 1..views. */
 static int btf__budget_ks(const btf_budget *b, int views, int *ks)
@@ -206,6 +207,7 @@ typedef struct btf__search {
     int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
     btf_budget_result rs;
     int best, best_met;
+    btf_rd_ladder ladder; /* the last model's measured steps: each k's second allocation reuses them */
 } btf__search;
 
 /* Compresses candidate i (k, components, rd_fit and center already in
@@ -281,8 +283,9 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
     int fits = po.rd && budget->max_bytes > 0 ? 2 : 1; /* version 3: each k also with steps fitted to the bytes */
     int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;
-    for (int fit = 0; fit < fits; fit++)
-        for (int i = 0; i < nk; i++)
+    sr->po.rd_ladder = po.rd ? &sr->ladder : NULL;
+    for (int i = 0; i < nk; i++) /* a k's two step choices in a row: one model, its ladders measured once */
+        for (int fit = 0; fit < fits; fit++)
             sr->rs.candidate[nt++] =
                 (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
     for (int i = 0; r == BTF_OK && i < nt; i++)
@@ -314,6 +317,7 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     }
     for (int i = 0; i < rs.n_candidates; i++)
         btf_fs_rmtree(sr->dir[i], NULL);
+    btf_rd_ladder_free(&sr->ladder);
     free(sr);
     if (res)
         *res = rs;
