@@ -235,8 +235,8 @@ static btf_result encode_any(const std::string &tmp, const std::string &ext, con
         return encode_webp(tmp, path, w, h, channels, bits, pixels, err);
     if (png && (flags & BTF_IMAGE_PNG_SMALLEST))
         return encode_smallest_png(tmp, ext, path, w, h, channels, bits, pixels, err);
-    return encode_image(tmp, path, w, h, channels, bits, pixels, png && (flags & BTF_IMAGE_PNG_UNFILTERED) ? 0x08 : 0,
-                        err);
+    int filter = !png ? 0 : (flags & BTF_IMAGE_PNG_UNFILTERED) ? 0x08 : (flags & BTF_IMAGE_PNG_UP) ? 0x20 : 0;
+    return encode_image(tmp, path, w, h, channels, bits, pixels, filter, err);
 }
 
 // tmp into place at path: fsync of the file and the directory unless BTF_IMAGE_UNSYNCED.

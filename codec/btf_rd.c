@@ -131,7 +131,7 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int t
     snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
     r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
     int ah = r->sub_rows * r->H;
-    btf_result res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_SMALLEST, err);
+    btf_result res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
     long long s = res == BTF_OK ? btf_fs_size(path) : -1;
     remove(path);
     uint8_t *webp = NULL;

@@ -1,6 +1,7 @@
 /* test_image.c - suite "image": the image writer's PNG filter choice
  * (BTF_IMAGE_PNG_SMALLEST, codec/btf_image.h), checked against the writer's own
- * default encoding of the same pixels and against the pixels themselves; lossless
+ * default encoding of the same pixels and against the pixels themselves; filter Up
+ * on every row (BTF_IMAGE_PNG_UP) read back from the file's rows; lossless
  * WebP (codec/btf_webp.h): grey round trips, the smaller-of-two writer, and damaged
  * or non-grey files refused with one clear error. */
 #include <criterion/criterion.h>
@@ -15,6 +16,7 @@
 #include "test_util.h"
 
 #include <webp/encode.h>
+#include <zlib.h>
 
 static unsigned lcg(unsigned *s)
 {
@@ -90,6 +92,57 @@ static uint8_t *grey_image(int w, int h, int kind, unsigned *seed)
     for (int i = 0; i < w * h; i++)
         px[i] = (uint8_t)(kind == 0 ? (i % w) * 3 + (i / w) + lcg(seed) % 4 : lcg(seed) & 255);
     return px;
+}
+
+/* The filter type byte of every row of an 8-bit grey PNG of width w and height h,
+ * read here from its IDAT chunks (PNG: 8-byte signature, then length, type, data,
+ * CRC per chunk; the inflated data is h rows of a filter byte and w samples). */
+static void png_row_filters(const char *path, int w, int h, uint8_t *filters)
+{
+    FILE *f = fopen(path, "rb");
+    cr_assert_not_null(f);
+    static uint8_t file[1 << 20], idat[1 << 20];
+    size_t n = fread(file, 1, sizeof file, f), ni = 0;
+    fclose(f);
+    for (size_t i = 8; i + 12 <= n;) {
+        size_t len = (size_t)file[i] << 24 | (size_t)file[i + 1] << 16 | (size_t)file[i + 2] << 8 | file[i + 3];
+        cr_assert(i + 12 + len <= n);
+        if (!memcmp(file + i + 4, "IDAT", 4)) {
+            memcpy(idat + ni, file + i + 8, len);
+            ni += len;
+        }
+        i += 12 + len;
+    }
+    uLongf raw_n = (uLongf)(w + 1) * h;
+    uint8_t *raw = malloc(raw_n);
+    cr_assert_eq(uncompress(raw, &raw_n, idat, ni), Z_OK);
+    cr_assert_eq(raw_n, (uLongf)(w + 1) * h);
+    for (int y = 0; y < h; y++)
+        filters[y] = raw[(size_t)y * (w + 1)];
+    free(raw);
+}
+
+Test(image, png_filter_up_on_every_row)
+{
+    char dir[256], path[600];
+    cr_assert(test_tmpdir(dir, sizeof dir));
+    snprintf(path, sizeof path, "%s/u.png", dir);
+    unsigned seed = 7;
+    int w = 50, h = 40;
+    uint8_t px[50 * 40], filters[40], *back = NULL;
+    for (int i = 0; i < w * h; i++)
+        px[i] = (uint8_t)(lcg(&seed) & 255); /* noise: the adaptive choice would pick None */
+    btf_error err = {0};
+    cr_assert_eq(btf_image_write_flags(path, w, h, 1, 8, px, BTF_IMAGE_PNG_UP | BTF_IMAGE_UNSYNCED, &err), BTF_OK, "%s",
+                 err.msg);
+    png_row_filters(path, w, h, filters);
+    for (int y = 0; y < h; y++)
+        cr_assert_eq(filters[y], 2, "row %d has filter type %d, not Up (2)", y, filters[y]);
+    int bw, bh, bc;
+    cr_assert_eq(btf_image_read_u8(path, &bw, &bh, &bc, &back, &err), BTF_OK, "%s", err.msg);
+    cr_assert(bw == w && bh == h && bc == 1 && !memcmp(back, px, sizeof px));
+    free(back);
+    cr_assert_eq(test_rmtree(dir), 0);
 }
 
 Test(image, webp_grey_round_trip)

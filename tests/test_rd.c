@@ -146,8 +146,9 @@ Test(rd, smaller_package_at_equal_error)
         sum += pb->chunk[i].bytes;
     }
     cr_assert_eq(sum, bb);
-    /* the allocation's reference rate is exactly package a's atlases and weights (its
-     * 5 tiles are fewer than the rate sample's 9: every row of tiles measured) */
+    /* the allocation's reference rate is exactly package a's atlases and weights: its
+     * 5 tiles are fewer than the rate sample's 9 (every row of tiles measured), and
+     * the ladder's PNG filter (Up) is the one the writer's choice keeps here */
     long long ref_tex, ref_wt;
     equal_noise_bytes(pa, a, &ref_tex, &ref_wt);
     long long ref = ref_tex + ref_wt;
