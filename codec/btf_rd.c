@@ -20,6 +20,9 @@
 #define BTF__RD_WT_LO (-10) /* weight ladder: the full 16 bits, then tex_noise * 2^(i/2) */
 #define BTF__RD_WT_HI 6
 #define BTF__RD_NT (BTF__RD_TEX_HI - BTF__RD_TEX_LO + 1)
+/* texture rates are encoded at the even ladder indices (the equal-noise step among
+ * them) and interpolated between them, so both ends must be even */
+_Static_assert(BTF__RD_TEX_LO % 2 == 0 && BTF__RD_NT % 2 == 1, "texture ladder: even equal-noise index and ends");
 #define BTF__RD_NW (BTF__RD_WT_HI - BTF__RD_WT_LO + 2)
 #define BTF__RD_RATE_TILES 9 /* texture rates measured on whole atlas rows holding about this many tiles */
 
@@ -130,6 +133,8 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int t
     char path[BTF_FS_PATH_MAX];
     snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
     r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
+    if ((n % BTF__RD_NT) % 2) /* odd indices: the rate interpolated by btf__rd_measure_tex */
+        return BTF_OK;
     int ah = r->sub_rows * r->H;
     btf_result res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
     long long s = res == BTF_OK ? btf_fs_size(path) : -1;
@@ -176,6 +181,14 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
         }
         free(atlas);
     }
+    /* odd indices: the mean of the neighbours' rates (a rate is about linear in the
+     * log of the step; tiles at 128x128: the package within 0.05% of the bytes and
+     * CIELab error of every step encoded, at half the encodings) */
+    for (int j = 0; res == BTF_OK && j < r->C; j++)
+        for (int i = 1; i < BTF__RD_NT; i += 2) {
+            long long *rt = r->rt + (size_t)j * BTF__RD_NT;
+            rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2;
+        }
     return res;
 }
 
