@@ -207,7 +207,8 @@ typedef struct btf__search {
     int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
     btf_budget_result rs;
     int best, best_met;
-    btf_rd_ladder ladder; /* the last model's measured steps: each k's second allocation reuses them */
+    btf_rd_ladder ladder;  /* the last model's measured steps: each k's second allocation reuses them */
+    btf_pca_model *model;  /* the last model: each k's second compression reuses it */
 } btf__search;
 
 /* Compresses candidate i (k, components, rd_fit and center already in
@@ -284,7 +285,8 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     int fits = po.rd && budget->max_bytes > 0 ? 2 : 1; /* version 3: each k also with steps fitted to the bytes */
     int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;
     sr->po.rd_ladder = po.rd ? &sr->ladder : NULL;
-    for (int i = 0; i < nk; i++) /* a k's two step choices in a row: one model, its ladders measured once */
+    sr->po.rd_model = po.rd ? &sr->model : NULL;
+    for (int i = 0; i < nk; i++) /* a k's two step choices in a row: one PCA model, its ladders measured once */
         for (int fit = 0; fit < fits; fit++)
             sr->rs.candidate[nt++] =
                 (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
@@ -318,6 +320,7 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     for (int i = 0; i < rs.n_candidates; i++)
         btf_fs_rmtree(sr->dir[i], NULL);
     btf_rd_ladder_free(&sr->ladder);
+    btf_pca_model_free(sr->model);
     free(sr);
     if (res)
         *res = rs;

@@ -62,6 +62,12 @@ typedef struct btf_package_options {
     /* With rd: NULL, or the measured ladders of an earlier compression to reuse when
      * this one's PCA model is the same (btf_rd_params.ladder; btf_budget's pairs). */
     struct btf_rd_ladder *rd_ladder;
+    /* With rd: NULL, or a slot for the PCA model. A model already in it is used
+     * instead of a new PCA when its sizes, k, components, center, grouping and
+     * method match this compression's: the caller promises it was made from this
+     * same source (btf_budget's pairs). Otherwise the new model replaces it. The
+     * slot owns its model; the caller frees it with btf_pca_model_free. */
+    struct btf_pca_model **rd_model;
     /* Test hook: called before the writer creates package file number i (0-based);
      * a nonzero return makes that write fail like a full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);

@@ -520,6 +520,16 @@ static char *btf__rd_json(const btf_rd_result *rr)
 }
 
 
+/* 1 when m (may be NULL) is the model po makes of a source of src's sizes. */
+static int btf__model_fits(const btf_pca_model *m, const btf_views *src, const btf_pca_options *po)
+{
+    return m && m->width == src->width && m->height == src->height && m->k == po->k &&
+           m->n_comp == po->components && m->center == po->center && m->grouping == po->grouping &&
+           m->method == po->method && memcmp(&m->lights, &src->lights, sizeof m->lights) == 0 &&
+           memcmp(&m->views, &src->views, sizeof m->views) == 0;
+}
+
+
 /* Version 3: steps by rate-distortion from the float model m, then every block's
  * matrix rebuilt once to quantise it and accumulate the exact error sums. */
 static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
@@ -627,11 +637,22 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
     double t0 = btf__now(), t1 = t0;
     if (r == BTF_OK) {
         /* the writer keeps what it needs per block; --rd keeps the model and passes the blocks again */
-        btf_pca_model *m = NULL;
-        r = btf_pca_compress_views(src, &po, o.rd ? NULL : btf__on_block, &w, o.rd ? &m : NULL, err);
+        btf_pca_model *m = NULL, **slot = o.rd ? o.rd_model : NULL;
+        int reuse = slot && btf__model_fits(*slot, src, &po);
+        if (slot && !reuse) { /* freed first: never two models in memory */
+            btf_pca_model_free(*slot);
+            *slot = NULL;
+        }
+        if (reuse)
+            m = *slot;
+        else
+            r = btf_pca_compress_views(src, &po, o.rd ? NULL : btf__on_block, &w, o.rd ? &m : NULL, err);
         if (r == BTF_OK && o.rd)
             r = btf__rd_quantise(&w, src, m, noise, &o, tmp, err);
-        btf_pca_model_free(m);
+        if (slot)
+            *slot = m; /* the slot owns it now */
+        else
+            btf_pca_model_free(m);
         t1 = btf__now();
     }
     if (r == BTF_OK)

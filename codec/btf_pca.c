@@ -616,7 +616,7 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
         return btf_fail(err, BTF_ERR_NOMEM, "compress: out of memory");
     m->width = src->width, m->height = src->height;
     m->lights = src->lights, m->views = src->views;
-    m->k = o.k, m->n_comp = o.components, m->center = o.center, m->grouping = o.grouping;
+    m->k = o.k, m->n_comp = o.components, m->center = o.center, m->grouping = o.grouping, m->method = o.method;
     r = btf_group_views(&src->views, o.k, o.grouping, &m->blocks, err);
     if (r != BTF_OK) {
         free(m);

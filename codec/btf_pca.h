@@ -114,7 +114,8 @@ typedef struct btf_pca_model {
     int k, n_comp;
     btf_center center;
     btf_grouping grouping;
-    btf_pca_block *block; /* n_blocks */
+    btf_pca_method method; /* as asked (BTF_PCA_AUTO stays AUTO) */
+    btf_pca_block *block;  /* n_blocks */
 } btf_pca_model;
 
 /* Checks options against the source (k, C in range, finite data). */

@@ -231,6 +231,50 @@ Test(rd, ladders_are_reused_for_the_same_model_only)
     cr_assert_eq(test_rmtree(tmp), 0);
 }
 
+/* Compresses src at k, 6 components, --rd with the model slot; returns the package's RMSE. */
+static double compress_slot(const btf *src, int k, btf_pca_model **slot, const char *out, btf_rd_result *rr)
+{
+    btf_pca_options po = {0};
+    po.k = k, po.components = 6;
+    btf_package_options ko = {0};
+    ko.rd = 1, ko.rd_out = rr, ko.rd_model = slot;
+    btf_error err = {0};
+    btf_compress_stats st = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, out, &st, &err), BTF_OK, "%s", err.msg);
+    return st.rmse;
+}
+
+Test(rd, a_model_slot_is_reused_for_the_same_settings_only)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/p", tmp);
+    btf *src = test_material(BTF_GEN_TILES, 32, rings, 3);
+    btf_pca_model *slot = NULL;
+    btf_rd_result fresh, r1, r2, r3;
+    compress_k(src, 3, 6, 1, NULL, out, &fresh);
+    double e1 = compress_slot(src, 3, &slot, out, &r1);
+    cr_assert(slot && slot->k == 3 && slot->n_comp == 6, "the first compression stores its model");
+    double e2 = compress_slot(src, 3, &slot, out, &r2);
+    cr_assert_eq(r2.bytes_rd, fresh.bytes_rd, "a reused model makes what a new PCA makes");
+    cr_assert_eq(r2.d_rd, fresh.d_rd);
+    cr_assert_eq(e2, e1);
+    /* a tampered model (every weight but the first component's zeroed): its use shows in the error */
+    for (int b = 0; b < slot->blocks->n_blocks; b++)
+        memset(slot->block[b].w + slot->block[b].cols, 0,
+               (size_t)slot->block[b].cols * (size_t)(slot->block[b].n_comp - 1) * sizeof(float));
+    btf_rd_result_free(&r2);
+    double e3 = compress_slot(src, 3, &slot, out, &r2);
+    cr_assert_gt(e3, 2.0 * e1, "the same settings reuse the stored model (RMSE %g, untampered %g)", e3, e1);
+    /* another k: a new PCA, which replaces the stored model */
+    compress_slot(src, 1, &slot, out, &r3);
+    cr_assert(slot && slot->k == 1, "another k replaces the stored model");
+    btf_rd_result_free(&fresh), btf_rd_result_free(&r1), btf_rd_result_free(&r2), btf_rd_result_free(&r3);
+    btf_pca_model_free(slot);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
 /* wt-JJ.z decoded here from the text of doc/package-format.md section 11 alone. */
 static void independent_weights(const char *path, int V, int L, const float *wt_range, const int *block_of_view,
                                 float *out)
