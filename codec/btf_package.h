@@ -68,8 +68,10 @@ typedef struct btf_package_options {
      * same source (btf_budget's pairs). Otherwise the new model replaces it. The
      * slot owns its model; the caller frees it with btf_pca_model_free. */
     struct btf_pca_model **rd_model;
-    /* Test hook: called before the writer creates package file number i (0-based);
-     * a nonzero return makes that write fail like a full disk. NULL = none. */
+    /* Test hook: called before the writer creates package file number i (texture j
+     * = 2j, its weights 2j + 1, the manifest 2C; the components' files from several
+     * threads at once, in any order); a nonzero return makes that write fail like a
+     * full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);
     void *hook_ctx;
 } btf_package_options;

@@ -333,9 +333,9 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
 }
 
 
-static btf_result btf__hook(const btf_package_options *o, int *counter, const char *file, btf_error *err)
+/* The test hook for file number i (texture j = 2j, its weights 2j + 1, the manifest 2C). */
+static btf_result btf__hook(const btf_package_options *o, int i, const char *file, btf_error *err)
 {
-    int i = (*counter)++;
     if (o->write_hook && o->write_hook(o->hook_ctx, i, file))
         return btf_fail(err, BTF_ERR_IO, "%s: write failed (no space left on device, simulated)", file);
     return BTF_OK;
@@ -434,12 +434,58 @@ static btf_result btf__write_texture(btf__writer *w, const btf_package_options *
     return r;
 }
 
+/* Writes component j's texture and weights into tmp; *bytes = their sizes. */
+static btf_result btf__write_component(btf__writer *w, const btf_package_options *o, const char *tmp, int j,
+                                       long long *bytes, btf_error *err)
+{
+    char path[8192], file[BTF_PACKAGE_NAME_MAX];
+    snprintf(file, sizeof file, "tex-%02d.png", j);
+    btf_result r = btf__hook(o, 2 * j, file, err);
+    long long s1 = -1;
+    if (r == BTF_OK)
+        r = btf__write_texture(w, o, tmp, j, &s1, err);
+    snprintf(file, sizeof file, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
+    snprintf(path, sizeof path, "%s/%s", tmp, file);
+    if (r == BTF_OK)
+        r = btf__hook(o, 2 * j + 1, file, err);
+    if (r == BTF_OK)
+        r = btf__write_weights(path, w->qwt[j], w->V, w->L, w->version, err);
+    long long s2 = btf_fs_size(path);
+    if (r == BTF_OK && (s1 < 0 || s2 < 0))
+        r = btf_fail(err, BTF_ERR_IO, "%s: written file vanished", tmp);
+    *bytes = s1 + s2;
+    return r;
+}
+
+/* Every component's files, one thread per component at a time (the encoders are
+ * single-threaded); the first failing component's error is reported. */
+static btf_result btf__write_components(btf__writer *w, const btf_package_options *o, const char *tmp,
+                                        long long *bytes, btf_error *err)
+{
+    int C = w->C;
+    btf_result *rj = calloc((size_t)C, sizeof *rj);
+    btf_error *ej = calloc((size_t)C, sizeof *ej);
+    if (!rj || !ej) {
+        free(rj), free(ej);
+        return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory");
+    }
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int j = 0; j < C; j++)
+        rj[j] = btf__write_component(w, o, tmp, j, &bytes[j], &ej[j]);
+    btf_result r = BTF_OK;
+    for (int j = 0; j < C && r == BTF_OK; j++)
+        if ((r = rj[j]) != BTF_OK && err)
+            *err = ej[j];
+    free(rj), free(ej);
+    return r;
+}
+
 /* Writes every file into tmp, chooses the order and writes the manifest. */
 static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, const btf_package_options *o,
                                  const char *name, const char *tmp, btf_compress_stats *st, btf_error *err)
 {
-    int C = w->C, counter = 0;
-    char path[8192], file[BTF_PACKAGE_NAME_MAX];
+    int C = w->C;
+    char path[8192];
     long long *bytes = calloc((size_t)C, sizeof *bytes);
     int *order = calloc((size_t)C, sizeof *order);
     double *rmse = calloc((size_t)C, sizeof(double)), *rmsef = calloc((size_t)C, sizeof(double));
@@ -449,24 +495,7 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         r = btf_fail(err, BTF_ERR_NOMEM, "package: out of memory");
         goto done;
     }
-    for (int j = 0; j < C && r == BTF_OK; j++) {
-        snprintf(file, sizeof file, "tex-%02d.png", j);
-        r = btf__hook(o, &counter, file, err);
-        long long s1 = -1;
-        if (r == BTF_OK)
-            r = btf__write_texture(w, o, tmp, j, &s1, err);
-        snprintf(file, sizeof file, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
-        snprintf(path, sizeof path, "%s/%s", tmp, file);
-        if (r == BTF_OK)
-            r = btf__hook(o, &counter, file, err);
-        if (r == BTF_OK)
-            r = btf__write_weights(path, w->qwt[j], w->V, w->L, w->version, err);
-        long long s2 = btf_fs_size(path);
-        if (r == BTF_OK && (s1 < 0 || s2 < 0))
-            r = btf_fail(err, BTF_ERR_IO, "%s: written file vanished", tmp);
-        bytes[j] = s1 + s2;
-    }
-    if (r != BTF_OK)
+    if ((r = btf__write_components(w, o, tmp, bytes, err)) != BTF_OK)
         goto done;
     btf__order(w, bytes, order);
     double n_samples = (double)w->rows * w->V * w->L * 3.0;
@@ -484,7 +513,7 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         goto done;
     }
     snprintf(path, sizeof path, "%s/manifest.json", tmp);
-    r = btf__hook(o, &counter, "manifest.json", err);
+    r = btf__hook(o, 2 * C, "manifest.json", err);
     if (r == BTF_OK)
         r = btf_fs_write_atomic(path, text, strlen(text), err);
     free(text);
