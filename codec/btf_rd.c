@@ -39,7 +39,6 @@ typedef struct btf__rd {
     long long *rt, *rw;    /* the same: bytes */
     float *gt, *gw;        /* the ladders' noise values */
     float *wnorm;          /* C x nb: |W_j| per block (computed before the threads start) */
-    uint16_t *q;           /* V*L*3 scratch */
 } btf__rd;
 
 /* The rate sample: whole rows of the atlas's tile grid, evenly spaced among the full
@@ -96,8 +95,8 @@ static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
     return d;
 }
 
-/* Weights of component j at noise g (0 = full 16 bits): q into r->q, the added squared error returned. */
-static double btf__rd_wt(btf__rd *r, int j, float g)
+/* Weights of component j at noise g (0 = full 16 bits): q (V*L*3) filled, the added squared error returned. */
+static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
 {
     const btf_blocks *bl = r->m->blocks;
     double d = 0.0;
@@ -114,7 +113,7 @@ static double btf__rd_wt(btf__rd *r, int j, float g)
             int pos = col / (3 * r->L), l = (col / 3) % r->L, c = col % 3;
             int v = bl->views[bl->start[b] + pos];
             unsigned qv = btf_rd_quant(wj[col], rg, 65535u);
-            r->q[((size_t)v * r->L + l) * 3 + c] = (uint16_t)qv;
+            q[((size_t)v * r->L + l) * 3 + c] = (uint16_t)qv;
             double dv = (double)wj[col] - (double)(rg[0] + rg[1] * (float)qv);
             e += dv * dv;
         }
@@ -198,19 +197,30 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
     btf_result res = btf__rd_measure_tex(r, err);
     if (res != BTF_OK)
         return res;
-    for (int j = 0; j < r->C; j++) {
-        for (int i = 0; i < BTF__RD_NW; i++) {
-            r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i]);
-            uint8_t *z = NULL;
-            size_t nz = 0;
-            btf_result rc = btf_wtz_encode(r->q, r->V, r->L, &z, &nz, err);
-            free(z);
-            if (rc != BTF_OK)
-                return rc;
-            r->rw[(size_t)j * BTF__RD_NW + i] = (long long)nz;
+#pragma omp parallel
+    { /* one component's weight steps per thread at a time: energy[j] has one writer */
+        uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
+        btf_error e = {{0}};
+        btf_result mine = q ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (weights)");
+#pragma omp for schedule(dynamic, 1)
+        for (int j = 0; j < r->C; j++)
+            for (int i = 0; i < BTF__RD_NW && mine == BTF_OK; i++) {
+                r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i], q);
+                uint8_t *z = NULL;
+                size_t nz = 0;
+                mine = btf_wtz_encode(q, r->V, r->L, &z, &nz, &e);
+                free(z);
+                r->rw[(size_t)j * BTF__RD_NW + i] = (long long)nz;
+            }
+#pragma omp critical(btf__rd_result)
+        if (mine != BTF_OK && res == BTF_OK) {
+            res = mine;
+            if (err)
+                *err = e;
         }
+        free(q);
     }
-    return BTF_OK;
+    return res;
 }
 
 /* Index in 0..n-1 minimising d + lambda * rate. */
@@ -371,7 +381,7 @@ void btf_rd_result_free(btf_rd_result *r)
 
 static void btf__rd_free(btf__rd *r)
 {
-    free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->q), free(r->wnorm);
+    free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->wnorm);
     free(r->sub_row);
 }
 
@@ -392,12 +402,11 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     r.rt = calloc((size_t)r.C * BTF__RD_NT, sizeof(long long));
     r.rw = calloc((size_t)r.C * BTF__RD_NW, sizeof(long long));
     r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
-    r.q = malloc((size_t)r.V * r.L * 3 * sizeof(uint16_t));
     out->tex_noise = calloc((size_t)r.C, sizeof(float));
     out->wt_noise = calloc((size_t)r.C, sizeof(float));
     int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
     btf_result res = BTF_OK;
-    if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !r.q || !out->tex_noise || !out->wt_noise ||
+    if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !out->tex_noise || !out->wt_noise ||
         !it || !iw)
         res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
     for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
