@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # bench/bench_search.sh - what the budget search costs (issue 14: "within 3x one
 # plain compress"): per material, the wall time of `btf compress` with its defaults,
-# of `btf compress --rd`, and of the search `--rd --max-bytes N` (N = the thesis
-# format's bytes at k = 3, C = 8, as bench_rd.sh uses), one after another in this
-# script; the ratios are the search over each plain compress. Seeds no test uses.
+# of `btf compress --rd` (each the median of 3, alternating), of the version-1
+# search `--max-bytes N` and of the version-3 search `--rd --max-bytes N` (N = the
+# thesis format's bytes at k = 3, C = 8, as bench_rd.sh uses), wall and CPU time,
+# one after another in this script; the ratios are each search over the plain
+# compresses. Seeds no test uses.
 # SEARCH_LARGE=1 adds tiles at 256x256 (about half an hour). Run by bench/run.sh
 # (results: bench/results/search.txt); needs `make build` and jq.
 set -euo pipefail
@@ -18,33 +20,58 @@ mats=(tiles128=gen:tiles:128:6161 stone128=gen:stone:128:6162)
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_search.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 
-# Wall seconds of one command.
-seconds() {
-    local s e
-    s=$(date +%s.%N)
-    "$@" >/dev/null
-    e=$(date +%s.%N)
-    awk -v s="$s" -v e="$e" 'BEGIN { printf "%.1f", e - s }'
+# "WALL CPU" seconds of one command (CPU: user + system time, its threads included,
+# steadier than the wall time when the host is busy); its errors shown if it fails.
+measure() {
+    local TIMEFORMAT='%R %U %S' t
+    if ! t=$({ time "$@" >/dev/null 2>"$tmp/err"; } 2>&1); then
+        cat "$tmp/err" >&2
+        return 1
+    fi
+    awk '{ printf "%.1f %.1f", $1, $2 + $3 }' <<<"$t"
 }
 
-echo "# material: plain s | plain --rd s | search (--rd --max-bytes thesis bytes) s | search / plain, search / plain --rd | chosen"
+# The middle of three numbers.
+median3() { printf '%s\n' "$@" | sort -g | sed -n 2p; }
+
+# a / b to two decimals.
+ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", a / b }'; }
+
+echo "# wall s (CPU s): plain, the median of 3 | search | plain --rd, the median of 3 | search --rd | search / its plain, wall (CPU) | search --rd / plain --rd | chosen by search --rd"
 for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
     echo "bench_search: $name" >&2
     "$BTF" export-thesis "$src" "$tmp/$name-thesis" --k 3 --components 8 >/dev/null
     tb=$(find "$tmp/$name-thesis" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
-    tp=$(seconds "$BTF" compress "$src" "$tmp/$name-plain" --quiet)
-    tr=$(seconds "$BTF" compress "$src" "$tmp/$name-rd" --rd --quiet)
-    ts=$(seconds "$BTF" compress "$src" "$tmp/$name-search" --rd --max-bytes "$tb" --quiet)
+    pw=() pc=() rw=() rc=()
+    for i in 1 2 3; do # the plain compresses alternate, so a slow spell hits both
+        read -r w c <<<"$(measure "$BTF" compress "$src" "$tmp/$name-plain" --quiet)"
+        pw+=("$w") pc+=("$c")
+        read -r w c <<<"$(measure "$BTF" compress "$src" "$tmp/$name-rd" --rd --quiet)"
+        rw+=("$w") rc+=("$c")
+    done
+    read -r tpw tpc <<<"$(median3 "${pw[@]}") $(median3 "${pc[@]}")"
+    read -r trw trc <<<"$(median3 "${rw[@]}") $(median3 "${rc[@]}")"
+    read -r tvw tvc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --quiet)"
+    read -r tsw tsc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-search" --rd --max-bytes "$tb" --quiet)"
     chosen=$(jq -r '.budget | "k \(.k) \(.components) components \(.rd_steps // "equal-noise") \(.center // "none") \(.chunks) chunks"' \
         "$tmp/$name-search/manifest.json")
-    r1=$(awk -v a="$ts" -v b="$tp" 'BEGIN { printf "%.2f", a / b }')
-    r2=$(awk -v a="$ts" -v b="$tr" 'BEGIN { printf "%.2f", a / b }')
-    echo "search_${name}_plain_seconds $tp s"
-    echo "search_${name}_plain_rd_seconds $tr s"
-    echo "search_${name}_seconds $ts s"
-    echo "search_${name}_over_plain $r1 x"
-    echo "search_${name}_over_plain_rd $r2 x"
-    echo "# $name: $tp | $tr | $ts | ${r1}x, ${r2}x | $chosen"
+    echo "search_${name}_plain_seconds $tpw s"
+    echo "search_${name}_plain_cpu_seconds $tpc s"
+    echo "search_${name}_v1_seconds $tvw s"
+    echo "search_${name}_v1_cpu_seconds $tvc s"
+    echo "search_${name}_v1_over_plain $(ratio "$tvw" "$tpw") x"
+    echo "search_${name}_v1_over_plain_cpu $(ratio "$tvc" "$tpc") x"
+    echo "search_${name}_plain_rd_seconds $trw s"
+    echo "search_${name}_plain_rd_cpu_seconds $trc s"
+    echo "search_${name}_rd_seconds $tsw s"
+    echo "search_${name}_rd_cpu_seconds $tsc s"
+    echo "search_${name}_rd_over_plain_rd $(ratio "$tsw" "$trw") x"
+    echo "search_${name}_rd_over_plain_rd_cpu $(ratio "$tsc" "$trc") x"
+    echo "search_${name}_rd_over_plain $(ratio "$tsw" "$tpw") x"
+    echo "search_${name}_rd_over_plain_cpu $(ratio "$tsc" "$tpc") x"
+    echo "# $name: $tpw ($tpc) | $tvw ($tvc) | $trw ($trc) | $tsw ($tsc) |" \
+        "$(ratio "$tvw" "$tpw")x ($(ratio "$tvc" "$tpc")x), $(ratio "$tsw" "$tpw")x ($(ratio "$tsc" "$tpc")x)" \
+        "| $(ratio "$tsw" "$trw")x ($(ratio "$tsc" "$trc")x) | $chosen"
     rm -rf "$tmp/$name"-*
 done
