@@ -460,7 +460,7 @@ static btf_result btf__write_component(btf__writer *w, const btf_package_options
 /* Below this many atlas bytes in all, the files are written on the calling thread:
  * small packages gain nothing, and a process forked after OpenMP has run (a test's
  * child, say) cannot start OpenMP threads again (libgomp waits for the parent's). */
-#define BTF__WRITE_THREAD_MIN_BYTES ((size_t)4 << 20)
+#define BTF__WRITE_THREAD_MIN_BYTES ((size_t)1 << 20)
 
 /* Every component's files, one thread per component at a time (the encoders are
  * single-threaded); the first failing component's error is reported. */

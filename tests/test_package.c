@@ -3,6 +3,7 @@
 #include <cjson/cJSON.h>
 #include <dirent.h>
 #include <math.h>
+#include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,6 +13,7 @@
 #include "btf_gen.h"
 #include "btf_metrics.h"
 #include "btf_package.h"
+#include "test_gen_util.h"
 #include "test_util.h"
 
 /* 11 directions: 1 + 4 + 6 on three rings. */
@@ -293,6 +295,87 @@ static int fail_nth(void *ctx, int i, const char *file)
 {
     (void)file;
     return i == *(int *)ctx;
+}
+
+/* Records which OpenMP thread asked for each file; fails file *fail (-1: none). */
+typedef struct thread_log {
+    int fail;
+    int thread[64]; /* by file number; one writer each */
+} thread_log;
+
+static int log_thread(void *ctx, int i, const char *file)
+{
+    (void)file;
+    thread_log *t = ctx;
+    if (i >= 0 && i < 64)
+        t->thread[i] = omp_get_thread_num();
+    return i == t->fail;
+}
+
+/* 1 when the files a/name and b/name hold the same bytes. */
+static int same_file(const char *a, const char *b, const char *name)
+{
+    char pa[1024], pb[1024];
+    snprintf(pa, sizeof pa, "%s/%s", a, name);
+    snprintf(pb, sizeof pb, "%s/%s", b, name);
+    FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
+    int same = fa && fb;
+    for (int ca = 0; same && ca != EOF;) {
+        ca = fgetc(fa);
+        same = ca == fgetc(fb);
+    }
+    if (fa)
+        fclose(fa);
+    if (fb)
+        fclose(fb);
+    return same;
+}
+
+/* Above the writer's threshold (1 MiB of atlases: 9 tiles of 96x96 texels at k = 1,
+ * 16 components, 1.3 MiB) the component files are written on OpenMP's threads: the
+ * same bytes as on one thread, and a failing file's own error. */
+Test(package, threaded_writes_match_one_thread)
+{
+    char tmp[256], a[512], b[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(a, sizeof a, "%s/a", tmp);
+    snprintf(b, sizeof b, "%s/b", tmp);
+    btf *src = test_material(BTF_GEN_KNIT, 96, NULL, 0); /* 7 directions */
+    btf_pca_options po = {0};
+    po.k = 1, po.components = 16;
+    thread_log tl = {.fail = -1};
+    btf_package_options ko = {0};
+    ko.write_hook = log_thread, ko.hook_ctx = &tl, ko.name = "m"; /* one name: the manifests compare */
+    btf_package_options kb = {0};
+    kb.name = "m";
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, a, NULL, &err), BTF_OK, "%s", err.msg);
+    int other = 0;
+    for (int i = 0; i < 32; i++)
+        other |= tl.thread[i] != 0;
+    if (omp_get_max_threads() > 1)
+        cr_expect(other, "every file was written by thread 0 (%d threads)", omp_get_max_threads());
+    int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    cr_assert_eq(btf_package_compress(src, &po, &kb, b, NULL, &err), BTF_OK, "%s", err.msg);
+    omp_set_num_threads(threads);
+    DIR *d = opendir(a);
+    int files = 0;
+    for (struct dirent *e; d && (e = readdir(d));)
+        if (e->d_name[0] != '.') {
+            cr_expect(same_file(a, b, e->d_name), "%s differs between 1 and %d threads", e->d_name, threads);
+            files++;
+        }
+    if (d)
+        closedir(d);
+    cr_assert_eq(files, 33, "16 textures, 16 weights and the manifest");
+    /* the weights of component 7 (file 15) fail: that file's error, the old package kept */
+    tl.fail = 15;
+    cr_assert_eq(btf_package_compress(src, &po, &ko, a, NULL, &err), BTF_ERR_IO);
+    cr_expect(strstr(err.msg, "wt-07.bin: write failed"), "%s", err.msg);
+    cr_assert_eq(count_entries(tmp), 2, "a temporary directory was left beside the packages");
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(package, failing_writer_leaves_no_package)
