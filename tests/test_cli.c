@@ -31,40 +31,6 @@ static int run_captured(int (*cmd)(int, char **), int argc, char **argv, int fd,
     return rc;
 }
 
-/* Whole file into a malloc'd buffer, its size into *len; NULL if unreadable. */
-static char *slurp(const char *path, long *len)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    *len = ftell(f);
-    rewind(f);
-    char *s = malloc((size_t)*len + 1);
-    if (s && fread(s, 1, (size_t)*len, f) != (size_t)*len) {
-        free(s);
-        s = NULL;
-    }
-    fclose(f);
-    if (s)
-        s[*len] = '\0';
-    return s;
-}
-
-/* 1 if dir_a/name and dir_b/name hold the same bytes. */
-static int same_file(const char *dir_a, const char *dir_b, const char *name)
-{
-    char pa[600], pb[600];
-    snprintf(pa, sizeof pa, "%s/%s", dir_a, name);
-    snprintf(pb, sizeof pb, "%s/%s", dir_b, name);
-    long la = -1, lb = -2;
-    char *a = slurp(pa, &la), *b = slurp(pb, &lb);
-    int same = a && b && la == lb && memcmp(a, b, (size_t)la) == 0;
-    free(a);
-    free(b);
-    return same;
-}
-
 static double num(const cJSON *o, const char *k)
 {
     const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
@@ -119,10 +85,10 @@ Test(cli, k_with_equals_or_space_gives_the_same_package)
     cr_assert_str_eq(p->name, "p");
     for (int i = 0; i < p->n_chunks; i++)
         for (int f = 0; f < p->chunk[i].n_files; f++)
-            cr_assert(same_file(a, b, p->chunk[i].files[f]), "%s differs", p->chunk[i].files[f]);
+            cr_assert(test_same_file(a, b, p->chunk[i].files[f]), "%s differs", p->chunk[i].files[f]);
     btf_package_free(p);
-    cr_assert(same_file(a, b, "manifest.json"), "manifests differ");
-    cr_assert(!same_file(a, c, "manifest.json"), "--k 3 wrote what --k=2 wrote");
+    cr_assert(test_same_file(a, b, "manifest.json"), "manifests differ");
+    cr_assert(!test_same_file(a, c, "manifest.json"), "--k 3 wrote what --k=2 wrote");
     cr_assert_eq(test_rmtree(dir), 0);
 }
 

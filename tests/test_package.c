@@ -312,25 +312,6 @@ static int log_thread(void *ctx, int i, const char *file)
     return i == t->fail;
 }
 
-/* 1 when the files a/name and b/name hold the same bytes. */
-static int same_file(const char *a, const char *b, const char *name)
-{
-    char pa[1024], pb[1024];
-    snprintf(pa, sizeof pa, "%s/%s", a, name);
-    snprintf(pb, sizeof pb, "%s/%s", b, name);
-    FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
-    int same = fa && fb;
-    for (int ca = 0; same && ca != EOF;) {
-        ca = fgetc(fa);
-        same = ca == fgetc(fb);
-    }
-    if (fa)
-        fclose(fa);
-    if (fb)
-        fclose(fb);
-    return same;
-}
-
 /* Above the writer's threshold (1 MiB of atlases: 9 tiles of 96x96 texels at k = 1,
  * 16 components, 1.3 MiB) the component files are written on OpenMP's threads: the
  * same bytes as on one thread, and a failing file's own error. */
@@ -363,7 +344,7 @@ Test(package, threaded_writes_match_one_thread)
     int files = 0;
     for (struct dirent *e; d && (e = readdir(d));)
         if (e->d_name[0] != '.') {
-            cr_expect(same_file(a, b, e->d_name), "%s differs between 1 and %d threads", e->d_name, threads);
+            cr_expect(test_same_file(a, b, e->d_name), "%s differs between 1 and %d threads", e->d_name, threads);
             files++;
         }
     if (d)

@@ -40,6 +40,25 @@ static inline int test_count_files(const char *dir)
     return n;
 }
 
+/* 1 if dir_a/name and dir_b/name both exist and hold the same bytes. */
+static inline int test_same_file(const char *dir_a, const char *dir_b, const char *name)
+{
+    char pa[1024], pb[1024];
+    snprintf(pa, sizeof pa, "%s/%s", dir_a, name);
+    snprintf(pb, sizeof pb, "%s/%s", dir_b, name);
+    FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
+    int same = fa && fb;
+    for (int ca = 0; same && ca != EOF;) {
+        ca = fgetc(fa);
+        same = ca == fgetc(fb);
+    }
+    if (fa)
+        fclose(fa);
+    if (fb)
+        fclose(fb);
+    return same;
+}
+
 /* Removes path and, for a directory, everything under it (no symlinks followed).
  * 0 on success or when path does not exist, -1 otherwise. */
 static inline int test_rmtree(const char *path)
