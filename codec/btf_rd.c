@@ -150,6 +150,17 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int t
     return res;
 }
 
+/* A thread's result into *res and its message into err, unless an error is there
+ * already (called inside the critical section that ends each parallel region). */
+static void btf__rd_first_error(btf_result mine, const btf_error *e, btf_result *res, btf_error *err)
+{
+    if (mine != BTF_OK && *res == BTF_OK) {
+        *res = mine;
+        if (err)
+            *err = *e;
+    }
+}
+
 /* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
 static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
 {
@@ -173,11 +184,7 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
             if (mine == BTF_OK)
                 mine = btf__rd_tex_candidate(r, n, atlas, omp_get_thread_num(), &e);
 #pragma omp critical(btf__rd_result)
-        if (mine != BTF_OK && res == BTF_OK) {
-            res = mine;
-            if (err)
-                *err = e;
-        }
+        btf__rd_first_error(mine, &e, &res, err);
         free(atlas);
     }
     /* odd indices: the mean of the neighbours' rates (a rate is about linear in the
@@ -213,11 +220,7 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
                 r->rw[(size_t)j * BTF__RD_NW + i] = (long long)nz;
             }
 #pragma omp critical(btf__rd_result)
-        if (mine != BTF_OK && res == BTF_OK) {
-            res = mine;
-            if (err)
-                *err = e;
-        }
+        btf__rd_first_error(mine, &e, &res, err);
         free(q);
     }
     return res;
