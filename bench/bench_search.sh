@@ -37,6 +37,13 @@ median3() { printf '%s\n' "$@" | sort -g | sed -n 2p; }
 # a / b to two decimals.
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.2f", a / b }'; }
 
+# The result lines of one measured pair: search_NAME_KEY_seconds WALL and
+# search_NAME_KEY_cpu_seconds CPU.
+seconds_lines() { printf 'search_%s_%s_seconds %s s\nsearch_%s_%s_cpu_seconds %s s\n' "$1" "$2" "$3" "$1" "$2" "$4"; }
+
+# The same for a pair of ratios: search_NAME_KEY WALL, search_NAME_KEY_cpu CPU.
+ratio_lines() { printf 'search_%s_%s %s x\nsearch_%s_%s_cpu %s x\n' "$1" "$2" "$3" "$1" "$2" "$4"; }
+
 echo "# wall s (CPU s): plain, the median of 3 | search | plain --rd, the median of 3 | search --rd | search / its plain, wall (CPU) | search --rd / plain --rd | chosen by search --rd"
 for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
@@ -56,22 +63,17 @@ for spec in "${mats[@]}"; do
     read -r tsw tsc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-search" --rd --max-bytes "$tb" --quiet)"
     chosen=$(jq -r '.budget | "k \(.k) \(.components) components \(.rd_steps // "equal-noise") \(.center // "none") \(.chunks) chunks"' \
         "$tmp/$name-search/manifest.json")
-    echo "search_${name}_plain_seconds $tpw s"
-    echo "search_${name}_plain_cpu_seconds $tpc s"
-    echo "search_${name}_v1_seconds $tvw s"
-    echo "search_${name}_v1_cpu_seconds $tvc s"
-    echo "search_${name}_v1_over_plain $(ratio "$tvw" "$tpw") x"
-    echo "search_${name}_v1_over_plain_cpu $(ratio "$tvc" "$tpc") x"
-    echo "search_${name}_plain_rd_seconds $trw s"
-    echo "search_${name}_plain_rd_cpu_seconds $trc s"
-    echo "search_${name}_rd_seconds $tsw s"
-    echo "search_${name}_rd_cpu_seconds $tsc s"
-    echo "search_${name}_rd_over_plain_rd $(ratio "$tsw" "$trw") x"
-    echo "search_${name}_rd_over_plain_rd_cpu $(ratio "$tsc" "$trc") x"
-    echo "search_${name}_rd_over_plain $(ratio "$tsw" "$tpw") x"
-    echo "search_${name}_rd_over_plain_cpu $(ratio "$tsc" "$tpc") x"
+    v1w=$(ratio "$tvw" "$tpw") v1c=$(ratio "$tvc" "$tpc")   # the version-1 search over plain
+    rdw=$(ratio "$tsw" "$trw") rdc=$(ratio "$tsc" "$trc")   # the --rd search over plain --rd
+    plw=$(ratio "$tsw" "$tpw") plc=$(ratio "$tsc" "$tpc")   # the --rd search over plain
+    seconds_lines "$name" plain "$tpw" "$tpc"
+    seconds_lines "$name" v1 "$tvw" "$tvc"
+    ratio_lines "$name" v1_over_plain "$v1w" "$v1c"
+    seconds_lines "$name" plain_rd "$trw" "$trc"
+    seconds_lines "$name" rd "$tsw" "$tsc"
+    ratio_lines "$name" rd_over_plain_rd "$rdw" "$rdc"
+    ratio_lines "$name" rd_over_plain "$plw" "$plc"
     echo "# $name: $tpw ($tpc) | $tvw ($tvc) | $trw ($trc) | $tsw ($tsc) |" \
-        "$(ratio "$tvw" "$tpw")x ($(ratio "$tvc" "$tpc")x), $(ratio "$tsw" "$tpw")x ($(ratio "$tsc" "$tpc")x)" \
-        "| $(ratio "$tsw" "$trw")x ($(ratio "$tsc" "$trc")x) | $chosen"
+        "${v1w}x (${v1c}x), ${plw}x (${plc}x) | ${rdw}x (${rdc}x) | $chosen"
     rm -rf "$tmp/$name"-*
 done
