@@ -123,29 +123,35 @@ static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
 }
 
 /* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the rate
- * sample's atlas written as the package would write the atlas (its bytes on disk, the
- * smallest of the PNG filter choices, or the lossless WebP when that is smaller and
- * allowed) times rate_scale, in scratch/rd-candidate-T.png for thread T, with the
- * thread's own atlas buffer. */
+ * sample's atlas encoded as the package would write it, times rate_scale. With WebP
+ * allowed, its lossless WebP bytes alone: the writer keeps the smaller of PNG and
+ * WebP, and WebP is the smaller on nearly every candidate (section 11 has the
+ * numbers), so the PNG, three quarters of the ladder's time, is not encoded. With
+ * png_only, the PNG file (filter Up) in scratch/rd-candidate-T.png for thread T.
+ * atlas is the thread's own buffer. */
 static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
 {
-    char path[BTF_FS_PATH_MAX];
-    snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
     r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
     if ((n % BTF__RD_NT) % 2) /* odd indices: the rate interpolated by btf__rd_measure_tex */
         return BTF_OK;
     int ah = r->sub_rows * r->H;
-    btf_result res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
-    long long s = res == BTF_OK ? btf_fs_size(path) : -1;
-    remove(path);
-    uint8_t *webp = NULL;
-    size_t nw = 0;
-    if (res == BTF_OK && s >= 0 && !r->par->png_only &&
-        (res = btf_webp_encode_grey(atlas, r->aw, ah, &webp, &nw, err)) == BTF_OK && (long long)nw < s)
-        s = (long long)nw;
-    free(webp);
-    if (res == BTF_OK && s < 0)
-        res = btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
+    long long s = -1;
+    btf_result res = BTF_OK;
+    if (!r->par->png_only) {
+        uint8_t *webp = NULL;
+        size_t nw = 0;
+        res = btf_webp_encode_grey(atlas, r->aw, ah, &webp, &nw, err);
+        free(webp);
+        s = res == BTF_OK ? (long long)nw : -1;
+    } else {
+        char path[BTF_FS_PATH_MAX];
+        snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
+        res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
+        s = res == BTF_OK ? btf_fs_size(path) : -1;
+        remove(path);
+        if (res == BTF_OK && s < 0)
+            res = btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
+    }
     r->rt[n] = s < 0 ? s : (long long)llround((double)s * r->rate_scale);
     return res;
 }
