@@ -175,23 +175,31 @@ static int btf__fit_components(const btf *src, btf_pca_options po, int k, int n)
     return po.components;
 }
 
-/* Compresses candidate k with up to n components into dir and reads off its best
- * prefix; *all_kept = 1 when that prefix is every chunk. */
-static btf_result btf__budget_try(const btf *src, btf_pca_options po, const btf_package_options *opt, int k, int n,
-                                  const btf_budget *b, const char *dir, btf_budget_choice *c, int *met,
+/* Compresses candidate k with up to n components into dir, or with estimate (rd
+ * only) measures it without writing anything (btf_package_options.estimate), and
+ * reads off its best prefix; *all_kept = 1 when that prefix is every chunk. */
+static btf_result btf__budget_try(const btf *src, btf_pca_options po, btf_package_options o, int k, int n,
+                                  const btf_budget *b, const char *dir, int estimate, btf_budget_choice *c, int *met,
                                   int *all_kept, btf_error *err)
 {
     po.k = k;
     po.components = btf__fit_components(src, po, k, n);
+    char *text = NULL;
+    o.estimate = estimate ? &text : NULL;
     btf_fs_rmtree(dir, NULL);
-    btf_result r = btf_package_compress(src, &po, opt, dir, NULL, err);
+    btf_result r = btf_package_compress(src, &po, &o, dir, NULL, err);
+    if (r != BTF_OK)
+        return r;
     btf_package p;
-    if (r == BTF_OK && (r = btf_manifest_load(dir, &p, err)) == BTF_OK) {
+    memset(&p, 0, sizeof p);
+    r = estimate ? btf_manifest_parse(text, dir, &p, err) : btf_manifest_load(dir, &p, err);
+    if (r == BTF_OK) {
         *c = btf__best_prefix(&p, b, met);
         c->components = po.components;
         *all_kept = c->n_chunks > 0 && c->n_chunks == p.n_chunks;
-        btf_manifest_clear(&p);
     }
+    btf_manifest_clear(&p);
+    free(text);
     return r;
 }
 
@@ -207,32 +215,94 @@ typedef struct btf__search {
     int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
     btf_budget_result rs;
     int best, best_met;
-    btf_rd_ladder ladder;  /* the last model's measured steps: each k's second allocation reuses them */
-    btf_pca_model *model;  /* the last model: each k's second compression reuses it */
+    /* with rd: the measured steps of candidate i's model, in the slot of the first
+     * candidate of the same k, components and centring (the winner's again when it
+     * is written) */
+    btf_rd_ladder ladder[BTF_BUDGET_MAX_CANDIDATES];
+    /* with rd: [0] the best candidate's PCA model (the winner is written from it),
+     * [1] the last other one (a k's second step choice reuses it) */
+    btf_pca_model *model[2];
 } btf__search;
 
-/* Compresses candidate i (k, components, rd_fit and center already in
- * rs.candidate[i]) and keeps it as the best if it beats the best so far. */
-static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
+/* 1 when candidates a and b have the same PCA model: k, components, centring. */
+static int btf__budget_same_model(const btf_budget_choice *a, const btf_budget_choice *b)
 {
-    btf_budget_choice *c = &s->rs.candidate[i], got = {0};
-    int met = 0;
+    return a->k == b->k && a->components == b->components && a->center == b->center;
+}
+
+/* The ladder slot of candidate i: that of the first candidate with its model. */
+static btf_rd_ladder *btf__budget_ladder(btf__search *s, int i)
+{
+    int f = 0;
+    while (f < i && !btf__budget_same_model(&s->rs.candidate[f], &s->rs.candidate[i]))
+        f++;
+    return &s->ladder[f];
+}
+
+/* The model slot of candidate i: the best's when it has the best's model. */
+static int btf__budget_model_slot(const btf__search *s, int i)
+{
+    return s->best >= 0 && btf__budget_same_model(&s->rs.candidate[s->best], &s->rs.candidate[i]) ? 0 : 1;
+}
+
+/* Candidate i compressed (estimate: only measured) with its settings; into *got. */
+static btf_result btf__budget_run(btf__search *s, int i, int estimate, btf_budget_choice *got, int *met,
+                                  btf_error *err)
+{
+    const btf_budget_choice *c = &s->rs.candidate[i];
     snprintf(s->dir[i], sizeof s->dir[i], "%s.tmp-%ld-k%d-c%d%s%s", s->out, (long)getpid(), c->k, c->components,
              c->rd_fit ? "f" : "", c->center == BTF_CENTER_ROW ? "r" : "");
-    s->po.rd_max_bytes = c->rd_fit ? s->b->max_bytes : 0;
+    btf_package_options po = s->po;
+    po.rd_max_bytes = c->rd_fit ? s->b->max_bytes : 0;
+    po.rd_ladder = po.rd ? btf__budget_ladder(s, i) : NULL;
+    po.rd_model = po.rd ? &s->model[btf__budget_model_slot(s, i)] : NULL;
     btf_pca_options pca = s->pca;
     pca.center = c->center;
-    btf_result r = btf__budget_try(s->src, pca, &s->po, c->k, c->components, s->b, s->dir[i], &got, &met,
+    *got = (btf_budget_choice){0};
+    btf_result r = btf__budget_try(s->src, pca, po, c->k, c->components, s->b, s->dir[i], estimate, got, met,
                                    &s->all_kept[i], err);
-    got.rd_fit = c->rd_fit, got.center = c->center; /* the settings it was made with */
+    got->rd_fit = c->rd_fit, got->center = c->center; /* the settings it was made with */
+    return r;
+}
+
+/* Measures candidate i (k, components, rd_fit and center already in
+ * rs.candidate[i]; with rd estimated, nothing written) and keeps it as the best
+ * if it beats the best so far. */
+static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
+{
+    btf_budget_choice got;
+    int met = 0;
+    int slot = btf__budget_model_slot(s, i);
+    btf_result r = btf__budget_run(s, i, s->po.rd, &got, &met, err);
+    btf_budget_choice *c = &s->rs.candidate[i];
     *c = got;
     s->rs.n_candidates = i + 1;
     const btf_budget_choice *bc = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
     int better = c->n_chunks > 0 && (!bc || met > s->best_met ||
                                      (met == s->best_met && (s->b->max_bytes > 0 || !met ? c->lab < bc->lab
                                                                                           : c->bytes < bc->bytes)));
+    if (r == BTF_OK && better && slot == 1) { /* its model is the best's now */
+        btf_pca_model *m = s->model[0];
+        s->model[0] = s->model[1], s->model[1] = m;
+    }
     if (r == BTF_OK && better)
         s->best = i, s->best_met = met;
+    return r;
+}
+
+/* With rd the candidates were only estimated: the best one is written now, with
+ * the same model settings and steps (its ladder is kept), and its best prefix read
+ * off the files as written. */
+static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
+{
+    btf_budget_choice got;
+    int met = 0;
+    btf_result r = btf__budget_run(s, s->best, 0, &got, &met, err);
+    if (r == BTF_OK && got.n_chunks == 0)
+        r = btf_fail(err, BTF_ERR_RANGE, "budget: %lld bytes cannot hold even the first chunk as written (%lld)",
+                     s->b->max_bytes, got.bytes);
+    if (r == BTF_OK)
+        s->rs.candidate[s->best] = got, s->best_met = met;
     return r;
 }
 
@@ -284,8 +354,6 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
     int fits = po.rd && budget->max_bytes > 0 ? 2 : 1; /* version 3: each k also with steps fitted to the bytes */
     int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;
-    sr->po.rd_ladder = po.rd ? &sr->ladder : NULL;
-    sr->po.rd_model = po.rd ? &sr->model : NULL;
     for (int i = 0; i < nk; i++) /* a k's two step choices in a row: one PCA model, its ladders measured once */
         for (int fit = 0; fit < fits; fit++)
             sr->rs.candidate[nt++] =
@@ -299,6 +367,8 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     }
     if (r == BTF_OK && budget->max_components <= 0)
         r = btf__budget_grow(sr, err);
+    if (r == BTF_OK && sr->best >= 0 && po.rd)
+        r = btf__budget_write_best(sr, err);
     rs = sr->rs;
     int best = sr->best, best_met = sr->best_met;
     if (r == BTF_OK && best < 0) {
@@ -319,8 +389,10 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     }
     for (int i = 0; i < rs.n_candidates; i++)
         btf_fs_rmtree(sr->dir[i], NULL);
-    btf_rd_ladder_free(&sr->ladder);
-    btf_pca_model_free(sr->model);
+    for (int i = 0; i < BTF_BUDGET_MAX_CANDIDATES; i++)
+        btf_rd_ladder_free(&sr->ladder[i]);
+    btf_pca_model_free(sr->model[0]);
+    btf_pca_model_free(sr->model[1]);
     free(sr);
     if (res)
         *res = rs;

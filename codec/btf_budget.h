@@ -21,7 +21,11 @@
  * did not fix the count, it is tried again with 1.5x the components (16, 24, 36,
  * 56, 64: BTF_BUDGET_MAX_COMPONENTS), while that keeps winning (tiles at 256x256
  * under the thesis format's bytes, k = 9: 16 components 0.733x its CIELab error,
- * 24 0.676x, both by btf eval). The best
+ * 24 0.676x, both by btf eval). With opt->rd the candidates are only measured,
+ * nothing written (btf_package_options.estimate: chunk bytes the allocation's
+ * estimates, errors measured on the quantised model as ever), and the best one is
+ * then written from its kept model and ladder, its prefix read off the files as
+ * written (tiles at 128x128: 114 s -> 88 s). The best
  * candidate's package is cut to the chosen prefix and replaces OUT like
  * btf_package_compress.
  */

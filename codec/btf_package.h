@@ -68,6 +68,13 @@ typedef struct btf_package_options {
      * same source (btf_budget's pairs). Otherwise the new model replaces it. The
      * slot owns its model; the caller frees it with btf_pca_model_free. */
     struct btf_pca_model **rd_model;
+    /* With rd: NULL, or where to return the manifest instead of writing a package:
+     * nothing is written and out_dir is not touched; each chunk's "bytes" is the
+     * allocation's estimate of its files (btf_rd_result.comp_bytes, texture files
+     * counted as lossless WebP unless png_only), its errors are measured as ever, and
+     * the text (malloc'd, the caller frees it) parses with btf_manifest_parse.
+     * btf_budget screens its candidates this way and writes only the winner. */
+    char **estimate;
     /* Test hook: called before the writer creates package file number i (texture j
      * = 2j, its weights 2j + 1, the manifest 2C; the components' files from several
      * threads at once, in any order); a nonzero return makes that write fail like a

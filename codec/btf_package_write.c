@@ -47,6 +47,7 @@ typedef struct btf__writer {
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
     const char **tex_ext; /* C: ".png" or ".webp", the extension of component j's texture file once written */
+    long long *est_bytes; /* C, with btf_package_options.estimate: component j's estimated file bytes; else NULL */
     uint16_t **qwt;       /* C arrays V*L*3 */
     float **tex_range;    /* C arrays n_blocks*2 */
     float **wt_range;     /* C arrays n_blocks*2 */
@@ -74,7 +75,7 @@ static void btf__writer_free(btf__writer *w)
             free(w->wt_range[j]);
     }
     free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise), free(w->rd_json);
-    free(w->tex_ext);
+    free(w->tex_ext), free(w->est_bytes);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
     free(w->ref);
@@ -501,7 +502,10 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         r = btf_fail(err, BTF_ERR_NOMEM, "package: out of memory");
         goto done;
     }
-    if ((r = btf__write_components(w, o, tmp, bytes, err)) != BTF_OK)
+    if (o->estimate) /* nothing written: the allocation's estimates (version 3 only) */
+        for (int j = 0; j < C; j++)
+            bytes[j] = w->est_bytes[j], w->tex_ext[j] = o->png_only ? ".png" : ".webp";
+    else if ((r = btf__write_components(w, o, tmp, bytes, err)) != BTF_OK)
         goto done;
     btf__order(w, bytes, order);
     double n_samples = (double)w->rows * w->V * w->L * 3.0;
@@ -519,9 +523,14 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         goto done;
     }
     snprintf(path, sizeof path, "%s/manifest.json", tmp);
-    r = btf__hook(o, 2 * C, "manifest.json", err);
-    if (r == BTF_OK)
-        r = btf_fs_write_atomic(path, text, strlen(text), err);
+    if (o->estimate) {
+        *o->estimate = text; /* the caller's now */
+        text = NULL;
+    } else {
+        r = btf__hook(o, 2 * C, "manifest.json", err);
+        if (r == BTF_OK)
+            r = btf_fs_write_atomic(path, text, strlen(text), err);
+    }
     free(text);
     if (r == BTF_OK && st) {
         st->n_chunks = C;
@@ -578,11 +587,17 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
     memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
     w->rd_json = btf__rd_json(&rr);
+    if (o->estimate && (w->est_bytes = malloc((size_t)w->C * sizeof(long long))) != NULL)
+        memcpy(w->est_bytes, rr.comp_bytes, (size_t)w->C * sizeof(long long));
+    if (o->estimate && !w->est_bytes)
+        r = btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (estimates)");
     if (keep)
         *keep = rr;
     else
         btf_rd_result_free(&rr);
-    float *A = malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float));
+    float *A = r == BTF_OK ? malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
+    if (r != BTF_OK)
+        return r;
     if (!A)
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");
     for (int b = 0; r == BTF_OK && b < w->blocks->n_blocks; b++) {
@@ -663,6 +678,8 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
     w.version = o.rd ? 3 : 1;
     if (r == BTF_OK && o.rd && !(noise > 0.0f))
         r = btf_fail(err, BTF_ERR_ARG, "rate-distortion steps (rd) need 8-bit textures and tex_noise >= 0");
+    if (r == BTF_OK && o.estimate && !o.rd)
+        r = btf_fail(err, BTF_ERR_ARG, "package: estimates come from the rate-distortion allocation (rd)");
     char tmp[BTF_FS_PATH_MAX];
     if (r == BTF_OK)
         r = btf_fs_replaceable(out_dir, btf_manifest_owns_dir, NULL, err); /* refuse before the work */
@@ -692,10 +709,10 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
     }
     if (r == BTF_OK)
         r = btf__write_all(&w, &po, &o, name, tmp, stats, err);
-    if (r == BTF_OK)
+    if (r == BTF_OK && !o.estimate)
         r = btf_fs_replace_dir(tmp, out_dir, btf_manifest_owns_dir, NULL, err);
-    if (r != BTF_OK && made)
-        btf_fs_rmtree(tmp, NULL);
+    if ((r != BTF_OK || o.estimate) && made)
+        btf_fs_rmtree(tmp, NULL); /* the scratch of an estimate, or a failed package */
     if (stats) {
         stats->seconds_pca = t1 - t0;
         stats->seconds_write = btf__now() - t1;

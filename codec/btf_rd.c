@@ -384,7 +384,7 @@ void btf_rd_result_free(btf_rd_result *r)
 {
     if (!r)
         return;
-    free(r->tex_noise), free(r->wt_noise);
+    free(r->tex_noise), free(r->wt_noise), free(r->comp_bytes);
     memset(r, 0, sizeof *r);
 }
 
@@ -413,10 +413,11 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
     out->tex_noise = calloc((size_t)r.C, sizeof(float));
     out->wt_noise = calloc((size_t)r.C, sizeof(float));
+    out->comp_bytes = calloc((size_t)r.C, sizeof(long long));
     int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
     btf_result res = BTF_OK;
     if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !out->tex_noise || !out->wt_noise ||
-        !it || !iw)
+        !out->comp_bytes || !it || !iw)
         res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
     for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
         r.gt[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_TEX_LO + i));
@@ -453,8 +454,10 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
                 out->d_rd += r.dt[(size_t)j * BTF__RD_NT + it[j]] + r.dw[(size_t)j * BTF__RD_NW + iw[j]];
         }
         out->n_comp = r.C;
-        for (int j = 0; j < r.C; j++)
+        for (int j = 0; j < r.C; j++) {
             out->tex_noise[j] = r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
+            out->comp_bytes[j] = r.rt[(size_t)j * BTF__RD_NT + it[j]] + r.rw[(size_t)j * BTF__RD_NW + iw[j]];
+        }
     }
     free(it), free(iw);
     btf__rd_free(&r);

@@ -64,6 +64,7 @@ typedef struct btf_rd_result {
     long long bytes_equal;  /* files of the equal-noise allocation (atlases + deflated 16-bit weights) */
     long long bytes_rd;     /* the same files at the chosen steps (with max_bytes: of the kept components) */
     int n_kept;             /* components worth their bytes at lambda (all without max_bytes) */
+    long long *comp_bytes;  /* n_comp: component j's files at its chosen steps (counted as bytes_rd is) */
 } btf_rd_result;
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err);
