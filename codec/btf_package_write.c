@@ -458,13 +458,10 @@ static btf_result btf__write_component(btf__writer *w, const btf_package_options
     return r;
 }
 
-/* Below this many atlas bytes in all, the files are written on the calling thread:
- * small packages gain nothing, and a process forked after OpenMP has run (a test's
- * child, say) cannot start OpenMP threads again (libgomp waits for the parent's). */
-#define BTF__WRITE_THREAD_MIN_BYTES ((size_t)1 << 20)
 
 /* Every component's files, one thread per component at a time (the encoders are
- * single-threaded); the first failing component's error is reported. */
+ * single-threaded) above BTF_RD_THREAD_MIN_BYTES of atlases; the first failing
+ * component's error is reported. */
 static btf_result btf__write_components(btf__writer *w, const btf_package_options *o, const char *tmp,
                                         long long *bytes, btf_error *err)
 {
@@ -476,7 +473,7 @@ static btf_result btf__write_components(btf__writer *w, const btf_package_option
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory");
     }
     size_t atlas_bytes = (size_t)C * (size_t)w->aw * (size_t)w->ah * (size_t)w->ch;
-#pragma omp parallel for schedule(dynamic, 1) if (atlas_bytes >= BTF__WRITE_THREAD_MIN_BYTES)
+#pragma omp parallel for schedule(dynamic, 1) if (atlas_bytes >= BTF_RD_THREAD_MIN_BYTES)
     for (int j = 0; j < C; j++)
         rj[j] = btf__write_component(w, o, tmp, j, &bytes[j], &ej[j]);
     btf_result r = BTF_OK;

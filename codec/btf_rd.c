@@ -167,6 +167,12 @@ static void btf__rd_first_error(btf_result mine, const btf_error *e, btf_result 
     }
 }
 
+/* 1 when r's ladders are measured on OpenMP's threads (BTF_RD_THREAD_MIN_BYTES). */
+static int btf__rd_threaded(const btf__rd *r)
+{
+    return (size_t)r->C * (size_t)r->aw * (size_t)r->par->atlas_rows * (size_t)r->H >= BTF_RD_THREAD_MIN_BYTES;
+}
+
 /* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
 static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
 {
@@ -180,7 +186,7 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
     if (btf__rd_sample(r) != 0)
         return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (rate sample)");
     btf_result res = BTF_OK;
-#pragma omp parallel
+#pragma omp parallel if (btf__rd_threaded(r))
     {
         uint8_t *atlas = malloc((size_t)r->aw * r->sub_rows * r->H);
         btf_error e = {{0}};
@@ -210,7 +216,7 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
     btf_result res = btf__rd_measure_tex(r, err);
     if (res != BTF_OK)
         return res;
-#pragma omp parallel
+#pragma omp parallel if (btf__rd_threaded(r))
     { /* one component's weight steps per thread at a time: energy[j] has one writer */
         uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
         btf_error e = {{0}};

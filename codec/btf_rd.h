@@ -25,6 +25,12 @@
 extern "C" {
 #endif
 
+/* Below this many atlas bytes in all (components x atlas), the allocation's ladders
+ * and the package writer's files stay on the calling thread: small packages gain
+ * nothing, and a process forked after OpenMP has run (a test's child, a server's
+ * worker) cannot start OpenMP threads again (libgomp waits for the parent's). */
+#define BTF_RD_THREAD_MIN_BYTES ((size_t)1 << 20)
+
 /* The measured ladders of one model (rates and distortions of every candidate step),
  * kept so that a second allocation for the same model skips the measuring (the
  * budget search allocates twice per k: equal-noise error and fitted to the bytes).

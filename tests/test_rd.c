@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include "btf_budget.h"
@@ -619,6 +621,40 @@ Test(rd, a_budget_search_writes_only_the_winner)
     cr_assert_eq(p->n_chunks, res.n_chunks);
     cr_assert_eq(p->chunk[p->n_chunks - 1].lab, res.lab);
     cr_assert_eq(p->k, res.k);
+    btf_package_free(p);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+/* A process forked after OpenMP has run (a server's worker, a test's child) compresses
+ * a small version-3 package: the allocation stays on the calling thread there, where
+ * libgomp could not start its threads again. The child is killed after 60 s. */
+Test(rd, a_child_forked_after_openmp_compresses_a_small_package)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/f", tmp);
+    btf *src = test_material(BTF_GEN_TILES, 16, rings, 3);
+    int threads = 0;
+#pragma omp parallel reduction(+ : threads)
+    threads += 1;
+    cr_assert_geq(threads, 1);
+    pid_t pid = fork();
+    if (pid == 0) {
+        alarm(60);
+        btf_pca_options po = {0};
+        po.k = 3, po.components = 6;
+        btf_package_options ko = {0};
+        ko.rd = 1;
+        btf_error err = {0};
+        _exit(btf_package_compress(src, &po, &ko, out, NULL, &err) == BTF_OK ? 0 : 3);
+    }
+    int status = 0;
+    cr_assert_eq(waitpid(pid, &status, 0), pid);
+    cr_assert(WIFEXITED(status) && WEXITSTATUS(status) == 0, "the child %s (status %d)",
+              WIFSIGNALED(status) ? "hung and was killed" : "failed", status);
+    btf_package *p = read_ok(out);
+    cr_assert_eq(p->version, 3);
     btf_package_free(p);
     btf_free(src);
     cr_assert_eq(test_rmtree(tmp), 0);
