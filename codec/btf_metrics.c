@@ -23,7 +23,6 @@
 
 #define BTF__LIN_SEGMENTS 4096
 /* Below this many pixels in total btf_compare stays on the calling thread. */
-#define BTF__METRICS_THREAD_MIN_PIXELS ((size_t)1 << 20)
 
 /* ---------------------------------------------------------------- tables */
 
@@ -287,7 +286,7 @@ static void btf__sum_image(const btf *ref, const btf *test, size_t base, btf__su
  * does not depend on the thread count. */
 static void btf__cmp_run(const btf__cmp_job *j, size_t total_pixels)
 {
-#pragma omp parallel for schedule(static) if (total_pixels >= BTF__METRICS_THREAD_MIN_PIXELS)
+#pragma omp parallel for schedule(static) if (total_pixels >= BTF_METRICS_THREAD_MIN_PIXELS)
     for (int i = 0; i < j->n_images; i++) {
         int v = j->subset ? j->subset->views[i] : i / j->ref->lights.n_dirs;
         int l = j->subset ? j->subset->lights[i] : i % j->ref->lights.n_dirs;

@@ -18,6 +18,11 @@
 extern "C" {
 #endif
 
+/* Below this many pixel pairs a comparison stays on the calling thread (btf_compare,
+ * the package writer's error curve): small jobs gain nothing, and a process forked
+ * after OpenMP has run cannot start OpenMP threads again. */
+#define BTF_METRICS_THREAD_MIN_PIXELS ((size_t)1 << 20)
+
 /* Accumulated error statistics; plain value owned by the caller. */
 typedef struct btf_metrics {
     double mae;        /* mean |a-b| over samples, 0..255 scale */

@@ -287,7 +287,10 @@ static void btf__order(const btf__writer *w, const long long *bytes, int *order)
 }
 
 
-/* Lab (and Delta E) of every prefix on the texel subsample; rgb errors exact elsewhere. */
+/* Lab (and Delta E) of every prefix on the texel subsample; rgb errors exact elsewhere.
+ * The prefixes' sums are shared out among OpenMP's threads above
+ * BTF_METRICS_THREAD_MIN_PIXELS pixel pairs; each keeps its texel order, so the
+ * curve does not depend on the thread count. */
 static btf_result btf__lab_curve(const btf__writer *w, const int *order, int stride, btf_metrics *out,
                                  btf_error *err)
 {
@@ -301,6 +304,7 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (error curve)");
     }
     const float *refs = w->ref;
+    int threaded = (size_t)C * np * (size_t)w->sub_w * (size_t)w->sub_h >= BTF_METRICS_THREAD_MIN_PIXELS;
     for (int y = 0; y < w->H; y += stride)
         for (int x = 0; x < w->W; x += stride, refs += np * 3) {
             for (int v = 0; v < V; v++) {
@@ -324,6 +328,8 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
                         }
                     }
             }
+            /* one prefix per thread: each sum keeps one writer and its texel order */
+#pragma omp parallel for schedule(static) if (threaded)
             for (int a = 0; a < C; a++)
                 btf_metrics_add(&acc[a], ref, test + (size_t)a * np * 3, np);
         }

@@ -312,6 +312,33 @@ static int log_thread(void *ctx, int i, const char *file)
     return i == t->fail;
 }
 
+/* Above BTF_METRICS_THREAD_MIN_PIXELS pixel pairs (20 prefixes x 225 directions
+ * pairs x 256 texels = 1.15 M) the error curve's prefixes are measured on OpenMP's
+ * threads: every chunk's errors the same as on one thread, bit for bit. */
+Test(package, threaded_error_curve_matches_one_thread)
+{
+    static const btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 0.0f}};
+    char tmp[256], a[512], b[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(a, sizeof a, "%s/a", tmp);
+    snprintf(b, sizeof b, "%s/b", tmp);
+    btf *src = test_material(BTF_GEN_TILES, 16, r, 3);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 20;
+    btf_package_options ko = {0};
+    ko.name = "m";
+    cr_assert_geq((size_t)po.components * 15 * 15 * 256, BTF_METRICS_THREAD_MIN_PIXELS);
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, a, NULL, &err), BTF_OK, "%s", err.msg);
+    int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    cr_assert_eq(btf_package_compress(src, &po, &ko, b, NULL, &err), BTF_OK, "%s", err.msg);
+    omp_set_num_threads(threads);
+    cr_expect(test_same_file(a, b, "manifest.json"), "the error curve differs between 1 and %d threads", threads);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
 /* Above the writer's threshold (1 MiB of atlases: 9 tiles of 96x96 texels at k = 1,
  * 16 components, 1.3 MiB) the component files are written on OpenMP's threads: the
  * same bytes as on one thread, and a failing file's own error. */
