@@ -22,7 +22,6 @@
 #include <unistd.h>
 
 #define BTF__LIN_SEGMENTS 4096
-/* Below this many pixels in total btf_compare stays on the calling thread. */
 
 /* ---------------------------------------------------------------- tables */
 

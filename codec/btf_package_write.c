@@ -598,9 +598,9 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
         *keep = rr;
     else
         btf_rd_result_free(&rr);
-    float *A = r == BTF_OK ? malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
     if (r != BTF_OK)
         return r;
+    float *A = malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float));
     if (!A)
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");
     for (int b = 0; r == BTF_OK && b < w->blocks->n_blocks; b++) {
