@@ -312,6 +312,18 @@ static int log_thread(void *ctx, int i, const char *file)
     return i == t->fail;
 }
 
+/* btf_package_compress on one OpenMP thread, the thread count restored afterwards. */
+static void compress_one_thread(const btf *src, const btf_pca_options *po, const btf_package_options *ko,
+                                const char *dir)
+{
+    int threads = omp_get_max_threads();
+    btf_error err = {0};
+    omp_set_num_threads(1);
+    btf_result r = btf_package_compress(src, po, ko, dir, NULL, &err);
+    omp_set_num_threads(threads);
+    cr_assert_eq(r, BTF_OK, "%s", err.msg);
+}
+
 /* Above BTF_METRICS_THREAD_MIN_PIXELS pixel pairs (20 prefixes x 225 directions
  * pairs x 256 texels = 1.15 M) the error curve's prefixes are measured on OpenMP's
  * threads: every chunk's errors the same as on one thread, bit for bit. */
@@ -330,11 +342,9 @@ Test(package, threaded_error_curve_matches_one_thread)
     cr_assert_geq((size_t)po.components * 15 * 15 * 256, BTF_METRICS_THREAD_MIN_PIXELS);
     btf_error err = {0};
     cr_assert_eq(btf_package_compress(src, &po, &ko, a, NULL, &err), BTF_OK, "%s", err.msg);
-    int threads = omp_get_max_threads();
-    omp_set_num_threads(1);
-    cr_assert_eq(btf_package_compress(src, &po, &ko, b, NULL, &err), BTF_OK, "%s", err.msg);
-    omp_set_num_threads(threads);
-    cr_expect(test_same_file(a, b, "manifest.json"), "the error curve differs between 1 and %d threads", threads);
+    compress_one_thread(src, &po, &ko, b);
+    cr_expect(test_same_file(a, b, "manifest.json"), "the error curve differs between 1 and %d threads",
+              omp_get_max_threads());
     btf_free(src);
     cr_assert_eq(test_rmtree(tmp), 0);
 }
@@ -364,9 +374,7 @@ Test(package, threaded_writes_match_one_thread)
     if (omp_get_max_threads() > 1)
         cr_expect(other, "every file was written by thread 0 (%d threads)", omp_get_max_threads());
     int threads = omp_get_max_threads();
-    omp_set_num_threads(1);
-    cr_assert_eq(btf_package_compress(src, &po, &kb, b, NULL, &err), BTF_OK, "%s", err.msg);
-    omp_set_num_threads(threads);
+    compress_one_thread(src, &po, &kb, b);
     DIR *d = opendir(a);
     int files = 0;
     for (struct dirent *e; d && (e = readdir(d));)
