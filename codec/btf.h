@@ -178,6 +178,8 @@ void btf_get_image(const btf *b, int view, int light, float *dst);
 
 /* Spatial box downsampling by an integer factor (width and height must divide). */
 btf_result btf_downsample(const btf *src, int factor, btf **out, btf_error *err);
+/* The w x h window of src at (x0, y0), a new BTF of the same directions and storage. */
+btf_result btf_crop(const btf *src, int x0, int y0, int w, int h, btf **out, btf_error *err);
 /* Checks every sample is finite (BTF_F32); BTF_ERR_NUMERIC names the first bad one. */
 btf_result btf_check_finite(const btf *b, btf_error *err);
 

@@ -147,6 +147,24 @@ btf_result btf_downsample(const btf *src, int factor, btf **out, btf_error *err)
     return BTF_OK;
 }
 
+btf_result btf_crop(const btf *src, int x0, int y0, int w, int h, btf **out, btf_error *err)
+{
+    if (!src || !out || x0 < 0 || y0 < 0 || w < 1 || h < 1 || w > src->width - x0 || h > src->height - y0)
+        return btf_fail(err, BTF_ERR_ARG, "btf_crop: window %dx%d at (%d, %d) is outside %dx%d", w, h, x0, y0,
+                        src ? src->width : 0, src ? src->height : 0);
+    btf_result r = btf_create(w, h, &src->lights, &src->views, src->storage, out, err);
+    if (r != BTF_OK)
+        return r;
+    size_t es = src->storage == BTF_U8 ? 1 : sizeof(float), row = (size_t)w * 3 * es;
+    const uint8_t *s = src->data;
+    uint8_t *d = (*out)->data;
+    for (int v = 0; v < src->views.n_dirs; v++)
+        for (int l = 0; l < src->lights.n_dirs; l++)
+            for (int y = 0; y < h; y++)
+                memcpy(d + btf_index(*out, v, l, 0, y, 0) * es, s + btf_index(src, v, l, x0, y0 + y, 0) * es, row);
+    return BTF_OK;
+}
+
 btf_result btf_check_finite(const btf *b, btf_error *err)
 {
     if (b->storage == BTF_U8)

@@ -65,6 +65,41 @@ Test(core, downsample_box_filter)
     btf_free(s);
 }
 
+/* Every sample of the window equals the source's at the shifted texel (btf_get on
+ * both: an independent read of the layout), in both storages; windows that leave
+ * the material are refused. */
+Test(core, crop_copies_the_window)
+{
+    btf_dirset d = btf_dirset_ubo2003();
+    for (int st = BTF_U8; st <= BTF_F32; st++) {
+        btf *m = NULL, *c = NULL;
+        cr_assert_eq(btf_create(7, 5, &d, &d, (btf_storage)st, &m, NULL), BTF_OK);
+        for (int v = 0; v < 81; v += 40)
+            for (int l = 0; l < 81; l += 20)
+                for (int y = 0; y < 5; y++)
+                    for (int x = 0; x < 7; x++)
+                        for (int ch = 0; ch < 3; ch++)
+                            btf_set(m, v, l, x, y, ch, (float)((v + 3 * l + 5 * x + 11 * y + 17 * ch) % 256) / 255.0f);
+        cr_assert_eq(btf_crop(m, 2, 1, 4, 3, &c, NULL), BTF_OK);
+        cr_assert(c->width == 4 && c->height == 3 && c->storage == m->storage);
+        for (int v = 0; v < 81; v += 40)
+            for (int l = 0; l < 81; l += 20)
+                for (int y = 0; y < 3; y++)
+                    for (int x = 0; x < 4; x++)
+                        for (int ch = 0; ch < 3; ch++)
+                            cr_assert_eq(btf_get(c, v, l, x, y, ch), btf_get(m, v, l, x + 2, y + 1, ch));
+        btf_free(c);
+        c = NULL;
+        btf_error err = {0};
+        cr_expect_eq(btf_crop(m, 4, 0, 4, 3, &c, &err), BTF_ERR_ARG, "one column past the right edge");
+        cr_expect_eq(btf_crop(m, 0, 3, 1, 3, &c, &err), BTF_ERR_ARG, "one row past the bottom edge");
+        cr_expect_eq(btf_crop(m, -1, 0, 1, 1, &c, &err), BTF_ERR_ARG);
+        cr_expect_eq(btf_crop(m, 0, 0, 0, 1, &c, &err), BTF_ERR_ARG);
+        cr_expect_null(c);
+        btf_free(m);
+    }
+}
+
 Test(dirset, builtins_have_expected_counts_and_order)
 {
     btf_dirset u = btf_dirset_ubo2003(), dome = btf_dirset_dome151();
