@@ -4,6 +4,11 @@
 #include <stdlib.h>
 #include <zlib.h>
 
+/* zlib's level for the weights. 9 spends its time on the long runs of coarsely
+ * quantised weights: on tiles at 128x128 (k 9, 24 components) level 6 made the
+ * files 1.4% larger and the allocation's weight ladders about twice as fast. */
+#define BTF_WTZ_LEVEL 6
+
 size_t btf_wtz_max_bytes(int V, int L)
 {
     return 2 * (size_t)V * L * 3 + 1024;
@@ -27,7 +32,7 @@ btf_result btf_wtz_encode(const uint16_t *q, int V, int L, uint8_t **out, size_t
         raw[n + i] = (uint8_t)(zz >> 8);
     }
     uLongf zl = bound;
-    int zr = compress2(z, &zl, raw, (uLong)(2 * n), Z_BEST_COMPRESSION);
+    int zr = compress2(z, &zl, raw, (uLong)(2 * n), BTF_WTZ_LEVEL);
     free(raw);
     if (zr != Z_OK) {
         free(z);
