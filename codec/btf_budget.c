@@ -3,6 +3,7 @@
 #include "btf_budget.h"
 
 #include <cjson/cJSON.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -74,6 +75,10 @@ static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
     cJSON_AddNumberToObject(o, "chunks", res->n_chunks);
     cJSON_AddNumberToObject(o, "bytes", (double)res->bytes);
     cJSON_AddNumberToObject(o, "lab", res->lab);
+    if (res->screen_width > 0) {
+        int wh[2] = {res->screen_width, res->screen_height};
+        cJSON_AddItemToObject(o, "screen", cJSON_CreateIntArray(wh, 2));
+    }
     cands = cJSON_AddArrayToObject(o, "candidates");
     for (int i = 0; cands && i < res->n_candidates; i++) {
         const btf_budget_choice *c = &res->candidate[i];
@@ -175,6 +180,20 @@ static int btf__fit_components(const btf *src, btf_pca_options po, int k, int n)
     return po.components;
 }
 
+/* Counts the texture files of every chunk of p, written in dir, o.tex_rate_scale
+ * times over (a package of the search's window standing for the whole material). */
+static void btf__budget_scale_textures(btf_package *p, const char *dir, double scale)
+{
+    char path[BTF_FS_PATH_MAX + 80];
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; f < p->chunk[i].n_files; f++)
+            if (!strncmp(p->chunk[i].files[f], "tex-", 4)) {
+                snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
+                long long n = btf_fs_size(path);
+                p->chunk[i].bytes += n > 0 ? llround((double)n * (scale - 1.0)) : 0;
+            }
+}
+
 /* Compresses candidate k with up to n components into dir, or with estimate (rd
  * only) measures it without writing anything (btf_package_options.estimate), and
  * reads off its best prefix; *all_kept = 1 when that prefix is every chunk. */
@@ -193,6 +212,8 @@ static btf_result btf__budget_try(const btf *src, btf_pca_options po, btf_packag
     btf_package p;
     memset(&p, 0, sizeof p);
     r = estimate ? btf_manifest_parse(text, dir, &p, err) : btf_manifest_load(dir, &p, err);
+    if (r == BTF_OK && !estimate && o.tex_rate_scale > 1.0)
+        btf__budget_scale_textures(&p, dir, o.tex_rate_scale);
     if (r == BTF_OK) {
         *c = btf__best_prefix(&p, b, met);
         c->components = po.components;
@@ -207,6 +228,11 @@ static btf_result btf__budget_try(const btf *src, btf_pca_options po, btf_packag
  * btf_budget_compress for one call. */
 typedef struct btf__search {
     const btf *src;
+    /* with rd: what the candidates are measured on, src or its centre window
+     * (btf__budget_screen; owned here when it is not src), and that window's
+     * texture bytes factor */
+    const btf *screen;
+    double screen_scale;
     btf_pca_options pca;
     btf_package_options po;
     const btf_budget *b;
@@ -215,12 +241,14 @@ typedef struct btf__search {
     int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
     btf_budget_result rs;
     int best, best_met;
+    int min_chunks; /* a candidate keeping fewer chunks cannot be the best (the growth's rule) */
+    double edge;    /* a candidate must have below edge x the best's error (bytes) to replace it */
     /* with rd: the measured steps of candidate i's model, in the slot of the first
      * candidate of the same k, components and centring (the winner's again when it
      * is written) */
     btf_rd_ladder ladder[BTF_BUDGET_MAX_CANDIDATES];
     /* with rd: [0] the best candidate's PCA model (the winner is written from it),
-     * [1] the last other one (a k's second step choice reuses it) */
+     * [1] the last other one */
     btf_pca_model *model[2];
 } btf__search;
 
@@ -245,10 +273,13 @@ static int btf__budget_model_slot(const btf__search *s, int i)
     return s->best >= 0 && btf__budget_same_model(&s->rs.candidate[s->best], &s->rs.candidate[i]) ? 0 : 1;
 }
 
-/* Candidate i compressed (estimate: only measured) with its settings; into *got. */
-static btf_result btf__budget_run(btf__search *s, int i, int estimate, btf_budget_choice *got, int *met,
+/* Candidate i measured with its settings on the search's window (final: compressed
+ * from the whole material and written); into *got. With rd a measured candidate is
+ * only estimated, without it written on the window. */
+static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_choice *got, int *met,
                                   btf_error *err)
 {
+    int estimate = s->po.rd && !final;
     const btf_budget_choice *c = &s->rs.candidate[i];
     snprintf(s->dir[i], sizeof s->dir[i], "%s.tmp-%ld-k%d-c%d%s%s", s->out, (long)getpid(), c->k, c->components,
              c->rd_fit ? "f" : "", c->center == BTF_CENTER_ROW ? "r" : "");
@@ -258,29 +289,35 @@ static btf_result btf__budget_run(btf__search *s, int i, int estimate, btf_budge
     po.rd_model = po.rd ? &s->model[btf__budget_model_slot(s, i)] : NULL;
     btf_pca_options pca = s->pca;
     pca.center = c->center;
+    const btf *src = final ? s->src : s->screen;
+    if (src != s->src) { /* the window's textures stand for the material's */
+        po.tex_rate_scale = s->screen_scale;
+        int lab = po.lab_max_texels > 0 ? po.lab_max_texels : 256;
+        po.lab_max_texels = (int)(lab / s->screen_scale) > 16 ? (int)(lab / s->screen_scale) : 16;
+    }
     *got = (btf_budget_choice){0};
-    btf_result r = btf__budget_try(s->src, pca, po, c->k, c->components, s->b, s->dir[i], estimate, got, met,
+    btf_result r = btf__budget_try(src, pca, po, c->k, c->components, s->b, s->dir[i], estimate, got, met,
                                    &s->all_kept[i], err);
     got->rd_fit = c->rd_fit, got->center = c->center; /* the settings it was made with */
     return r;
 }
 
 /* Measures candidate i (k, components, rd_fit and center already in
- * rs.candidate[i]; with rd estimated, nothing written) and keeps it as the best
- * if it beats the best so far. */
+ * rs.candidate[i]; on the window; with rd estimated, nothing written) and keeps it
+ * as the best if it beats the best so far. */
 static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
 {
     btf_budget_choice got;
     int met = 0;
     int slot = btf__budget_model_slot(s, i);
-    btf_result r = btf__budget_run(s, i, s->po.rd, &got, &met, err);
+    btf_result r = btf__budget_run(s, i, 0, &got, &met, err);
     btf_budget_choice *c = &s->rs.candidate[i];
     *c = got;
     s->rs.n_candidates = i + 1;
     const btf_budget_choice *bc = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
-    int better = c->n_chunks > 0 && (!bc || met > s->best_met ||
-                                     (met == s->best_met && (s->b->max_bytes > 0 || !met ? c->lab < bc->lab
-                                                                                          : c->bytes < bc->bytes)));
+    int better = c->n_chunks > 0 && c->n_chunks >= s->min_chunks && (!bc || met > s->best_met ||
+                                     (met == s->best_met && (s->b->max_bytes > 0 || !met ? c->lab < s->edge * bc->lab
+                                                                                          : c->bytes < s->edge * bc->bytes)));
     if (r == BTF_OK && better && slot == 1) { /* its model is the best's now */
         btf_pca_model *m = s->model[0];
         s->model[0] = s->model[1], s->model[1] = m;
@@ -290,14 +327,15 @@ static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
     return r;
 }
 
-/* With rd the candidates were only estimated: the best one is written now, with
- * the same model settings and steps (its ladder is kept), and its best prefix read
- * off the files as written. */
+/* The candidates were measured on a window or only estimated (rd): the best one is
+ * compressed from the whole material now (on the whole material with rd, from its
+ * kept model and ladder: the same steps), and its best prefix read off the files as
+ * written. */
 static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
 {
     btf_budget_choice got;
     int met = 0;
-    btf_result r = btf__budget_run(s, s->best, 0, &got, &met, err);
+    btf_result r = btf__budget_run(s, s->best, 1, &got, &met, err);
     if (r == BTF_OK && got.n_chunks == 0)
         r = btf_fail(err, BTF_ERR_RANGE, "budget: %lld bytes cannot hold even the first chunk as written (%lld)",
                      s->b->max_bytes, got.bytes);
@@ -311,7 +349,11 @@ static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
  * renderer reads 4 per texel; up to BTF_BUDGET_MAX_COMPONENTS and what its blocks
  * hold); stops when the larger one does not win. Steps of 1.5x, not 2x: with the
  * steps fitted to the bytes the error is not monotonic in the count (tiles at
- * 256x256: 16 components CIELab 1.82, 24 1.70, 32 1.74). */
+ * 256x256: 16 components CIELab 1.82, 24 1.70, 32 1.74). The larger one wins only
+ * with more chunks kept, not by a lower error alone: with as many chunks it holds
+ * about the same components, and its edge is noise of the window (stone at 128x128:
+ * 24 components kept 16 chunks at the 16's error on the window, 5% more error on
+ * the whole material). */
 static btf_result btf__budget_grow(btf__search *s, btf_error *err)
 {
     btf_result r = BTF_OK;
@@ -324,9 +366,33 @@ static btf_result btf__budget_grow(btf__search *s, btf_error *err)
             break; /* the blocks hold no more */
         int i = s->rs.n_candidates, was = s->best;
         s->rs.candidate[i] = (btf_budget_choice){.k = c.k, .components = n, .rd_fit = c.rd_fit, .center = c.center};
+        s->min_chunks = c.n_chunks + 1;
         r = btf__budget_eval(s, i, err);
+        s->min_chunks = 0;
         if (s->best == was)
             break;
+    }
+    return r;
+}
+
+/* The candidates are measured on the centre window of half the material's width
+ * and height where a side has at least BTF_BUDGET_SCREEN_MIN texels (a quarter of
+ * the texels: the PCA, the ladders, the quantisation pass and the files cost about
+ * a quarter), its texture bytes counted whole texels / window texels times over and
+ * its CIELab subsample as many times smaller (the same texel stride); the winner is
+ * then compressed from the whole material (btf__budget_write_best). */
+static btf_result btf__budget_screen(btf__search *s, btf_error *err)
+{
+    int w = s->src->width, h = s->src->height;
+    int cw = w >= BTF_BUDGET_SCREEN_MIN ? w / 2 : w, ch = h >= BTF_BUDGET_SCREEN_MIN ? h / 2 : h;
+    s->rs.screen_width = w, s->rs.screen_height = h;
+    if ((long)cw * ch == (long)w * h || s->b->full_search)
+        return BTF_OK;
+    btf *win = NULL;
+    btf_result r = btf_crop(s->src, (w - cw) / 2, (h - ch) / 2, cw, ch, &win, err);
+    if (r == BTF_OK) {
+        s->screen = win, s->screen_scale = (double)w * h / ((double)cw * ch);
+        s->rs.screen_width = cw, s->rs.screen_height = ch;
     }
     return r;
 }
@@ -349,25 +415,27 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     btf__search *sr = calloc(1, sizeof *sr);
     if (!sr)
         return btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
-    *sr = (btf__search){.src = src, .pca = pca ? *pca : (btf_pca_options){0}, .po = po, .b = budget, .out = out,
-                        .best = -1};
+    *sr = (btf__search){.src = src, .screen = src, .screen_scale = 1.0, .pca = pca ? *pca : (btf_pca_options){0},
+                        .po = po, .b = budget, .out = out, .best = -1, .edge = 1.0};
+    if (r == BTF_OK)
+        r = btf__budget_screen(sr, err);
     int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
-    int fits = po.rd && budget->max_bytes > 0 ? 2 : 1; /* version 3: each k also with steps fitted to the bytes */
+    int fit = po.rd && budget->max_bytes > 0; /* version 3: steps fitted to the bytes */
     int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;
-    for (int i = 0; i < nk; i++) /* a k's two step choices in a row: one PCA model, its ladders measured once */
-        for (int fit = 0; fit < fits; fit++)
-            sr->rs.candidate[nt++] =
-                (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
+    for (int i = 0; i < nk; i++)
+        sr->rs.candidate[nt++] = (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
     for (int i = 0; r == BTF_OK && i < nt; i++)
         r = btf__budget_eval(sr, i, err);
     if (r == BTF_OK && sr->best >= 0 && sr->pca.center == BTF_CENTER_DEFAULT) { /* the best, centred */
         sr->rs.candidate[nt] = sr->rs.candidate[sr->best];
         sr->rs.candidate[nt].center = BTF_CENTER_ROW;
+        sr->edge = sr->screen != src ? 1.0 - BTF_BUDGET_SCREEN_EDGE : 1.0;
         r = btf__budget_eval(sr, nt, err);
+        sr->edge = 1.0;
     }
     if (r == BTF_OK && budget->max_components <= 0)
         r = btf__budget_grow(sr, err);
-    if (r == BTF_OK && sr->best >= 0 && po.rd)
+    if (r == BTF_OK && sr->best >= 0 && (po.rd || sr->screen != src))
         r = btf__budget_write_best(sr, err);
     rs = sr->rs;
     int best = sr->best, best_met = sr->best_met;
@@ -393,6 +461,8 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
         btf_rd_ladder_free(&sr->ladder[i]);
     btf_pca_model_free(sr->model[0]);
     btf_pca_model_free(sr->model[1]);
+    if (sr->screen != src)
+        btf_free((btf *)sr->screen);
     free(sr);
     if (res)
         *res = rs;

@@ -10,24 +10,28 @@
  * manifest gives the bytes and the measured CIELab error of every chunk prefix
  * (the chunk order is by error drop per byte, doc/package-format.md section 7),
  * so every budget of that k is read off one compression. With opt->rd (version 3)
- * and max_bytes, each k is tried twice: steps fitted to the bytes
- * (btf_package_options.rd_max_bytes) and the equal-noise error's steps; the error
- * measured (CIELab, which the squared error of the allocation only approximates)
- * decides. Unless pca sets a centring, the best candidate is then tried once more
- * with the thesis's row centring (component 0 = the texel's mean), which wins on
- * materials made of a mean and a few terms (the thesis corduroy at 256x256: 15% fewer
- * bytes at the same error). When the best candidate keeps every component it was
- * compressed with (the component count, not the budget, stopped it) and the caller
- * did not fix the count, it is tried again with 1.5x the components (16, 24, 36,
- * 56, 64: BTF_BUDGET_MAX_COMPONENTS), while that keeps winning (tiles at 256x256
- * under the thesis format's bytes, k = 9: 16 components 0.733x its CIELab error,
- * 24 0.676x, both by btf eval). With opt->rd the candidates are only measured,
- * nothing written (btf_package_options.estimate: chunk bytes the allocation's
- * estimates, errors measured on the quantised model as ever), and the best one is
- * then written from its kept model and ladder, its prefix read off the files as
- * written (tiles at 128x128: 114 s -> 88 s). The best
- * candidate's package is cut to the chosen prefix and replaces OUT like
- * btf_package_compress.
+ * and max_bytes, each k's steps are fitted to the bytes
+ * (btf_package_options.rd_max_bytes). Unless pca sets a centring, the best
+ * candidate is then tried once more with the thesis's row centring (component 0 =
+ * the texel's mean; on a window it must win by BTF_BUDGET_SCREEN_EDGE), which wins
+ * on materials made of a mean and a few terms (the thesis corduroy at 256x256: 15%
+ * fewer bytes at the same error). When the best candidate keeps every component it
+ * was compressed with (the component count, not the budget, stopped it) and the
+ * caller did not fix the count, it is tried again with 1.5x the components (16,
+ * 24, 36, 56, 64: BTF_BUDGET_MAX_COMPONENTS) while that keeps more chunks at a
+ * lower error (tiles at 256x256 under the thesis format's bytes, k = 9: 16
+ * components 0.733x its CIELab error, 24 0.676x, both by btf eval).
+ *
+ * The candidates are measured on the material's centre window of half its width
+ * and height when a side has BTF_BUDGET_SCREEN_MIN texels or more (texture bytes
+ * counted whole texels / window texels times over; budget->full_search: on the
+ * whole material), and with opt->rd only measured, nothing written
+ * (btf_package_options.estimate: chunk bytes the allocation's estimates, errors
+ * measured on the quantised model as ever). The best one is then compressed from
+ * the whole material (with rd and no window, from its kept model and ladder), its
+ * prefix read off the files as written, cut to the chosen prefix, and it replaces
+ * OUT like btf_package_compress. doc/package-format.md section 11 ("What the search
+ * costs") has the numbers.
  */
 #ifndef BTF_BUDGET_H
 #define BTF_BUDGET_H
@@ -41,9 +45,14 @@ extern "C" {
 #define BTF_BUDGET_MAX_K 8 /* candidate k values at most */
 #define BTF_BUDGET_COMPONENTS 16     /* components per candidate when the caller fixes none */
 #define BTF_BUDGET_MAX_COMPONENTS 64 /* the most the growth tries: the renderer's chunk limit */
+#define BTF_BUDGET_SCREEN_MIN 128 /* a side of at least this many texels is halved to screen */
+/* On a window the centred retry replaces the best only with this much less error (or
+ * fewer bytes): stone at 128x128, version 1: 1.3% less on the window, 7% more on the
+ * whole material; the centred wins where it pays by 15-25% (the thesis corduroy). */
+#define BTF_BUDGET_SCREEN_EDGE 0.03
 #define BTF_BUDGET_MAX_GROW 4        /* growth rounds: 16 -> 24 -> 36 -> 56 -> 64 */
-/* each k twice (rd), one centred, the growth rounds */
-#define BTF_BUDGET_MAX_CANDIDATES (2 * BTF_BUDGET_MAX_K + 1 + BTF_BUDGET_MAX_GROW)
+/* each k, one centred, the growth rounds */
+#define BTF_BUDGET_MAX_CANDIDATES (BTF_BUDGET_MAX_K + 1 + BTF_BUDGET_MAX_GROW)
 
 /* What to meet; plain value. Exactly one of max_bytes, max_error is set. */
 typedef struct btf_budget {
@@ -51,6 +60,7 @@ typedef struct btf_budget {
     double max_error;    /* > 0: the fewest bytes whose CIELab error (as btf eval reports) is <= this */
     int max_components;  /* components compressed per candidate; 0 = 16, then 1.5x while all are kept */
     int k[BTF_BUDGET_MAX_K], n_k; /* candidate k; n_k = 0: 1, 3 and 9 (those the views allow) */
+    int full_search; /* with rd: 1 = candidates measured on the whole material, not on its centre window */
 } btf_budget;
 
 /* One candidate's best prefix; plain value. */
@@ -71,6 +81,7 @@ typedef struct btf_budget_result {
     long long bytes;
     double lab, rmse;
     int met;         /* 1: the budget is met (0 with max_error: the lowest error reached is reported) */
+    int screen_width, screen_height; /* the window the candidates were measured on (with rd) */
     int n_candidates;
     btf_budget_choice candidate[BTF_BUDGET_MAX_CANDIDATES];
 } btf_budget_result;

@@ -75,6 +75,10 @@ typedef struct btf_package_options {
      * the text (malloc'd, the caller frees it) parses with btf_manifest_parse.
      * btf_budget screens its candidates this way and writes only the winner. */
     char **estimate;
+    /* With estimate: the texture files' bytes are counted this many times over (0 =
+     * once): btf_budget screens on a window of the material and counts its textures
+     * as the whole material's (texels of the whole / texels of the window). */
+    double tex_rate_scale;
     /* Test hook: called before the writer creates package file number i (texture j
      * = 2j, its weights 2j + 1, the manifest 2C; the components' files from several
      * threads at once, in any order); a nonzero return makes that write fail like a

@@ -421,21 +421,19 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
     return s;
 }
 
-/* Component j's atlas as tmp/tex-JJ.png, or for version 3 (8 bits) the smaller of
- * that and tmp/tex-JJ.webp unless o->png_only (doc/package-format.md section 4);
- * *bytes its size. */
+/* Component j's atlas as tmp/tex-JJ.png, or for version 3 (8 bits) as a lossless
+ * tmp/tex-JJ.webp unless o->png_only: the smaller of the two on nearly every atlas,
+ * as the allocation's ladder assumes (doc/package-format.md section 11 has the
+ * numbers); *bytes its size. */
 static btf_result btf__write_texture(btf__writer *w, const btf_package_options *o, const char *tmp, int j,
                                      long long *bytes, btf_error *err)
 {
     char path[8192];
     snprintf(path, sizeof path, "%s/tex-%02d", tmp, j);
-    w->tex_ext[j] = ".png";
-    if (w->version == 3 && w->ch == 1)
-        return btf_image_write_smallest(path, w->aw, w->ah, w->atlas[j],
-                                        BTF_IMAGE_PNG_SMALLEST | (o->png_only ? BTF_IMAGE_NO_WEBP : 0), &w->tex_ext[j],
-                                        bytes, err);
+    int webp = w->version == 3 && w->ch == 1 && !o->png_only;
+    w->tex_ext[j] = webp ? ".webp" : ".png";
     size_t n = strlen(path);
-    snprintf(path + n, sizeof path - n, ".png");
+    snprintf(path + n, sizeof path - n, "%s", w->tex_ext[j]);
     btf_result r = btf_image_write_flags(path, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST, err);
     *bytes = btf_fs_size(path);
     return r;
@@ -582,7 +580,8 @@ static int btf__model_fits(const btf_pca_model *m, const btf_views *src, const b
 static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
                                    const btf_package_options *o, const char *tmp, btf_error *err)
 {
-    btf_rd_params par = {m, w->acols, w->arows, noise, tmp, o->rd_max_bytes, o->png_only, o->rd_ladder};
+    btf_rd_params par = {m,           w->acols,     w->arows,     noise, tmp, o->rd_max_bytes,
+                         o->png_only, o->rd_ladder, o->estimate ? o->tex_rate_scale : 0.0};
     btf_rd_result rr, *keep = o->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)

@@ -167,10 +167,13 @@ static void btf__rd_first_error(btf_result mine, const btf_error *e, btf_result 
     }
 }
 
-/* 1 when r's ladders are measured on OpenMP's threads (BTF_RD_THREAD_MIN_BYTES). */
+/* 1 when r's ladders are measured on OpenMP's threads (BTF_RD_THREAD_MIN_BYTES):
+ * the bytes of every component's atlas and 16-bit weights. */
 static int btf__rd_threaded(const btf__rd *r)
 {
-    return (size_t)r->C * (size_t)r->aw * (size_t)r->par->atlas_rows * (size_t)r->H >= BTF_RD_THREAD_MIN_BYTES;
+    size_t atlas = (size_t)r->aw * (size_t)r->par->atlas_rows * (size_t)r->H;
+    size_t weights = (size_t)r->V * (size_t)r->L * 3u * sizeof(uint16_t);
+    return (size_t)r->C * (atlas + weights) >= BTF_RD_THREAD_MIN_BYTES;
 }
 
 /* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
@@ -185,6 +188,8 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
                 cblas_snrm2(r->m->block[b].cols, r->m->block[b].w + (size_t)j * r->m->block[b].cols, 1);
     if (btf__rd_sample(r) != 0)
         return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (rate sample)");
+    if (r->par->tex_rate_scale > 0.0)
+        r->rate_scale *= r->par->tex_rate_scale;
     btf_result res = BTF_OK;
 #pragma omp parallel if (btf__rd_threaded(r))
     {

@@ -25,7 +25,8 @@
 extern "C" {
 #endif
 
-/* Below this many atlas bytes in all (components x atlas), the allocation's ladders
+/* Below this many bytes in all (components x (atlas + 16-bit weights); the package
+ * writer: components x atlas), the allocation's ladders
  * and the package writer's files stay on the calling thread: small packages gain
  * nothing, and a process forked after OpenMP has run (a test's child, a server's
  * worker) cannot start OpenMP threads again (libgomp waits for the parent's). */
@@ -58,6 +59,7 @@ typedef struct btf_rd_params {
     /* NULL, or ladders to reuse when they were measured on this model (same key),
      * else measured and stored there for the next call */
     btf_rd_ladder *ladder;
+    double tex_rate_scale; /* > 0: texture bytes counted this many times over (btf_package_options) */
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */

@@ -439,7 +439,30 @@ Test(rd, cli_rd_writes_version_3_and_refuses_levels_or_16_bits)
     cr_assert_eq(test_rmtree(tmp), 0);
 }
 
-Test(rd, budget_tries_fitted_and_equal_noise_steps_and_keeps_the_lower_error)
+/* --full-search reaches btf_budget.full_search: a material below the window's size
+ * is measured whole either way, and the record says so. */
+Test(rd, cli_full_search_is_accepted_and_recorded)
+{
+    char tmp[256], out[512];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/c", tmp);
+    char *argv[] = {"compress", "gen:knit:8:77", out, "--rd", "--max-bytes", "90000", "--components", "3",
+                    "--full-search", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(10, argv), 0);
+    btf_package *p = read_ok(out);
+    cJSON *bj = cJSON_Parse(p->budget), *scr = cJSON_GetObjectItem(bj, "screen");
+    cr_assert(cJSON_GetArraySize(scr) == 2 && cJSON_GetArrayItem(scr, 0)->valueint == 8 &&
+              cJSON_GetArrayItem(scr, 1)->valueint == 8);
+    cJSON_Delete(bj);
+    btf_package_free(p);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+/* Under a byte budget every candidate's steps are fitted to the bytes (the
+ * equal-noise steps, cut to a prefix, lost to them on every k of the tiles at
+ * 128x128: doc/package-format.md section 11); the lower error of the candidate and
+ * its centred retry is kept. */
+Test(rd, budget_fits_the_steps_to_the_bytes_and_keeps_the_lower_error)
 {
     char tmp[256], out[512];
     cr_assert(test_tmpdir(tmp, sizeof tmp));
@@ -452,15 +475,15 @@ Test(rd, budget_tries_fitted_and_equal_noise_steps_and_keeps_the_lower_error)
     btf_budget_result res;
     btf_error err = {0};
     cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(res.n_candidates, 3, "equal-noise, fitted, and the better of them with row centring");
-    cr_assert_eq(res.candidate[0].rd_fit, 0);
-    cr_assert_eq(res.candidate[1].rd_fit, 1);
-    const btf_budget_choice *lo = res.candidate[0].lab <= res.candidate[1].lab ? &res.candidate[0] : &res.candidate[1];
-    cr_assert_eq(res.candidate[2].rd_fit, lo->rd_fit);
-    cr_assert_eq(res.candidate[2].center, BTF_CENTER_ROW);
-    if (res.candidate[2].n_chunks > 0 && res.candidate[2].lab < lo->lab)
-        lo = &res.candidate[2];
-    cr_assert_eq(res.rd_fit, lo->rd_fit);
+    cr_assert_eq(res.n_candidates, 2, "fitted steps, then the same with row centring");
+    cr_assert(res.candidate[0].rd_fit && res.candidate[1].rd_fit);
+    cr_assert_eq(res.candidate[0].center, BTF_CENTER_DEFAULT);
+    cr_assert_eq(res.candidate[1].center, BTF_CENTER_ROW);
+    const btf_budget_choice *lo = &res.candidate[0];
+    if (res.candidate[1].n_chunks > 0 && res.candidate[1].lab < lo->lab)
+        lo = &res.candidate[1];
+    cr_assert_eq(res.rd_fit, 1);
+    cr_assert_eq(res.center, lo->center);
     cr_assert_eq(res.lab, lo->lab);
     btf_package *p = read_ok(out);
     cr_assert_eq(p->version, 3);
@@ -518,21 +541,19 @@ static int check_estimate(const btf *src, float tex_noise, const char *tmp)
             cr_assert_eq(e->tex_range[b], w->tex_range[b], "component %d", j);
             cr_assert_eq(e->wt_range[b], w->wt_range[b], "component %d", j);
         }
-        /* the weights are counted exactly, the texture as lossless WebP: exact at an
-         * encoded ladder step (tex_noise * 2^(i/2), i even) when the writer kept the
-         * WebP, above the PNG it kept otherwise; an odd step's rate is the mean of
-         * its neighbours' (section 11), within 10% here (2-3% seen) */
+        /* the weights are counted exactly, the texture as the lossless WebP the
+         * writer writes: exact at an encoded ladder step (tex_noise * 2^(i/2), i
+         * even); an odd step's rate is the mean of its neighbours' (section 11),
+         * within 10% here (2-3% seen) */
         double g = cJSON_GetArrayItem(cJSON_GetObjectItem(rd, "tex_noise"), j)->valuedouble;
         long i = lround(2.0 * log2(g / tex_noise));
-        int webp = strstr(w->files[0], ".webp") != NULL;
-        if (i % 2 == 0 && webp)
+        cr_assert(strstr(w->files[0], ".webp"), "component %d written as %s", j, w->files[0]);
+        if (i % 2 == 0)
             cr_expect_eq(e->bytes, w->bytes, "component %d: estimated %lld, written %lld", j, e->bytes, w->bytes);
-        else if (i % 2 == 0)
-            cr_expect_geq(e->bytes, w->bytes, "component %d: estimated %lld, written %lld", j, e->bytes, w->bytes);
         else
             cr_expect_leq(fabs((double)e->bytes / (double)w->bytes - 1.0), 0.10,
                           "component %d: estimated %lld, written %lld", j, e->bytes, w->bytes);
-        exact += i % 2 == 0 && webp;
+        exact += i % 2 == 0;
     }
     int same_order = 1;
     for (int i = 0; i < p->n_chunks; i++)
@@ -572,6 +593,101 @@ Test(rd, an_estimate_writes_nothing_and_matches_the_package_written)
     cr_assert_eq(test_rmtree(tmp), 0);
 }
 
+/* The bytes of every chunk of an estimate (equal-noise steps, k 3, 6 components) of
+ * src whose textures count scale times over (0: once). */
+static long long estimate_bytes(const btf *src, double scale, const char *tmp)
+{
+    char out[512];
+    snprintf(out, sizeof out, "%s/e", tmp);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 6;
+    btf_package_options ko = {0};
+    char *text = NULL;
+    ko.rd = 1, ko.estimate = &text, ko.tex_rate_scale = scale;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package est;
+    memset(&est, 0, sizeof est);
+    cr_assert_eq(btf_manifest_parse(text, "estimate", &est, &err), BTF_OK, "%s", err.msg);
+    long long n = 0;
+    for (int i = 0; i < est.n_chunks; i++)
+        n += est.chunk[i].bytes;
+    btf_manifest_clear(&est);
+    free(text);
+    return n;
+}
+
+/* The budget search's screening (codec/btf_budget.h): an estimate on the centre
+ * quarter of a material, its textures counted four times over, stands for the whole
+ * material's. The material repeats its pattern, so the window holds the same
+ * statistics; the two differ only by the texture content near the edges and the
+ * per-file headers: within 15% (seen: 5.9% above). Counted once, the textures
+ * would make the window's estimate far smaller than the whole's (seen: 0.30x). */
+Test(rd, an_estimate_on_a_window_counts_its_textures_for_the_whole_material)
+{
+    char tmp[256];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    btf *src = test_material(BTF_GEN_KNIT, 64, rings, 3), *win = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_crop(src, 16, 16, 32, 32, &win, &err), BTF_OK, "%s", err.msg);
+    long long whole = estimate_bytes(src, 0.0, tmp), scaled = estimate_bytes(win, 4.0, tmp);
+    long long once = estimate_bytes(win, 0.0, tmp);
+    cr_expect_leq(fabs((double)scaled / (double)whole - 1.0), 0.15, "window x4 %lld, whole %lld", scaled, whole);
+    cr_expect_lt((double)once, 0.6 * (double)whole, "window once %lld, whole %lld", once, whole);
+    btf_free(win);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+/* The search of a 128x128 material (rd: version 3; 0: version 1) under max_bytes
+ * measures its candidates on the centre 64x64 window (recorded in the manifest),
+ * writes the winner from the whole material within the budget, and ends within 15%
+ * of the error of the search measured on the whole material: the candidates' errors
+ * differ by a few percent, so a window can pick another one (tiles 128x128 under the
+ * thesis format's bytes, version 3: 1.450 screened, 1.510 whole, by btf eval), not a
+ * much worse one. */
+static void check_screened_search(const btf *src, int rd, long long max_bytes, const char *tmp)
+{
+    char out[512], full[512], path[600];
+    snprintf(out, sizeof out, "%s/s%d", tmp, rd);
+    snprintf(full, sizeof full, "%s/f%d", tmp, rd);
+    btf_budget b = {0};
+    b.max_bytes = max_bytes, b.max_components = 8;
+    btf_package_options ko = {0};
+    ko.rd = rd;
+    btf_budget_result res, rf;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert(res.screen_width == 64 && res.screen_height == 64, "%dx%d", res.screen_width, res.screen_height);
+    b.full_search = 1;
+    cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, full, &rf, &err), BTF_OK, "%s", err.msg);
+    cr_assert(rf.screen_width == 128 && rf.screen_height == 128);
+    cr_expect_leq(res.lab, 1.15 * rf.lab, "rd %d: screened %.4f, whole %.4f", rd, res.lab, rf.lab);
+    btf_package *p = read_ok(out);
+    struct stat st;
+    snprintf(path, sizeof path, "%s/manifest.json", out);
+    cr_assert_eq(stat(path, &st), 0);
+    cr_assert_eq(files_bytes(p, out) + st.st_size, res.bytes);
+    cr_assert_leq(res.bytes, b.max_bytes);
+    cr_assert(p->width == 128 && p->version == (rd ? 3 : 1));
+    cJSON *bj = cJSON_Parse(p->budget), *scr = cJSON_GetObjectItem(bj, "screen");
+    cr_assert(cJSON_GetArraySize(scr) == 2 && cJSON_GetArrayItem(scr, 0)->valueint == 64 &&
+              cJSON_GetArrayItem(scr, 1)->valueint == 64, "the manifest records the window");
+    cJSON_Delete(bj);
+    btf_package_free(p);
+}
+
+Test(rd, a_large_material_is_screened_on_its_centre_window)
+{
+    char tmp[256];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    btf *src = test_material(BTF_GEN_TILES, 128, rings, 3);
+    check_screened_search(src, 1, 150000, tmp);
+    check_screened_search(src, 0, 400000, tmp);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
 /* Counts the manifests the writer creates (file number 2C is a package's manifest:
  * the hook numbering of btf_package_options.write_hook). */
 static int count_manifests(void *ctx, int i, const char *file)
@@ -596,7 +712,7 @@ Test(rd, a_budget_search_writes_only_the_winner)
     btf_budget_result res;
     btf_error err = {0};
     cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(res.n_candidates, 5, "k 1 and 3, each equal-noise and fitted, the best centred");
+    cr_assert_eq(res.n_candidates, 3, "k 1 and 3 with fitted steps, the best centred");
     cr_assert_eq(manifests, 1, "%d packages written for %d candidates", manifests, res.n_candidates);
     /* the record's choice is the package as written: its bytes on disk, its error */
     btf_package *p = read_ok(out);

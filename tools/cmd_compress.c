@@ -41,8 +41,8 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--max-bytes N | --max-error E] [--rd] [--png] [--tex-noise X]\n"
-            "                           [--in-memory] [--quiet] [--json]\n"
+            "                           [--max-bytes N | --max-error E] [--full-search] [--rd]\n"
+            "                           [--png] [--tex-noise X] [--in-memory] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -73,15 +73,19 @@ static void compress_usage(FILE *f)
             "                   compressing each k once with up to 16 components (or --components;\n"
             "                   without it the best k again with 24, 36, 56, 64 while it keeps them all);\n"
             "                   the choice and every candidate are recorded in the manifest (\"budget\";\n"
-            "                   with --rd the candidates are measured unwritten, their bytes estimated)\n"
+            "                   with --rd the candidates are measured unwritten, their bytes estimated);\n"
+            "                   a side of 128 texels or more is halved for the candidates (the\n"
+            "                   centre window, texture bytes scaled), the winner compressed from\n"
+            "                   the whole material\n"
             "  --max-error E    the fewest bytes whose CIELab error is <= E (as btf eval reports it)\n"
+            "  --full-search    with a budget: measure the candidates on the whole material\n"
             "  --in-memory      load the whole input before compressing (the same package; the\n"
             "                   baseline the view-by-view read is measured against)\n"
             "  --rd             package version 3: texture and weight steps per component chosen\n"
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
             "                   steps, weights deflated (wt-JJ.z); 8-bit textures, no --levels\n"
-            "  --png            with --rd, --max-bytes, --max-error or --residual: every texture\n"
-            "                   a PNG (default: each the smaller of a PNG and a lossless WebP)\n"
+            "  --png            with --rd or --residual: every texture a PNG (default: --rd a\n"
+            "                   lossless WebP; --residual each the smaller of a PNG and a WebP)\n"
             "  --tex-noise X    RMS quantisation noise per component of the 8-bit textures\n"
             "                   (0..255 scale, default 0.5); with --rd the total it amounts to\n"
             "  --quiet          print nothing on success\n"
@@ -94,7 +98,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E rd!R png!P tex-noise:X in-memory!M quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R png!P tex-noise:X in-memory!M quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -120,6 +124,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'q': o->quiet = 1; break;
     case 'M': o->in_memory = 1; break;
     case 'R': o->pkg.rd = 1; break;
+    case 'S': o->budget.full_search = 1; break;
     case 'P': o->pkg.png_only = o->lod.png_only = 1; break;
     case 'X': {
         double x = 0.0;
