@@ -509,26 +509,47 @@ static const btf_chunk_info *chunk_of(const btf_package *p, int j)
     return NULL;
 }
 
-/* One estimate (btf_package_options.estimate) at tex_noise against the package then
- * written into tmp/e with the same settings; returns how many components were
- * estimated exactly (an encoded ladder step kept as WebP). */
-static int check_estimate(const btf *src, float tex_noise, const char *tmp)
+/* The k 3, 6-component version-3 settings of the estimate tests: tex_noise (0:
+ * the default), the textures counted scale times over (0: once). */
+static void estimate_settings(float tex_noise, double scale, btf_pca_options *po, btf_package_options *ko)
 {
-    char out[512];
+    *po = (btf_pca_options){0};
+    po->k = 3, po->components = 6;
+    *ko = (btf_package_options){0};
+    ko->rd = 1, ko->tex_noise = tex_noise, ko->tex_rate_scale = scale;
+}
+
+/* The manifest text (malloc'd) of an estimate of src with those settings, made
+ * beside tmp/e. */
+static char *estimate_text(const btf *src, float tex_noise, double scale, const char *tmp)
+{
+    char out[512], *text = NULL;
     snprintf(out, sizeof out, "%s/e", tmp);
-    btf_pca_options po = {0};
-    po.k = 3, po.components = 6;
-    btf_package_options ko = {0};
-    char *text = NULL;
-    ko.rd = 1, ko.tex_noise = tex_noise, ko.estimate = &text;
+    btf_pca_options po;
+    btf_package_options ko;
+    estimate_settings(tex_noise, scale, &po, &ko);
+    ko.estimate = &text;
     btf_error err = {0};
     test_rmtree(out);
     cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    return text;
+}
+
+/* One estimate (btf_package_options.estimate) at tex_noise against the package then
+ * written into tmp/e with the same settings; returns how many components were
+ * estimated exactly (an encoded ladder step). */
+static int check_estimate(const btf *src, float tex_noise, const char *tmp)
+{
+    char out[512], *text = estimate_text(src, tex_noise, 0.0, tmp);
+    snprintf(out, sizeof out, "%s/e", tmp);
     cr_assert_eq(test_count_files(tmp), 0, "an estimate leaves no package and no scratch behind");
     btf_package est;
     memset(&est, 0, sizeof est);
+    btf_error err = {0};
     cr_assert_eq(btf_manifest_parse(text, "estimate", &est, &err), BTF_OK, "%s", err.msg);
-    ko.estimate = NULL;
+    btf_pca_options po;
+    btf_package_options ko;
+    estimate_settings(tex_noise, 0.0, &po, &ko);
     cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
     btf_package *p = read_ok(out);
     cr_assert_eq(est.n_chunks, p->n_chunks);
@@ -597,15 +618,8 @@ Test(rd, an_estimate_writes_nothing_and_matches_the_package_written)
  * src whose textures count scale times over (0: once). */
 static long long estimate_bytes(const btf *src, double scale, const char *tmp)
 {
-    char out[512];
-    snprintf(out, sizeof out, "%s/e", tmp);
-    btf_pca_options po = {0};
-    po.k = 3, po.components = 6;
-    btf_package_options ko = {0};
-    char *text = NULL;
-    ko.rd = 1, ko.estimate = &text, ko.tex_rate_scale = scale;
+    char *text = estimate_text(src, 0.0f, scale, tmp);
     btf_error err = {0};
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
     btf_package est;
     memset(&est, 0, sizeof est);
     cr_assert_eq(btf_manifest_parse(text, "estimate", &est, &err), BTF_OK, "%s", err.msg);
