@@ -56,8 +56,8 @@ typedef struct btf_package_options {
     /* With rd: > 0 = steps for the least error within this many bytes instead of the
      * equal-noise error (btf_rd_params.max_bytes; set by btf_budget for --max-bytes). */
     long long rd_max_bytes;
-    /* With rd: 1 = every texture a PNG; 0 = per texture the smaller of a PNG and a
-     * lossless WebP (doc/package-format.md section 4). */
+    /* With rd: 1 = every texture a PNG; 0 = every texture a lossless WebP
+     * (doc/package-format.md section 4). */
     int png_only;
     /* With rd: NULL, or the measured ladders of an earlier compression to reuse when
      * this one's PCA model is the same (btf_rd_params.ladder; btf_budget's pairs). */

@@ -123,11 +123,9 @@ static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
 }
 
 /* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the rate
- * sample's atlas encoded as the package would write it, times rate_scale. With WebP
- * allowed, its lossless WebP bytes alone: the writer keeps the smaller of PNG and
- * WebP, and WebP is the smaller on nearly every candidate (section 11 has the
- * numbers), so the PNG, three quarters of the ladder's time, is not encoded. With
- * png_only, the PNG file (filter Up) in scratch/rd-candidate-T.png for thread T.
+ * sample's atlas encoded as the package writes it, times rate_scale: its lossless
+ * WebP bytes, or with png_only the PNG file (filter Up) in
+ * scratch/rd-candidate-T.png for thread T.
  * atlas is the thread's own buffer. */
 static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
 {

@@ -55,7 +55,7 @@ typedef struct btf_rd_params {
      * kept when its energy exceeds its quantised cost D + lambda R, lambda the
      * smallest slope that fits (btf_budget). */
     long long max_bytes;
-    int png_only;               /* 1: texture bytes as PNG; 0: the smaller of PNG and lossless WebP, as written */
+    int png_only;               /* 1: texture bytes as PNG; 0: as lossless WebP, as written */
     /* NULL, or ladders to reuse when they were measured on this model (same key),
      * else measured and stored there for the next call */
     btf_rd_ladder *ladder;
