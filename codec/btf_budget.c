@@ -180,8 +180,9 @@ static int btf__fit_components(const btf *src, btf_pca_options po, int k, int n)
     return po.components;
 }
 
-/* Counts the texture files of every chunk of p, written in dir, o.tex_rate_scale
- * times over (a package of the search's window standing for the whole material). */
+/* Counts the texture files of every chunk of p, written in dir, scale times over (a
+ * version-1 package of the search's window standing for the whole material; a
+ * version-3 estimate scales its rates itself: btf_package_options.tex_rate_scale). */
 static void btf__budget_scale_textures(btf_package *p, const char *dir, double scale)
 {
     char path[BTF_FS_PATH_MAX + 80];
@@ -228,7 +229,7 @@ static btf_result btf__budget_try(const btf *src, btf_pca_options po, btf_packag
  * btf_budget_compress for one call. */
 typedef struct btf__search {
     const btf *src;
-    /* with rd: what the candidates are measured on, src or its centre window
+    /* what the candidates are measured on, src or its centre window
      * (btf__budget_screen; owned here when it is not src), and that window's
      * texture bytes factor */
     const btf *screen;
@@ -241,15 +242,10 @@ typedef struct btf__search {
     int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
     btf_budget_result rs;
     int best, best_met;
-    int min_chunks; /* a candidate keeping fewer chunks cannot be the best (the growth's rule) */
-    double edge;    /* a candidate must have below edge x the best's error (bytes) to replace it */
-    /* with rd: the measured steps of candidate i's model, in the slot of the first
-     * candidate of the same k, components and centring (the winner's again when it
-     * is written) */
-    btf_rd_ladder ladder[BTF_BUDGET_MAX_CANDIDATES];
-    /* with rd: [0] the best candidate's PCA model (the winner is written from it),
-     * [1] the last other one */
+    /* with rd: [0] the best candidate's PCA model and measured steps (the winner is
+     * written from them when there is no window), [1] the last other candidate's */
     btf_pca_model *model[2];
+    btf_rd_ladder ladder[2];
 } btf__search;
 
 /* 1 when candidates a and b have the same PCA model: k, components, centring. */
@@ -258,16 +254,7 @@ static int btf__budget_same_model(const btf_budget_choice *a, const btf_budget_c
     return a->k == b->k && a->components == b->components && a->center == b->center;
 }
 
-/* The ladder slot of candidate i: that of the first candidate with its model. */
-static btf_rd_ladder *btf__budget_ladder(btf__search *s, int i)
-{
-    int f = 0;
-    while (f < i && !btf__budget_same_model(&s->rs.candidate[f], &s->rs.candidate[i]))
-        f++;
-    return &s->ladder[f];
-}
-
-/* The model slot of candidate i: the best's when it has the best's model. */
+/* The model and ladder slot of candidate i: the best's when it has the best's model. */
 static int btf__budget_model_slot(const btf__search *s, int i)
 {
     return s->best >= 0 && btf__budget_same_model(&s->rs.candidate[s->best], &s->rs.candidate[i]) ? 0 : 1;
@@ -284,16 +271,17 @@ static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_c
     snprintf(s->dir[i], sizeof s->dir[i], "%s.tmp-%ld-k%d-c%d%s%s", s->out, (long)getpid(), c->k, c->components,
              c->rd_fit ? "f" : "", c->center == BTF_CENTER_ROW ? "r" : "");
     btf_package_options po = s->po;
+    int slot = btf__budget_model_slot(s, i);
     po.rd_max_bytes = c->rd_fit ? s->b->max_bytes : 0;
-    po.rd_ladder = po.rd ? btf__budget_ladder(s, i) : NULL;
-    po.rd_model = po.rd ? &s->model[btf__budget_model_slot(s, i)] : NULL;
+    po.rd_ladder = po.rd ? &s->ladder[slot] : NULL;
+    po.rd_model = po.rd ? &s->model[slot] : NULL;
     btf_pca_options pca = s->pca;
     pca.center = c->center;
     const btf *src = final ? s->src : s->screen;
     if (src != s->src) { /* the window's textures stand for the material's */
         po.tex_rate_scale = s->screen_scale;
-        int lab = po.lab_max_texels > 0 ? po.lab_max_texels : 256;
-        po.lab_max_texels = (int)(lab / s->screen_scale) > 16 ? (int)(lab / s->screen_scale) : 16;
+        int lab = (int)((po.lab_max_texels > 0 ? po.lab_max_texels : 256) / s->screen_scale);
+        po.lab_max_texels = lab > 16 ? lab : 16;
     }
     *got = (btf_budget_choice){0};
     btf_result r = btf__budget_try(src, pca, po, c->k, c->components, s->b, s->dir[i], estimate, got, met,
@@ -304,8 +292,9 @@ static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_c
 
 /* Measures candidate i (k, components, rd_fit and center already in
  * rs.candidate[i]; on the window; with rd estimated, nothing written) and keeps it
- * as the best if it beats the best so far. */
-static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
+ * as the best if it keeps at least min_chunks chunks and its error (bytes, for an
+ * error target) is below edge x the best's. */
+static btf_result btf__budget_eval(btf__search *s, int i, int min_chunks, double edge, btf_error *err)
 {
     btf_budget_choice got;
     int met = 0;
@@ -315,12 +304,15 @@ static btf_result btf__budget_eval(btf__search *s, int i, btf_error *err)
     *c = got;
     s->rs.n_candidates = i + 1;
     const btf_budget_choice *bc = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
-    int better = c->n_chunks > 0 && c->n_chunks >= s->min_chunks && (!bc || met > s->best_met ||
-                                     (met == s->best_met && (s->b->max_bytes > 0 || !met ? c->lab < s->edge * bc->lab
-                                                                                          : c->bytes < s->edge * bc->bytes)));
-    if (r == BTF_OK && better && slot == 1) { /* its model is the best's now */
+    int better = c->n_chunks > 0 && c->n_chunks >= min_chunks &&
+                 (!bc || met > s->best_met ||
+                  (met == s->best_met && (s->b->max_bytes > 0 || !met ? c->lab < edge * bc->lab
+                                                                       : c->bytes < edge * bc->bytes)));
+    if (r == BTF_OK && better && slot == 1) { /* its model and steps are the best's now */
         btf_pca_model *m = s->model[0];
+        btf_rd_ladder l = s->ladder[0];
         s->model[0] = s->model[1], s->model[1] = m;
+        s->ladder[0] = s->ladder[1], s->ladder[1] = l;
     }
     if (r == BTF_OK && better)
         s->best = i, s->best_met = met;
@@ -366,9 +358,7 @@ static btf_result btf__budget_grow(btf__search *s, btf_error *err)
             break; /* the blocks hold no more */
         int i = s->rs.n_candidates, was = s->best;
         s->rs.candidate[i] = (btf_budget_choice){.k = c.k, .components = n, .rd_fit = c.rd_fit, .center = c.center};
-        s->min_chunks = c.n_chunks + 1;
-        r = btf__budget_eval(s, i, err);
-        s->min_chunks = 0;
+        r = btf__budget_eval(s, i, c.n_chunks + 1, 1.0, err);
         if (s->best == was)
             break;
     }
@@ -416,7 +406,7 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     if (!sr)
         return btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
     *sr = (btf__search){.src = src, .screen = src, .screen_scale = 1.0, .pca = pca ? *pca : (btf_pca_options){0},
-                        .po = po, .b = budget, .out = out, .best = -1, .edge = 1.0};
+                        .po = po, .b = budget, .out = out, .best = -1};
     if (r == BTF_OK)
         r = btf__budget_screen(sr, err);
     int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
@@ -425,13 +415,11 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     for (int i = 0; i < nk; i++)
         sr->rs.candidate[nt++] = (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
     for (int i = 0; r == BTF_OK && i < nt; i++)
-        r = btf__budget_eval(sr, i, err);
+        r = btf__budget_eval(sr, i, 0, 1.0, err);
     if (r == BTF_OK && sr->best >= 0 && sr->pca.center == BTF_CENTER_DEFAULT) { /* the best, centred */
         sr->rs.candidate[nt] = sr->rs.candidate[sr->best];
         sr->rs.candidate[nt].center = BTF_CENTER_ROW;
-        sr->edge = sr->screen != src ? 1.0 - BTF_BUDGET_SCREEN_EDGE : 1.0;
-        r = btf__budget_eval(sr, nt, err);
-        sr->edge = 1.0;
+        r = btf__budget_eval(sr, nt, 0, sr->screen != src ? 1.0 - BTF_BUDGET_SCREEN_EDGE : 1.0, err);
     }
     if (r == BTF_OK && budget->max_components <= 0)
         r = btf__budget_grow(sr, err);
@@ -457,10 +445,8 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     }
     for (int i = 0; i < rs.n_candidates; i++)
         btf_fs_rmtree(sr->dir[i], NULL);
-    for (int i = 0; i < BTF_BUDGET_MAX_CANDIDATES; i++)
-        btf_rd_ladder_free(&sr->ladder[i]);
-    btf_pca_model_free(sr->model[0]);
-    btf_pca_model_free(sr->model[1]);
+    for (int i = 0; i < 2; i++)
+        btf_pca_model_free(sr->model[i]), btf_rd_ladder_free(&sr->ladder[i]);
     if (sr->screen != src)
         btf_free((btf *)sr->screen);
     free(sr);
