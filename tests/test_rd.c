@@ -60,6 +60,26 @@ static long long files_bytes(const btf_package *p, const char *dir)
     return s;
 }
 
+/* Bytes of the package in dir as written: its chunk files and its manifest. */
+static long long written_bytes(const btf_package *p, const char *dir)
+{
+    struct stat st;
+    char path[1024];
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    cr_assert_eq(stat(path, &st), 0, "%s", path);
+    return files_bytes(p, dir) + st.st_size;
+}
+
+/* Asserts that the budget record of p names the w x h window of the search. */
+static void expect_screen(const btf_package *p, int w, int h)
+{
+    cJSON *bj = cJSON_Parse(p->budget), *scr = cJSON_GetObjectItem(bj, "screen");
+    cr_assert(cJSON_GetArraySize(scr) == 2 && cJSON_GetArrayItem(scr, 0)->valueint == w &&
+                  cJSON_GetArrayItem(scr, 1)->valueint == h,
+              "the manifest records the %dx%d window", w, h);
+    cJSON_Delete(bj);
+}
+
 /* RMSE (0..255) of the decoded package against src over every sample, computed here
  * from btf_package_value and btf_get, not from the writer's sums. */
 static double direct_rmse(const btf_package *p, const btf *src)
@@ -450,10 +470,7 @@ Test(rd, cli_full_search_is_accepted_and_recorded)
                     "--full-search", "--quiet", NULL};
     cr_assert_eq(cmd_compress(10, argv), 0);
     btf_package *p = read_ok(out);
-    cJSON *bj = cJSON_Parse(p->budget), *scr = cJSON_GetObjectItem(bj, "screen");
-    cr_assert(cJSON_GetArraySize(scr) == 2 && cJSON_GetArrayItem(scr, 0)->valueint == 8 &&
-              cJSON_GetArrayItem(scr, 1)->valueint == 8);
-    cJSON_Delete(bj);
+    expect_screen(p, 8, 8);
     btf_package_free(p);
     cr_assert_eq(test_rmtree(tmp), 0);
 }
@@ -488,11 +505,7 @@ Test(rd, budget_fits_the_steps_to_the_bytes_and_keeps_the_lower_error)
     btf_package *p = read_ok(out);
     cr_assert_eq(p->version, 3);
     cr_assert_eq(p->n_chunks, res.n_chunks);
-    struct stat st;
-    char path[1024];
-    snprintf(path, sizeof path, "%s/manifest.json", out);
-    cr_assert_eq(stat(path, &st), 0);
-    cr_assert_leq(files_bytes(p, out) + st.st_size, b.max_bytes);
+    cr_assert_leq(written_bytes(p, out), b.max_bytes);
     cr_assert_not_null(p->rd, "the rd record survives the cut");
     btf_package_free(p);
     btf_free(src);
@@ -662,7 +675,7 @@ Test(rd, an_estimate_on_a_window_counts_its_textures_for_the_whole_material)
  * much worse one. */
 static void check_screened_search(const btf *src, int rd, long long max_bytes, const char *tmp)
 {
-    char out[512], full[512], path[600];
+    char out[512], full[512];
     snprintf(out, sizeof out, "%s/s%d", tmp, rd);
     snprintf(full, sizeof full, "%s/f%d", tmp, rd);
     btf_budget b = {0};
@@ -678,16 +691,10 @@ static void check_screened_search(const btf *src, int rd, long long max_bytes, c
     cr_assert(rf.screen_width == 128 && rf.screen_height == 128);
     cr_expect_leq(res.lab, 1.15 * rf.lab, "rd %d: screened %.4f, whole %.4f", rd, res.lab, rf.lab);
     btf_package *p = read_ok(out);
-    struct stat st;
-    snprintf(path, sizeof path, "%s/manifest.json", out);
-    cr_assert_eq(stat(path, &st), 0);
-    cr_assert_eq(files_bytes(p, out) + st.st_size, res.bytes);
+    cr_assert_eq(written_bytes(p, out), res.bytes);
     cr_assert_leq(res.bytes, b.max_bytes);
     cr_assert(p->width == 128 && p->version == (rd ? 3 : 1));
-    cJSON *bj = cJSON_Parse(p->budget), *scr = cJSON_GetObjectItem(bj, "screen");
-    cr_assert(cJSON_GetArraySize(scr) == 2 && cJSON_GetArrayItem(scr, 0)->valueint == 64 &&
-              cJSON_GetArrayItem(scr, 1)->valueint == 64, "the manifest records the window");
-    cJSON_Delete(bj);
+    expect_screen(p, 64, 64);
     btf_package_free(p);
 }
 
@@ -730,11 +737,7 @@ Test(rd, a_budget_search_writes_only_the_winner)
     cr_assert_eq(manifests, 1, "%d packages written for %d candidates", manifests, res.n_candidates);
     /* the record's choice is the package as written: its bytes on disk, its error */
     btf_package *p = read_ok(out);
-    struct stat st;
-    char path[1024];
-    snprintf(path, sizeof path, "%s/manifest.json", out);
-    cr_assert_eq(stat(path, &st), 0);
-    cr_assert_eq(files_bytes(p, out) + st.st_size, res.bytes);
+    cr_assert_eq(written_bytes(p, out), res.bytes);
     cr_assert_leq(res.bytes, b.max_bytes);
     cr_assert_eq(p->n_chunks, res.n_chunks);
     cr_assert_eq(p->chunk[p->n_chunks - 1].lab, res.lab);
