@@ -73,11 +73,11 @@ typedef struct btf__sums {
 } btf__sums;
 
 #define BTF__BLOCK 64
-/* Pixel pairs waiting for the Lab step, planar linear light ([0] ref, [1] test);
- * stack value of one summing call. */
+/* Pixel pairs waiting for the Lab step, planar linear light ([0] ref, [1] test;
+ * with ref_lab the ref's L, a, b in r, g, b [0]); stack value of one summing call. */
 typedef struct btf__lab_block {
     float r[2][BTF__BLOCK], g[2][BTF__BLOCK], b[2][BTF__BLOCK];
-    int n;
+    int n, ref_lab;
 } btf__lab_block;
 
 /* Four lanes at a time through GCC/Clang vector extensions (SSE2 on x86-64). */
@@ -123,7 +123,8 @@ static inline btf__v4 btf__v4_abs(btf__v4 v) { return (btf__v4)((btf__v4i)v & 0x
 /* Lab differences of the queued pairs into s; empties the block. */
 static void btf__flush(btf__lab_block *q, btf__sums *s)
 {
-    while (q->n % 4) { /* pad with black pairs: zero difference */
+    int real = q->n;
+    while (q->n % 4) { /* pad with black pairs, left out of the sums */
         for (int k = 0; k < 2; k++)
             q->r[k][q->n] = q->g[k][q->n] = q->b[k][q->n] = 0.0f;
         q->n++;
@@ -136,7 +137,10 @@ static void btf__flush(btf__lab_block *q, btf__sums *s)
             memcpy(&r, &q->r[k][i], sizeof r);
             memcpy(&g, &q->g[k][i], sizeof g);
             memcpy(&b, &q->b[k][i], sizeof b);
-            btf__v4_lab(r, g, b, k ? lb : la);
+            if (k == 0 && q->ref_lab)
+                la[0] = r, la[1] = g, la[2] = b;
+            else
+                btf__v4_lab(r, g, b, k ? lb : la);
         }
         for (int c = 0; c < 3; c++)
             v[c] = la[c] - lb[c];
@@ -146,7 +150,7 @@ static void btf__flush(btf__lab_block *q, btf__sums *s)
         memcpy(&dsq[i], &sq, sizeof sq);
     }
     double lab = 0.0, de = 0.0;
-    for (int i = 0; i < q->n; i++) {
+    for (int i = 0; i < real; i++) {
         lab += dsum[i];
         de += sqrtf(dsq[i]);
     }
@@ -170,7 +174,7 @@ static void btf__sum_u8(btf__sums *s, const uint8_t *a, const uint8_t *b, size_t
 {
     uint64_t sabs = 0, ssq = 0;
     btf__lab_block q;
-    q.n = 0;
+    q.n = 0, q.ref_lab = 0;
     for (size_t i = 0; i < n; i++, a += 3, b += 3) {
         int d0 = a[0] - b[0], d1 = a[1] - b[1], d2 = a[2] - b[2];
         if ((d0 | d1 | d2) == 0)
@@ -186,11 +190,11 @@ static void btf__sum_u8(btf__sums *s, const uint8_t *a, const uint8_t *b, size_t
     s->sq += (double)ssq;
 }
 
-/* n pixels of byte/255-scale floats. */
-static void btf__sum_f32(btf__sums *s, const float *a, const float *b, size_t n)
+/* n pixels of byte/255-scale floats; a_lab: NULL, or a's Lab (btf_metrics_lab). */
+static void btf__sum_f32(btf__sums *s, const float *a, const float *a_lab, const float *b, size_t n)
 {
     btf__lab_block q;
-    q.n = 0;
+    q.n = 0, q.ref_lab = a_lab != NULL;
     for (size_t i = 0; i < n; i++, a += 3, b += 3) {
         double d0 = ((double)a[0] - b[0]) * 255.0, d1 = ((double)a[1] - b[1]) * 255.0,
                d2 = ((double)a[2] - b[2]) * 255.0;
@@ -198,20 +202,50 @@ static void btf__sum_f32(btf__sums *s, const float *a, const float *b, size_t n)
         s->sq += d0 * d0 + d1 * d1 + d2 * d2;
         if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2])
             continue;
-        float la[3] = {btf__lin_of(a[0]), btf__lin_of(a[1]), btf__lin_of(a[2])};
+        float la[3] = {0.0f, 0.0f, 0.0f};
+        if (a_lab)
+            memcpy(la, a_lab + 3 * i, sizeof la);
+        else
+            la[0] = btf__lin_of(a[0]), la[1] = btf__lin_of(a[1]), la[2] = btf__lin_of(a[2]);
         float lb[3] = {btf__lin_of(b[0]), btf__lin_of(b[1]), btf__lin_of(b[2])};
         btf__queue(&q, s, la, lb);
     }
     btf__flush(&q, s);
 }
 
+void btf_metrics_lab(const float *rgb, size_t n_pixels, float *lab)
+{
+    if (!rgb || !lab)
+        return;
+    btf__tables();
+    for (size_t i = 0; i < n_pixels; i += 4) {
+        float p[3][4] = {{0.0f}};
+        size_t m = n_pixels - i < 4 ? n_pixels - i : 4;
+        for (size_t k = 0; k < m; k++)
+            for (int c = 0; c < 3; c++)
+                p[c][k] = btf__lin_of(rgb[3 * (i + k) + c]);
+        btf__v4 r, g, b, out[3];
+        memcpy(&r, p[0], sizeof r), memcpy(&g, p[1], sizeof g), memcpy(&b, p[2], sizeof b);
+        btf__v4_lab(r, g, b, out);
+        for (size_t k = 0; k < m; k++)
+            for (int c = 0; c < 3; c++)
+                lab[3 * (i + k) + c] = out[c][k];
+    }
+}
+
 void btf_metrics_add(btf_metrics_acc *acc, const float *ref_rgb, const float *test_rgb, size_t n_pixels)
+{
+    btf_metrics_add_lab(acc, ref_rgb, NULL, test_rgb, n_pixels);
+}
+
+void btf_metrics_add_lab(btf_metrics_acc *acc, const float *ref_rgb, const float *ref_lab, const float *test_rgb,
+                         size_t n_pixels)
 {
     if (!acc || !ref_rgb || !test_rgb || n_pixels == 0)
         return;
     btf__tables();
     btf__sums s = {0};
-    btf__sum_f32(&s, ref_rgb, test_rgb, n_pixels);
+    btf__sum_f32(&s, ref_rgb, ref_lab, test_rgb, n_pixels);
     acc->sum_abs += s.abs;
     acc->sum_sq += s.sq;
     acc->sum_lab += s.lab;
@@ -267,7 +301,7 @@ static void btf__sum_image(const btf *ref, const btf *test, size_t base, btf__su
         return;
     }
     if (ref->storage == BTF_F32 && test->storage == BTF_F32) {
-        btf__sum_f32(s, (const float *)ref->data + base, (const float *)test->data + base, n);
+        btf__sum_f32(s, (const float *)ref->data + base, NULL, (const float *)test->data + base, n);
         return;
     }
     enum { CHUNK = 1024 };
@@ -276,7 +310,7 @@ static void btf__sum_image(const btf *ref, const btf *test, size_t base, btf__su
         size_t m = n - i < CHUNK ? n - i : CHUNK;
         btf__load_f32(ref, base + 3u * i, m, a);
         btf__load_f32(test, base + 3u * i, m, b);
-        btf__sum_f32(s, a, b, m);
+        btf__sum_f32(s, a, NULL, b, m);
     }
 }
 

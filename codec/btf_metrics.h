@@ -41,6 +41,13 @@ typedef struct btf_metrics_acc {
 
 /* Adds n RGB triples (byte/255 scale floats, interleaved). */
 void btf_metrics_add(btf_metrics_acc *acc, const float *ref_rgb, const float *test_rgb, size_t n_pixels);
+/* CIELab (L, a, b interleaved) of n RGB triples as btf_metrics_add converts them:
+ * the reference of btf_metrics_add_lab. */
+void btf_metrics_lab(const float *rgb, size_t n_pixels, float *lab);
+/* btf_metrics_add with the reference's Lab given (btf_metrics_lab of ref_rgb): the
+ * same sums, the reference converted once for many tests (a package's error curve). */
+void btf_metrics_add_lab(btf_metrics_acc *acc, const float *ref_rgb, const float *ref_lab, const float *test_rgb,
+                         size_t n_pixels);
 void btf_metrics_finish(const btf_metrics_acc *acc, btf_metrics *out);
 
 

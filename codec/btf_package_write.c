@@ -297,10 +297,10 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
     int C = w->C, V = w->V, L = w->L;
     size_t np = (size_t)V * L;
     float *ref = malloc(np * 3 * sizeof(float)), *test = malloc((size_t)C * np * 3 * sizeof(float));
-    float *tv = malloc((size_t)C * sizeof(float));
+    float *tv = malloc((size_t)C * sizeof(float)), *ref_lab = malloc(np * 3 * sizeof(float));
     btf_metrics_acc *acc = calloc((size_t)C, sizeof *acc);
-    if (!ref || !test || !tv || !acc) {
-        free(ref), free(test), free(tv), free(acc);
+    if (!ref || !test || !tv || !acc || !ref_lab) {
+        free(ref), free(test), free(tv), free(acc), free(ref_lab);
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (error curve)");
     }
     const float *refs = w->ref;
@@ -328,14 +328,15 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
                         }
                     }
             }
+            btf_metrics_lab(ref, np, ref_lab); /* once for the C prefixes */
             /* one prefix per thread: each sum keeps one writer and its texel order */
 #pragma omp parallel for schedule(static) if (threaded)
             for (int a = 0; a < C; a++)
-                btf_metrics_add(&acc[a], ref, test + (size_t)a * np * 3, np);
+                btf_metrics_add_lab(&acc[a], ref, ref_lab, test + (size_t)a * np * 3, np);
         }
     for (int a = 0; a < C; a++)
         btf_metrics_finish(&acc[a], &out[a]);
-    free(ref), free(test), free(tv), free(acc);
+    free(ref), free(test), free(tv), free(acc), free(ref_lab);
     return BTF_OK;
 }
 

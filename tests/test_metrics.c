@@ -164,6 +164,39 @@ Test(metrics, fast_path_matches_reference_conversion)
     cr_expect_lt(worst, 5e-4, "worst fast-path difference %g", worst);
 }
 
+Test(metrics, a_reference_lab_given_once_gives_the_same_sums)
+{
+    /* The error curve converts its reference once (btf_metrics_lab) for many tests
+     * (btf_metrics_add_lab): the sums must be those of btf_metrics_add bit for bit,
+     * over off-grid values, byte values, out-of-range values, pixels equal to the
+     * reference and a count that is neither a multiple of 4 nor of the queue. */
+    enum { N = 301 };
+    float ref[3 * N], test[3 * N], lab[3 * N];
+    uint32_t seed = 4242;
+    for (int i = 0; i < 3 * N; i++) {
+        ref[i] = (float)next_byte(&seed) / 255.0f + (i % 7 == 0 ? 0.0013f : 0.0f);
+        test[i] = (float)next_byte(&seed) / 250.0f - 0.01f;
+    }
+    memcpy(test + 30, ref + 30, 9 * sizeof(float)); /* three pixels without error */
+    btf_metrics_lab(ref, N, lab);
+    btf_metrics_acc a = {0}, b = {0};
+    btf_metrics_add(&a, ref, test, N);
+    btf_metrics_add_lab(&b, ref, lab, test, N);
+    cr_expect(a.sum_lab == b.sum_lab && a.sum_de == b.sum_de, "Lab %.17g vs %.17g, Delta E %.17g vs %.17g", a.sum_lab,
+              b.sum_lab, a.sum_de, b.sum_de);
+    cr_expect(a.sum_abs == b.sum_abs && a.sum_sq == b.sum_sq && a.pixels == b.pixels && a.samples == b.samples);
+    /* and the Lab it gives is the reference conversion's (tolerance as in the fast
+     * path test: float Lab plus the interpolated decode's < 1e-4 in L) */
+    double worst = 0.0;
+    for (int i = 0; i < N; i++) {
+        float want[3];
+        btf_color_srgb_to_lab(ref + 3 * i, want);
+        for (int c = 0; c < 3; c++)
+            worst = fmax(worst, fabs(lab[3 * i + c] - want[c]));
+    }
+    cr_expect_lt(worst, 5e-4, "worst Lab difference %g", worst);
+}
+
 /* ---------------------------------------------------------------- RGB metrics by hand */
 
 Test(metrics, mae_rmse_psnr_by_hand)
