@@ -242,10 +242,13 @@ typedef struct btf__search {
     int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
     btf_budget_result rs;
     int best, best_met;
-    /* with rd: [0] the best candidate's PCA model and measured steps (the winner is
-     * written from them when there is no window), [1] the last other candidate's */
+    /* with rd: [0] the best candidate's PCA model, measured steps and chosen steps
+     * (the winner is written from the first two when there is no window, with its
+     * ladder measured near the third when there is one), [1] the last other
+     * candidate's */
     btf_pca_model *model[2];
     btf_rd_ladder ladder[2];
+    btf_rd_result rd[2];
 } btf__search;
 
 /* 1 when candidates a and b have the same PCA model: k, components, centring. */
@@ -258,6 +261,21 @@ static int btf__budget_same_model(const btf_budget_choice *a, const btf_budget_c
 static int btf__budget_model_slot(const btf__search *s, int i)
 {
     return s->best >= 0 && btf__budget_same_model(&s->rs.candidate[s->best], &s->rs.candidate[i]) ? 0 : 1;
+}
+
+/* What candidate i's ladder is measured near (btf_package_options.rd_near), or NULL
+ * for every step: the best's choice on the window when the best is written from the
+ * whole material, the one it grew from for a grown candidate (its first components).
+ * Measured on tiles, stone and knit at 128x128: the same steps as with every step
+ * measured, at half the ladder's time (doc/package-format.md section 11). */
+static const btf_rd_result *btf__budget_near(const btf__search *s, int i, int final)
+{
+    const btf_budget_choice *c = &s->rs.candidate[i], *b = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
+    if (!s->po.rd || !b || s->rd[0].n_comp < 1)
+        return NULL;
+    if (final)
+        return s->screen != s->src ? &s->rd[0] : NULL;
+    return b->k == c->k && b->center == c->center && b->components < c->components ? &s->rd[0] : NULL;
 }
 
 /* Candidate i measured with its settings on the search's window (final: compressed
@@ -275,6 +293,9 @@ static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_c
     po.rd_max_bytes = c->rd_fit ? s->b->max_bytes : 0;
     po.rd_ladder = po.rd ? &s->ladder[slot] : NULL;
     po.rd_model = po.rd ? &s->model[slot] : NULL;
+    btf_rd_result rd = {0}; /* what this allocation chooses */
+    po.rd_out = po.rd ? &rd : NULL;
+    po.rd_near = btf__budget_near(s, i, final);
     btf_pca_options pca = s->pca;
     pca.center = c->center;
     const btf *src = final ? s->src : s->screen;
@@ -287,6 +308,10 @@ static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_c
     btf_result r = btf__budget_try(src, pca, po, c->k, c->components, s->b, s->dir[i], estimate, got, met,
                                    &s->all_kept[i], err);
     got->rd_fit = c->rd_fit, got->center = c->center; /* the settings it was made with */
+    if (!final) /* kept with the model: the winner's whole-material ladder is measured near it */
+        btf_rd_result_free(&s->rd[slot]), s->rd[slot] = rd;
+    else
+        btf_rd_result_free(&rd);
     return r;
 }
 
@@ -313,6 +338,8 @@ static btf_result btf__budget_eval(btf__search *s, int i, int min_chunks, double
         btf_rd_ladder l = s->ladder[0];
         s->model[0] = s->model[1], s->model[1] = m;
         s->ladder[0] = s->ladder[1], s->ladder[1] = l;
+        btf_rd_result rd = s->rd[0];
+        s->rd[0] = s->rd[1], s->rd[1] = rd;
     }
     if (r == BTF_OK && better)
         s->best = i, s->best_met = met;
@@ -446,7 +473,7 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     for (int i = 0; i < rs.n_candidates; i++)
         btf_fs_rmtree(sr->dir[i], NULL);
     for (int i = 0; i < 2; i++)
-        btf_pca_model_free(sr->model[i]), btf_rd_ladder_free(&sr->ladder[i]);
+        btf_pca_model_free(sr->model[i]), btf_rd_ladder_free(&sr->ladder[i]), btf_rd_result_free(&sr->rd[i]);
     if (sr->screen != src)
         btf_free((btf *)sr->screen);
     free(sr);

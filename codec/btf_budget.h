@@ -28,10 +28,12 @@
  * whole material), and with opt->rd only measured, nothing written
  * (btf_package_options.estimate: chunk bytes the allocation's estimates, errors
  * measured on the quantised model as ever). The best one is then compressed from
- * the whole material (with rd and no window, from its kept model and ladder), its
- * prefix read off the files as written, cut to the chosen prefix, and it replaces
- * OUT like btf_package_compress. doc/package-format.md section 11 ("What the search
- * costs") has the numbers.
+ * the whole material (with rd and no window, from its kept model and ladder; with a
+ * window, its ladder measured near the steps the window chose, and a grown
+ * candidate's near those it grew from: btf_package_options.rd_near), its prefix
+ * read off the files as written, cut to the chosen prefix, and it replaces OUT like
+ * btf_package_compress. doc/package-format.md section 11 ("What the search costs")
+ * has the numbers.
  */
 #ifndef BTF_BUDGET_H
 #define BTF_BUDGET_H

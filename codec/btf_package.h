@@ -53,6 +53,11 @@ typedef struct btf_package_options {
     /* With rd: when not NULL, receives what the allocation chose (the caller frees
      * it with btf_rd_result_free). */
     struct btf_rd_result *rd_out;
+    /* With rd: NULL, or what an allocation on a model of the same material with at
+     * most as many components chose (btf_rd_params.near): only the steps near its
+     * choices are measured. btf_budget passes the window's choice when it writes the
+     * winner, and a candidate's when it grows it. */
+    const struct btf_rd_result *rd_near;
     /* With rd: > 0 = steps for the least error within this many bytes instead of the
      * equal-noise error (btf_rd_params.max_bytes; set by btf_budget for --max-bytes). */
     long long rd_max_bytes;

@@ -39,6 +39,9 @@ typedef struct btf__rd {
     long long *rt, *rw;    /* the same: bytes */
     float *gt, *gw;        /* the ladders' noise values */
     float *wnorm;          /* C x nb: |W_j| per block (computed before the threads start) */
+    /* C x NT, C x NW: 1 = the step is measured (near a previous choice, par->near);
+     * NULL = every step. An unmeasured step's error is infinite: never chosen. */
+    unsigned char *mt, *mw;
 } btf__rd;
 
 /* The rate sample: whole rows of the atlas's tile grid, evenly spaced among the full
@@ -129,6 +132,10 @@ static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
  * atlas is the thread's own buffer. */
 static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
 {
+    if (r->mt && !r->mt[n]) {
+        r->dt[n] = INFINITY, r->rt[n] = 0;
+        return BTF_OK;
+    }
     r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
     if ((n % BTF__RD_NT) % 2) /* odd indices: the rate interpolated by btf__rd_measure_tex */
         return BTF_OK;
@@ -208,7 +215,8 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
     for (int j = 0; res == BTF_OK && j < r->C; j++)
         for (int i = 1; i < BTF__RD_NT; i += 2) {
             long long *rt = r->rt + (size_t)j * BTF__RD_NT;
-            rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2;
+            if (!r->mt || r->mt[(size_t)j * BTF__RD_NT + i]) /* its neighbours are measured too */
+                rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2;
         }
     return res;
 }
@@ -227,6 +235,10 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
 #pragma omp for schedule(dynamic, 1)
         for (int j = 0; j < r->C; j++)
             for (int i = 0; i < BTF__RD_NW && mine == BTF_OK; i++) {
+                if (r->mw && !r->mw[(size_t)j * BTF__RD_NW + i]) {
+                    r->dw[(size_t)j * BTF__RD_NW + i] = INFINITY, r->rw[(size_t)j * BTF__RD_NW + i] = 0;
+                    continue;
+                }
                 r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i], q);
                 uint8_t *z = NULL;
                 size_t nz = 0;
@@ -334,6 +346,46 @@ static void btf__rd_fill(const btf__rd *r, double lambda, long long max_bytes, i
     free(kept);
 }
 
+/* Index of the ladder step g nearest to noise v (by ratio; v <= 0: index 0, the
+ * weights' full 16 bits, when g[0] is 0). */
+static int btf__rd_nearest(const float *g, int n, float v)
+{
+    int best = 0;
+    double bd = INFINITY;
+    for (int i = 0; i < n; i++) {
+        double d = g[i] > 0.0f && v > 0.0f ? fabs(log((double)g[i] / v)) : g[i] == v ? 0.0 : INFINITY;
+        if (d < bd)
+            bd = d, best = i;
+    }
+    return best;
+}
+
+/* With par->near (as many components): the masks of the steps to measure, those
+ * within BTF_RD_NEAR_NOTCHES of its choices (textures: widened to even ends, whose
+ * rates are encoded) and the references (the equal-noise texture step, the 16-bit
+ * weights). 0, or -1 without memory. */
+static int btf__rd_near(btf__rd *r)
+{
+    const btf_rd_result *nr = r->par->near;
+    if (!nr || nr->n_comp < 1 || nr->n_comp > r->C || !nr->tex_noise || !nr->wt_noise)
+        return 0;
+    r->mt = malloc((size_t)r->C * BTF__RD_NT), r->mw = malloc((size_t)r->C * BTF__RD_NW);
+    if (!r->mt || !r->mw)
+        return -1;
+    memset(r->mt, 1, (size_t)r->C * BTF__RD_NT), memset(r->mw, 1, (size_t)r->C * BTF__RD_NW);
+    for (int j = 0; j < nr->n_comp; j++) {
+        int a = btf__rd_nearest(r->gt, BTF__RD_NT, nr->tex_noise[j]);
+        int lo = a - BTF_RD_NEAR_NOTCHES, hi = a + BTF_RD_NEAR_NOTCHES;
+        lo = lo < 0 ? 0 : lo - (lo % 2), hi = hi >= BTF__RD_NT ? BTF__RD_NT - 1 : hi + (hi % 2);
+        for (int i = 0; i < BTF__RD_NT; i++)
+            r->mt[(size_t)j * BTF__RD_NT + i] = (i >= lo && i <= hi) || i == -BTF__RD_TEX_LO;
+        int b = btf__rd_nearest(r->gw, BTF__RD_NW, nr->wt_noise[j]);
+        for (int i = 0; i < BTF__RD_NW; i++)
+            r->mw[(size_t)j * BTF__RD_NW + i] = abs(i - b) <= BTF_RD_NEAR_NOTCHES || i == 0;
+    }
+    return 0;
+}
+
 /* What identifies r's model for btf_rd_ladder: its sizes, the noise and file choice
  * of the ladders, and a sum over every block's first texel and weights. */
 static void btf__rd_key(const btf__rd *r, double key[8])
@@ -362,8 +414,10 @@ static btf_result btf__rd_ladder_use(btf__rd *r, btf_error *err)
         memcpy(r->energy, l->energy, c * sizeof(double));
         return BTF_OK;
     }
+    if (btf__rd_near(r) != 0)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (near steps)");
     btf_result res = btf__rd_measure(r, err);
-    if (res != BTF_OK || !l)
+    if (res != BTF_OK || !l || r->mt)
         return res;
     btf_rd_ladder_free(l);
     l->dt = malloc(nt * sizeof(double)), l->rt = malloc(nt * sizeof(long long));
@@ -400,7 +454,7 @@ void btf_rd_result_free(btf_rd_result *r)
 static void btf__rd_free(btf__rd *r)
 {
     free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->wnorm);
-    free(r->sub_row);
+    free(r->sub_row), free(r->mt), free(r->mw);
 }
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err)

@@ -6,7 +6,7 @@
  * Texture rates of atlases over 9 tiles are measured on a sample of whole tile rows
  * and scaled (section 11), so bytes_equal and bytes_rd are estimates there.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL};  // equal-noise error, PNG or WebP, no ladder reuse
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL};  // equal-noise error, WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -31,6 +31,11 @@ extern "C" {
  * nothing, and a process forked after OpenMP has run (a test's child, a server's
  * worker) cannot start OpenMP threads again (libgomp waits for the parent's). */
 #define BTF_RD_THREAD_MIN_BYTES ((size_t)1 << 20)
+
+/* Ladder notches (factors of sqrt 2 in noise) measured either side of a near choice
+ * (btf_rd_params.near): tiles at 128x128, the winner written from the whole material
+ * after the search on its centre window: see doc/package-format.md section 11. */
+#define BTF_RD_NEAR_NOTCHES 2
 
 /* The measured ladders of one model (rates and distortions of every candidate step),
  * kept so that a second allocation for the same model skips the measuring (the
@@ -60,6 +65,13 @@ typedef struct btf_rd_params {
      * else measured and stored there for the next call */
     btf_rd_ladder *ladder;
     double tex_rate_scale; /* > 0: texture bytes counted this many times over (btf_package_options) */
+    /* NULL, or an allocation on a model of the same material with at most as many
+     * components (btf_budget: the winner's on the centre window, or the candidate a
+     * grown one grew from): unless the ladder is reused, its components' steps are
+     * measured only within BTF_RD_NEAR_NOTCHES ladder notches of its choices, and at
+     * the reference steps (equal-noise texture, 16-bit weights); the ladder measured
+     * so is not stored in ladder */
+    const struct btf_rd_result *near;
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */

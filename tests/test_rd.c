@@ -255,6 +255,66 @@ Test(rd, ladders_are_reused_for_the_same_model_only)
     cr_assert_eq(test_rmtree(tmp), 0);
 }
 
+/* Allocates model's steps (k = 3 atlas grid, tex_noise 0.5) within max_bytes (0 =
+ * the equal-noise error), measured near `near` when it is not NULL. */
+static void allocate_near(const btf_pca_model *m, long long max_bytes, const btf_rd_result *near, const char *tmp,
+                          btf_rd_result *out)
+{
+    int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, max_bytes, 0, NULL, 0.0, near};
+    btf_error err = {0};
+    cr_assert_eq(btf_rd_allocate(&par, out, &err), BTF_OK, "%s", err.msg);
+}
+
+/* 1 when noise g is the reference r or within BTF_RD_NEAR_NOTCHES notches (factors
+ * of sqrt 2) of c; 0.1% covers the float ladder values. */
+static int near_or_reference(float g, float c, float r)
+{
+    return g == r || fabs(log((double)g / c) / log(sqrt(2.0))) <= BTF_RD_NEAR_NOTCHES + 1e-3;
+}
+
+Test(rd, a_near_choice_limits_the_steps_measured)
+{
+    char tmp[256];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    btf *src = test_material(BTF_GEN_TILES, 32, rings, 3);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 6;
+    btf_pca_model *m = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_pca_compress(src, &po, NULL, NULL, &m, &err), BTF_OK, "%s", err.msg);
+    btf_rd_result full, same, far, fit, fit_near;
+    allocate_near(m, 0, NULL, tmp, &full);
+    /* near its own choice: the same steps (they are among those measured) */
+    allocate_near(m, 0, &full, tmp, &same);
+    for (int j = 0; j < 6; j++)
+        cr_expect(same.tex_noise[j] == full.tex_noise[j] && same.wt_noise[j] == full.wt_noise[j], "component %d", j);
+    cr_expect_eq(same.d_target, full.d_target, "the references are measured either way");
+    /* near the coarsest steps (texture and weight noise 8 x 0.5): every step chosen is
+     * within two notches of them or a reference step (equal noise 0.5, 16-bit
+     * weights), where the full ladder chose other steps */
+    float coarse[6] = {4.0f, 4.0f, 4.0f, 4.0f, 4.0f, 4.0f};
+    btf_rd_result near = {.n_comp = 6, .tex_noise = coarse, .wt_noise = coarse};
+    allocate_near(m, 0, &near, tmp, &far);
+    int moved = 0;
+    for (int j = 0; j < 6; j++) {
+        cr_expect(near_or_reference(far.tex_noise[j], 4.0f, 0.5f), "component %d texture noise %g", j, far.tex_noise[j]);
+        cr_expect(near_or_reference(far.wt_noise[j], 4.0f, 0.0f), "component %d weight noise %g", j, far.wt_noise[j]);
+        moved += !near_or_reference(full.tex_noise[j], 4.0f, 0.5f) || !near_or_reference(full.wt_noise[j], 4.0f, 0.0f);
+    }
+    cr_expect_gt(moved, 0, "the full ladder chose within the window anyway: the test shows nothing");
+    /* a byte budget, near its own fit: the same fit */
+    allocate_near(m, full.bytes_rd * 3 / 4, NULL, tmp, &fit);
+    allocate_near(m, full.bytes_rd * 3 / 4, &fit, tmp, &fit_near);
+    cr_expect_eq(fit_near.bytes_rd, fit.bytes_rd);
+    cr_expect_eq(fit_near.d_rd, fit.d_rd);
+    btf_rd_result_free(&full), btf_rd_result_free(&same), btf_rd_result_free(&far);
+    btf_rd_result_free(&fit), btf_rd_result_free(&fit_near);
+    btf_pca_model_free(m);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
+}
+
 /* Compresses src at k, 6 components, --rd with the model slot; returns the package's RMSE. */
 static double compress_slot(const btf *src, int k, btf_pca_model **slot, const char *out, btf_rd_result *rr)
 {
