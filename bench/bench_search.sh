@@ -9,7 +9,9 @@
 # whole material, not on its centre window): their cost, and the CIELab error each
 # package reached (the manifest's budget.lab), screened over whole. Seeds no test
 # uses.
-# SEARCH_LARGE=1 adds tiles at 256x256 (about half an hour). Run by bench/run.sh
+# SEARCH_LARGE=1 adds tiles at 256x256 (about half an hour); SEARCH_FULL=0 leaves the
+# --full-search comparison out (SEARCH_MATERIALS="tiles256=gen:tiles:256:5151"
+# SEARCH_FULL=0: the 256x256 cost alone, about 9 minutes). Run by bench/run.sh
 # (results: bench/results/search.txt); needs `make build` and jq.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -67,17 +69,17 @@ for spec in "${mats[@]}"; do
     # the same searches measuring every candidate on the whole material, not on its
     # centre window: what the window costs in error (the compressor's own CIELab of
     # the package as written, its 256-texel subsample)
-    read -r tfvw tfvc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-v1full" --max-bytes "$tb" --full-search --quiet)"
-    read -r tfsw tfsc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-full" --rd --max-bytes "$tb" --full-search --quiet)"
+    if [[ ${SEARCH_FULL:-1} != 0 ]]; then
+        read -r tfvw tfvc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-v1full" --max-bytes "$tb" --full-search --quiet)"
+        read -r tfsw tfsc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-full" --rd --max-bytes "$tb" --full-search --quiet)"
+    fi
     blab() { jq -r '.budget.lab' "$1/manifest.json"; }
-    lv=$(blab "$tmp/$name-v1") lfv=$(blab "$tmp/$name-v1full") ls=$(blab "$tmp/$name-search") lfs=$(blab "$tmp/$name-full")
+    lv=$(blab "$tmp/$name-v1") ls=$(blab "$tmp/$name-search")
     chosen=$(jq -r '.budget | "k \(.k) \(.components) components \(.rd_steps // "equal-noise") \(.center // "none") \(.chunks) chunks"' \
         "$tmp/$name-search/manifest.json")
     v1w=$(ratio "$tvw" "$tpw") v1c=$(ratio "$tvc" "$tpc")   # the version-1 search over plain
     rdw=$(ratio "$tsw" "$trw") rdc=$(ratio "$tsc" "$trc")   # the --rd search over plain --rd
     plw=$(ratio "$tsw" "$tpw") plc=$(ratio "$tsc" "$tpc")   # the --rd search over plain
-    fvw=$(ratio "$tfvw" "$tpw") fvc=$(ratio "$tfvc" "$tpc")  # the whole-material searches over plain
-    fsw=$(ratio "$tfsw" "$tpw") fsc=$(ratio "$tfsc" "$tpc")
     seconds_lines "$name" plain "$tpw" "$tpc"
     seconds_lines "$name" v1 "$tvw" "$tvc"
     ratio_lines "$name" v1_over_plain "$v1w" "$v1c"
@@ -85,17 +87,21 @@ for spec in "${mats[@]}"; do
     seconds_lines "$name" rd "$tsw" "$tsc"
     ratio_lines "$name" rd_over_plain_rd "$rdw" "$rdc"
     ratio_lines "$name" rd_over_plain "$plw" "$plc"
-    seconds_lines "$name" v1_full "$tfvw" "$tfvc"
-    ratio_lines "$name" v1_full_over_plain "$fvw" "$fvc"
-    seconds_lines "$name" rd_full "$tfsw" "$tfsc"
-    ratio_lines "$name" rd_full_over_plain "$fsw" "$fsc"
-    printf 'search_%s_v1_lab %s\nsearch_%s_v1_full_lab %s\nsearch_%s_v1_lab_over_full %s x\n' \
-        "$name" "$lv" "$name" "$lfv" "$name" "$(ratio "$lv" "$lfv")"
-    printf 'search_%s_rd_lab %s\nsearch_%s_rd_full_lab %s\nsearch_%s_rd_lab_over_full %s x\n' \
-        "$name" "$ls" "$name" "$lfs" "$name" "$(ratio "$ls" "$lfs")"
+    printf 'search_%s_v1_lab %s\nsearch_%s_rd_lab %s\n' "$name" "$lv" "$name" "$ls"
     echo "# $name: $tpw ($tpc) | $tvw ($tvc) | $trw ($trc) | $tsw ($tsc) |" \
         "${v1w}x (${v1c}x), ${plw}x (${plc}x) | ${rdw}x (${rdc}x) | $chosen"
-    echo "# $name, candidates on the whole material: v1 ${fvw}x (${fvc}x), CIELab $lfv against $lv;" \
-        "--rd ${fsw}x (${fsc}x), CIELab $lfs against $ls"
+    if [[ ${SEARCH_FULL:-1} != 0 ]]; then
+        lfv=$(blab "$tmp/$name-v1full") lfs=$(blab "$tmp/$name-full")
+        fvw=$(ratio "$tfvw" "$tpw") fvc=$(ratio "$tfvc" "$tpc") # the whole-material searches over plain
+        fsw=$(ratio "$tfsw" "$tpw") fsc=$(ratio "$tfsc" "$tpc")
+        seconds_lines "$name" v1_full "$tfvw" "$tfvc"
+        ratio_lines "$name" v1_full_over_plain "$fvw" "$fvc"
+        seconds_lines "$name" rd_full "$tfsw" "$tfsc"
+        ratio_lines "$name" rd_full_over_plain "$fsw" "$fsc"
+        printf 'search_%s_v1_full_lab %s\nsearch_%s_v1_lab_over_full %s x\n' "$name" "$lfv" "$name" "$(ratio "$lv" "$lfv")"
+        printf 'search_%s_rd_full_lab %s\nsearch_%s_rd_lab_over_full %s x\n' "$name" "$lfs" "$name" "$(ratio "$ls" "$lfs")"
+        echo "# $name, candidates on the whole material: v1 ${fvw}x (${fvc}x), CIELab $lfv against $lv;" \
+            "--rd ${fsw}x (${fsc}x), CIELab $lfs against $ls"
+    fi
     rm -rf "$tmp/$name"-*
 done
