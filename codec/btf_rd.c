@@ -360,10 +360,11 @@ static int btf__rd_nearest(const float *g, int n, float v)
     return best;
 }
 
-/* With par->near (as many components): the masks of the steps to measure, those
- * within BTF_RD_NEAR_NOTCHES of its choices (textures: widened to even ends, whose
- * rates are encoded) and the references (the equal-noise texture step, the 16-bit
- * weights). 0, or -1 without memory. */
+/* With par->near (at most as many components): the masks of the steps to measure.
+ * For its components those within BTF_RD_NEAR_NOTCHES of its choices (textures:
+ * widened to even ends, whose rates are encoded) and the references (the
+ * equal-noise texture step, the 16-bit weights); every step of the others. Steps
+ * outside a range stay out of btf__rd_fill's notches too. 0, or -1 without memory. */
 static int btf__rd_near(btf__rd *r)
 {
     const btf_rd_result *nr = r->par->near;
