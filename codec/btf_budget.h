@@ -31,7 +31,8 @@
  * the whole material (with rd and no window, from its kept model and ladder; with a
  * window, its ladder measured near the steps the window chose, and a grown
  * candidate's near those it grew from: btf_package_options.rd_near), its prefix
- * read off the files as written, cut to the chosen prefix, and it replaces OUT like
+ * read off the files as written (fitted again once when the chunks its allocation
+ * kept came out over the budget), cut to the chosen prefix, and it replaces OUT like
  * btf_package_compress. doc/package-format.md section 11 ("What the search costs")
  * has the numbers.
  */
