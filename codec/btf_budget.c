@@ -348,10 +348,6 @@ static btf_result btf__budget_eval(btf__search *s, int i, int min_chunks, double
     return r;
 }
 
-/* The candidates were measured on a window or only estimated (rd): the best one is
- * compressed from the whole material now (on the whole material with rd, from its
- * kept model and ladder: the same steps), and its best prefix read off the files as
- * written. */
 /* The written winner's steps fitted again when the chunks its allocation kept, as
  * written, and the budget record came out over the budget and the cut dropped some
  * of them (the chunk order is by error drop per byte, so the kept components are
@@ -374,14 +370,15 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
     long long record = json ? (long long)strlen(json) + 64 : 4096;
     free(json);
     long long over = kept_bytes + record - s->b->max_bytes;
+    long long fit = s->b->max_bytes - over - s->b->max_bytes / 500;
     char aside[BTF_FS_PATH_MAX + 8];
     snprintf(aside, sizeof aside, "%s.first", s->dir[i]);
-    if (over <= 0 || rename(s->dir[i], aside) != 0)
+    if (over <= 0 || fit <= 0 || rename(s->dir[i], aside) != 0)
         return BTF_OK; /* the error curve cut the chunks, not the bytes; or the first write stands */
-    s->fit_bytes = s->b->max_bytes - over - s->b->max_bytes / 500;
     btf_budget_choice again;
     int met2 = 0, kept = s->all_kept[i];
-    btf_result r = s->fit_bytes > 0 ? btf__budget_run(s, i, 1, &again, &met2, err) : BTF_ERR_RANGE;
+    s->fit_bytes = fit;
+    btf_result r = btf__budget_run(s, i, 1, &again, &met2, err);
     s->fit_bytes = 0;
     if (r == BTF_OK && again.n_chunks > 0 && (met2 > *met || (met2 == *met && again.lab < got->lab))) {
         *got = again, *met = met2;
@@ -395,6 +392,10 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
     return BTF_OK;
 }
 
+/* The candidates were measured on a window or only estimated (rd): the best one is
+ * compressed from the whole material now (on the whole material with rd, from its
+ * kept model and ladder: the same steps), and its best prefix read off the files as
+ * written (fitted again when they overshoot the budget: btf__budget_refit). */
 static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
 {
     btf_budget_choice got;
