@@ -210,6 +210,18 @@ Test(cli, eval_json_has_the_error_curve)
     cr_assert_float_eq(num(j, "rgb_rmse"), num(last, "rgb_rmse"), 1e-12);
     cr_assert_eq((int)num(j, "pairs"), 81 * 81);
     cr_assert(num(j, "psnr") > 0 && num(j, "pixels") > 0);
+    /* --no-curve: the same whole-package metrics and bytes, one entry (the last) */
+    char *whole[] = {"eval", "--json", "--no-curve", "gen:knit:16", pkg, NULL};
+    cr_assert_eq(run_captured(cmd_eval, 5, whole, 1, out, sizeof out), 0);
+    cJSON *w = parse_only_object(out);
+    const cJSON *wl = cJSON_GetObjectItemCaseSensitive(w, "chunk");
+    cr_assert_eq(cJSON_GetArraySize(wl), 1);
+    cr_assert_eq((int)num(cJSON_GetArrayItem(wl, 0), "index"), 3);
+    cr_assert_eq(num(w, "bytes"), num(j, "bytes"));
+    cr_assert_eq((int)num(w, "chunks"), 4);
+    cr_assert_float_eq(num(w, "rgb_rmse"), num(j, "rgb_rmse"), 1e-12);
+    cr_assert_float_eq(num(w, "lab_mae"), num(j, "lab_mae"), 1e-12);
+    cJSON_Delete(w);
     cJSON_Delete(j);
     char *both[] = {"eval", "--json", "--csv", "gen:knit:16", pkg, NULL};
     cr_assert_eq(run_captured(cmd_eval, 5, both, 2, out, sizeof out), 2, "--json with --csv");
