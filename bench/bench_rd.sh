@@ -14,6 +14,8 @@
 # Run by bench/run.sh (results: bench/results/rd.txt); needs `make build` and jq.
 #   RD_MATERIALS="gen:tiles:64:4242 ..." bash bench/bench_rd.sh   # other materials
 #   RD_LARGE=0 bash bench/bench_rd.sh       # skip the 256x256 material (2: add the thesis wool and corduroy at 256x256)
+#   RD_VARIANTS=v3 RD_FLOOR=0 bash bench/bench_rd.sh   # only the default version 3, no floor
+#                                           # and no lossy WebP run (a 256x256 material in ~30 min, not ~100)
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 BUILD=${BUILD:-build}
@@ -36,8 +38,9 @@ fi
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_rd.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 
-lab() { "$BTF" eval "$1" "$2" --json | jq -r .lab_mae; }
+lab() { "$BTF" eval "$1" "$2" --json --no-curve | jq -r .lab_mae; } # one decode of the whole package
 echo "# material: thesis bytes / Lab | v1 (--max-bytes) bytes / Lab / ratio | v3png (--rd --png) | v3 (--rd --max-bytes) bytes / Lab / ratio / k, chunks | floor: 16-bit k 3, C 8 Lab (ratio)"
+variants=${RD_VARIANTS:-v1 v3png v3}
 first_v3=
 for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
@@ -50,12 +53,17 @@ for spec in "${mats[@]}"; do
     "$BTF" export-thesis "$src" "$tmp/$name-thesis" --k 3 --components 8 >/dev/null
     tb=$(find "$tmp/$name-thesis" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
     tl=$(lab "$src" "$tmp/$name-thesis")
-    "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --quiet
-    "$BTF" compress "$src" "$tmp/$name-v3png" --max-bytes "$tb" --rd --png --quiet
-    "$BTF" compress "$src" "$tmp/$name-v3" --max-bytes "$tb" --rd --quiet
-    [[ -z $first_v3 ]] && first_v3=$tmp/$name-v3png first_src=$src
+    for v in $variants; do
+        case $v in
+        v1) "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --quiet ;;
+        v3png) "$BTF" compress "$src" "$tmp/$name-v3png" --max-bytes "$tb" --rd --png --quiet
+            [[ -z $first_v3 ]] && first_v3=$tmp/$name-v3png first_src=$src ;;
+        v3) "$BTF" compress "$src" "$tmp/$name-v3" --max-bytes "$tb" --rd --quiet ;;
+        *) echo "bench_rd: unknown variant $v (v1, v3png, v3)" >&2; exit 2 ;;
+        esac
+    done
     row="# $name: $tb / $(printf %.3f "$tl")"
-    for v in v1 v3png v3; do
+    for v in $variants; do
         d=$tmp/$name-$v
         b=$(find "$d" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
         l=$(lab "$src" "$d")
@@ -65,7 +73,13 @@ for spec in "${mats[@]}"; do
         echo "rd_${name}_${v}_lab_ratio $r x"
         row+=" | $b / $(printf %.3f "$l") / ${r}x"
     done
-    row+=" / k $(jq .budget.k "$tmp/$name-v3/manifest.json"), $(jq .budget.chunks "$tmp/$name-v3/manifest.json") chunks"
+    [[ -d $tmp/$name-v3 ]] && row+=" / k $(jq .budget.k "$tmp/$name-v3/manifest.json"), $(jq .budget.chunks "$tmp/$name-v3/manifest.json") chunks"
+    if [[ ${RD_FLOOR:-1} == 0 ]]; then
+        echo "rd_${name}_thesis_bytes $tb B"
+        echo "rd_${name}_thesis_lab $(printf %.4f "$tl") lab"
+        echo "$row"
+        continue
+    fi
     # the floor at k 3, C 8: 16-bit steps, no centring (the best rank-8 blocks)
     "$BTF" compress "$src" "$tmp/$name-floor" --k 3 --components 8 --bits 16 --center none --quiet
     fl=$(lab "$src" "$tmp/$name-floor")

@@ -22,7 +22,7 @@ for spec in tiles64=gen:tiles:64:4242 knit64=gen:knit:64:4243 stone64=gen:stone:
         flag=()
         [[ $v == v3 ]] && flag=(--rd)
         b=$("$BTF" compress "$src" "$tmp/$name-$v" "${flag[@]}" --json | jq .bytes)
-        read -r rmse lab < <("$BTF" eval "$src" "$tmp/$name-$v" --json | jq -r '"\(.rgb_rmse) \(.lab_mae)"')
+        read -r rmse lab < <("$BTF" eval "$src" "$tmp/$name-$v" --json --no-curve | jq -r '"\(.rgb_rmse) \(.lab_mae)"')
         echo "rdsize_${name}_${v}_bytes $b B"
         echo "rdsize_${name}_${v}_rmse $(printf %.4f "$rmse") rgb"
         echo "rdsize_${name}_${v}_lab $(printf %.4f "$lab") lab"
