@@ -251,6 +251,9 @@ typedef struct btf__search {
     btf_rd_result rd[2];
     long long fit_bytes; /* with rd: the bytes steps are fitted to, 0 = the budget's (btf__budget_refit) */
     int final_kept;      /* with rd: components the written winner's allocation kept within them */
+    long long *final_tex; /* with rd: its estimate of each component's atlas (malloc'd, n_final) */
+    int n_final;
+    double *tex_fix;     /* NULL, or per component the atlas written over its estimate (the refit) */
 } btf__search;
 
 /* 1 when candidates a and b have the same PCA model: k, components, centring. */
@@ -280,6 +283,17 @@ static const btf_rd_result *btf__budget_near(const btf__search *s, int i, int fi
     return b->k == c->k && b->center == c->center && b->components < c->components ? &s->rd[0] : NULL;
 }
 
+/* Keeps what the written winner's allocation rd kept and estimated, for the refit;
+ * frees rd. */
+static void btf__budget_keep_final(btf__search *s, btf_rd_result *rd)
+{
+    s->final_kept = rd->n_kept;
+    free(s->final_tex);
+    s->final_tex = rd->tex_bytes, s->n_final = rd->tex_bytes ? rd->n_comp : 0;
+    rd->tex_bytes = NULL;
+    btf_rd_result_free(rd);
+}
+
 /* Candidate i measured with its settings on the search's window (final: compressed
  * from the whole material and written); into *got. With rd a measured candidate is
  * only estimated, without it written on the window. */
@@ -298,6 +312,7 @@ static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_c
     btf_rd_result rd = {0}; /* what this allocation chooses */
     po.rd_out = po.rd ? &rd : NULL;
     po.rd_near = btf__budget_near(s, i, final);
+    po.rd_tex_fix = final ? s->tex_fix : NULL;
     btf_pca_options pca = s->pca;
     pca.center = c->center;
     const btf *src = final ? s->src : s->screen;
@@ -313,7 +328,7 @@ static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_c
     if (!final) /* kept with the model: the winner's whole-material ladder is measured near it */
         btf_rd_result_free(&s->rd[slot]), s->rd[slot] = rd;
     else
-        s->final_kept = rd.n_kept, btf_rd_result_free(&rd);
+        btf__budget_keep_final(s, &rd);
     return r;
 }
 
@@ -348,14 +363,45 @@ static btf_result btf__budget_eval(btf__search *s, int i, int min_chunks, double
     return r;
 }
 
+/* Per component of the written winner (package p in dir), its atlas as written over
+ * the allocation's estimate of it (s->final_tex); a component without a written
+ * chunk gets the ratio of all written atlases over their estimates. malloc'd
+ * (n_final), or NULL when nothing was measured or without memory. */
+static double *btf__budget_tex_fix(const btf__search *s, const btf_package *p, const char *dir)
+{
+    double *fix = s->n_final > 0 ? malloc(sizeof(double) * (size_t)s->n_final) : NULL;
+    double got = 0.0, est = 0.0;
+    char path[BTF_FS_PATH_MAX + 80];
+    for (int j = 0; fix && j < s->n_final; j++)
+        fix[j] = 0.0;
+    for (int q = 0; fix && q < p->n_chunks; q++) {
+        int j = p->chunk[q].component;
+        for (int f = 0; j >= 0 && j < s->n_final && f < p->chunk[q].n_files; f++) {
+            snprintf(path, sizeof path, "%s/%s", dir, p->chunk[q].files[f]);
+            long long n = strncmp(p->chunk[q].files[f], "tex-", 4) ? -1 : btf_fs_size(path);
+            if (n > 0 && s->final_tex[j] > 0)
+                fix[j] = (double)n / (double)s->final_tex[j], got += (double)n, est += (double)s->final_tex[j];
+        }
+    }
+    if (fix && !(est > 0.0))
+        free(fix), fix = NULL;
+    for (int j = 0; fix && j < s->n_final; j++)
+        fix[j] = fix[j] > 0.0 ? fix[j] : got / est;
+    return fix;
+}
+
 /* The written winner's steps fitted again when the chunks its allocation kept, as
  * written, and the budget record came out over the budget and the cut dropped some
  * of them (the chunk order is by error drop per byte, so the kept components are
- * taken as the first chunks): the allocation's estimates fill
- * the budget to within a few hundred bytes, and the cut then loses a whole chunk (the
- * thesis wool at 128x128, k 3 centred, 8 components: 7 chunks, CIELab 0.505, 220
- * bytes short of the eighth). Fitted to the budget less the overshoot and 0.2%, the
- * better of the two writes is kept in the candidate's directory. */
+ * taken as the first chunks): the allocation's estimates fill the budget to within a
+ * few hundred bytes, but an atlas estimated from a sample of its tile rows can come
+ * out several percent larger, and the cut then loses a whole chunk (the thesis wool
+ * at 128x128, k 3 centred, 8 components: 7 chunks, CIELab 0.505, 220 bytes short of
+ * the eighth; at 256x256, 9 components: 8 chunks, 117 KB short, its atlases 0-14%
+ * above their estimates). Fitted again to the budget less the record and 0.2%, each
+ * component's texture rates scaled by its atlas as written over its estimate
+ * (btf_rd_params.tex_rate_fix), the better of the two writes is kept in the
+ * candidate's directory. */
 static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int *met, btf_error *err)
 {
     int i = s->best;
@@ -365,12 +411,16 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
         return BTF_OK;
     int n = s->final_kept < p.n_chunks ? s->final_kept : p.n_chunks;
     long long kept_bytes = btf__prefix_bytes(&p, n); /* the chunks the allocation fitted, as written */
-    btf_manifest_clear(&p);
     char *json = btf__budget_json(s->b, &s->rs);
     long long record = json ? (long long)strlen(json) + 64 : 4096;
     free(json);
     long long over = kept_bytes + record - s->b->max_bytes;
-    long long fit = s->b->max_bytes - over - s->b->max_bytes / 500;
+    long long fit = s->b->max_bytes - record - s->b->max_bytes / 500;
+    free(s->tex_fix);
+    s->tex_fix = over > 0 ? btf__budget_tex_fix(s, &p, s->dir[i]) : NULL;
+    if (!s->tex_fix) /* no measured atlas: the budget less the overshoot instead */
+        fit = s->b->max_bytes - over - s->b->max_bytes / 500;
+    btf_manifest_clear(&p);
     char aside[BTF_FS_PATH_MAX + 8];
     snprintf(aside, sizeof aside, "%s.first", s->dir[i]);
     if (over <= 0 || fit <= 0 || rename(s->dir[i], aside) != 0)
@@ -380,6 +430,7 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
     s->fit_bytes = fit;
     btf_result r = btf__budget_run(s, i, 1, &again, &met2, err);
     s->fit_bytes = 0;
+    free(s->tex_fix), s->tex_fix = NULL;
     if (r == BTF_OK && again.n_chunks > 0 && (met2 > *met || (met2 == *met && again.lab < got->lab))) {
         *got = again, *met = met2;
         btf_fs_rmtree(aside, NULL);
@@ -522,6 +573,7 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
         btf_fs_rmtree(sr->dir[i], NULL);
     for (int i = 0; i < 2; i++)
         btf_pca_model_free(sr->model[i]), btf_rd_ladder_free(&sr->ladder[i]), btf_rd_result_free(&sr->rd[i]);
+    free(sr->final_tex), free(sr->tex_fix);
     if (sr->screen != src)
         btf_free((btf *)sr->screen);
     free(sr);

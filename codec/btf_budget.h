@@ -32,7 +32,8 @@
  * window, its ladder measured near the steps the window chose, and a grown
  * candidate's near those it grew from: btf_package_options.rd_near), its prefix
  * read off the files as written (fitted again once when the chunks its allocation
- * kept came out over the budget), cut to the chosen prefix, and it replaces OUT like
+ * kept came out over the budget, each texture's rates scaled by its atlas as
+ * written over its estimate), cut to the chosen prefix, and it replaces OUT like
  * btf_package_compress. doc/package-format.md section 11 ("What the search costs")
  * has the numbers.
  */

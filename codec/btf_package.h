@@ -58,6 +58,9 @@ typedef struct btf_package_options {
      * choices are measured. btf_budget passes the window's choice when it writes the
      * winner, and a candidate's when it grows it. */
     const struct btf_rd_result *rd_near;
+    /* With rd: NULL, or per component a factor on its texture rates
+     * (btf_rd_params.tex_rate_fix): btf_budget's refit, from the atlases it wrote. */
+    const double *rd_tex_fix;
     /* With rd: > 0 = steps for the least error within this many bytes instead of the
      * equal-noise error (btf_rd_params.max_bytes; set by btf_budget for --max-bytes). */
     long long rd_max_bytes;

@@ -582,7 +582,7 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
                                    const btf_package_options *o, const char *tmp, btf_error *err)
 {
     btf_rd_params par = {m,           w->acols,     w->arows,     noise, tmp, o->rd_max_bytes,
-                         o->png_only, o->rd_ladder, o->estimate ? o->tex_rate_scale : 0.0, o->rd_near};
+                         o->png_only, o->rd_ladder, o->estimate ? o->tex_rate_scale : 0.0, o->rd_near, o->rd_tex_fix};
     btf_rd_result rr, *keep = o->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)

@@ -448,7 +448,7 @@ void btf_rd_result_free(btf_rd_result *r)
 {
     if (!r)
         return;
-    free(r->tex_noise), free(r->wt_noise), free(r->comp_bytes);
+    free(r->tex_noise), free(r->wt_noise), free(r->comp_bytes), free(r->tex_bytes);
     memset(r, 0, sizeof *r);
 }
 
@@ -456,6 +456,19 @@ static void btf__rd_free(btf__rd *r)
 {
     free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->wnorm);
     free(r->sub_row), free(r->mt), free(r->mw);
+}
+
+/* par->tex_rate_fix applied to the texture rates in use (the ladder keeps them as
+ * measured); a step not measured (negative rate) stays so. */
+static void btf__rd_fix_rates(btf__rd *r)
+{
+    for (int j = 0; r->par->tex_rate_fix && j < r->C; j++) {
+        double f = r->par->tex_rate_fix[j];
+        for (int i = 0; f > 0.0 && isfinite(f) && i < BTF__RD_NT; i++) {
+            long long *s = &r->rt[(size_t)j * BTF__RD_NT + i];
+            *s = *s < 0 ? *s : llround((double)*s * f);
+        }
+    }
 }
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err)
@@ -478,10 +491,11 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     out->tex_noise = calloc((size_t)r.C, sizeof(float));
     out->wt_noise = calloc((size_t)r.C, sizeof(float));
     out->comp_bytes = calloc((size_t)r.C, sizeof(long long));
+    out->tex_bytes = calloc((size_t)r.C, sizeof(long long));
     int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
     btf_result res = BTF_OK;
     if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !out->tex_noise || !out->wt_noise ||
-        !out->comp_bytes || !it || !iw)
+        !out->comp_bytes || !out->tex_bytes || !it || !iw)
         res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
     for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
         r.gt[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_TEX_LO + i));
@@ -489,6 +503,8 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         r.gw[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_WT_LO + i - 1));
     if (res == BTF_OK)
         res = btf__rd_ladder_use(&r, err);
+    if (res == BTF_OK)
+        btf__rd_fix_rates(&r);
     if (res == BTF_OK) {
         /* reference: every texture at tex_noise (ladder index -LO), 16-bit weights (index 0) */
         out->d_target = 0.0, out->bytes_equal = 0;
@@ -520,7 +536,8 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         out->n_comp = r.C;
         for (int j = 0; j < r.C; j++) {
             out->tex_noise[j] = r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
-            out->comp_bytes[j] = r.rt[(size_t)j * BTF__RD_NT + it[j]] + r.rw[(size_t)j * BTF__RD_NW + iw[j]];
+            out->tex_bytes[j] = r.rt[(size_t)j * BTF__RD_NT + it[j]];
+            out->comp_bytes[j] = out->tex_bytes[j] + r.rw[(size_t)j * BTF__RD_NW + iw[j]];
         }
     }
     free(it), free(iw);

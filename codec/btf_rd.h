@@ -6,7 +6,7 @@
  * Texture rates of atlases over 9 tiles are measured on a sample of whole tile rows
  * and scaled (section 11), so bytes_equal and bytes_rd are estimates there.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL};  // equal-noise error, WebP, every step measured
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL};  // equal-noise error, WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -72,6 +72,11 @@ typedef struct btf_rd_params {
      * the reference steps (equal-noise texture, 16-bit weights); the ladder measured
      * so is not stored in ladder */
     const struct btf_rd_result *near;
+    /* NULL, or one factor per model component: component j's texture rates, at every
+     * step, times tex_rate_fix[j] (> 0; others ignored): the atlas as written over its
+     * estimate, so that an allocation made again after a write (btf_budget's refit)
+     * counts the bytes the writer produces */
+    const double *tex_rate_fix;
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */
@@ -85,6 +90,7 @@ typedef struct btf_rd_result {
     long long bytes_rd;     /* the same files at the chosen steps (with max_bytes: of the kept components) */
     int n_kept;             /* components worth their bytes at lambda (all without max_bytes) */
     long long *comp_bytes;  /* n_comp: component j's files at its chosen steps (counted as bytes_rd is) */
+    long long *tex_bytes;   /* n_comp: the texture atlas's share of comp_bytes */
 } btf_rd_result;
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err);

@@ -261,7 +261,7 @@ static void allocate_near(const btf_pca_model *m, long long max_bytes, const btf
                           btf_rd_result *out)
 {
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, max_bytes, 0, NULL, 0.0, near};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, max_bytes, 0, NULL, 0.0, near, NULL};
     btf_error err = {0};
     cr_assert_eq(btf_rd_allocate(&par, out, &err), BTF_OK, "%s", err.msg);
 }
@@ -326,6 +326,57 @@ static double compress_slot(const btf *src, int k, btf_pca_model **slot, const c
     btf_compress_stats st = {0};
     cr_assert_eq(btf_package_compress(src, &po, &ko, out, &st, &err), BTF_OK, "%s", err.msg);
     return st.rmse;
+}
+
+/* A texture rate fix (the budget's refit: each atlas as written over its estimate)
+ * scales the texture rates the allocation counts, leaves the stored ladder as
+ * measured, and with factors of 1 changes nothing. */
+Test(rd, texture_rates_are_scaled_by_a_fix)
+{
+    char tmp[256];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    btf *src = test_material(BTF_GEN_TILES, 32, rings, 3);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 6;
+    btf_pca_model *m = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_pca_compress(src, &po, NULL, NULL, &m, &err), BTF_OK, "%s", err.msg);
+    int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
+    btf_rd_ladder l = {0};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, 0, 0, &l, 0.0, NULL, NULL};
+    btf_rd_result eq, plain, ones, fixed;
+    cr_assert_eq(btf_rd_allocate(&par, &eq, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(l.n_comp, 6, "the ladder is stored");
+    size_t nt = (size_t)l.n_comp * l.n_tex;
+    long long *measured = malloc(nt * sizeof *measured);
+    memcpy(measured, l.rt, nt * sizeof *measured);
+    par.max_bytes = eq.bytes_equal * 3 / 4;
+    cr_assert_eq(btf_rd_allocate(&par, &plain, &err), BTF_OK, "%s", err.msg);
+    double one[6] = {1, 1, 1, 1, 1, 1}, fix[6] = {1.0, 1.5, 1.0, 2.0, 1.0, 0.5};
+    par.tex_rate_fix = one;
+    cr_assert_eq(btf_rd_allocate(&par, &ones, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(ones.bytes_rd, plain.bytes_rd);
+    cr_expect_eq(ones.d_rd, plain.d_rd);
+    par.tex_rate_fix = fix;
+    cr_assert_eq(btf_rd_allocate(&par, &fixed, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(memcmp(measured, l.rt, nt * sizeof *measured), 0, "the stored ladder keeps the rates as measured");
+    cr_expect_leq(fixed.bytes_rd, par.max_bytes, "the fixed rates fit the budget");
+    for (int j = 0; j < 6; j++) {
+        cr_expect_eq(ones.tex_bytes[j], plain.tex_bytes[j], "component %d", j);
+        cr_expect(plain.tex_bytes[j] > 0 && plain.tex_bytes[j] <= plain.comp_bytes[j], "component %d", j);
+        /* the chosen step's rate as measured, times the fix */
+        int found = 0;
+        for (int i = 0; i < l.n_tex && !found; i++)
+            found = measured[(size_t)j * l.n_tex + i] >= 0 &&
+                    llround((double)measured[(size_t)j * l.n_tex + i] * fix[j]) == fixed.tex_bytes[j];
+        cr_expect(found, "component %d: %lld bytes is no measured rate times %.1f", j, fixed.tex_bytes[j], fix[j]);
+    }
+    btf_rd_result_free(&eq), btf_rd_result_free(&plain), btf_rd_result_free(&ones), btf_rd_result_free(&fixed);
+    btf_rd_ladder_free(&l);
+    free(measured);
+    btf_pca_model_free(m);
+    btf_free(src);
+    cr_assert_eq(test_rmtree(tmp), 0);
 }
 
 Test(rd, a_model_slot_is_reused_for_the_same_settings_only)
