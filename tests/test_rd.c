@@ -273,16 +273,25 @@ static int near_or_reference(float g, float c, float r)
     return g == r || fabs(log((double)g / c) / log(sqrt(2.0))) <= BTF_RD_NEAR_NOTCHES + 1e-3;
 }
 
-Test(rd, a_near_choice_limits_the_steps_measured)
+/* The k = 3, 6-component PCA of tiles 32x32 (seed 3) into a new model; the
+ * material into *src (both freed by the caller). */
+static btf_pca_model *tiles32_model(btf **src)
 {
-    char tmp[256];
-    cr_assert(test_tmpdir(tmp, sizeof tmp));
-    btf *src = test_material(BTF_GEN_TILES, 32, rings, 3);
+    *src = test_material(BTF_GEN_TILES, 32, rings, 3);
     btf_pca_options po = {0};
     po.k = 3, po.components = 6;
     btf_pca_model *m = NULL;
     btf_error err = {0};
-    cr_assert_eq(btf_pca_compress(src, &po, NULL, NULL, &m, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_pca_compress(*src, &po, NULL, NULL, &m, &err), BTF_OK, "%s", err.msg);
+    return m;
+}
+
+Test(rd, a_near_choice_limits_the_steps_measured)
+{
+    char tmp[256];
+    cr_assert(test_tmpdir(tmp, sizeof tmp));
+    btf *src = NULL;
+    btf_pca_model *m = tiles32_model(&src);
     btf_rd_result full, same, far, fit, fit_near;
     allocate_near(m, 0, NULL, tmp, &full);
     /* near its own choice: the same steps (they are among those measured) */
@@ -335,12 +344,9 @@ Test(rd, texture_rates_are_scaled_by_a_fix)
 {
     char tmp[256];
     cr_assert(test_tmpdir(tmp, sizeof tmp));
-    btf *src = test_material(BTF_GEN_TILES, 32, rings, 3);
-    btf_pca_options po = {0};
-    po.k = 3, po.components = 6;
-    btf_pca_model *m = NULL;
+    btf *src = NULL;
+    btf_pca_model *m = tiles32_model(&src);
     btf_error err = {0};
-    cr_assert_eq(btf_pca_compress(src, &po, NULL, NULL, &m, &err), BTF_OK, "%s", err.msg);
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
     btf_rd_ladder l = {0};
     btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, 0, 0, &l, 0.0, NULL, NULL};
