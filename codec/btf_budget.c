@@ -180,19 +180,29 @@ static int btf__fit_components(const btf *src, btf_pca_options po, int k, int n)
     return po.components;
 }
 
+/* Bytes of chunk i's texture files (tex-*) of p, as written in dir; 0 when none. */
+static long long btf__chunk_tex_bytes(const btf_package *p, const char *dir, int i)
+{
+    char path[BTF_FS_PATH_MAX + 80];
+    long long sum = 0;
+    for (int f = 0; f < p->chunk[i].n_files; f++)
+        if (!strncmp(p->chunk[i].files[f], "tex-", 4)) {
+            snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
+            long long n = btf_fs_size(path);
+            sum += n > 0 ? n : 0;
+        }
+    return sum;
+}
+
 /* Counts the texture files of every chunk of p, written in dir, scale times over (a
  * version-1 package of the search's window standing for the whole material; a
  * version-3 estimate scales its rates itself: btf_package_options.tex_rate_scale). */
 static void btf__budget_scale_textures(btf_package *p, const char *dir, double scale)
 {
-    char path[BTF_FS_PATH_MAX + 80];
-    for (int i = 0; i < p->n_chunks; i++)
-        for (int f = 0; f < p->chunk[i].n_files; f++)
-            if (!strncmp(p->chunk[i].files[f], "tex-", 4)) {
-                snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
-                long long n = btf_fs_size(path);
-                p->chunk[i].bytes += n > 0 ? llround((double)n * (scale - 1.0)) : 0;
-            }
+    for (int i = 0; i < p->n_chunks; i++) {
+        long long n = btf__chunk_tex_bytes(p, dir, i);
+        p->chunk[i].bytes += n > 0 ? llround((double)n * (scale - 1.0)) : 0;
+    }
 }
 
 /* Compresses candidate k with up to n components into dir, or with estimate (rd
@@ -369,19 +379,13 @@ static btf_result btf__budget_eval(btf__search *s, int i, int min_chunks, double
  * (n_final), or NULL when nothing was measured or without memory. */
 static double *btf__budget_tex_fix(const btf__search *s, const btf_package *p, const char *dir)
 {
-    double *fix = s->n_final > 0 ? malloc(sizeof(double) * (size_t)s->n_final) : NULL;
+    double *fix = s->n_final > 0 ? calloc((size_t)s->n_final, sizeof(double)) : NULL;
     double got = 0.0, est = 0.0;
-    char path[BTF_FS_PATH_MAX + 80];
-    for (int j = 0; fix && j < s->n_final; j++)
-        fix[j] = 0.0;
     for (int q = 0; fix && q < p->n_chunks; q++) {
         int j = p->chunk[q].component;
-        for (int f = 0; j >= 0 && j < s->n_final && f < p->chunk[q].n_files; f++) {
-            snprintf(path, sizeof path, "%s/%s", dir, p->chunk[q].files[f]);
-            long long n = strncmp(p->chunk[q].files[f], "tex-", 4) ? -1 : btf_fs_size(path);
-            if (n > 0 && s->final_tex[j] > 0)
-                fix[j] = (double)n / (double)s->final_tex[j], got += (double)n, est += (double)s->final_tex[j];
-        }
+        long long n = j >= 0 && j < s->n_final ? btf__chunk_tex_bytes(p, dir, q) : 0;
+        if (n > 0 && s->final_tex[j] > 0)
+            fix[j] = (double)n / (double)s->final_tex[j], got += (double)n, est += (double)s->final_tex[j];
     }
     if (fix && !(est > 0.0))
         free(fix), fix = NULL;
@@ -416,15 +420,16 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
     free(json);
     long long over = kept_bytes + record - s->b->max_bytes;
     long long fit = s->b->max_bytes - record - s->b->max_bytes / 500;
-    free(s->tex_fix);
     s->tex_fix = over > 0 ? btf__budget_tex_fix(s, &p, s->dir[i]) : NULL;
     if (!s->tex_fix) /* no measured atlas: the budget less the overshoot instead */
         fit = s->b->max_bytes - over - s->b->max_bytes / 500;
     btf_manifest_clear(&p);
     char aside[BTF_FS_PATH_MAX + 8];
     snprintf(aside, sizeof aside, "%s.first", s->dir[i]);
-    if (over <= 0 || fit <= 0 || rename(s->dir[i], aside) != 0)
+    if (over <= 0 || fit <= 0 || rename(s->dir[i], aside) != 0) {
+        free(s->tex_fix), s->tex_fix = NULL;
         return BTF_OK; /* the error curve cut the chunks, not the bytes; or the first write stands */
+    }
     btf_budget_choice again;
     int met2 = 0, kept = s->all_kept[i];
     s->fit_bytes = fit;
