@@ -91,6 +91,9 @@ static void material_destroy(btfd_material *m)
     for (int i = 0; i < m->n_chunks; i++)
         chunk_clear(&m->chunks[i]);
     free(m->chunks);
+    if (m->lod)
+        free(m->lod->chunk);
+    free(m->lod);
     unmap(m->thumb, m->thumb_size);
     free(m->summary);
     free(m->manifest);
@@ -227,6 +230,58 @@ static btf_result make_summary(const cJSON *root, btfd_material *m, btf_error *e
     return m->summary ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", m->name);
 }
 
+/* Integer JSON number in [lo, hi], or -1. */
+static int int_in(const cJSON *v, int lo, int hi)
+{
+    if (!cJSON_IsNumber(v) || v->valuedouble != floor(v->valuedouble) || v->valuedouble < lo ||
+        v->valuedouble > hi)
+        return -1;
+    return (int)v->valuedouble;
+}
+
+/* m->lod for a package with levels (versions 2 and 4); left NULL when the manifest's
+ * levels, components or contributions are missing or out of range. */
+static void load_lod(const cJSON *root, const cJSON *chunks, btfd_material *m)
+{
+    int version = int_in(cJSON_GetObjectItemCaseSensitive(root, "version"), 1, 4);
+    int levels = int_in(cJSON_GetObjectItemCaseSensitive(root, "levels"), 1, 15);
+    if ((version != 2 && version != 4) || levels < 1)
+        return;
+    btf_package *p = calloc(1, sizeof *p);
+    btf_chunk_info *ci = calloc((size_t)m->n_chunks, sizeof *ci);
+    int i = 0;
+    const cJSON *jc;
+    cJSON_ArrayForEach(jc, chunks) {
+        const cJSON *contrib = cJSON_GetObjectItemCaseSensitive(jc, "contrib");
+        if (!ci || (ci[i].component = int_in(cJSON_GetObjectItemCaseSensitive(jc, "component"), 0, 1 << 20)) < 0 ||
+            (ci[i].level = int_in(cJSON_GetObjectItemCaseSensitive(jc, "level"), 0, levels - 1)) < 0)
+            break;
+        ci[i].contrib = cJSON_IsNumber(contrib) && isfinite(contrib->valuedouble) ? contrib->valuedouble : 0.0;
+        ci[i].bytes = (long long)m->chunks[i].bytes;
+        i++;
+    }
+    if (!p || i != m->n_chunks) {
+        free(ci);
+        free(p);
+        return;
+    }
+    p->version = version;
+    p->n_levels = levels;
+    p->n_chunks = m->n_chunks;
+    p->chunk = ci;
+    m->lod = p;
+}
+
+int btfd_material_lod_limit(const btfd_material *m, double texels_per_pixel, double threshold)
+{
+    if (!m->lod)
+        return texels_per_pixel > 0 ? m->n_chunks : 0;
+    btf_lod_view v = {texels_per_pixel, threshold};
+    btf_lod_selection sel;
+    btf_lod_select(m->lod, &v, &sel, NULL);
+    return sel.limit;
+}
+
 /* Validates the parsed manifest and loads every chunk. */
 static btf_result load_parsed(const char *dir, const cJSON *root, btfd_material *m, btf_error *err)
 {
@@ -256,6 +311,7 @@ static btf_result load_parsed(const char *dir, const cJSON *root, btfd_material 
             return r;
         m->total_bytes += m->chunks[m->n_chunks - 1].bytes;
     }
+    load_lod(root, chunks, m);
     char path[4096];
     snprintf(path, sizeof path, "%s/thumbnail.png", dir);
     btf_error terr;

@@ -32,6 +32,7 @@
 #include <sys/types.h>
 
 #include "btf.h"
+#include "btf_lod.h"
 
 #define BTFD_MANIFEST_MAX (4u << 20)        /* largest manifest.json, bytes */
 #define BTFD_FILE_MAX 0x7fffffffu           /* largest package file (offsets are u32) */
@@ -69,6 +70,9 @@ typedef struct btfd_material {
     const uint8_t *thumb;  /* mmapped thumbnail.png or NULL */
     size_t thumb_size;
     char *summary;         /* JSON object text for the list (malloc'd) */
+    btf_package *lod;      /* packages with levels: what btf_lod_select reads of the manifest
+                              (version, levels, per chunk component, level, contrib, bytes;
+                              malloc'd), else NULL: a footprint budget then allows every chunk */
     dev_t dev;             /* identity of manifest.json when loaded: a rescan */
     ino_t ino;             /* reloads the package when any of these change */
     int64_t mtime_ns;
@@ -83,6 +87,11 @@ typedef struct btfd_library {
     char *list_json;         /* JSON array of the summaries (malloc'd) */
     uint64_t generation;     /* incremented when the set of packages changes */
 } btfd_library;
+
+/* The prefix of m's chunks a view of texels_per_pixel (btf_lod_footprint) needs at
+ * visibility threshold (doc/package-format.md section 10, btf_lod_select); every
+ * chunk for packages without levels, none when texels_per_pixel <= 0. */
+int btfd_material_lod_limit(const btfd_material *m, double texels_per_pixel, double threshold);
 
 /* Log sink for packages skipped during a scan (the library never prints). */
 typedef void (*btfd_log_fn)(void *ud, const char *msg);

@@ -66,6 +66,9 @@ typedef struct btfd_conn {
     lws_usec_t tokens_us;
     int close_code;               /* nonzero: close at the next WRITEABLE */
     char close_reason[96];
+    uint64_t bin_sent;            /* binary message bytes (headers included) sent */
+    uint64_t acked;               /* of those, what the client's last ack says it received */
+    uint64_t window;              /* 0: no flow control; else at most this much sent and not acked */
 } btfd_conn;
 
 static btfd_server *server_of(struct lws *wsi)
@@ -213,6 +216,12 @@ static int budget_limit(const btfd_material *m, const btfd_budget *b)
                 break;
             }
     }
+    if (b->texels_per_pixel >= 0) {
+        int need = btfd_material_lod_limit(m, b->texels_per_pixel,
+                                           b->threshold >= 0 ? b->threshold : BTF_LOD_THRESHOLD);
+        if (need < limit)
+            limit = need;
+    }
     if (b->max_error >= 0 && m->metric)
         for (int i = 0; i < limit; i++)
             if (m->chunks[i].error <= b->max_error) {
@@ -288,6 +297,15 @@ static int pick_chunk(btfd_conn *c)
     c->cur_file = 0;
     c->cur_off = 0;
     return best >= 0;
+}
+
+/* 1 if some subscription has an allowed chunk the client does not hold. */
+static int pick_next_exists(const btfd_conn *c)
+{
+    for (int k = 0; k < c->n_subs; k++)
+        if (sub_next(&c->subs[k]) >= 0)
+            return 1;
+    return 0;
 }
 
 /* ------------------------------------------------------------------ writing */
@@ -371,6 +389,7 @@ static int send_piece(btfd_server *srv, btfd_conn *c)
     if (lws_write(c->wsi, p, len, LWS_WRITE_BINARY) < (int)len)
         return -1;
     srv->stats.bytes_sent += n;
+    c->bin_sent += len;
     c->cur_off += n;
     piece_sent(srv, c, s);
     return 0;
@@ -385,6 +404,12 @@ static int close_now(btfd_conn *c, int code, const char *reason)
     return -1;
 }
 
+/* 1 while the client's flow-control window is full: as much as it allows is in flight. */
+static int window_closed(const btfd_conn *c)
+{
+    return c->window && c->bin_sent > c->acked && c->bin_sent - c->acked >= c->window;
+}
+
 static int on_writeable(btfd_server *srv, btfd_conn *c)
 {
     if (c->close_code)
@@ -394,6 +419,8 @@ static int on_writeable(btfd_server *srv, btfd_conn *c)
     int r;
     if (c->q_head)
         r = send_text(srv, c);
+    else if (window_closed(c))
+        return 0; /* the client's next ack reopens it (the stall timeout stays armed) */
     else if (c->cur_mid || pick_chunk(c))
         r = send_piece(srv, c);
     else if (btfd_ops_going_away(srv, 1))
@@ -549,6 +576,21 @@ static void do_list(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
     queue_text(srv, c, s, NULL);
 }
 
+/* Flow control (doc/protocol.md, "Flow control"): the client says how much of the
+ * binary stream it has received and, optionally, how much may be in flight. */
+static void do_ack(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
+{
+    uint64_t r = (uint64_t)rq->received;
+    if (r > c->bin_sent)
+        r = c->bin_sent; /* never more than was sent */
+    if (r > c->acked)
+        c->acked = r;
+    if (rq->window >= 0)
+        c->window = (uint64_t)rq->window;
+    if (c->cur_mid || c->q_head || pick_next_exists(c))
+        want_write(srv, c);
+}
+
 /* Token bucket: 0 if the client is over its request rate. */
 static int rate_ok(btfd_conn *c)
 {
@@ -578,6 +620,7 @@ static void handle_message(btfd_server *srv, btfd_conn *c, const char *msg, size
     case BTFD_REQ_BUDGET: return do_budget(srv, c, &rq);
     case BTFD_REQ_UNSUBSCRIBE: return do_unsubscribe(srv, c, &rq);
     case BTFD_REQ_PING: return queue_json(srv, c, reply("pong", &rq));
+    case BTFD_REQ_ACK: return do_ack(srv, c, &rq);
     }
 }
 

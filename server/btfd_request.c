@@ -42,7 +42,7 @@ const char *btfd_req_status_code(btfd_req_status s)
 
 btfd_budget btfd_budget_unlimited(void)
 {
-    btfd_budget b = {-1, -1, -1.0};
+    btfd_budget b = {-1, -1, -1.0, -1.0, -1.0};
     return b;
 }
 
@@ -102,6 +102,18 @@ static btfd_req_status parse_budget(const cJSON *b, btfd_budget *out, char *why,
             return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.error must be a number >= 0");
         out->max_error = c->valuedouble;
     }
+    c = cJSON_GetObjectItemCaseSensitive(b, "texels_per_pixel");
+    if (c && !cJSON_IsNull(c)) {
+        if (!cJSON_IsNumber(c) || !isfinite(c->valuedouble) || c->valuedouble < 0 || c->valuedouble > 1e9)
+            return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.texels_per_pixel must be a number 0..1e9");
+        out->texels_per_pixel = c->valuedouble;
+    }
+    c = cJSON_GetObjectItemCaseSensitive(b, "threshold");
+    if (c && !cJSON_IsNull(c)) {
+        if (!cJSON_IsNumber(c) || !isfinite(c->valuedouble) || c->valuedouble < 0)
+            return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.threshold must be a number >= 0");
+        out->threshold = c->valuedouble;
+    }
     return BTFD_REQ_OK;
 }
 
@@ -146,7 +158,7 @@ static btfd_req_status parse_type(const cJSON *root, btfd_request *out, char *wh
     static const struct { const char *name; btfd_req_type type; } types[] = {
         {"list", BTFD_REQ_LIST},         {"subscribe", BTFD_REQ_SUBSCRIBE},
         {"budget", BTFD_REQ_BUDGET},     {"unsubscribe", BTFD_REQ_UNSUBSCRIBE},
-        {"ping", BTFD_REQ_PING},
+        {"ping", BTFD_REQ_PING},         {"ack", BTFD_REQ_ACK},
     };
     for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
         if (!strcmp(t->valuestring, types[i].name)) {
@@ -154,6 +166,20 @@ static btfd_req_status parse_type(const cJSON *root, btfd_request *out, char *wh
             return BTFD_REQ_OK;
         }
     return fail(why, n, BTFD_REQ_UNKNOWN_TYPE, "unknown message type (%.40s)", t->valuestring);
+}
+
+/* ack: "received" (required) and "window" (optional: 0 or BTFD_WINDOW_MIN..MAX). */
+static btfd_req_status parse_ack(const cJSON *root, btfd_request *out, char *why, size_t n)
+{
+    if (!get_int(cJSON_GetObjectItemCaseSensitive(root, "received"), 0, MAX_SAFE_INT, &out->received))
+        return fail(why, n, BTFD_REQ_BAD_FIELD, "ack.received must be a non-negative integer");
+    const cJSON *w = cJSON_GetObjectItemCaseSensitive(root, "window");
+    out->window = -1;
+    if (w && !cJSON_IsNull(w) &&
+        (!get_int(w, 0, BTFD_WINDOW_MAX, &out->window) || (out->window && out->window < BTFD_WINDOW_MIN)))
+        return fail(why, n, BTFD_REQ_BAD_FIELD, "ack.window must be 0 or an integer %d..%d", BTFD_WINDOW_MIN,
+                    BTFD_WINDOW_MAX);
+    return BTFD_REQ_OK;
 }
 
 /* Fields after "type": seq, material, budget, have, etag as the type needs. */
@@ -165,6 +191,8 @@ static btfd_req_status parse_fields(const cJSON *root, btfd_request *out, char *
             return fail(why, n, BTFD_REQ_BAD_FIELD, "\"seq\" must be an integer");
         out->has_seq = 1;
     }
+    if (out->type == BTFD_REQ_ACK)
+        return parse_ack(root, out, why, n);
     if (out->type == BTFD_REQ_LIST || out->type == BTFD_REQ_PING)
         return BTFD_REQ_OK;
     btfd_req_status r = parse_name(root, out, why, n);

@@ -23,13 +23,16 @@
 #define BTFD_HAVE_MAX 1024   /* most chunk indices in one "have" list */
 #define BTFD_CHUNK_MAX 65536 /* chunk indices are below this */
 #define BTFD_ETAG_MAX 64     /* longest etag string */
+#define BTFD_WINDOW_MIN 16384        /* smallest flow-control window a client may set, bytes */
+#define BTFD_WINDOW_MAX (1 << 30)    /* largest */
 
 typedef enum btfd_req_type {
     BTFD_REQ_LIST = 1,    /* {"type":"list"}: rescan (rate limited) and list the library */
     BTFD_REQ_SUBSCRIBE,   /* {"type":"subscribe","material":..,"budget":{..},"have":[..],"etag":..} */
     BTFD_REQ_BUDGET,      /* {"type":"budget","material":..,"budget":{..}} */
     BTFD_REQ_UNSUBSCRIBE, /* {"type":"unsubscribe","material":..} */
-    BTFD_REQ_PING         /* {"type":"ping"}: answered with {"type":"pong"} */
+    BTFD_REQ_PING,        /* {"type":"ping"}: answered with {"type":"pong"} */
+    BTFD_REQ_ACK          /* {"type":"ack","received":R,"window":W}: flow control, no reply */
 } btfd_req_type;
 
 typedef enum btfd_req_status {
@@ -48,6 +51,8 @@ typedef struct btfd_budget {
     int64_t max_chunks; /* send at most this many chunks (0 pauses the stream) */
     int64_t max_bytes;  /* send chunks while the running total stays within this */
     double max_error;   /* stop after the first chunk whose error is <= this */
+    double texels_per_pixel; /* the view's footprint (btf_lod_footprint): the chunks it needs */
+    double threshold;        /* with texels_per_pixel: visibility threshold (-1: BTF_LOD_THRESHOLD) */
 } btfd_budget;
 
 /* One parsed message; caller-owned value (about 4.5 KiB), valid until reused. */
@@ -61,6 +66,8 @@ typedef struct btfd_request {
     int n_have;
     uint32_t have[BTFD_HAVE_MAX];     /* chunk indices the client already holds */
     char etag[BTFD_ETAG_MAX + 1];     /* etag of the manifest the "have" refers to */
+    int64_t received;                 /* ack: binary message bytes received on the connection */
+    int64_t window;                   /* ack: 0 no window, else the most unacknowledged bytes; -1 unchanged */
 } btfd_request;
 
 /* Parses one text message of len bytes (need not be NUL-terminated). On

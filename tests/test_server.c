@@ -1106,6 +1106,176 @@ Test(server, budgets_limit_chunks_bytes_and_error_and_can_change)
     srv_stop(&s);
 }
 
+/* Binary bytes (headers included) that arrive within ms, fed to the stream checker;
+ * text messages are handled as run_until_complete does. */
+static size_t drain_for(wsc *c, stream *st, int ms)
+{
+    size_t bin = 0;
+    long long end = wsc_now_ms() + ms;
+    for (;;) {
+        long long left = end - wsc_now_ms();
+        wsc_msg msg;
+        if (left <= 0 || wsc_recv(c, &msg, (int)left) != 1)
+            return bin;
+        if (msg.op == 2) {
+            on_piece(st, msg.data, msg.len);
+            bin += msg.len;
+        } else if (msg.op == 1) {
+            cJSON *j = cJSON_Parse((char *)msg.data);
+            if (j && !strcmp(jstr(j, "type"), "manifest"))
+                on_manifest(st, j);
+            else if (j && !strcmp(jstr(j, "type"), "complete"))
+                st->completes++;
+            cJSON_Delete(j);
+        }
+        wsc_msg_free(&msg);
+    }
+}
+
+static void send_ack(wsc *c, size_t received, long window)
+{
+    char msg[96];
+    if (window >= 0)
+        snprintf(msg, sizeof msg, "{\"type\":\"ack\",\"received\":%zu,\"window\":%ld}", received, window);
+    else
+        snprintf(msg, sizeof msg, "{\"type\":\"ack\",\"received\":%zu}", received);
+    cr_assert_eq(wsc_send_text(c, msg), 0);
+}
+
+/* A client's window bounds what is in flight: with no ack nothing past the window
+ * (plus the piece that crossed it) is sent; each ack lets as much again follow,
+ * and the stream still arrives whole and in order. */
+Test(server, flow_window_bounds_what_is_in_flight)
+{
+    const size_t chunk = 100000, frag = 16384, window = 65536;
+    make_simple(g_lib, "big", 6, chunk);
+    const char *extra[] = {"--fragment", "16384", NULL};
+    srv s;
+    srv_start(&s, g_lib, extra);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON_Delete(expect_type(&c, "hello"));
+    send_ack(&c, 0, (long)window);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"big\"}");
+    stream st = {.lib = g_lib};
+    size_t got = drain_for(&c, &st, 400), total = got;
+    cr_assert_gt(got, 0, "the window lets the first pieces through");
+    cr_assert_leq(got, window + frag + 20, "unacknowledged: %zu bytes in flight, window %zu", got, window);
+    cr_assert_eq(drain_for(&c, &st, 200), 0, "nothing more until the client acknowledges");
+    int acks = 0;
+    while (st.completes < 1 && acks < 100) {
+        send_ack(&c, total, -1);
+        acks++;
+        got = drain_for(&c, &st, 150);
+        cr_assert_leq(got, window + frag + 20, "after an ack: %zu bytes", got);
+        total += got;
+    }
+    cr_assert_eq(st.completes, 1, "complete after %d acks", acks);
+    mstate *m = by_name(&st, "big");
+    for (int i = 0; i < 6; i++)
+        cr_expect(m->done[i], "chunk %d arrived whole", i);
+    cr_expect_geq(acks, (int)(6 * chunk / (window + frag + 20)), "the window, not the link, paced the stream");
+    /* window 0 turns flow control off: a second material streams without acks */
+    make_simple(g_lib, "big2", 3, chunk);
+    send_ack(&c, total, 0);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"big2\"}");
+    run_until_complete(&c, &st, 2);
+    /* malformed acks are refused and the connection stays */
+    wsc_send_text(&c, "{\"type\":\"ack\"}");
+    expect_error(&c, "bad_field");
+    wsc_send_text(&c, "{\"type\":\"ack\",\"received\":0,\"window\":100}");
+    expect_error(&c, "bad_field");
+    stream_free(&st);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
+/* The next text message of the given type; pieces and other replies are skipped. */
+static cJSON *skip_to(wsc *c, const char *type)
+{
+    for (;;) {
+        wsc_msg msg;
+        cr_assert_eq(wsc_recv(c, &msg, TMO), 1, "no %s reply", type);
+        cJSON *j = msg.op == 1 ? cJSON_Parse((char *)msg.data) : NULL;
+        wsc_msg_free(&msg);
+        if (j && !strcmp(jstr(j, "type"), type))
+            return j;
+        cJSON_Delete(j);
+    }
+}
+
+/* The limit of the reply to a budget for material "lv". */
+static int budget_reply_limit(wsc *c, const char *budget)
+{
+    char msg[256];
+    snprintf(msg, sizeof msg, "{\"type\":\"budget\",\"material\":\"lv\",\"budget\":%s}", budget);
+    cr_assert_eq(wsc_send_text(c, msg), 0);
+    cJSON *r = skip_to(c, "budget");
+    int limit = (int)jnum(r, "limit");
+    cJSON_Delete(r);
+    return limit;
+}
+
+/* budget.texels_per_pixel: the server picks the prefix the view needs by the rule of
+ * doc/package-format.md section 10. Expected limits worked out by hand below. */
+Test(server, footprint_budget_selects_the_chunks_a_view_needs)
+{
+    char dir[400], path[500];
+    snprintf(dir, sizeof dir, "%s/lv", g_lib);
+    cr_assert_eq(mkdir(dir, 0755), 0);
+    /* chunk: component, level, contrib (RMS on 0..255 of the component at that level) */
+    const int comp[] = {0, 1, 2, 0, 1, 2}, lev[] = {1, 1, 1, 0, 0, 0};
+    const double contrib[] = {9, 3, 0.5, 8, 0.4, 2};
+    cJSON *root = cJSON_CreateObject(), *chunks = cJSON_CreateArray();
+    cJSON_AddStringToObject(root, "format", "btf-package");
+    cJSON_AddNumberToObject(root, "version", 2);
+    cJSON_AddNumberToObject(root, "levels", 2);
+    for (int i = 0; i < 6; i++) {
+        char f[32];
+        snprintf(f, sizeof f, "c%d.bin", i);
+        snprintf(path, sizeof path, "%s/%s", dir, f);
+        write_file(path, "0123456789", 10);
+        cJSON *jc = cJSON_CreateObject(), *files = cJSON_CreateArray();
+        cJSON_AddItemToArray(files, cJSON_CreateString(f));
+        cJSON_AddItemToObject(jc, "files", files);
+        cJSON_AddNumberToObject(jc, "component", comp[i]);
+        cJSON_AddNumberToObject(jc, "level", lev[i]);
+        cJSON_AddNumberToObject(jc, "contrib", contrib[i]);
+        cJSON_AddNumberToObject(jc, "rmse", 10 - i);
+        cJSON_AddItemToArray(chunks, jc);
+    }
+    cJSON_AddItemToObject(root, "chunks", chunks);
+    char *txt = cJSON_Print(root);
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    write_file(path, txt, strlen(txt));
+    free(txt);
+    cJSON_Delete(root);
+    srv s;
+    srv_start(&s, g_lib, NULL);
+    wsc c;
+    open_ws(&c, &s);
+    cJSON_Delete(expect_type(&c, "hello"));
+    /* 2 texels per pixel: level 1; component 0 always, 1 (contrib 3 >= 1), not 2 (0.5):
+     * chunks 0 and 1 */
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"lv\",\"budget\":{\"texels_per_pixel\":2}}");
+    cJSON *m = expect_type(&c, "manifest");
+    cr_expect_eq(jnum(m, "limit"), 2);
+    cJSON_Delete(m);
+    /* 1 texel per pixel: level 0; component 1 hidden (0.4), 2 shown (2): chunks 0, 2, 3, 5 */
+    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":1}"), 6);
+    /* threshold 5 at level 0: only component 0 (chunks 0 and 3) */
+    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":1,\"threshold\":5}"), 4);
+    /* with other limits the smallest prefix wins; off screen nothing */
+    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":1,\"chunks\":3}"), 3);
+    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":0}"), 0);
+    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"lv\",\"budget\":{\"texels_per_pixel\":-1}}");
+    cJSON *e = skip_to(&c, "error");
+    cr_expect_str_eq(jstr(e, "code"), "bad_field");
+    cJSON_Delete(e);
+    wsc_close(&c);
+    srv_stop(&s);
+}
+
 Test(server, resume_after_reconnect_sends_only_missing_chunks)
 {
     const size_t sz[] = {70000, 3000, 4000, 5000, 6000};
