@@ -4,7 +4,9 @@
 //
 // World: right-handed, +z up, angles in degrees; a direction (theta, phi) is
 // (sin t cos p, sin t sin p, cos t). Camera at dist * dir(theta, phi) looking at
-// the origin, up = -d(dir)/d(theta); near 0.05 * dist, far dist + 4.
+// the origin, up = -d(dir)/d(theta); the field of view `fov` spans the narrower side
+// of the view (vertical when width >= height, horizontal when taller than wide, so the
+// object stays framed in portrait); near 0.05 * dist, far dist + 4.
 //   plane    [-1,1]^2 at z = 0, normal +z, uv = ((x+1)/2, (1-y)/2)
 //   sphere   radius 1, longitude from +x towards +y, u = (lon - 90)/360, v = colatitude/180
 //   cylinder along x (length 2), radius 2/pi, u = (x+1)/2, v = 0.5 + angle/360 from the top line
@@ -14,11 +16,26 @@
 export const GEOMETRIES = ['plane', 'sphere', 'cylinder'];
 const BASE_REPEAT = {plane: [1, 1], sphere: [2, 1], cylinder: [1, 2]};
 
-// Defaults of btf_render_defaults() per geometry.
+// Defaults of btf_render_defaults() per geometry: each object inside the view in any
+// aspect; the light 28 to 35 degrees off the camera, up and to the right, so the lit
+// side faces the camera (sphere: 97% of its visible pixels lit) and relief shows.
 export function sceneDefaults(geometry) {
-  return {cameraTheta: geometry === 'plane' ? 35 : geometry === 'sphere' ? 60 : 50, cameraPhi: -90,
-    cameraDist: geometry === 'plane' ? 3 : 3.6, lightTheta: 45, lightPhi: -50, fov: 40, repeat: 1,
+  return {cameraTheta: geometry === 'plane' ? 30 : geometry === 'sphere' ? 60 : 50, cameraPhi: -90,
+    cameraDist: geometry === 'plane' ? 3.5 : 3.6, lightTheta: 45, lightPhi: -50, fov: 40, repeat: 1,
     background: [0.12, 0.12, 0.12]};
+}
+
+// tan(half the vertical field of view) of a view width / height = aspect: fov spans
+// the narrower side (btf_render_camera_make).
+function tanHalfFovY(fov, aspect) {
+  return Math.tan(fov * Math.PI / 360) / Math.min(aspect, 1);
+}
+
+// Device pixels per world unit at the origin's distance (the object's scale on
+// screen) in a width x height view of {cameraDist, fov}: min(width, height) /
+// (2 dist tan(fov/2)). Twin of btf_render_pixels_per_unit.
+export function pixelsPerUnit(s, width, height) {
+  return Math.min(width, height) / (2 * s.cameraDist * Math.tan(s.fov * Math.PI / 360));
 }
 
 export function dir(thetaDeg, phiDeg) {
@@ -43,7 +60,7 @@ export function cameraMake(s, aspect) {
   const up = cross(right, fwd);
   const view = [right[0], up[0], -fwd[0], 0, right[1], up[1], -fwd[1], 0, right[2], up[2], -fwd[2], 0,
     -dot(right, eye), -dot(up, eye), dot(fwd, eye), 1];
-  const th = Math.tan(s.fov * Math.PI / 360), zn = 0.05 * d, zf = d + 4;
+  const th = tanHalfFovY(s.fov, aspect), zn = 0.05 * d, zf = d + 4;
   const proj = [1 / (th * aspect), 0, 0, 0, 0, 1 / th, 0, 0, 0, 0, -(zf + zn) / (zf - zn), -1, 0, 0,
     (-2 * zf * zn) / (zf - zn), 0];
   const vp = new Float32Array(16);

@@ -77,7 +77,8 @@ static void dir_of(double theta_deg, double phi_deg, double v[3])
 
 /* shaders/README.md "Scene conventions": eye = dist * dir(theta, phi), forward = -dir,
  * up0 = (-cos t cos p, -cos t sin p, sin t), right = normalize(forward x up0),
- * up = right x forward, vertical fov, aspect = width / height. */
+ * up = right x forward, aspect = width / height, fov across the narrower side:
+ * tan(fovy/2) = tan(fov/2) / min(aspect, 1). */
 static ray_cam make_ray_cam(const btf_render_params *p)
 {
     ray_cam c;
@@ -97,8 +98,8 @@ static ray_cam make_ray_cam(const btf_render_params *p)
     c.up[0] = c.right[1] * c.fwd[2] - c.right[2] * c.fwd[1];
     c.up[1] = c.right[2] * c.fwd[0] - c.right[0] * c.fwd[2];
     c.up[2] = c.right[0] * c.fwd[1] - c.right[1] * c.fwd[0];
-    c.th = tan(p->fov_deg * M_PI / 360);
     c.aspect = (double)p->width / p->height;
+    c.th = tan(p->fov_deg * M_PI / 360) / (c.aspect < 1 ? c.aspect : 1);
     return c;
 }
 
@@ -232,15 +233,20 @@ static void check_ground_truth(btf_gl_backend b)
     btf_gl *gl = open_gl(b);
     btf_renderer *r = NULL;
     cr_assert_eq(btf_renderer_create(gl, p, pkg, 1, &r, &err), BTF_OK, "%s", err.msg);
-    /* camera straight above / oblique / grazing-ish from another side; lights inside
-     * the measured range (theta <= 60) so the horizon fade plays no part */
-    static const float set[4][6] = {
-        {0, 0, 2.6f, 20, 40, 50}, {35, -90, 3.0f, 45, -50, 40}, {55, 120, 2.8f, 55, 200, 45}, {20, 200, 2.4f, 0, 0, 60}};
+    /* camera straight above / oblique / grazing-ish from another side / the default
+     * camera in a portrait view (fov across its width); lights inside the measured
+     * range (theta <= 60) so the horizon fade plays no part; sizes of RW x RH pixels */
+    static const float set[5][8] = {{0, 0, 2.6f, 20, 40, 50, RW, RH},
+                                    {35, -90, 3.0f, 45, -50, 40, RW, RH},
+                                    {55, 120, 2.8f, 55, 200, 45, RW, RH},
+                                    {20, 200, 2.4f, 0, 0, 60, RW, RH},
+                                    {30, -90, 3.5f, 45, -50, 40, 30, 64}};
     gt_stats st = {0};
-    for (int s = 0; s < 4; s++) {
+    for (int s = 0; s < 5; s++) {
         btf_render_params rp = btf_render_defaults(BTF_RENDER_PLANE);
-        rp.width = RW;
-        rp.height = RH;
+        rp.width = (int)set[s][6];
+        rp.height = (int)set[s][7];
+        cr_assert_leq(rp.width * rp.height, RW * RH);
         rp.camera_theta = set[s][0];
         rp.camera_phi = set[s][1];
         rp.camera_dist = set[s][2];
@@ -342,6 +348,93 @@ Test(render, horizon_fade_both_backends)
     }
     btf_package_free(p);
     cr_assert_eq(test_rmtree(tmp), 0);
+}
+
+/* ---------------------------------------------------------------- framing */
+
+/* Points whose projections bound the object's: the plane's corners, the cylinder's two
+ * rims (the object is inside their convex hull, and a perspective view keeps hulls),
+ * the sphere at every degree. Returns the count written to pts (room for 65341). */
+static int bounding_points(btf_render_geometry g, double (*pts)[3])
+{
+    int n = 0;
+    if (g == BTF_RENDER_PLANE)
+        for (int i = 0; i < 4; i++) {
+            pts[n][0] = i & 1 ? 1 : -1, pts[n][1] = i & 2 ? 1 : -1, pts[n][2] = 0;
+            n++;
+        }
+    else if (g == BTF_RENDER_SPHERE)
+        for (int t = 0; t <= 180; t++)
+            for (int p = 0; p < 360; p++) {
+                dir_of(t, p, pts[n]);
+                n++;
+            }
+    else
+        for (int e = -1; e <= 1; e += 2)
+            for (int a = 0; a < 360; a++) {
+                pts[n][0] = e, pts[n][1] = 2 / M_PI * cos(a * M_PI / 180), pts[n][2] = 2 / M_PI * sin(a * M_PI / 180);
+                n++;
+            }
+    return n;
+}
+
+/* The default camera of each geometry frames it in portrait, square and landscape
+ * views: the bounding points, projected here through btf_render_camera_make's
+ * view_proj, stay inside clip space with a 5% margin on both axes, fill most of the
+ * view's narrower side (the elongated cylinder, 2 x 1.27, less of a wide view's
+ * height, as the fov there is the vertical one it always was) and sit near the centre
+ * (the plane's near half is nearer: a little below). Before the fov spanned the
+ * narrower side, the plane's near corners left a 390 x 600 view at x = +-1.74. */
+Test(render, default_camera_frames_the_object_in_any_aspect)
+{
+    static double pts[181 * 360][3];
+    static const int widths[6] = {300, 390, 450, 600, 800, 1067}; /* height 600: aspect 0.5 .. 16/9 */
+    static const double min_fill[BTF_RENDER_GEOMETRY_COUNT] = {0.6, 0.6, 0.45};
+    for (int g = 0; g < BTF_RENDER_GEOMETRY_COUNT; g++) {
+        int n = bounding_points((btf_render_geometry)g, pts);
+        for (int a = 0; a < 6; a++) {
+            btf_render_params rp = btf_render_defaults((btf_render_geometry)g);
+            rp.width = widths[a];
+            rp.height = 600;
+            btf_render_camera c;
+            btf_render_camera_make(&rp, &c);
+            double lo[2] = {1e9, 1e9}, hi[2] = {-1e9, -1e9};
+            for (int i = 0; i < n; i++) {
+                double clip[4];
+                for (int r = 0; r < 4; r++)
+                    clip[r] = c.view_proj[r] * pts[i][0] + c.view_proj[4 + r] * pts[i][1] +
+                              c.view_proj[8 + r] * pts[i][2] + c.view_proj[12 + r];
+                cr_assert_gt(clip[3], 0.0);
+                for (int k = 0; k < 2; k++) {
+                    double v = clip[k] / clip[3];
+                    lo[k] = v < lo[k] ? v : lo[k];
+                    hi[k] = v > hi[k] ? v : hi[k];
+                }
+            }
+            const char *name = btf_render_geometry_name((btf_render_geometry)g);
+            cr_log_info("%s %dx600: x %.3f..%.3f y %.3f..%.3f", name, rp.width, lo[0], hi[0], lo[1], hi[1]);
+            for (int k = 0; k < 2; k++) {
+                cr_assert(lo[k] >= -0.95 && hi[k] <= 0.95, "%s %dx600: axis %d from %.3f to %.3f, outside the view", name,
+                          rp.width, k, lo[k], hi[k]);
+                cr_assert(fabs(lo[k] + hi[k]) / 2 <= 0.12, "%s %dx600: axis %d centred at %.3f", name, rp.width, k,
+                          (lo[k] + hi[k]) / 2);
+            }
+            int narrow = rp.width < rp.height ? 0 : 1;
+            double fill = (hi[narrow] - lo[narrow]) / 2;
+            cr_assert_geq(fill, min_fill[g], "%s %dx600: fills %.2f of the narrower side", name, rp.width, fill);
+            /* the scale the client's footprint uses: pixels per unit along the view's
+             * right axis at the origin, measured through the same matrix */
+            double e = 1e-3, x = 0, w = 0;
+            for (int k = 0; k < 3; k++) {
+                x += c.view_proj[4 * k] * e * c.right[k];
+                w += c.view_proj[4 * k + 3] * e * c.right[k];
+            }
+            x += c.view_proj[12], w += c.view_proj[15];
+            double ppu = x / w * rp.width / 2 / e;
+            cr_assert(fabs(ppu / btf_render_pixels_per_unit(&rp) - 1) < 1e-4, "%s %dx600: %g pixels per unit, %g measured",
+                      name, rp.width, btf_render_pixels_per_unit(&rp), ppu);
+        }
+    }
 }
 
 /* ---------------------------------------------------------------- meshes */

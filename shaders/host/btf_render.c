@@ -32,8 +32,12 @@ btf_render_params btf_render_defaults(btf_render_geometry g)
     p.height = 240;
     p.geometry = g;
     p.camera_phi = -90.0f; /* camera south of the object, image row 0 (world +y) at the top */
-    p.camera_theta = g == BTF_RENDER_PLANE ? 35.0f : g == BTF_RENDER_SPHERE ? 60.0f : 50.0f;
-    p.camera_dist = g == BTF_RENDER_PLANE ? 3.0f : 3.6f;
+    /* each object inside the view at any aspect (the fov spans the narrower side); the
+     * plane's near corners are its widest part, hence a steeper view from further off */
+    p.camera_theta = g == BTF_RENDER_PLANE ? 30.0f : g == BTF_RENDER_SPHERE ? 60.0f : 50.0f;
+    p.camera_dist = g == BTF_RENDER_PLANE ? 3.5f : 3.6f;
+    /* 28 to 35 degrees off the camera, up and to the right: the lit side faces the
+     * camera (97% of the default sphere's pixels lit) and the relief shows */
     p.light_theta = 45.0f;
     p.light_phi = -50.0f;
     p.fov_deg = 40.0f;
@@ -138,7 +142,8 @@ void btf_render_camera_make(const btf_render_params *p, btf_render_camera *c)
                        -(right[0] * eye[0] + right[1] * eye[1] + right[2] * eye[2]),
                        -(up[0] * eye[0] + up[1] * eye[1] + up[2] * eye[2]),
                        fwd[0] * eye[0] + fwd[1] * eye[1] + fwd[2] * eye[2], 1};
-    double th = tan(p->fov_deg * BTF__PI / 360.0), aspect = (double)p->width / p->height;
+    double aspect = (double)p->width / p->height;
+    double th = tan(p->fov_deg * BTF__PI / 360.0) / (aspect < 1.0 ? aspect : 1.0); /* fov spans the narrower side */
     double zn = 0.05 * d, zf = d + 4.0;
     double proj[16] = {1 / (th * aspect), 0, 0, 0, 0, 1 / th, 0, 0, 0, 0, -(zf + zn) / (zf - zn), -1, 0, 0,
                        -2 * zf * zn / (zf - zn), 0};
@@ -160,6 +165,12 @@ void btf_render_camera_make(const btf_render_params *p, btf_render_camera *c)
     c->uv_scale[0] = base[g][0] * p->repeat;
     c->uv_scale[1] = base[g][1] * p->repeat;
     c->wrap = g != BTF_RENDER_PLANE || p->repeat != 1.0f;
+}
+
+double btf_render_pixels_per_unit(const btf_render_params *p)
+{
+    int side = p->width < p->height ? p->width : p->height;
+    return side / (2.0 * p->camera_dist * tan(p->fov_deg * BTF__PI / 360.0));
 }
 
 /* ---------------------------------------------------------------- meshes */

@@ -27,7 +27,9 @@
  *   times `repeat`.
  * - Camera at dist * dir(camera_theta, camera_phi), looking at the origin, up =
  *   -d(dir)/d(theta) = (-cos t cos p, -cos t sin p, sin t) (defined at theta 0 too),
- *   vertical field of view fov_deg, aspect width/height, near 0.05*dist, far dist+4.
+ *   field of view fov_deg across the narrower side (vertical when width >= height;
+ *   taller than wide: horizontal, tan(fovy/2) = tan(fov/2) / aspect), aspect =
+ *   width/height, near 0.05*dist, far dist+4.
  * - Light: distant, towards dir(light_theta, light_phi) (u_light.w = 0).
  * Output values are the BTF's own (sRGB-encoded, byte/255 scale), clamped to 0..1.
  *
@@ -64,7 +66,7 @@ typedef struct btf_render_params {
     float camera_theta, camera_phi; /* degrees: camera direction from the origin */
     float camera_dist;              /* world units from the origin, > 0 */
     float light_theta, light_phi;   /* degrees: direction towards a distant light */
-    float fov_deg;                  /* vertical field of view, 1..170 */
+    float fov_deg;                  /* field of view across the narrower side, 1..170 */
     float background[3];            /* 0..1, written as is */
     float repeat;                   /* material repeats, times the geometry's default; > 0 */
     int filter;                     /* 0 nearest texel, 1 bilinear (default) */
@@ -73,7 +75,9 @@ typedef struct btf_render_params {
                                        ring fades linearly in cos(theta) to 0 at the horizon */
 } btf_render_params;
 
-/* Defaults for a geometry: 320 x 240, camera and light framing the object. */
+/* Defaults for a geometry: 320 x 240, a camera that frames the object in any aspect,
+ * a light 28 to 35 degrees off the camera (plane (30, -90, 3.5), sphere (60, -90, 3.6),
+ * cylinder (50, -90, 3.6); light (45, -50)). */
 btf_render_params btf_render_defaults(btf_render_geometry g);
 /* BTF_ERR_RANGE / BTF_ERR_ARG naming the first bad field. */
 btf_result btf_render_check_params(const btf_render_params *p, btf_error *err);
@@ -90,6 +94,9 @@ typedef struct btf_render_camera {
 } btf_render_camera;
 
 void btf_render_camera_make(const btf_render_params *p, btf_render_camera *out);
+/* Pixels per world unit at the origin's distance (the object's scale on screen):
+ * min(width, height) / (2 dist tan(fov/2)). The client's pixelsPerUnit (client/scene.js). */
+double btf_render_pixels_per_unit(const btf_render_params *p);
 
 /* Triangle mesh, interleaved per vertex: position 3, normal 3, tangent 4 (w = +1),
  * uv 2 (attribute locations 0..3 of btf_render.vert). Owned by the caller,

@@ -23,6 +23,8 @@ const SCENES = [
     chunks: 5, repeat: 4},
   {material: 'tiles-lod', geometry: 'plane', w: 200, h: 150, camera: [55, -90, 3], light: [40, -60], fov: 40,
     chunks: 18, repeat: 4},
+  // portrait: the field of view spans the width (the narrower side)
+  {material: 'knit', geometry: 'plane', w: 120, h: 200, camera: [30, -90, 3.5], light: [45, -50], fov: 40, chunks: 3},
 ];
 
 export async function crossCheck(ctx, server, lib, assert) {

@@ -274,6 +274,63 @@ describe('scene.js (port of shaders/host/btf_render.c conventions)', () => {
     assert.equal(scene.cameraMake({...s, geometry: 'sphere'}, 1).wrap, 1);
   });
 
+  // The same check as render/default_camera_frames_the_object_in_any_aspect (tests/test_render.c):
+  // points bounding each object (plane corners, cylinder rims, the sphere at every
+  // 2 degrees) projected here through cameraMake's viewProj.
+  it('the default camera frames each object in portrait, square and landscape views', () => {
+    const bound = {plane: [[-1, -1, 0], [1, -1, 0], [-1, 1, 0], [1, 1, 0]], sphere: [], cylinder: []};
+    for (let t = 0; t <= 180; t += 2) for (let p = 0; p < 360; p += 2) bound.sphere.push(scene.dir(t, p));
+    for (const x of [-1, 1]) {
+      for (let a = 0; a < 360; a++) {
+        const r = a * Math.PI / 180;
+        bound.cylinder.push([x, 2 / Math.PI * Math.cos(r), 2 / Math.PI * Math.sin(r)]);
+      }
+    }
+    const minFill = {plane: 0.6, sphere: 0.6, cylinder: 0.45}; // the cylinder is 2 x 1.27
+    for (const g of scene.GEOMETRIES) {
+      const s = {...scene.sceneDefaults(g), geometry: g};
+      for (const aspect of [0.5, 0.65, 0.75, 1, 4 / 3, 16 / 9]) {
+        const c = scene.cameraMake(s, aspect);
+        const lo = [Infinity, Infinity], hi = [-Infinity, -Infinity];
+        for (const p of bound[g]) {
+          const q = apply(c.viewProj, p);
+          assert.ok(q[3] > 0);
+          for (const k of [0, 1]) {
+            lo[k] = Math.min(lo[k], q[k] / q[3]);
+            hi[k] = Math.max(hi[k], q[k] / q[3]);
+          }
+        }
+        const at = `${g} aspect ${aspect.toFixed(2)}: x ${lo[0].toFixed(3)}..${hi[0].toFixed(3)} y ` +
+          `${lo[1].toFixed(3)}..${hi[1].toFixed(3)}`;
+        for (const k of [0, 1]) {
+          assert.ok(lo[k] >= -0.95 && hi[k] <= 0.95, `${at}: outside the view`);
+          assert.ok(Math.abs(lo[k] + hi[k]) / 2 <= 0.12, `${at}: off centre`);
+        }
+        const narrow = aspect < 1 ? 0 : 1;
+        assert.ok((hi[narrow] - lo[narrow]) / 2 >= minFill[g], `${at}: too small`);
+      }
+    }
+  });
+
+  it('fov spans the narrower side; pixelsPerUnit is the scale at the origin', () => {
+    const s = {...scene.sceneDefaults('sphere'), geometry: 'sphere'};
+    const t = Math.tan(s.fov * Math.PI / 360);
+    for (const [w, h] of [[390, 600], [600, 600], [320, 240], [1280, 720]]) {
+      const c = scene.cameraMake(s, w / h);
+      // a point at the origin's distance, half the narrower side's fov off the axis:
+      // on the edge of the view
+      const right = [1, 0, 0]; // the default camera (phi -90) has world +x to the right
+      const edge = apply(c.viewProj, right.map((v) => v * s.cameraDist * t * (w < h ? 1 : w / h)));
+      assert.ok(Math.abs(edge[0] / edge[3] - 1) < 1e-5, `${w}x${h}: ${edge[0] / edge[3]}`);
+      const e = 1e-3, q = apply(c.viewProj, [e, 0, 0]);
+      const ppu = (q[0] / q[3]) * (w / 2) / e;
+      assert.ok(Math.abs(ppu / scene.pixelsPerUnit(s, w, h) - 1) < 1e-4, `${w}x${h}: ${ppu} vs ${scene.pixelsPerUnit(s, w, h)}`);
+    }
+    // landscape: the same scale as the old vertical-fov footprint, canvas height / (2 dist tan(fov/2))
+    assert.ok(Math.abs(scene.pixelsPerUnit(s, 320, 240) - 240 / (2 * 3.6 * t)) < 1e-9);
+    assert.ok(Math.abs(scene.pixelsPerUnit(s, 390, 600) - 390 / (2 * 3.6 * t)) < 1e-9);
+  });
+
   it('meshes: unit normals, tangents orthogonal to them, uv as documented', () => {
     for (const g of scene.GEOMETRIES) {
       const {vertices: v, indices} = scene.buildMesh(g, 16);
