@@ -75,6 +75,19 @@ export function cameraMake(s, aspect) {
     uvScale: [base[0] * s.repeat, base[1] * s.repeat], wrap: s.geometry !== 'plane' || s.repeat !== 1 ? 1 : 0};
 }
 
+// An orbiting light that keeps its angle to the camera: the light of s turned by
+// angleDeg about the camera direction (counter-clockwise as the camera sees it).
+// Returns {lightTheta, lightPhi}. An orbit about +z instead swings the default light
+// behind a sphere, darkening about two thirds of what the camera sees. Browser only
+// (btf render draws one fixed light).
+export function orbitLight(s, angleDeg) {
+  const k = dir(s.cameraTheta, s.cameraPhi), l = dir(s.lightTheta, s.lightPhi);
+  const a = angleDeg * Math.PI / 180, c = Math.cos(a), sn = Math.sin(a), kl = cross(k, l), kd = dot(k, l);
+  const v = [0, 1, 2].map((i) => l[i] * c + kl[i] * sn + k[i] * kd * (1 - c));
+  const z = Math.max(-1, Math.min(1, v[2] / Math.hypot(...v)));
+  return {lightTheta: Math.acos(z) * 180 / Math.PI, lightPhi: Math.atan2(v[1], v[0]) * 180 / Math.PI};
+}
+
 // Port of btf_render_mesh_create: interleaved position 3, normal 3, tangent 4, uv 2
 // per vertex (attribute locations 0..3 of btf_render.vert) and triangle indices.
 export function buildMesh(geometry, segments = 64) {

@@ -331,6 +331,25 @@ describe('scene.js (port of shaders/host/btf_render.c conventions)', () => {
     assert.ok(Math.abs(scene.pixelsPerUnit(s, 390, 600) - 390 / (2 * 3.6 * t)) < 1e-9);
   });
 
+  it('orbitLight turns the light about the camera direction, keeping its angle to it', () => {
+    for (const g of scene.GEOMETRIES) {
+      const s = {...scene.sceneDefaults(g), geometry: g};
+      const cam = scene.dir(s.cameraTheta, s.cameraPhi), d0 = scene.dir(s.lightTheta, s.lightPhi);
+      const cos0 = cam.reduce((a, v, i) => a + v * d0[i], 0);
+      const l0 = scene.orbitLight(s, 0);
+      assert.ok(Math.abs(l0.lightTheta - s.lightTheta) < 1e-9 && Math.abs(l0.lightPhi - s.lightPhi) < 1e-9);
+      const seen = [];
+      for (let a = 0; a < 360; a += 30) {
+        const l = scene.orbitLight(s, a), d = scene.dir(l.lightTheta, l.lightPhi);
+        assert.ok(Math.abs(cam.reduce((acc, v, i) => acc + v * d[i], 0) - cos0) < 1e-9, `${g} ${a}: same angle`);
+        seen.push(d);
+      }
+      // a full circle: the light passes opposite its start
+      const far = Math.min(...seen.map((d) => d.reduce((a, v, i) => a + v * d0[i], 0)));
+      assert.ok(far < 2 * cos0 * cos0 - 1 + 1e-6);
+    }
+  });
+
   it('meshes: unit normals, tangents orthogonal to them, uv as documented', () => {
     for (const g of scene.GEOMETRIES) {
       const {vertices: v, indices} = scene.buildMesh(g, 16);
