@@ -171,13 +171,27 @@ static inline size_t btf_image_samples(const btf *b) { return (size_t)b->width *
 
 /* Sample on the byte/255 scale. */
 float btf_get(const btf *b, int view, int light, int x, int y, int c);
-/* Stores v (byte/255 scale); BTF_U8 rounds and clamps to 0..255. */
+/* Stores v (byte/255 scale); BTF_U8 rounds and clamps to 0..255 (btf_to_u8). */
 void btf_set(btf *b, int view, int light, int x, int y, int c, float v);
+/* A byte/255-scale value as the byte an 8-bit image stores: rounded half up,
+ * clamped to 0..255, NaN as 0. Every 8-bit writer of the library uses it. */
+static inline uint8_t btf_to_u8(float v)
+{
+    float q = v * 255.0f + 0.5f;
+    return !(q > 0.0f) ? 0 : q >= 255.0f ? 255 : (uint8_t)q;
+}
 /* Copies one (view, light) image into dst (width*height*3 floats, byte/255 scale). */
 void btf_get_image(const btf *b, int view, int light, float *dst);
 
 /* Spatial box downsampling by an integer factor (width and height must divide). */
 btf_result btf_downsample(const btf *src, int factor, btf **out, btf_error *err);
+/* Area-weighted resampling from n_in to n_out <= n_in samples along one axis (the
+ * box filter, also for sizes that do not divide): output i covers
+ * [i*n_in/n_out, (i+1)*n_in/n_out) in input units and input sample first[i] + s
+ * (s < cnt[i]) weighs w[i*maxc + s], its overlap over the width; the weights of an
+ * output sum to 1. maxc >= n_in/n_out + 2 always suffices; 0, or -1 when an output
+ * would need more than maxc inputs. */
+int btf_area_weights(int n_in, int n_out, int *first, int *cnt, float *w, int maxc);
 /* The w x h window of src at (x0, y0), a new BTF of the same directions and storage. */
 btf_result btf_crop(const btf *src, int x0, int y0, int w, int h, btf **out, btf_error *err);
 /* Checks every sample is finite (BTF_F32); BTF_ERR_NUMERIC names the first bad one. */

@@ -101,12 +101,7 @@ void btf_set(btf *b, int view, int light, int x, int y, int c, float v)
         ((float *)b->data)[i] = v;
         return;
     }
-    float q = v * 255.0f + 0.5f;
-    if (!(q > 0.0f)) /* also catches NaN */
-        q = 0.0f;
-    if (q > 255.0f)
-        q = 255.0f;
-    ((uint8_t *)b->data)[i] = (uint8_t)q;
+    ((uint8_t *)b->data)[i] = btf_to_u8(v);
 }
 
 void btf_get_image(const btf *b, int view, int light, float *dst)
@@ -145,6 +140,26 @@ btf_result btf_downsample(const btf *src, int factor, btf **out, btf_error *err)
                         btf_set(*out, v, l, x, y, c, s * inv);
                     }
     return BTF_OK;
+}
+
+int btf_area_weights(int n_in, int n_out, int *first, int *cnt, float *w, int maxc)
+{
+    double scale = (double)n_in / (double)n_out;
+    for (int i = 0; i < n_out; i++) {
+        double a = i * scale, e = (i + 1) * scale;
+        int s0 = (int)floor(a), s1 = (int)ceil(e);
+        if (s1 > n_in)
+            s1 = n_in;
+        if (s1 - s0 > maxc)
+            return -1;
+        first[i] = s0;
+        cnt[i] = s1 - s0;
+        for (int s = s0; s < s1; s++) {
+            double lo = s > a ? s : a, hi = s + 1 < e ? s + 1 : e;
+            w[i * maxc + (s - s0)] = (float)((hi - lo) / scale);
+        }
+    }
+    return 0;
 }
 
 btf_result btf_crop(const btf *src, int x0, int y0, int w, int h, btf **out, btf_error *err)

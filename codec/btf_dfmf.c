@@ -471,14 +471,6 @@ static btf_result read_channel(dfmf_reader *r, const dfmf_header *h, int c, dfmf
 
 /* ------------------------------------------------------------ decoding */
 
-static inline uint8_t to_u8(float v)
-{
-    float q = v * 255.0f + 0.5f; /* same rounding and clamping as btf_set */
-    q = q > 0.0f ? q : 0.0f;
-    q = q < 255.0f ? q : 255.0f;
-    return (uint8_t)q;
-}
-
 /* Converts the three channel values of one texel to RGB by the colour model. */
 static void to_rgb(int model, float a, float b, float c, float rgb[3])
 {
@@ -530,7 +522,7 @@ static void store_row(const dfmf_header *h, const float *buf, int n, int i, int 
             d[0] = rgb[0], d[1] = rgb[1], d[2] = rgb[2];
         } else {
             uint8_t *d = (uint8_t *)b->data + base + 3 * t;
-            d[0] = to_u8(rgb[0]), d[1] = to_u8(rgb[1]), d[2] = to_u8(rgb[2]);
+            d[0] = btf_to_u8(rgb[0]), d[1] = btf_to_u8(rgb[1]), d[2] = btf_to_u8(rgb[2]);
         }
     }
 }

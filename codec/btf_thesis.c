@@ -490,29 +490,6 @@ void btf_thesis_decode_image(const btf_thesis_pkg *p, int view, int light, float
 
 /* ------------------------------------------------------------ resampling */
 
-/* Area-weighted resampling weights from n_in to n_out samples along one axis:
- * output i covers [i*n_in/n_out, (i+1)*n_in/n_out) in input units; each input
- * sample contributes its overlap. first[i], cnt[i], w[i*maxc + ..]. */
-static int axis_weights(int n_in, int n_out, int *first, int *cnt, float *w, int maxc)
-{
-    double scale = (double)n_in / (double)n_out;
-    for (int i = 0; i < n_out; i++) {
-        double a = i * scale, e = (i + 1) * scale;
-        int s0 = (int)floor(a), s1 = (int)ceil(e);
-        if (s1 > n_in)
-            s1 = n_in;
-        if (s1 - s0 > maxc)
-            return -1;
-        first[i] = s0;
-        cnt[i] = s1 - s0;
-        for (int s = s0; s < s1; s++) {
-            double lo = s > a ? s : a, hi = s + 1 < e ? s + 1 : e;
-            w[i * maxc + (s - s0)] = (float)((hi - lo) / scale);
-        }
-    }
-    return 0;
-}
-
 /* Resamples L (nb x S x S x C) to nb x h x w x C by area weighting (separable);
  * for sizes dividing S this is the box filter. Linear, so it commutes with decoding. */
 static btf_result resample_l(const btf_thesis_pkg *p, int w, int h, float **out, btf_error *err)
@@ -530,7 +507,7 @@ static btf_result resample_l(const btf_thesis_pkg *p, int w, int h, float **out,
     }
     int *cx = fx + w, *fy = fx + 2 * w, *cy = fy + h;
     float *wy = wx + (size_t)w * mx;
-    if (axis_weights(S, w, fx, cx, wx, mx) || axis_weights(S, h, fy, cy, wy, my)) {
+    if (btf_area_weights(S, w, fx, cx, wx, mx) || btf_area_weights(S, h, fy, cy, wy, my)) {
         r = btf_fail(err, BTF_ERR_ARG, "thesis import: bad resampling size %dx%d", w, h);
         goto done;
     }
@@ -563,14 +540,6 @@ done:
  * OpenMP workers below do not oversubscribe the cores. */
 #define TEXEL_CHUNK 128
 
-static inline uint8_t to_u8(float v)
-{
-    float q = v * 255.0f + 0.5f; /* same rounding and clamping as btf_set */
-    q = q > 0.0f ? q : 0.0f;
-    q = q < 255.0f ? q : 255.0f;
-    return (uint8_t)q;
-}
-
 /* Writes rows (3N x n texels, row (l*3+c)) of view v into b at texels t0.. */
 static void scatter(btf *b, int v, const float *rows, size_t t0, size_t n)
 {
@@ -586,7 +555,7 @@ static void scatter(btf *b, int v, const float *rows, size_t t0, size_t n)
         } else {
             uint8_t *d = (uint8_t *)b->data + base;
             for (size_t t = 0; t < n; t++)
-                d[3 * t] = to_u8(r0[t]), d[3 * t + 1] = to_u8(r1[t]), d[3 * t + 2] = to_u8(r2[t]);
+                d[3 * t] = btf_to_u8(r0[t]), d[3 * t + 1] = btf_to_u8(r1[t]), d[3 * t + 2] = btf_to_u8(r2[t]);
         }
     }
 }

@@ -796,10 +796,8 @@ static btf_result btf__write_one(btf__writer *w, int img, uint8_t *tmp, btf_erro
     const uint8_t *px = (const uint8_t *)b->data + base;
     if (b->storage == BTF_F32) {
         const float *f = (const float *)b->data + base;
-        for (size_t i = 0; i < ns; i++) {
-            float q = f[i] * 255.0f + 0.5f;
-            tmp[i] = !(q > 0.0f) ? 0 : q > 255.0f ? 255 : (uint8_t)q;
-        }
+        for (size_t i = 0; i < ns; i++)
+            tmp[i] = btf_to_u8(f[i]);
         px = tmp;
     }
     btf_result r = btf_image_write_unsynced(path, b->width, b->height, 3, 8, px, err);
