@@ -527,6 +527,8 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
         return btf_fail(err, BTF_ERR_ARG, "budget: give exactly one of a byte budget and an error target");
     btf_result r = btf_fs_replaceable(out, btf_manifest_owns_dir, NULL, err);
     btf_package_options po = opt ? *opt : (btf_package_options){0};
+    int thumbnail = po.thumbnail; /* of the chosen package once it is cut, not of every candidate */
+    po.thumbnail = 0;
     char name[BTF_PACKAGE_NAME_MAX];
     if (!po.name) { /* the material is OUT's, not its temporaries' */
         const char *slash = strrchr(out, '/');
@@ -571,6 +573,8 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
         rs.n_chunks = c->n_chunks, rs.bytes = c->bytes;
         rs.lab = c->lab, rs.rmse = c->rmse, rs.met = best_met;
         r = btf__budget_finish(sr->dir[best], budget, &rs, err);
+        if (r == BTF_OK && thumbnail > 0)
+            r = btf_package_thumbnail(sr->dir[best], thumbnail, err);
         if (r == BTF_OK)
             r = btf_fs_replace_dir(sr->dir[best], out, btf_manifest_owns_dir, NULL, err);
     }

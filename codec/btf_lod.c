@@ -669,6 +669,8 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
         if (r == BTF_OK)
             r = btf_fs_write_atomic(path, man, strlen(man), err);
         free(man);
+        if (r == BTF_OK && opt && opt->thumbnail > 0)
+            r = btf_package_thumbnail(tmp, opt->thumbnail, err);
         if (r == BTF_OK)
             r = btf_fs_replace_dir(tmp, out_dir, btf_manifest_owns_dir, NULL, err);
         if (r != BTF_OK)

@@ -37,6 +37,8 @@ typedef struct btf_lod_options {
     int residual;     /* 1: version 4 (doc/package-format.md section 12): every level but the coarsest stored as
                        * a residual over the coarser one (8-bit packages only); 0: version 2 (independent mips) */
     int png_only;     /* with residual: 1 = every texture file a PNG; 0 = each the smaller of PNG and lossless WebP */
+    int thumbnail;    /* > 0: out_dir gets thumbnail.png of at most this many pixels a side, decoded from the new
+                       * package before it is renamed into place (btf_package_thumbnail); 0 = none */
 } btf_lod_options;
 
 /* Summary of btf_lod_build (optional). Plain value. */

@@ -34,6 +34,7 @@ extern "C" {
 #define BTF_PACKAGE_MAX_FILES 8   /* files per chunk */
 #define BTF_PACKAGE_NAME_MAX 64   /* file and material name length, including NUL */
 #define BTF_PACKAGE_TEX_NOISE 0.5f /* default tex_noise (doc/package-format.md section 4) */
+#define BTF_PACKAGE_THUMBNAIL_SIDE 128 /* longest side of the thumbnail.png `btf compress` writes */
 
 /* Writer options; zero means default. Plain value. */
 typedef struct btf_package_options {
@@ -87,6 +88,10 @@ typedef struct btf_package_options {
      * once): btf_budget screens on a window of the material and counts its textures
      * as the whole material's (texels of the whole / texels of the window). */
     double tex_rate_scale;
+    /* > 0: the package gets thumbnail.png (btf_package_thumbnail) of at most this many
+     * pixels a side, written into the package before it is renamed into place; 0 =
+     * none. Never with estimate. */
+    int thumbnail;
     /* Test hook: called before the writer creates package file number i (texture j
      * = 2j, its weights 2j + 1, the manifest 2C; the components' files from several
      * threads at once, in any order); a nonzero return makes that write fail like a
@@ -163,6 +168,19 @@ btf_result btf_package_compress(const btf *src, const btf_pca_options *pca, cons
  * (4 * texels * C per block) and the atlases; docs in doc/package-format.md. */
 btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *opt,
                                       const char *out_dir, btf_compress_stats *stats, btf_error *err);
+
+/* The poster of the package dir (doc/package-format.md section 2): writes
+ * dir/thumbnail.png (temporary file, fsync, rename) from btf_package_thumbnail_rgb
+ * of the package read with every chunk. */
+btf_result btf_package_thumbnail(const char *dir, int max_side, btf_error *err);
+/* The material seen head-on as 8-bit sRGB RGB (*rgb malloc'd, *w x *h x 3, row 0
+ * first; the caller frees it): every texel decoded by btf_decode from every loaded
+ * chunk (nearest texel, level 0) at the light and the view nearest the normal (the
+ * smallest theta of each set), then, when a side exceeds max_side, box-filtered
+ * (btf_area_weights) to max_side on the longer side and the other in proportion
+ * (at least 1), and rounded by btf_to_u8. */
+btf_result btf_package_thumbnail_rgb(const btf_package *p, int max_side, int *w, int *h, uint8_t **rgb,
+                                     btf_error *err);
 
 /* Version 4 (doc/package-format.md section 12): 1 when chunk i's texture is a residual
  * over its component's next coarser level (its name ends "-dL.png", L = its level,

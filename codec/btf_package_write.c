@@ -712,6 +712,8 @@ btf_result btf_package_compress_views(btf_views *src, const btf_pca_options *pca
     }
     if (r == BTF_OK)
         r = btf__write_all(&w, &po, &o, name, tmp, stats, err);
+    if (r == BTF_OK && !o.estimate && o.thumbnail > 0)
+        r = btf_package_thumbnail(tmp, o.thumbnail, err);
     if (r == BTF_OK && !o.estimate)
         r = btf_fs_replace_dir(tmp, out_dir, btf_manifest_owns_dir, NULL, err);
     if ((r != BTF_OK || o.estimate) && made)
