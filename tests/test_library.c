@@ -250,3 +250,63 @@ Test(library, sampling_reaches_directory_sources)
     cr_assert_eq(build(with), 0);
     cr_expect_eq(identity("goni"), a, "an up-to-date package was rebuilt");
 }
+
+/* Width and height of an 8-bit RGB PNG from its IHDR (read as bytes: no codec code,
+ * which may use OpenMP); 0, or -1 when path is no such PNG. */
+static int png_rgb_size(const char *path, int *w, int *h)
+{
+    char *b = NULL;
+    size_t n = 0;
+    if (btf_fs_read(path, 1 << 20, &b, &n, NULL) != BTF_OK)
+        return -1;
+    const unsigned char *u = (const unsigned char *)b;
+    int ok = n > 26 && !memcmp(b, "\x89PNG\r\n\x1a\n", 8) && !memcmp(b + 12, "IHDR", 4) && u[24] == 8 && u[25] == 2;
+    *w = ok ? (u[16] << 24 | u[17] << 16 | u[18] << 8 | u[19]) : 0;
+    *h = ok ? (u[20] << 24 | u[21] << 16 | u[22] << 8 | u[23]) : 0;
+    free(b);
+    return ok ? 0 : -1;
+}
+
+/* LIB/name has an 8x8 RGB thumbnail.png that no chunk of its manifest lists. */
+static void expect_thumbnail(const char *name)
+{
+    char p[600];
+    int w = 0, h = 0;
+    snprintf(p, sizeof p, "%s/%s/thumbnail.png", g_lib, name);
+    cr_expect_eq(png_rgb_size(p, &w, &h), 0, "%s is missing or no 8-bit RGB PNG", p);
+    cr_expect(w == 8 && h == 8, "%s: %dx%d", p, w, h);
+    cJSON *j = manifest_of(name), *c;
+    cJSON_ArrayForEach(c, cJSON_GetObjectItem(j, "chunks")) {
+        cJSON *f;
+        cJSON_ArrayForEach(f, cJSON_GetObjectItem(c, "files"))
+            cr_expect_str_neq(cJSON_GetStringValue(f), "thumbnail.png", "a chunk lists the thumbnail");
+    }
+    cJSON_Delete(j);
+}
+
+/* The thumbnail is part of every package built; a rebuild replaces a package that
+ * has one (the writer owns it); a stamp from before thumbnails rebuilds. */
+Test(library, every_package_gets_a_thumbnail_that_rebuilds_keep)
+{
+    const char *one[] = {"gen:knit:8", "--components", "3", NULL};
+    const char *force[] = {"gen:knit:8", "--components", "3", "--force", NULL};
+    cr_assert_eq(build(one), 0);
+    expect_thumbnail("gen-knit-8");
+    long long a = identity("gen-knit-8");
+    cr_assert_eq(build(force), 0, "a package with a thumbnail was not replaced");
+    long long b = identity("gen-knit-8");
+    cr_expect_neq(b, a);
+    expect_thumbnail("gen-knit-8");
+    char stamp[600], *text = NULL;
+    snprintf(stamp, sizeof stamp, "%s/.build/gen-knit-8.json", g_lib);
+    cr_assert_eq(btf_fs_read(stamp, 1 << 16, &text, NULL, NULL), BTF_OK);
+    char *line = strstr(text, " \"thumbnail\": ");
+    cr_assert_not_null(line, "the stamp does not record the thumbnail: %s", text);
+    memmove(line, strchr(line, '\n') + 1, strlen(strchr(line, '\n') + 1) + 1); /* a stamp of an older btf */
+    cr_assert_eq(btf_fs_write_atomic(stamp, text, strlen(text), NULL), BTF_OK);
+    free(text);
+    cr_assert_eq(build(one), 0);
+    cr_expect_neq(identity("gen-knit-8"), b, "a package built before thumbnails is not rebuilt");
+    expect_thumbnail("gen-knit-8");
+    cr_expect_eq(entries_with(".tmp-"), 0);
+}

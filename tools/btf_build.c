@@ -29,11 +29,14 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
         snprintf(name, sizeof name, "%s", b);
         pkg.name = name;
     }
+    btf_lod_options lo = *lod;
+    lo.thumbnail = pkg.thumbnail; /* the levelled package's, decoded from it */
+    pkg.thumbnail = 0;
     btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
     if (r != BTF_OK)
         return r;
     btf_lod_stats ls = {0};
-    r = btf_lod_build(tmp, out, lod, &ls, err);
+    r = btf_lod_build(tmp, out, &lo, &ls, err);
     btf_fs_rmtree(tmp, NULL);
     if (st)
         st->bytes = ls.bytes, st->n_chunks = ls.n_chunks;

@@ -8,6 +8,8 @@
  * temporary OUT.tmp-PID-v1 (which the next writer of OUT cleans up if this one
  * dies) and adds the levels into OUT with btf_lod_build; either way OUT appears
  * only complete. pkg->name NULL becomes the last element of OUT.
+ * pkg->thumbnail > 0 gives OUT its thumbnail.png: with levels, btf_lod_build makes it
+ * from the levelled package (lod->thumbnail is not used).
  */
 #ifndef BTF_BUILD_H
 #define BTF_BUILD_H

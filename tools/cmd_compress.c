@@ -42,7 +42,8 @@ static void compress_usage(FILE *f)
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
             "                           [--max-bytes N | --max-error E] [--full-search] [--rd]\n"
-            "                           [--png] [--tex-noise X] [--in-memory] [--quiet] [--json]\n"
+            "                           [--png] [--tex-noise X] [--in-memory] [--no-thumbnail]\n"
+            "                           [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -81,6 +82,8 @@ static void compress_usage(FILE *f)
             "  --full-search    with a budget: measure the candidates on the whole material\n"
             "  --in-memory      load the whole input before compressing (the same package; the\n"
             "                   baseline the view-by-view read is measured against)\n"
+            "  --no-thumbnail   write no thumbnail.png (default: the material seen head-on, decoded\n"
+            "                   from every chunk, at most 128 pixels a side: the viewer's poster)\n"
             "  --rd             package version 3: texture and weight steps per component chosen\n"
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
             "                   steps, weights deflated (wt-JJ.z); 8-bit textures, no --levels\n"
@@ -98,7 +101,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R png!P tex-noise:X in-memory!M quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R png!P tex-noise:X in-memory!M no-thumbnail!T quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -123,6 +126,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'F': o->src.fill_missing = 1; break;
     case 'q': o->quiet = 1; break;
     case 'M': o->in_memory = 1; break;
+    case 'T': o->pkg.thumbnail = 0; break;
     case 'R': o->pkg.rd = 1; break;
     case 'S': o->budget.full_search = 1; break;
     case 'P': o->pkg.png_only = o->lod.png_only = 1; break;
@@ -143,7 +147,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
 static int compress_parse(int argc, char **argv, compress_opts *o)
 {
     memset(o, 0, sizeof *o);
-    o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8;
+    o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8, o->pkg.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE;
     int rc = btf_args_parse(&compress_spec, argc, argv, compress_option, o);
     if (rc == 0 && o->pkg.rd && (o->lod.levels > 0 || o->pkg.bits != 8)) {
         fprintf(stderr, "btf compress: --rd writes version 3: 8-bit textures, no --levels\n");

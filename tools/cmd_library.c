@@ -73,7 +73,8 @@ static void library_usage(FILE *f)
             "per material, at most N at once (default 1). SRC is anything `btf compress` reads\n"
             "(a UBO2003 image directory, a thesis package, a .btf file, gen:KIND[:SIZE[:SEED]]),\n"
             "optionally as NAME=SRC; else NAME is SRC's last path element without extension\n"
-            "(gen:knit:64 -> gen-knit-64). Each package is written atomically; a failed job\n"
+            "(gen:knit:64 -> gen-knit-64). Each package is written atomically, with its\n"
+            "thumbnail.png (as `btf compress` writes it); a failed job\n"
             "leaves nothing behind and the others go on. A package whose source (path, mtime,\n"
             "size), settings and btf version are those of its last build (LIB/.build/NAME.json)\n"
             "is skipped, so make -j or xargs -P can run one `btf library build SRC --out LIB`\n"
@@ -177,9 +178,10 @@ static int stamp_text(const library_opts *o, const library_job *j, char *buf, si
     snprintf(buf, n,
              "{\"source\": \"%s\", \"source_mtime_size\": \"%s\", \"btf\": \"%s\",\n"
              " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d sampling=%s\",\n"
+             " \"thumbnail\": %d,\n"
              " \"manifest_mtime_size\": \"%lld %lld\"}\n",
              j->spec, id, BTF_VERSION, o->pca.k, o->pca.components, o->pkg.bits, (int)o->pca.method, o->downsample,
-             o->levels, o->sampling ? o->sampling : "-",
+             o->levels, o->sampling ? o->sampling : "-", o->pkg.thumbnail,
              (long long)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec, (long long)st.st_size);
     return 0;
 }
@@ -320,6 +322,7 @@ static int library_build(int argc, char **argv)
     library_opts o;
     memset(&o, 0, sizeof o);
     o.pca.k = 3, o.pca.components = 8, o.pkg.bits = 8, o.jobs = 1;
+    o.pkg.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE; /* every package gets its poster */
     o.src = calloc((size_t)argc, sizeof *o.src);
     library_job *jobs = calloc((size_t)argc, sizeof *jobs);
     int rc = o.src && jobs ? btf_args_parse(&library_spec, argc, argv, library_option, &o) : 1;

@@ -22,7 +22,8 @@ typedef struct lod_opts {
 
 static void lod_usage(FILE *f)
 {
-    fprintf(f, "usage: btf lod IN_PKG OUT_PKG [--levels N] [--threshold T] [--residual] [--png] [--quiet] [--json]\n"
+    fprintf(f, "usage: btf lod IN_PKG OUT_PKG [--levels N] [--threshold T] [--residual] [--png]\n"
+               "                              [--no-thumbnail] [--quiet] [--json]\n"
                "\n"
                "Writes OUT_PKG (a different directory) as package version 2: the version-1\n"
                "package IN_PKG plus per-component mip levels, chunks ordered coarse first.\n"
@@ -33,6 +34,7 @@ static void lod_usage(FILE *f)
                "                  the next coarser one (doc/package-format.md section 12); 8 bits only\n"
                "  --png           with --residual: every texture a PNG (default: each the smaller\n"
                "                  of a PNG and a lossless WebP, doc/package-format.md section 4)\n"
+               "  --no-thumbnail  write no thumbnail.png (default: as `btf compress`, decoded from OUT_PKG)\n"
                "  --quiet         print nothing on success\n"
                "  --json          print one JSON object on stdout instead of the text: path\n"
                "                  (OUT_PKG), bytes, chunks, levels, bytes_v1 (IN_PKG's chunk files),\n"
@@ -59,6 +61,7 @@ static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
         break;
     case 'r': o->lod.residual = 1; break;
     case 'P': o->lod.png_only = 1; break;
+    case 'T': o->lod.thumbnail = 0; break;
     case 'q': o->quiet = 1; break;
     case 'j': o->json = 1; break;
     }
@@ -68,8 +71,9 @@ static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int lod_parse(int argc, char **argv, lod_opts *o)
 {
-    static const btf_args_spec spec = {"lod", "levels:l threshold:t residual!r png!P quiet!q json!j", lod_usage, 2};
+    static const btf_args_spec spec = {"lod", "levels:l threshold:t residual!r png!P no-thumbnail!T quiet!q json!j", lod_usage, 2};
     memset(o, 0, sizeof *o);
+    o->lod.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE;
     return btf_args_parse(&spec, argc, argv, lod_option, o);
 }
 
