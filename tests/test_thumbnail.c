@@ -1,7 +1,8 @@
 /* test_thumbnail.c - suite "thumbnail": the poster every package gets
  * (codec/btf_package_thumbnail.c, doc/package-format.md section 2) as `btf
  * compress` writes it, plain, under a budget, with levels and with --rd, and
- * --no-thumbnail; its pixels against the package decoded here on another path.
+ * --no-thumbnail, and `btf lod`; its pixels against the package decoded here on
+ * another path.
  *
  * Tolerance: one 8-bit level. The thumbnail comes from btf_decode (the head-on
  * light and view through the angular interpolation: weight 1 on the measured
@@ -278,4 +279,26 @@ Test(thumbnail, budget_levels_and_rd_packages_get_the_poster_of_what_they_hold)
         free(px);
         btf_package_free(p);
     }
+}
+
+Test(thumbnail, lod_writes_one_of_the_levelled_package_unless_told_not_to)
+{
+    char v1[320], v2[400], none[400], path[480];
+    const char *no[] = {"--no-thumbnail", NULL};
+    compress("v1", no, v1, sizeof v1);
+    snprintf(v2, sizeof v2, "%s/v2", g_dir);
+    snprintf(none, sizeof none, "%s/none", g_dir);
+    char *lod[] = {"lod", v1, v2, "--levels", "2", "--quiet", NULL};
+    char *lod_none[] = {"lod", v1, none, "--levels", "2", "--no-thumbnail", "--quiet", NULL};
+    cr_assert_eq(cmd_lod(6, lod), 0);
+    cr_assert_eq(cmd_lod(7, lod_none), 0);
+    btf_package *p = read_all(v2);
+    int w = 0, h = 0;
+    uint8_t *px = read_thumbnail(v2, &w, &h);
+    cr_expect(w == 16 && h == 16, "%dx%d", w, h);
+    expect_head_on(p, px, w, h, "btf lod");
+    snprintf(path, sizeof path, "%s/thumbnail.png", none);
+    cr_expect_eq(btf_fs_size(path), -1, "btf lod --no-thumbnail wrote %s", path);
+    free(px);
+    btf_package_free(p);
 }
