@@ -35,6 +35,11 @@ static void check_ok(const btfd_request *rq)
         abort();
     if (strlen(rq->etag) > BTFD_ETAG_MAX)
         abort();
+    if (rq->budget.pixels != -1.0 && !(rq->budget.pixels >= 0 && rq->budget.pixels <= 1e9))
+        abort();
+    if (rq->type == BTFD_REQ_ACK && (rq->received < 0 || rq->window < -1 || rq->window > BTFD_WINDOW_MAX ||
+                                     (rq->window > 0 && rq->window < BTFD_WINDOW_MIN)))
+        abort();
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)

@@ -240,12 +240,13 @@ static int int_in(const cJSON *v, int lo, int hi)
 }
 
 /* m->lod for a package with levels (versions 2 and 4); left NULL when the manifest's
- * levels, components or contributions are missing or out of range. */
+ * width, levels, components or levels of its chunks are missing or out of range. */
 static void load_lod(const cJSON *root, const cJSON *chunks, btfd_material *m)
 {
     int version = int_in(cJSON_GetObjectItemCaseSensitive(root, "version"), 1, 4);
     int levels = int_in(cJSON_GetObjectItemCaseSensitive(root, "levels"), 1, 15);
-    if ((version != 2 && version != 4) || levels < 1)
+    int width = int_in(cJSON_GetObjectItemCaseSensitive(root, "width"), 1, 1 << 20);
+    if ((version != 2 && version != 4) || levels < 1 || width < 1)
         return;
     btf_package *p = calloc(1, sizeof *p);
     btf_chunk_info *ci = calloc((size_t)m->n_chunks, sizeof *ci);
@@ -266,17 +267,20 @@ static void load_lod(const cJSON *root, const cJSON *chunks, btfd_material *m)
         return;
     }
     p->version = version;
+    p->width = width;
     p->n_levels = levels;
     p->n_chunks = m->n_chunks;
     p->chunk = ci;
     m->lod = p;
 }
 
-int btfd_material_lod_limit(const btfd_material *m, double texels_per_pixel, double threshold)
+int btfd_material_lod_limit(const btfd_material *m, double pixels, double threshold)
 {
+    if (!(pixels > 0))
+        return 0;
     if (!m->lod)
-        return texels_per_pixel > 0 ? m->n_chunks : 0;
-    btf_lod_view v = {texels_per_pixel, threshold};
+        return m->n_chunks;
+    btf_lod_view v = {btf_lod_footprint(m->lod->width, 1.0, pixels), threshold};
     btf_lod_selection sel;
     btf_lod_select(m->lod, &v, &sel, NULL);
     return sel.limit;

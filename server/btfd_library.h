@@ -71,7 +71,7 @@ typedef struct btfd_material {
     size_t thumb_size;
     char *summary;         /* JSON object text for the list (malloc'd) */
     btf_package *lod;      /* packages with levels: what btf_lod_select reads of the manifest
-                              (version, levels, per chunk component, level, contrib, bytes;
+                              (version, width, levels, per chunk component, level, contrib, bytes;
                               malloc'd), else NULL: a footprint budget then allows every chunk */
     dev_t dev;             /* identity of manifest.json when loaded: a rescan */
     ino_t ino;             /* reloads the package when any of these change */
@@ -88,10 +88,11 @@ typedef struct btfd_library {
     uint64_t generation;     /* incremented when the set of packages changes */
 } btfd_library;
 
-/* The prefix of m's chunks a view of texels_per_pixel (btf_lod_footprint) needs at
- * visibility threshold (doc/package-format.md section 10, btf_lod_select); every
- * chunk for packages without levels, none when texels_per_pixel <= 0. */
-int btfd_material_lod_limit(const btfd_material *m, double texels_per_pixel, double threshold);
+/* The prefix of m's chunks a view needs where one repeat of the material spans `pixels`
+ * device pixels, at visibility threshold (doc/package-format.md section 10:
+ * btf_lod_select at width / pixels texels per pixel); every chunk for packages without
+ * levels, none when pixels <= 0 (off screen). */
+int btfd_material_lod_limit(const btfd_material *m, double pixels, double threshold);
 
 /* Log sink for packages skipped during a scan (the library never prints). */
 typedef void (*btfd_log_fn)(void *ud, const char *msg);

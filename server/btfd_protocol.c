@@ -216,9 +216,8 @@ static int budget_limit(const btfd_material *m, const btfd_budget *b)
                 break;
             }
     }
-    if (b->texels_per_pixel >= 0) {
-        int need = btfd_material_lod_limit(m, b->texels_per_pixel,
-                                           b->threshold >= 0 ? b->threshold : BTF_LOD_THRESHOLD);
+    if (b->pixels >= 0) {
+        int need = btfd_material_lod_limit(m, b->pixels, b->threshold >= 0 ? b->threshold : BTF_LOD_THRESHOLD);
         if (need < limit)
             limit = need;
     }

@@ -102,11 +102,11 @@ static btfd_req_status parse_budget(const cJSON *b, btfd_budget *out, char *why,
             return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.error must be a number >= 0");
         out->max_error = c->valuedouble;
     }
-    c = cJSON_GetObjectItemCaseSensitive(b, "texels_per_pixel");
+    c = cJSON_GetObjectItemCaseSensitive(b, "pixels");
     if (c && !cJSON_IsNull(c)) {
         if (!cJSON_IsNumber(c) || !isfinite(c->valuedouble) || c->valuedouble < 0 || c->valuedouble > 1e9)
-            return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.texels_per_pixel must be a number 0..1e9");
-        out->texels_per_pixel = c->valuedouble;
+            return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.pixels must be a number 0..1e9");
+        out->pixels = c->valuedouble;
     }
     c = cJSON_GetObjectItemCaseSensitive(b, "threshold");
     if (c && !cJSON_IsNull(c)) {

@@ -51,8 +51,9 @@ typedef struct btfd_budget {
     int64_t max_chunks; /* send at most this many chunks (0 pauses the stream) */
     int64_t max_bytes;  /* send chunks while the running total stays within this */
     double max_error;   /* stop after the first chunk whose error is <= this */
-    double texels_per_pixel; /* the view's footprint (btf_lod_footprint): the chunks it needs */
-    double threshold;        /* with texels_per_pixel: visibility threshold (-1: BTF_LOD_THRESHOLD) */
+    double pixels;      /* device pixels one repeat of the material spans in the view (-1: none):
+                           the chunks that view needs (btf_lod_select of width / pixels) */
+    double threshold;   /* with pixels: visibility threshold (-1: BTF_LOD_THRESHOLD) */
 } btfd_budget;
 
 /* One parsed message; caller-owned value (about 4.5 KiB), valid until reused. */

@@ -1216,8 +1216,9 @@ static int budget_reply_limit(wsc *c, const char *budget)
     return limit;
 }
 
-/* budget.texels_per_pixel: the server picks the prefix the view needs by the rule of
- * doc/package-format.md section 10. Expected limits worked out by hand below. */
+/* budget.pixels: the server picks the prefix the view needs by the rule of
+ * doc/package-format.md section 10, at width / pixels texels per pixel (the manifest's
+ * width is 16). Expected limits worked out by hand below. */
 Test(server, footprint_budget_selects_the_chunks_a_view_needs)
 {
     char dir[400], path[500];
@@ -1230,6 +1231,8 @@ Test(server, footprint_budget_selects_the_chunks_a_view_needs)
     cJSON_AddStringToObject(root, "format", "btf-package");
     cJSON_AddNumberToObject(root, "version", 2);
     cJSON_AddNumberToObject(root, "levels", 2);
+    cJSON_AddNumberToObject(root, "width", 16);
+    cJSON_AddNumberToObject(root, "height", 16);
     for (int i = 0; i < 6; i++) {
         char f[32];
         snprintf(f, sizeof f, "c%d.bin", i);
@@ -1255,20 +1258,21 @@ Test(server, footprint_budget_selects_the_chunks_a_view_needs)
     wsc c;
     open_ws(&c, &s);
     cJSON_Delete(expect_type(&c, "hello"));
-    /* 2 texels per pixel: level 1; component 0 always, 1 (contrib 3 >= 1), not 2 (0.5):
-     * chunks 0 and 1 */
-    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"lv\",\"budget\":{\"texels_per_pixel\":2}}");
+    /* 8 pixels, 2 texels per pixel: level 1; component 0 always, 1 (contrib 3 >= 1), not 2
+     * (0.5): chunks 0 and 1 */
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"lv\",\"budget\":{\"pixels\":8}}");
     cJSON *m = expect_type(&c, "manifest");
     cr_expect_eq(jnum(m, "limit"), 2);
     cJSON_Delete(m);
-    /* 1 texel per pixel: level 0; component 1 hidden (0.4), 2 shown (2): chunks 0, 2, 3, 5 */
-    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":1}"), 6);
+    /* 16 pixels, 1 texel per pixel: level 0; component 1 hidden (0.4), 2 shown (2): chunks
+     * 0, 2, 3, 5 */
+    cr_expect_eq(budget_reply_limit(&c, "{\"pixels\":16}"), 6);
     /* threshold 5 at level 0: only component 0 (chunks 0 and 3) */
-    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":1,\"threshold\":5}"), 4);
+    cr_expect_eq(budget_reply_limit(&c, "{\"pixels\":16,\"threshold\":5}"), 4);
     /* with other limits the smallest prefix wins; off screen nothing */
-    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":1,\"chunks\":3}"), 3);
-    cr_expect_eq(budget_reply_limit(&c, "{\"texels_per_pixel\":0}"), 0);
-    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"lv\",\"budget\":{\"texels_per_pixel\":-1}}");
+    cr_expect_eq(budget_reply_limit(&c, "{\"pixels\":16,\"chunks\":3}"), 3);
+    cr_expect_eq(budget_reply_limit(&c, "{\"pixels\":0}"), 0);
+    wsc_send_text(&c, "{\"type\":\"budget\",\"material\":\"lv\",\"budget\":{\"pixels\":-1}}");
     cJSON *e = skip_to(&c, "error");
     cr_expect_str_eq(jstr(e, "code"), "bad_field");
     cJSON_Delete(e);
