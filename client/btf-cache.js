@@ -70,22 +70,36 @@ export function loadChunks(server, material) {
 }
 
 // Keeps chunk j (its files) of a material at etag; an older etag's chunks are dropped.
+// Chunks that arrive while a write is under way are written together after it (their
+// responses in parallel, the index once), so a burst of chunks is kept within a few
+// cache operations of its last byte: a reload right after `complete` finds them.
 export function storeChunk(server, material, etag, j, files) {
   if (!chunkCache.enabled) return Promise.resolve();
-  return serial(async () => {
-    const cache = await caches.open(NAME), index = await readIndex(cache), key = entryKey(server, material);
+  const batch = pendingStores || (pendingStores = {items: [], done: null});
+  batch.items.push({key: entryKey(server, material), etag, j, files});
+  if (!batch.done) batch.done = serial(() => writeBatch(batch)).catch(() => {});
+  return batch.done;
+}
+
+let pendingStores = null; // the batch the next serial write takes
+
+async function writeBatch(batch) {
+  pendingStores = null; // later chunks start the next batch
+  const cache = await caches.open(NAME), index = await readIndex(cache);
+  for (const {key, etag} of batch.items)
     if (index.entries[key] && index.entries[key].etag !== etag) await dropEntry(cache, index, key);
+  const fresh = batch.items.filter(({key, j}) => !(index.entries[key]?.chunks.includes(j)));
+  await Promise.all(fresh.map(({key, etag, j, files}) => cache.put(chunkUrl(key, etag, j),
+    new Response(new Blob(files), {headers: {'x-sizes': files.map((f) => f.length).join(',')}}))));
+  for (const {key, etag, j, files} of fresh) {
     const e = index.entries[key] || (index.entries[key] = {etag, chunks: [], bytes: 0, used: 0});
-    if (e.chunks.includes(j)) return;
-    const bytes = files.reduce((s, f) => s + f.length, 0);
-    await cache.put(chunkUrl(key, etag, j), new Response(new Blob(files), {headers: {'x-sizes': files.map((f) =>
-      f.length).join(',')}}));
+    if (e.etag !== etag || e.chunks.includes(j)) continue;
     e.chunks.push(j);
-    e.bytes += bytes;
+    e.bytes += files.reduce((s, f) => s + f.length, 0);
     e.used = Date.now();
-    await evict(cache, index, key);
-    await writeIndex(cache, index);
-  }).catch(() => {});
+  }
+  for (const key of new Set(fresh.map((f) => f.key))) await evict(cache, index, key);
+  await writeIndex(cache, index);
 }
 
 // Forgets a material's kept chunks (the server no longer has that etag).

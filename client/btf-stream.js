@@ -6,27 +6,46 @@
 //
 // Binary frames: 20-byte header of little-endian u32 (subscription id, chunk,
 // file index in the chunk's "files", offset, file size), then payload bytes.
+//
+// Flow control (doc/protocol.md): the stream keeps at most a window of bytes in flight
+// (acknowledged as they arrive, at most every ACK_MS): what the link carries in two round
+// trips and a short pause of the page (STALL_MS), so a budget change, another material or a shader file the page asks for
+// later waits behind that much, not behind megabytes the server pushed into the network.
+// Reconnects: after a lost connection the stream reconnects with backoff and jitter while
+// anything it was asked for is missing, and stays closed once everything has arrived
+// until a listener asks for more.
 
 import {dropChunks, loadChunks, storeChunk} from './btf-cache.js';
 
 export const SUBPROTOCOL = 'btf-stream.v1';
 const HEADER = 20;
+const ACK_MS = 25;                 // at most one ack per this many ms (the server allows 128 messages/s)
+const WINDOW_START = 256 * 1024;   // bytes in flight before the rate is known (the page is busiest then)
+const WINDOW_MIN = 64 * 1024;      // never less ...
+const WINDOW_MAX = 32 * 1024 * 1024; // ... nor more
+const RATE_SPAN_MS = 500;          // the receive rate is measured over this much of the recent past
+const STALL_MS = 400;              // the window also covers this long a pause of the page (acks wait for it)
+const RETRY_MS = [500, 1000, 2000, 4000, 8000, 15000]; // reconnect delays (then the last), +-25% jitter
 
 const streams = new Map(); // url -> BtfStream
 
-// Budget {chunks, bytes, error} with -1 (or absent) meaning "no limit" -> wire form.
+// Budget {chunks, bytes, error, pixels, threshold} with -1 (or absent) meaning "no
+// limit" -> wire form (pixels: device pixels one repeat of the material spans, the
+// server's footprint rule; doc/protocol.md "Budget").
 function wireBudget(b) {
   const o = {};
   if (b.chunks >= 0) o.chunks = Math.floor(b.chunks);
   if (b.bytes >= 0) o.bytes = Math.floor(b.bytes);
   if (b.error >= 0) o.error = b.error;
+  if (b.pixels >= 0) o.pixels = Math.round(b.pixels * 100) / 100;
+  if (b.pixels >= 0 && b.threshold >= 0) o.threshold = b.threshold;
   return o;
 }
 
 // The largest of several budgets (a limit only when every listener has one).
 export function mergeBudgets(list) {
-  const out = {chunks: -1, bytes: -1, error: -1};
-  for (const key of ['chunks', 'bytes']) {
+  const out = {chunks: -1, bytes: -1, error: -1, pixels: -1, threshold: -1};
+  for (const key of ['chunks', 'bytes', 'pixels']) {
     let v = 0;
     for (const b of list) {
       if (!(b[key] >= 0)) { v = -1; break; }
@@ -40,6 +59,8 @@ export function mergeBudgets(list) {
     e = Math.min(e, b.error);
   }
   out.error = list.length && e !== Infinity ? e : -1;
+  const t = list.map((b) => b.threshold).filter((x) => x >= 0);
+  out.threshold = out.pixels >= 0 && t.length ? Math.min(...t) : -1;
   return out;
 }
 
@@ -65,6 +86,7 @@ class Subscription {
     this.loading = true;    // reading kept chunks (btf-cache.js); subscribe waits for it
     this.unannounced = 0;   // kept chunks the listeners have not been told about yet
     this.cached = 0;        // chunks that came from the browser's cache
+    this.arrivedAt = [];    // chunk index -> when its last byte arrived (performance.now)
   }
 
   // Chunks kept from an earlier visit become held ones: the subscribe lists them in
@@ -93,6 +115,24 @@ class Subscription {
   }
 }
 
+// Flow state of one connection: bytes received, when, the round trip (ping at open).
+function newFlow() {
+  return {received: 0, acked: 0, window: WINDOW_START, rtt: null, hist: [], timer: 0, lastAck: 0, pingSeq: 0,
+    pingAt: 0, refused: false};
+}
+
+// What the link carries in twice a round trip plus an ack interval, and in STALL_MS
+// (the main thread of a page that compiles shaders or makes a WebGL context sends no
+// acks meanwhile; the link must not run dry): the rate measured over RATE_SPAN_MS;
+// while the window limits it, the window grows.
+function flowWindow(f) {
+  const h = f.hist, span = h.length > 1 ? h[h.length - 1][0] - h[0][0] : 0;
+  if (span < 50 || f.rtt === null) return f.window;
+  const rate = (h[h.length - 1][1] - h[0][1]) / span; // bytes per ms
+  const w = Math.round(rate * (2 * (f.rtt + ACK_MS) + STALL_MS));
+  return Math.round(Math.max(WINDOW_MIN, Math.min(WINDOW_MAX, Math.max(w, f.window / 2))));
+}
+
 export class BtfStream {
   // The shared stream of a server URL (ws:// or wss://).
   static for(url) {
@@ -112,24 +152,32 @@ export class BtfStream {
     this.ws = null;
     this.open = false;
     this.seq = 0;
-    this.retry = 0;
+    this.retry = 0;        // failed connection attempts since the last open
     this.bytes = 0;        // all bytes received (headers and text included)
     this.frames = 0;
     this.pieces = {bytes: 0, first: null, last: null, firstBytes: 0}; // binary frames: bytes, arrival times (ms)
-    this.connects = 0;
+    this.connects = 0;     // connections opened
+    this.attempts = 0;     // connections tried
     this.hello = null;
     this.lastError = null;
     this.retryTimer = 0;
+    this.flow = null;      // this connection's flow control (newFlow)
     this.connect();
+  }
+
+  // Anything asked for and not here yet: worth a connection.
+  wanted() {
+    return [...this.subs.values()].some((sub) => sub.loading || !sub.complete || !sub.manifest);
   }
 
   connect() {
     let ws;
+    this.attempts++;
     try {
       ws = new WebSocket(this.url, SUBPROTOCOL);
     } catch (e) {
       this.lastError = String(e.message || e);
-      this.broadcast('onStreamError', this.lastError);
+      this.broadcast('onError', {code: 'bad_url', message: this.lastError});
       return;
     }
     ws.binaryType = 'arraybuffer';
@@ -138,36 +186,61 @@ export class BtfStream {
       this.open = true;
       this.retry = 0;
       this.connects++;
+      this.flow = newFlow();
+      this.sendFlow(true);
       for (const sub of this.subs.values()) this.sendSubscribe(sub);
+      this.broadcast('onStreamOpen'); // after the subscribes: a listener's work here delays nothing on the wire
     };
     ws.onmessage = (ev) => this.onMessage(ev.data);
-    ws.onclose = (ev) => {
-      if (this.ws !== ws) return;
-      this.open = false;
-      this.ws = null;
-      this.byMid.clear();
-      this.lastError = `connection closed (${ev.code}${ev.reason ? ': ' + ev.reason : ''})`;
-      for (const sub of this.subs.values()) {
-        sub.mid = 0;
-        sub.sent = false;
-        sub.partial.clear();
-      }
-      if (ev.code === 1008 && ev.reason === 'origin not allowed') { // btfd --allow-origin: retrying is futile
-        this.broadcast('onError', {code: 'origin_not_allowed', message: `${this.url} refuses this page's origin`});
-      } else if (this.subs.size) {
-        this.broadcast('onStreamError', this.lastError + ', reconnecting');
-        this.reconnectLater();
-      }
-    };
+    ws.onclose = (ev) => this.onClose(ws, ev);
     ws.onerror = () => {}; // onclose follows with the code
   }
 
+  onClose(ws, ev) {
+    if (this.ws !== ws) return;
+    const opened = this.open;
+    this.open = false;
+    this.ws = null;
+    clearTimeout(this.flow?.timer);
+    this.flow = null;
+    this.byMid.clear();
+    this.lastError = opened ? `connection closed (${ev.code}${ev.reason ? ': ' + ev.reason : ''})`
+      : `cannot reach ${this.url}`;
+    for (const sub of this.subs.values()) {
+      sub.mid = 0;
+      sub.sent = false;
+      sub.partial.clear();
+    }
+    if (ev.code === 1008 && ev.reason === 'origin not allowed') { // btfd --allow-origin: retrying is futile
+      this.broadcast('onError', {code: 'origin_not_allowed', message: `${this.url} refuses this page's origin`});
+    } else if (this.wanted()) {
+      this.retry++;
+      const delay = this.reconnectLater();
+      this.broadcast('onStreamError', this.lastError, {retrying: true, attempt: this.retry, delayMs: delay,
+        drained: ev.code === 1001});
+    }
+    // else: everything asked for is here; the next subscribe or larger budget reconnects
+  }
+
+  // Schedules the next attempt: RETRY_MS[retry - 1] (a server draining with 1001: at
+  // once, another one takes over), +-25% jitter so many pages do not come back in step.
   reconnectLater() {
-    const delay = Math.min(8000, 250 * 2 ** this.retry++);
+    if (this.retryTimer) return 0;
+    const base = RETRY_MS[Math.min(this.retry, RETRY_MS.length) - 1] ?? RETRY_MS[0];
+    const delay = Math.round(base * (0.75 + 0.5 * Math.random()));
     this.retryTimer = setTimeout(() => {
       this.retryTimer = 0;
-      this.connect();
+      if (!this.ws && this.subs.size) this.connect();
     }, delay);
+    return delay;
+  }
+
+  // Reconnects now if closed and something is wanted (a new subscription, a larger budget).
+  wake() {
+    if (this.ws || !this.subs.size) return;
+    clearTimeout(this.retryTimer);
+    this.retryTimer = 0;
+    this.connect();
   }
 
   broadcast(ev, ...args) {
@@ -178,6 +251,36 @@ export class BtfStream {
     if (!this.open) return false;
     this.ws.send(JSON.stringify(obj));
     return true;
+  }
+
+  // The window and what has arrived (first: also a ping, whose pong times the round trip).
+  sendFlow(first = false) {
+    const f = this.flow;
+    if (!f) return;
+    f.timer = 0;
+    f.lastAck = performance.now();
+    f.acked = f.received;
+    f.window = flowWindow(f);
+    this.send({type: 'ack', received: f.received, window: f.window});
+    if (first) {
+      f.pingSeq = ++this.seq;
+      f.pingAt = performance.now();
+      this.send({type: 'ping', seq: f.pingSeq});
+    }
+  }
+
+  // Binary bytes arrived: acknowledged at once when ACK_MS has passed, else when it has.
+  onFlow(n) {
+    const f = this.flow;
+    if (!f) return;
+    f.received += n;
+    const now = performance.now();
+    f.hist.push([now, f.received]);
+    while (f.hist.length > 2 && f.hist[1][0] < now - RATE_SPAN_MS) f.hist.shift();
+    if (f.timer) return;
+    const wait = ACK_MS - (now - f.lastAck);
+    if (wait <= 0) this.sendFlow();
+    else f.timer = setTimeout(() => this.sendFlow(), wait);
   }
 
   // listener: {budget() -> {chunks, bytes, error}, onSubscribe(sub), onManifest(sub), onChunk(sub, j),
@@ -192,7 +295,7 @@ export class BtfStream {
     }
     sub.listeners.add(listener);
     if (listener.onSubscribe) listener.onSubscribe(sub); // before any replay below
-    if (!this.ws && !this.retryTimer) this.connect(); // closed while nothing was subscribed
+    if (!this.ws && !this.retryTimer) this.connect(); // closed: nothing was subscribed, or all had arrived
     if (fresh) {
       loadChunks(this.url, material).then((kept) => {
         sub.adopt(kept);
@@ -231,10 +334,16 @@ export class BtfStream {
     sub.sentBudget = JSON.stringify(msg.budget);
   }
 
-  // Sends the subscription's merged budget when it changed (e.g. a viewer resized).
+  // Sends the subscription's merged budget when it changed (e.g. a viewer resized); a
+  // stream closed because everything had arrived reconnects for it.
   updateBudget(sub) {
     const wire = JSON.stringify(wireBudget(sub.budget()));
-    if (!sub.mid || wire === sub.sentBudget) return;
+    if (wire === sub.sentBudget) return;
+    if (!this.ws) {
+      sub.complete = false;
+      return this.wake(); // the subscribe on open carries the new budget
+    }
+    if (!sub.mid) return;
     sub.sentBudget = wire;
     sub.complete = false;
     this.send({type: 'budget', material: sub.material, seq: ++this.seq, budget: JSON.parse(wire)});
@@ -254,6 +363,7 @@ export class BtfStream {
       return this.onText(msg);
     }
     this.bytes += data.byteLength;
+    this.onFlow?.(data.byteLength);
     this.pieces.bytes += data.byteLength;
     this.pieces.last = performance.now();
     if (this.pieces.first === null) [this.pieces.first, this.pieces.firstBytes] = [this.pieces.last, data.byteLength];
@@ -279,6 +389,7 @@ export class BtfStream {
       sub.partial.delete(chunk);
       sub.chunks[chunk] = p.files;
       sub.received++;
+      sub.arrivedAt[chunk] = performance.now();
       storeChunk(this.url, sub.material, sub.etag, chunk, p.files);
       sub.emit('onChunk', chunk);
     }
@@ -300,6 +411,9 @@ export class BtfStream {
     switch (msg.type) {
     case 'hello':
       this.hello = msg;
+      break;
+    case 'pong':
+      if (this.flow && msg.seq === this.flow.pingSeq) this.flow.rtt = performance.now() - this.flow.pingAt;
       break;
     case 'manifest':
       if (!sub) return;
@@ -329,6 +443,10 @@ export class BtfStream {
       sub.emit('onComplete', msg);
       break;
     case 'error':
+      if (msg.code === 'unknown_type' && !msg.material && this.flow && !this.flow.refused) { // a btfd without "ack"
+        this.flow.refused = true;
+        return;
+      }
       this.lastError = `${msg.code}: ${msg.message}`;
       if (sub) {
         sub.error = msg;
@@ -344,10 +462,12 @@ export class BtfStream {
 
   stats() {
     return {url: this.url, open: this.open, bytes: this.bytes, frames: this.frames, connects: this.connects,
-            pieces: this.pieces,
+            attempts: this.attempts, pieces: this.pieces,
+            flow: this.flow ? {window: this.flow.window, rtt: this.flow.rtt, received: this.flow.received} : null,
             subscriptions: [...this.subs.values()].map((s) => ({material: s.material, received: s.received,
               cached: s.cached,
               bytes: s.bytes, limit: s.limit, complete: s.complete, listeners: s.listeners.size,
+              arrivedAt: s.arrivedAt,
               budget: s.budget()}))};
   }
 }

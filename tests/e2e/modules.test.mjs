@@ -249,10 +249,16 @@ describe('btf-gl.js shader assembly', () => {
 describe('btf-stream.js budgets', () => {
   it('merges viewer budgets into the largest, unlimited when any is', () => {
     const m = streamMod.mergeBudgets;
-    assert.deepEqual(m([{chunks: 2, bytes: -1}, {chunks: 5, bytes: -1}]), {chunks: 5, bytes: -1, error: -1});
-    assert.deepEqual(m([{chunks: 2, bytes: 100}, {chunks: -1, bytes: 300}]), {chunks: -1, bytes: 300, error: -1});
+    const none = {pixels: -1, threshold: -1};
+    assert.deepEqual(m([{chunks: 2, bytes: -1}, {chunks: 5, bytes: -1}]), {chunks: 5, bytes: -1, error: -1, ...none});
+    assert.deepEqual(m([{chunks: 2, bytes: 100}, {chunks: -1, bytes: 300}]),
+      {chunks: -1, bytes: 300, error: -1, ...none});
     assert.deepEqual(m([{chunks: 1, bytes: 10, error: 2}, {chunks: 1, bytes: 10, error: 1}]),
-      {chunks: 1, bytes: 10, error: 1});
+      {chunks: 1, bytes: 10, error: 1, ...none});
+    // footprints: the largest view wins, with the lowest threshold; a viewer without one lifts the limit
+    assert.deepEqual(m([{chunks: -1, pixels: 300, threshold: 1}, {chunks: -1, pixels: 600, threshold: 2}]),
+      {chunks: -1, bytes: -1, error: -1, pixels: 600, threshold: 1});
+    assert.equal(m([{chunks: 3, pixels: -1}, {chunks: -1, pixels: 600}]).pixels, -1);
   });
 });
 

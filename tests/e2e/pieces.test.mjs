@@ -27,7 +27,7 @@ function fixture(sizes) {
     bytes: files.reduce((a, b) => a + b, 0)}));
   const done = [];
   const sub = {material: 'm', etag: 'e', mid: 7, manifest: {chunks}, chunks: [], partial: new Map(), bytes: 0,
-    received: 0, emit: (ev, j) => ev === 'onChunk' && done.push(j)};
+    received: 0, arrivedAt: [], emit: (ev, j) => ev === 'onChunk' && done.push(j)};
   s.subs.set('m', sub);
   s.byMid.set(7, sub);
   return {s, sub, chunks, done};
