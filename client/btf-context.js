@@ -2,11 +2,16 @@
 // allow only a few live contexts per page (Chromium: 16), so a page of 40 viewers
 // cannot give each its own. Each viewer draws into the bottom-left of one shared,
 // unattached canvas and copies that region into its own 2D canvas (drawImage) in
-// the same task; the program "render" is compiled once per shader base.
+// the same task; each variant of the program "render" is compiled once per shader base.
 import {loadShaders} from './btf-gl.js';
 import {MeshRenderer} from './btf-render.js';
 
 let shared;
+
+function rendererName(gl) {
+  const ext = gl.getExtension('WEBGL_debug_renderer_info');
+  return String(gl.getParameter(ext ? ext.UNMASKED_RENDERER_WEBGL : gl.RENDERER) || '');
+}
 
 class SharedGl {
   constructor() {
@@ -14,11 +19,14 @@ class SharedGl {
     this.canvas.width = this.canvas.height = 1;
     this.gl = this.canvas.getContext('webgl2', {antialias: false, premultipliedAlpha: false, alpha: false});
     this.lost = false;
+    // a software rasteriser (SwiftShader, llvmpipe): viewers draw at most one device pixel per CSS pixel
+    this.software = this.gl ? /swiftshader|llvmpipe|software/i.test(rendererName(this.gl)) : false;
     this.users = new Set();      // viewers: contextLost(), contextRestored()
     this.renderers = new Map();  // shader base URL -> Promise of MeshRenderer
     this.canvas.addEventListener('webglcontextlost', (e) => {
       e.preventDefault();
       this.lost = true;
+      this.fence = null;
       this.renderers.clear();
       for (const u of this.users) u.contextLost();
     });
@@ -28,10 +36,12 @@ class SharedGl {
     });
   }
 
-  // The program "render" of the shader files at base (compiled once per context).
-  renderer(base) {
+  // The renderer of the program "render" of the shader files at base (only that
+  // program's files are fetched, unless `files` gives them; its variants compile once
+  // per context).
+  renderer(base, files = null) {
     if (!this.renderers.has(base)) {
-      const p = loadShaders(base).then((sh) => new MeshRenderer(this.gl, sh));
+      const p = (files || loadShaders(base, 'render')).then((sh) => new MeshRenderer(this.gl, sh));
       p.catch(() => this.renderers.get(base) === p && this.renderers.delete(base));
       this.renderers.set(base, p);
     }
@@ -52,8 +62,35 @@ class SharedGl {
     ctx2d.drawImage(this.canvas, 0, this.canvas.height - h, w, h, 0, 0, w, h);
   }
 
+  // Frames are paced by the GPU: after the draws of one animation frame (tick: its rAF
+  // time) a fence goes in, and no viewer draws again until the GPU has passed it, so on
+  // software GL or a slow GPU frames never queue up behind each other (new chunks and
+  // the user's input show in the next frame the GPU can take). gpuMs: how long the GPU
+  // took for the last fenced frame.
+  drewIn(tick) {
+    const gl = this.gl;
+    if (this.fence || typeof gl.fenceSync !== 'function') return;
+    this.fence = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
+    gl.flush();
+    this.fenceAt = performance.now();
+    this.fenceTick = tick;
+  }
+
+  // True when a viewer may draw in animation frame `tick`.
+  idle(tick) {
+    if (!this.fence || this.fenceTick === tick) return true;
+    const gl = this.gl;
+    if (!gl.isContextLost() && gl.getSyncParameter(this.fence, gl.SYNC_STATUS) !== gl.SIGNALED) return false;
+    this.gpuMs = performance.now() - this.fenceAt;
+    gl.deleteSync(this.fence);
+    this.fence = null;
+    this.frameNo = (this.frameNo || 0) + 1;
+    return true;
+  }
+
   stats() {
     return {contexts: this.gl ? 1 : 0, users: this.users.size, renderers: this.renderers.size, lost: this.lost,
+            software: this.software, gpuMs: this.gpuMs ?? null,
             size: [this.canvas.width, this.canvas.height]};
   }
 }

@@ -20,17 +20,22 @@ function plainName(f) {
   return typeof f === 'string' && /^[A-Za-z0-9_.-]+$/.test(f) && f[0] !== '.' && f.length < 64;
 }
 
-// shaders/manifest.json and every file it names, fetched once per base URL.
-export function loadShaders(base) {
-  if (!manifests.has(base)) {
+// shaders/manifest.json and every file it names (or, given `program`, only the files
+// of that program), fetched once per base URL and program. A failed load is forgotten,
+// so the next call tries again.
+export function loadShaders(base, program = null) {
+  const key = `${base}|${program || ''}`;
+  if (!manifests.has(key)) {
     const p = fetchText(new URL('manifest.json', base)).then(async (text) => {
       const manifest = JSON.parse(text);
       if (!Array.isArray(manifest.prefix) || !manifest.prefix.length || typeof manifest.programs !== 'object')
         throw new Error('shader: manifest.json lacks "prefix" or "programs"');
+      if (program && !manifest.programs[program]) throw new Error(`shader: program '${program}' not in manifest.json`);
       const names = new Set();
-      for (const prog of Object.values(manifest.programs))
-        for (const stage of ['vertex', 'fragment'])
-          for (const f of prog[stage] || []) names.add(f);
+      for (const [name, prog] of Object.entries(manifest.programs))
+        if (!program || name === program)
+          for (const stage of ['vertex', 'fragment'])
+            for (const f of prog[stage] || []) names.add(f);
       const files = new Map();
       await Promise.all([...names].map(async (f) => {
         if (!plainName(f)) throw new Error(`shader: manifest.json names '${f}', not a plain file name`);
@@ -38,10 +43,10 @@ export function loadShaders(base) {
       }));
       return {manifest, files};
     });
-    p.catch(() => manifests.delete(base));
-    manifests.set(base, p);
+    p.catch(() => manifests.delete(key));
+    manifests.set(key, p);
   }
-  return manifests.get(base);
+  return manifests.get(key);
 }
 
 // One stage's source: prefix lines, defines, then "// ---- FILE" + text per file.
@@ -107,47 +112,76 @@ export function annotate(src, log) {
   return out.join('\n');
 }
 
-function compile(gl, program, stageName, src) {
+function compileStage(gl, stageName, src) {
   const sh = gl.createShader(stageName === 'vertex' ? gl.VERTEX_SHADER : gl.FRAGMENT_SHADER);
   gl.shaderSource(sh, src.text);
   gl.compileShader(sh);
-  if (gl.getShaderParameter(sh, gl.COMPILE_STATUS) || gl.isContextLost()) return sh;
+  return sh;
+}
+
+function stageError(gl, program, stageName, sh, src) {
   const log = gl.getShaderInfoLog(sh) || '';
-  gl.deleteShader(sh);
   const first = (log.split('\n').find((l) => l.trim()) || 'unknown error').trim();
   const [file, fl] = sourceLine(src, logLine(first));
   const err = new Error(`shader '${program}' ${stageName}: ${first}${file ? ` (${file} line ${fl})` : ''}`);
   err.report = annotate(src, log);
-  throw err;
+  return err;
 }
 
-// Builds a program from the manifest; throws Error with .report (annotated listing).
-export function buildProgram(gl, shaders, program, defines = []) {
-  const vsrc = assemble(shaders, program, 'vertex', defines);
-  const fsrc = assemble(shaders, program, 'fragment', defines);
-  const vs = compile(gl, program, 'vertex', vsrc);
-  const fs = compile(gl, program, 'fragment', fsrc);
+// Starts compiling and linking a program of the manifest without waiting for the driver:
+// with KHR_parallel_shader_compile the work runs beside the page until programReady says
+// so; finishProgram then checks it (and waits, where the extension is missing).
+export function startProgram(gl, shaders, program, defines = []) {
+  const srcs = {vertex: assemble(shaders, program, 'vertex', defines),
+    fragment: assemble(shaders, program, 'fragment', defines)};
+  const vs = compileStage(gl, 'vertex', srcs.vertex), fs = compileStage(gl, 'fragment', srcs.fragment);
   const p = gl.createProgram();
   gl.attachShader(p, vs);
   gl.attachShader(p, fs);
   gl.linkProgram(p);
-  gl.deleteShader(vs);
-  gl.deleteShader(fs);
-  if (!gl.getProgramParameter(p, gl.LINK_STATUS) && !gl.isContextLost()) {
-    const log = gl.getProgramInfoLog(p) || '';
+  return {gl, name: program, program: p, vs, fs, srcs, ext: gl.getExtension('KHR_parallel_shader_compile')};
+}
+
+// 1 when finishProgram(pending) will not block (always, without the extension: it blocks there).
+export function programReady(pending) {
+  return !pending.ext || pending.gl.isContextLost() ||
+    pending.gl.getProgramParameter(pending.program, pending.ext.COMPLETION_STATUS_KHR);
+}
+
+// The linked program of startProgram: {program, name, uniforms, loc(name)}; throws an
+// Error with .report (the annotated listing) when a stage does not compile or link.
+export function finishProgram(pending) {
+  const {gl, name, program: p, vs, fs, srcs} = pending;
+  const lost = gl.isContextLost();
+  try {
+    if (!lost && !gl.getProgramParameter(p, gl.LINK_STATUS)) {
+      for (const [stage, sh] of [['vertex', vs], ['fragment', fs]])
+        if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) throw stageError(gl, name, stage, sh, srcs[stage]);
+      const log = gl.getProgramInfoLog(p) || '';
+      const err = new Error(`shader '${name}': link failed: ${(log.split('\n')[0] || '').trim()}`);
+      err.report = log;
+      throw err;
+    }
+  } catch (e) {
     gl.deleteProgram(p);
-    const err = new Error(`shader '${program}': link failed: ${(log.split('\n')[0] || '').trim()}`);
-    err.report = log;
-    throw err;
+    throw e;
+  } finally {
+    gl.deleteShader(vs);
+    gl.deleteShader(fs);
   }
   const uniforms = new Map();
   const n = gl.getProgramParameter(p, gl.ACTIVE_UNIFORMS) || 0;
   for (let i = 0; i < n; i++) {
     const info = gl.getActiveUniform(p, i);
-    const name = info.name.replace(/\[0\]$/, '');
-    uniforms.set(name, gl.getUniformLocation(p, info.name));
+    const uname = info.name.replace(/\[0\]$/, '');
+    uniforms.set(uname, gl.getUniformLocation(p, info.name));
   }
-  return {program: p, name: program, uniforms, loc: (u) => uniforms.get(u) ?? null};
+  return {program: p, name, uniforms, loc: (u) => uniforms.get(u) ?? null};
+}
+
+// Builds a program from the manifest at once; throws Error with .report (annotated listing).
+export function buildProgram(gl, shaders, program, defines = []) {
+  return finishProgram(startProgram(gl, shaders, program, defines));
 }
 
 // ---------------------------------------------------------------- package textures
@@ -284,8 +318,13 @@ export class GpuPackage {
     }
   }
 
-  // RGBA bytes of a decoded PNG: uploaded into an R8 (grey) or RGBA8 texture without
-  // colour conversion and read back, so they are exactly the PNG's samples.
+  // RGBA bytes of an image: a decoded one ({width, height, rgba}, btf-decode.js) as it
+  // is; an ImageBitmap (decoded without colour conversion) uploaded into an R8 (grey) or
+  // RGBA8 texture and read back, so they are exactly the file's samples.
+  pixels(img, grey) {
+    return img.rgba ? img.rgba : this.readBack(img, grey);
+  }
+
   readBack(bitmap, grey) {
     const gl = this.gl, w = bitmap.width, h = bitmap.height;
     const t = gl.createTexture(), fb = gl.createFramebuffer();
@@ -309,7 +348,7 @@ export class GpuPackage {
 
   // Quantised texels of a decoded atlas image (16-bit: q = R*256 + G, as in the PNG).
   readAtlas(bitmap) {
-    const n = bitmap.width * bitmap.height, rgb = this.pkg.bits === 16, px = this.readBack(bitmap, !rgb);
+    const n = bitmap.width * bitmap.height, rgb = this.pkg.bits === 16, px = this.pixels(bitmap, !rgb);
     const q = new Uint16Array(n);
     for (let i = 0; i < n; i++) q[i] = rgb ? px[4 * i] * 256 + px[4 * i + 1] : px[4 * i];
     return q;
@@ -388,8 +427,8 @@ export class GpuPackage {
     this.putWt(s >> 2);
   }
 
-  // Uploads chunk j (must be the next one): its atlas (ImageBitmap decoded without
-  // colour conversion) on its slot's grid, and its weights (dequantised Float32Array;
+  // Uploads chunk j (must be the next one): its atlas (decoded pixels of btf-decode.js, or
+  // an ImageBitmap decoded without colour conversion) on its slot's grid, and its weights (dequantised Float32Array;
   // version 2: replaced unless 16-bit weights are there already; .precise = 16-bit).
   upload(j, bitmap, weights) {
     const pkg = this.pkg, ch = pkg.chunks[j], l = pkg.version >= 2 ? ch.level : 0;
@@ -469,7 +508,7 @@ export class GpuPackage {
   // Pixels of a grey image decoded by the browser (a PNG such as wt-JJ-8.png, or a
   // lossless WebP texture with R = G = B): exactly the file's grey bytes.
   readGrey(bitmap) {
-    const n = bitmap.width * bitmap.height, px = this.readBack(bitmap, true), out = new Uint8Array(n);
+    const n = bitmap.width * bitmap.height, px = this.pixels(bitmap, true), out = new Uint8Array(n);
     for (let i = 0; i < n; i++) out[i] = px[4 * i];
     return out;
   }

@@ -3,26 +3,64 @@
 // btf_render.frag): the very program `btf render` draws with in the headless C
 // harness, with the same mesh, camera and uniforms (scene.js ports shaders/host/btf_render.c).
 
-import {buildProgram, decodeDefines} from './btf-gl.js';
+import {decodeDefines, finishProgram, programReady, startProgram} from './btf-gl.js';
 import {buildMesh, cameraMake} from './scene.js';
 
 // MeshRenderer uses the program "render" (btf_render.vert, btf_dirs.glsl,
 // btf_decode.glsl, btf_render.frag), the one `btf render` draws with: a triangle
 // mesh of the surface (scene.js buildMesh) and the decoder per fragment, compiled
-// once per specialisation (decodeDefines: filter, levels, 4-slot layers in use).
+// once per specialisation (decodeDefines: filter, levels, 4-slot layers in use), and
+// only the ones drawn: start() sends a variant to the driver as soon as it is known
+// (the page goes on meanwhile), ready() says whether using it would wait, draw()
+// waits for it where it must.
 export class MeshRenderer {
   constructor(gl, shaders) {
     this.gl = gl;
     this.shaders = shaders;
-    this.progs = new Map(); // defines key -> program
-    this.prog = this.program([]); // the generic program (checks the sources compile)
+    this.progs = new Map(); // defines key -> linked program
+    this.pending = new Map(); // defines key -> startProgram's compile in flight
     this.meshes = new Map(); // geometry -> {vao, count, buffers}
   }
 
+  static key(defines) {
+    return defines.map((d) => d.join('=')).join(',');
+  }
+
+  // Starts compiling a variant (the GPU process compiles it while the page goes on).
+  start(defines) {
+    const key = MeshRenderer.key(defines);
+    if (!this.progs.has(key) && !this.pending.has(key))
+      this.pending.set(key, startProgram(this.gl, this.shaders, 'render', defines));
+  }
+
+  // True when the variant can be used without waiting on the driver (started if it was
+  // not; with KHR_parallel_shader_compile checked without blocking, else at once).
+  ready(defines) {
+    const key = MeshRenderer.key(defines);
+    if (this.progs.has(key)) return true;
+    this.start(defines);
+    if (!programReady(this.pending.get(key))) return false;
+    this.program(defines); // a broken shader throws here, with its report
+    return true;
+  }
+
+  // The linked variant for defines (compiled now, or finished now if it was started).
   program(defines) {
-    const key = defines.map((d) => d.join('=')).join(',');
-    if (!this.progs.has(key)) this.progs.set(key, buildProgram(this.gl, this.shaders, 'render', defines));
+    const key = MeshRenderer.key(defines);
+    if (!this.progs.has(key)) {
+      const started = this.pending.get(key) || startProgram(this.gl, this.shaders, 'render', defines);
+      this.pending.delete(key);
+      this.progs.set(key, finishProgram(started));
+    }
     return this.progs.get(key);
+  }
+
+  // The variant pkg (a GpuPackage) is drawn with: `quads` 4-slot layers (default: every
+  // slot the package has room for; unused slots have zero weights, so one compile per
+  // package, not one per 4 slots as chunks stream in).
+  static defines(pkg, filter, quads = 0) {
+    if (quads < 0) return decodeDefines(pkg.pkg, filter, 4).filter(([name]) => name !== 'BTF_QUADS');
+    return decodeDefines(pkg.pkg, filter, quads > 0 ? 4 * quads : Math.max(pkg.capacity, 1));
   }
 
   mesh(geometry) {
@@ -48,7 +86,8 @@ export class MeshRenderer {
 
   // Clears to the background and draws pkg (a GpuPackage) for the scene `view`
   // ({geometry, camera/light angles, fov, repeat, background, chunks, horizonFade,
-  // filter: 0 nearest, else bilinear}), as btf_renderer_draw does.
+  // filter: 0 nearest, else bilinear, quads: the variant's layers, see defines}), as
+  // btf_renderer_draw does.
   draw(pkg, view, w, h) {
     const gl = this.gl;
     gl.viewport(0, 0, w, h);
@@ -58,9 +97,7 @@ export class MeshRenderer {
     if (!pkg || !pkg.uploaded || !view.chunks) return;
     const cam = cameraMake(view, w / h);
     const filter = view.filter === 0 ? 0 : 1;
-    // the variant for every slot the package has room for (unused slots have zero
-    // weights): one compile per package, not one per 4 slots as chunks stream in
-    const p = this.program(decodeDefines(pkg.pkg, filter, Math.max(pkg.capacity, 1)));
+    const p = this.program(MeshRenderer.defines(pkg, filter, view.quads));
     gl.useProgram(p.program);
     pkg.bind(p, 0, {chunks: view.chunks, filter, wrap: cam.wrap});
     gl.uniformMatrix4fv(p.loc('u_model'), false, new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
@@ -80,7 +117,10 @@ export class MeshRenderer {
   free() {
     const gl = this.gl;
     for (const p of this.progs.values()) gl.deleteProgram(p.program);
+    for (const p of this.pending.values()) [p.vs, p.fs].forEach((sh) => gl.deleteShader(sh));
+    for (const p of this.pending.values()) gl.deleteProgram(p.program);
     this.progs.clear();
+    this.pending.clear();
     for (const m of this.meshes.values()) {
       gl.deleteVertexArray(m.vao);
       m.buffers.forEach((b) => gl.deleteBuffer(b));

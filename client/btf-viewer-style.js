@@ -1,4 +1,8 @@
-/* btf-viewer.css - shadow-DOM style of <btf-viewer> (loaded by btf-viewer.js). */
+// btf-viewer-style.js - the shadow-DOM style of <btf-viewer>, inside the script: the
+// element has its size and its placeholder from the moment it is defined (no
+// stylesheet request for the page to wait on, so nothing below it shifts later).
+
+export const VIEWER_CSS = `
 :host {
   display: inline-block;
   position: relative;
@@ -51,6 +55,25 @@ canvas {
   overflow: hidden;
   text-overflow: ellipsis;
 }
+.label:empty { display: none; }
+/* the placeholder until the first frame: the box at its size with a slow sweep */
+.wait {
+  position: absolute;
+  inset: 0;
+  background: linear-gradient(100deg, transparent 30%, rgba(255, 255, 255, 0.06) 50%, transparent 70%) #222224;
+  background-size: 300% 100%;
+  animation: btf-sweep 1.6s linear infinite;
+  pointer-events: none;
+}
+.wait[hidden] { display: none; }
+@keyframes btf-sweep { from { background-position: 100% 0; } to { background-position: -200% 0; } }
+@media (prefers-reduced-motion: reduce) { .wait { animation: none !important; } }
+.msg.soft {
+  inset: auto 0 0 0;
+  padding: 6px 10px 10px;
+  background: rgba(20, 20, 24, 0.8);
+  color: #ddd;
+}
 .msg {
   position: absolute;
   inset: 0;
@@ -63,3 +86,16 @@ canvas {
   color: #ffb4a8;
 }
 .msg[hidden] { display: none; }
+`;
+
+let sheet = null;
+
+// The shared constructed stylesheet (adoptedStyleSheets), or null where the browser
+// has none (the caller falls back to a <style> element).
+export function viewerSheet() {
+  if (sheet === null && typeof CSSStyleSheet !== 'undefined' && 'replaceSync' in CSSStyleSheet.prototype) {
+    sheet = new CSSStyleSheet();
+    sheet.replaceSync(VIEWER_CSS);
+  }
+  return sheet;
+}

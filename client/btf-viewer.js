@@ -31,20 +31,30 @@
 // (btf-stream.js). Test hook: window.__btf (viewers' state, capture()).
 
 // Every module of the element is imported here, so the browser asks for all of them
-// in one round trip (btf-cache.js and btf-render.js are otherwise found one level deeper).
+// in one round trip (btf-cache.js, btf-render.js and btf-dirtab.js are otherwise found
+// one level deeper).
 import './btf-cache.js';
-import './btf-render.js';
+import './btf-dirtab.js';
 import {BtfStream} from './btf-stream.js';
-import {GpuPackage} from './btf-gl.js';
+import {GpuPackage, decodeDefines, loadShaders} from './btf-gl.js';
+import {MeshRenderer} from './btf-render.js';
 import {sharedGl, sharedStats} from './btf-context.js';
-import {chunksWithinBytes, dequantWeights, dequantWeights8, dequantWeightsR, dequantWeightsZ, parseManifest,
-  promisedError} from './btf-package.js';
-import {LOD_THRESHOLD, lodFootprint, lodSelect} from './btf-lod.js';
+import {decodeImage, decoderKind} from './btf-decode.js';
+import {chunksWithinBytes, decodeWeights, dequantWeights8, parseManifest, promisedError} from './btf-package.js';
+import {LOD_THRESHOLD, lodSelect} from './btf-lod.js';
 import {Orbit} from './orbit.js';
-import {GEOMETRIES, sceneDefaults} from './scene.js';
+import {GEOMETRIES, orbitLight, pixelsPerUnit, sceneDefaults} from './scene.js';
+import {VIEWER_CSS, viewerSheet} from './btf-viewer-style.js';
+import {SHADER_PACK} from './btf-shader-pack.js';
 
-const STYLE_URL = new URL('btf-viewer.css', import.meta.url).href;
+const SCRIPT_AT = performance.now(); // when the element's modules ran (ms from navigation start)
 const SHADERS_URL = new URL('shaders/', import.meta.url).href;
+const GL_AFTER_MS = 1000; // the WebGL context is made once the subscribe is out, or this long after start
+const SLOW_FRAME_MS = 150; // a frame the GPU needs longer for (twice in a row) lowers the resolution ...
+const SOFTWARE_SCALE = 0.4; // a software rasteriser (SwiftShader, llvmpipe) starts at this share
+const MIN_SCALE = 0.35;    // ... down to this share of the device pixels per CSS pixel
+const GPU_POLL_MS = 8;     // how often a frame waiting for the GPU asks again // the WebGL context is made this long after start at the latest
+const SHADER_RETRY_MS = [500, 1000, 2000, 4000, 8000]; // then the last, while the viewer lives
 const LAZY_MARGIN = '300px'; // loading="lazy": start this far before the viewport
 
 // Attribute -> property type; the property is the camelCase name.
@@ -59,9 +69,9 @@ const RESTART = new Set(['material', 'src', 'shaders']);
 const SCENE = new Set(['repeat', 'lod-threshold', 'fov', 'geometry']);
 const CAMERA = new Set(['camera-theta', 'camera-phi', 'camera-dist']);
 
-// Chunks a viewer of this CSS width asks for when no budget-chunks is set: a small
-// viewer cannot show what the later components add ("model no more than a scene
-// needs"); refined from the manifest's per-chunk errors by a later issue (8).
+// Chunks a viewer of this CSS width asks for a package without levels when no
+// budget-chunks is set: a small viewer cannot show what the later components add
+// ("model no more than a scene needs"). Packages with levels get the scene budget.
 export function autoBudget(cssWidth) {
   if (cssWidth >= 1000) return -1;
   return Math.max(2, Math.ceil(cssWidth / 100) + 1);
@@ -111,10 +121,12 @@ export class BtfViewer extends HTMLElement {
   constructor() {
     super();
     const root = this.attachShadow({mode: 'open'});
-    const link = document.createElement('link');
-    link.rel = 'stylesheet';
-    link.href = STYLE_URL;
+    const sheet = viewerSheet();
+    if (sheet) root.adoptedStyleSheets = [sheet];
+    else root.append(Object.assign(document.createElement('style'), {textContent: VIEWER_CSS}));
     this.canvas = document.createElement('canvas');
+    this.waitEl = document.createElement('div');
+    this.waitEl.className = 'wait';
     this.posterImg = document.createElement('img');
     this.posterImg.className = 'poster';
     this.posterImg.alt = '';
@@ -126,7 +138,7 @@ export class BtfViewer extends HTMLElement {
     this.msg = document.createElement('div');
     this.msg.className = 'msg';
     this.msg.hidden = true;
-    root.append(link, this.canvas, this.posterImg, this.bar, this.label, this.msg);
+    root.append(this.canvas, this.waitEl, this.posterImg, this.bar, this.label, this.msg);
     this.ctx2d = null;
     this.gen = 0;
     this.started = false;
@@ -151,6 +163,14 @@ export class BtfViewer extends HTMLElement {
     this.loaded = false;
     this.completeFor = -1;
     this.error = null;
+    this.outage = null;     // the stream's current outage ({reason}), once its error event went out
+    this.shaderTry = 0;
+    this.shaderFiles = null;    // Promise of the "render" program's files
+    this.nextDecode = 0;
+    this.times = {script: SCRIPT_AT}; // ms from navigation start: the loading sequence (doc/client.md)
+    this.usedVariants = new Set(); // program variants drawn with (a first draw includes the driver's compile)
+    this.measured = null;
+    this.waitEl.hidden = false;
   }
 
   connectedCallback() {
@@ -194,6 +214,9 @@ export class BtfViewer extends HTMLElement {
   // loading="lazy": starts once the viewer is within LAZY_MARGIN of the viewport.
   startWhenNear() {
     if (this.started || this.near) return;
+    const r = this.getBoundingClientRect(), m = parseInt(LAZY_MARGIN, 10);
+    if (r.width > 0 && r.height > 0 && r.bottom > -m && r.top < innerHeight + m && r.right > -m && r.left < innerWidth + m && !document.hidden)
+      return this.start(); // near the viewport already: no observer round (it answers only after a frame)
     this.near = new IntersectionObserver((entries) => {
       if (!entries.some((e) => e.isIntersecting)) return;
       this.near.disconnect();
@@ -209,7 +232,9 @@ export class BtfViewer extends HTMLElement {
     if (this.sub) this.sub.stream.unsubscribe(this.sub, this);
     this.gpu?.free();
     this.ctx?.users.delete(this);
+    this.ctx = null;
     cancelAnimationFrame(this.raf);
+    clearTimeout(this.gpuWait);
     clearTimeout(this.timer);
     this.raf = 0;
     this.reset();
@@ -339,35 +364,89 @@ export class BtfViewer extends HTMLElement {
 
   // ------------------------------------------------------------ setup
 
-  async start() {
+  // The loading sequence (doc/client.md, "Loading"): the subscription (its budget from
+  // the element's size) and the shader files go out first, in parallel; the WebGL
+  // context is made while they travel; the program compiles once the manifest says
+  // which variant; chunks decode in a worker and every frame draws all that arrived.
+  start() {
     this.started = true;
     const gen = this.gen;
     const material = this.getAttribute('material');
     if (!material) return this.fail(new Error('no material attribute'));
-    this.ctx = sharedGl();
-    if (!this.ctx) {
-      return this.fail(new Error('This browser cannot show the material: WebGL2 is not available ' +
-                                 '(enable hardware acceleration or use a current browser).'), true);
-    }
-    this.ctx.users.add(this);
-    this.gl = this.ctx.gl;
-    this.ctx2d = this.ctx2d || this.canvas.getContext('2d', {alpha: false});
+    if (typeof WebGL2RenderingContext === 'undefined') return this.noWebgl();
     this.src = this.getAttribute('src') || scriptWs();
-    this.shaderBase = this.getAttribute('shaders') || SHADERS_URL;
-    this.defaultPoster(gen);
-    this.resize();
-    // the stream starts while the shaders load: chunks arrive (and upload) meanwhile
+    // the shader files: the `shaders` attribute's, else those inside the script (the
+    // bundle), else those next to it
+    this.shaderBase = this.getAttribute('shaders') || (SHADER_PACK ? 'inside:' : SHADERS_URL);
+    this.times.start = performance.now();
+    this.resize(); // the canvas size: the first subscribe's footprint
+    this.fetchShaders(gen); // before the subscribe: a shared subscription replays its manifest at once
     this.stream = BtfStream.for(this.src);
     this.stream.subscribe(material, this); // sets this.sub (onSubscribe)
+    this.defaultPoster(gen);
     this.updateLabel();
-    try {
-      const r = await this.ctx.renderer(this.shaderBase);
+    // the context once the subscribe is out (onStreamOpen: made while the manifest and the
+    // first chunk travel; it blocks the page, so not before), or later if the server is slow
+    setTimeout(() => this.ensureGl(gen), GL_AFTER_MS);
+  }
+
+  noWebgl() {
+    return this.fail(new Error('This browser cannot show the material: WebGL2 is not available ' +
+                               '(enable hardware acceleration or use a current browser).'), true);
+  }
+
+  // The shared context (made once per page) and this viewer's renderer; false without WebGL2.
+  ensureGl(gen = this.gen) {
+    if (gen !== this.gen || !this.started) return false;
+    if (this.ctx) return true;
+    const ctx = sharedGl();
+    if (!ctx) {
+      this.noWebgl();
+      return false;
+    }
+    this.ctx = ctx;
+    this.ctx.users.add(this);
+    this.gl = ctx.gl;
+    this.ctx2d = this.ctx2d || this.canvas.getContext('2d', {alpha: false});
+    this.times.gl = performance.now();
+    if (ctx.software && !this.hasAttribute('max-dpr') && !this.scale) { // known slow: start at half the pixels
+      this.scale = SOFTWARE_SCALE;
+      this.resize();
+    }
+    this.loadRenderer(gen);
+    if (this.pkg && !this.gpu) this.newGpu();
+    return true;
+  }
+
+  // The "render" program's files (only those), fetched at once; a failed fetch is tried
+  // again with backoff (a dropped link must not leave the viewer without shaders).
+  fetchShaders(gen) {
+    this.shaderFiles = this.shaderBase === 'inside:'
+      ? Promise.resolve({manifest: SHADER_PACK.manifest, files: new Map(Object.entries(SHADER_PACK.files))})
+      : loadShaders(this.shaderBase, 'render');
+    this.shaderFiles.then(() => {
+      if (gen === this.gen) this.times.shaders ??= performance.now();
+    }, (e) => {
+      if (gen !== this.gen) return;
+      const delay = SHADER_RETRY_MS[Math.min(this.shaderTry++, SHADER_RETRY_MS.length - 1)];
+      this.trouble(`${e.message}; trying again`);
+      setTimeout(() => gen === this.gen && this.fetchShaders(gen), delay);
+    });
+  }
+
+  loadRenderer(gen) {
+    const base = this.shaderBase;
+    this.shaderFiles.then(() => this.ctx.renderer(base, this.shaderFiles)).then((r) => {
       if (gen !== this.gen) return;
       this.renderer = r;
+      // the variant of a first frame (one 4-slot layer; levels once the manifest says)
+      // compiles while the first chunk travels
+      r.start(this.firstVariant());
+      this.recovered();
       this.invalidate();
-    } catch (e) {
-      if (gen === this.gen) this.fail(e);
-    }
+    }, () => {
+      if (gen === this.gen) setTimeout(() => gen === this.gen && this.ctx && this.loadRenderer(gen), 250);
+    });
   }
 
   contextLost() {
@@ -383,38 +462,53 @@ export class BtfViewer extends HTMLElement {
     const gen = this.gen;
     this.lost = false;
     this.showMessage('');
-    this.ctx.renderer(this.shaderBase).then((r) => {
+    this.ctx.renderer(this.shaderBase, this.shaderFiles).then((r) => {
       if (gen !== this.gen) return;
       this.renderer = r;
       this.rebuildGpu();
-    }).catch((e) => this.fail(e));
+    }).catch((e) => gen === this.gen && this.fail(e));
   }
 
   // ------------------------------------------------------------ budget
 
-  // This viewer's own budget {chunks, bytes, error}; -1 = no limit. Without a
-  // budget-chunks attribute a version-2 package gets its scene budget (sceneBudget),
-  // 0 while the viewer is off screen or the tab hidden (streaming pauses).
+  // This viewer's own budget {chunks, bytes, error, pixels, threshold}; -1 = no limit.
+  // Without a budget-chunks attribute: the scene budget, sent as the footprint (`pixels`,
+  // device pixels one repeat of the material spans) so the server applies it from the
+  // first subscribe on, before the manifest is here; once it is, also as the chunk count
+  // of lodSelect (client/btf-lod.js), capped for packages without levels by
+  // BtfViewer.budgetPolicy. 0 pixels while the viewer is off screen or the tab hidden
+  // (streaming pauses).
   budget(drawing = false) {
-    const c = this.getAttribute('budget-chunks');
-    let chunks;
-    if (c !== null && c !== '') chunks = Math.max(0, parseInt(c, 10) || 0);
-    else if (this.pkg && this.pkg.version >= 2) chunks = this.sceneBudget(drawing).limit;
-    else chunks = BtfViewer.budgetPolicy(this);
-    const bytes = num(this, 'budget-bytes', -1);
-    return {chunks, bytes, error: -1};
+    const c = this.getAttribute('budget-chunks'), bytes = num(this, 'budget-bytes', -1);
+    if (c !== null && c !== '')
+      return {chunks: Math.max(0, parseInt(c, 10) || 0), bytes, error: -1, pixels: -1, threshold: -1};
+    const paused = !this.onScreen || document.hidden;
+    const pixels = paused && !drawing ? 0 : this.pixelsPerRepeat();
+    const threshold = num(this, 'lod-threshold', LOD_THRESHOLD);
+    let chunks = this.pkg ? this.sceneBudget(drawing).limit : -1;
+    const policy = this.pkg ? BtfViewer.budgetPolicy(this) : -1;
+    if (policy >= 0 && !(pixels === 0)) chunks = chunks < 0 ? policy : Math.min(chunks, policy);
+    return {chunks, bytes, error: -1, pixels, threshold};
   }
 
-  // Texels per device pixel of the material at the object's centre (doc/client.md, "Budgets"): the
-  // object (2 units across) spans canvas height / (dist tan(fov/2)) device pixels;
-  // u runs over 2 units on plane and cylinder, over 2 pi (twice) on the sphere.
-  footprint() {
-    if (!this.pkg) return 0;
+  // Device pixels across which one repeat of the material spans at the object's centre
+  // (doc/client.md, "Budgets"): the object, 2 units across, spans 2 pixelsPerUnit
+  // (scene.js: the field of view spans the narrower side); u runs over 2 units on plane
+  // and cylinder, over 2 pi (twice) on the sphere.
+  pixelsPerRepeat() {
     const fov = num(this, 'fov', 40), dist = this.orbit ? this.orbit.dist : sceneDefaults(this.geometry).cameraDist;
-    const px = this.canvas.height / (Math.max(dist, 1e-3) * Math.tan((fov * Math.PI) / 360));
+    const [w, h] = this.display || [this.canvas.width, this.canvas.height];
+    const px = 2 * pixelsPerUnit({cameraDist: Math.max(dist, 1e-3), fov}, w, h);
     const rep = num(this, 'repeat', 1) > 0 ? num(this, 'repeat', 1) : 1;
     const perUnit = this.geometry === 'sphere' ? 2 / Math.PI : 1;
-    return lodFootprint(this.pkg.width, rep * perUnit, px);
+    return px / (rep * perUnit);
+  }
+
+  // Texels per device pixel of the material at the object's centre (btf_lod_footprint).
+  footprint() {
+    if (!this.pkg) return 0;
+    const px = this.pixelsPerRepeat();
+    return px > 0 && this.pkg.width > 0 ? this.pkg.width / px : 0;
   }
 
   // lodSelect of the current view (client/btf-lod.js); nothing while paused unless drawing.
@@ -436,8 +530,7 @@ export class BtfViewer extends HTMLElement {
 
   // The view changed (zoom, on/off screen, tab shown/hidden): a scene budget may too.
   sceneChanged() {
-    if (this.sub && this.pkg && this.pkg.version >= 2 && this.getAttribute('budget-chunks') === null)
-      this.budgetChanged();
+    if (this.sub && this.getAttribute('budget-chunks') === null) this.budgetChanged();
   }
 
   budgetChanged() {
@@ -460,8 +553,12 @@ export class BtfViewer extends HTMLElement {
     } catch (e) {
       return this.fail(e);
     }
+    this.times.manifest ??= performance.now();
+    if (!this.ctx && !this.ensureGl()) return;
     this.newGpu();
+    if (this.renderer && this.gpu) this.renderer.start(this.firstVariant());
     this.updateLabel();
+    this.invalidate(); // starts the program's compile
   }
 
   // A fresh GPU package for the manifest (also after a context restore); uploads what is held.
@@ -477,6 +574,8 @@ export class BtfViewer extends HTMLElement {
 
   onChunk(sub, j) {
     if (sub !== this.sub || !this.pkg) return;
+    if (j === 0) this.times.chunk ??= sub.arrivedAt[0] ?? performance.now();
+    this.recovered();
     this.emit('progress', this.progress(j + 1)); // chunks arrive in order: j + 1 are here
     this.pump();
   }
@@ -488,7 +587,7 @@ export class BtfViewer extends HTMLElement {
     if (!sub || !gpu) return;
     for (; this.nextDecode < limit && sub.chunks[this.nextDecode]; this.nextDecode++) {
       const j = this.nextDecode;
-      this.uploadChain = this.uploadChain.then(() => this.uploadChunk(sub, j, gpu))
+      this.uploadChain = this.uploadChain.then(() => this.decodeChunk(sub, j, gpu))
         .catch((e) => gen === this.gen && this.fail(e));
     }
   }
@@ -508,59 +607,52 @@ export class BtfViewer extends HTMLElement {
     return sub === this.sub && gpu && gpu === this.gpu && !this.lost;
   }
 
-  // Decodes chunk j (createImageBitmap: off the main thread) and queues it; frame()
-  // uploads at most one queued chunk per frame, so a burst of chunks never stalls drawing.
-  async uploadChunk(sub, j, gpu) {
+  // Decodes chunk j off the main thread (btf-decode.js: its image files; btf-package.js:
+  // its weights) and queues it; the next frame uploads every queued chunk, then draws.
+  async decodeChunk(sub, j, gpu) {
     if (!this.current(sub, gpu) || j < gpu.uploaded) return;
     const chunk = this.pkg.chunks[j];
     const files = sub.chunks[j];
     const data = (name) => files[chunk.files.indexOf(name)];
     // a texture is a PNG or (versions 3 and 4) a lossless WebP: doc/package-format.md section 4
-    const type = chunk.tex.endsWith('.webp') ? 'image/webp' : 'image/png';
-    const bitmap = await createImageBitmap(new Blob([data(chunk.tex)], {type}),
-                                           {premultiplyAlpha: 'none', colorSpaceConversion: 'none'});
-    if (!this.current(sub, gpu)) return bitmap.close();
+    const img = await decodeImage(data(chunk.tex), chunk.tex.endsWith('.webp') ? 'image/webp' : 'image/png');
+    if (!this.current(sub, gpu)) return;
     const wt = await this.chunkWeights(chunk, data, gpu);
-    if (!this.current(sub, gpu)) return bitmap.close();
-    this.ready.push({j, bitmap, wt, gpu});
+    if (!this.current(sub, gpu)) return;
+    this.times.decoded ??= performance.now();
+    this.ready.push({j, img, wt, gpu});
     this.invalidate();
   }
 
-  // The next decoded chunk into the GPU (one per frame).
+  // Every decoded chunk into the GPU, in order; before the first frame only the first
+  // one (the first picture comes from the first chunk, whatever else has arrived).
   uploadReady() {
-    const r = this.ready.shift();
-    if (!r) return;
-    if (r.gpu === this.gpu && !this.lost && r.j === r.gpu.uploaded) r.gpu.upload(r.j, r.bitmap, r.wt);
-    r.bitmap.close();
-    this.updateLabel();
+    let n = 0;
+    for (let r; (this.loaded || n < 1) && (r = this.ready.shift()); n++)
+      if (r.gpu === this.gpu && !this.lost && r.j === r.gpu.uploaded) r.gpu.upload(r.j, r.img, r.wt);
+    if (n) this.updateLabel();
+    if (this.ready.length) this.invalidate();
   }
 
   closeReady() {
-    for (const r of this.ready || []) r.bitmap.close();
     this.ready = [];
   }
 
-  // Dequantised weights of a chunk: wt-JJ.bin or version 3's wt-JJ.z (16-bit, .precise), else version 2's
-  // wt-JJ-8.png (8-bit coarse), else null (a chunk that lists only its texture).
+  // Dequantised weights of a chunk (btf-package.js decodeWeights: wt-JJ.bin, version 3's
+  // wt-JJ.z or version 4's wt-JJ-r.z, all 16-bit: .precise), else version 2's wt-JJ-8.png
+  // (8-bit coarse), else null (a chunk that lists only its texture).
   async chunkWeights(chunk, data, gpu) {
     if (chunk.wt) {
-      const w = this.pkg.manifestVersion === 4 && chunk.wt.endsWith('-r.z')
-        ? await dequantWeightsR(this.pkg, chunk, data(chunk.wt), gpu.w8q.get(chunk.component))
-        : chunk.wt.endsWith('.z') ? await dequantWeightsZ(this.pkg, chunk, data(chunk.wt))
-          : dequantWeights(this.pkg, chunk, data(chunk.wt));
+      const w = await decodeWeights(this.pkg, chunk, data(chunk.wt), gpu.w8q.get(chunk.component));
       w.precise = true;
       return w;
     }
     if (!chunk.wt8) return null;
-    const bm = await createImageBitmap(new Blob([data(chunk.wt8)], {type: 'image/png'}),
-                                       {premultiplyAlpha: 'none', colorSpaceConversion: 'none'});
+    const img = await decodeImage(data(chunk.wt8), 'image/png');
     const L = this.pkg.lights.dirs, V = this.pkg.views.dirs;
-    if (bm.width !== 3 * L || bm.height !== V) {
-      bm.close();
-      throw new Error(`package ${this.pkg.name}: ${chunk.wt8} is ${bm.width}x${bm.height}, expected ${3 * L}x${V}`);
-    }
-    const px = gpu.readGrey(bm);
-    bm.close();
+    if (img.width !== 3 * L || img.height !== V)
+      throw new Error(`package ${this.pkg.name}: ${chunk.wt8} is ${img.width}x${img.height}, expected ${3 * L}x${V}`);
+    const px = gpu.readGrey(img);
     gpu.w8q.set(chunk.component, px); // version 4: the component's wt-JJ-r.z is a residual over these
     return dequantWeights8(this.pkg, chunk, px);
   }
@@ -576,8 +668,41 @@ export class BtfViewer extends HTMLElement {
     if (sub === this.sub) this.fail(new Error(`${msg.message} (${msg.code})`));
   }
 
-  onStreamError(sub, text) {
-    if (sub === this.sub && !this.complete) this.label.textContent = text;
+  // The connection failed or was lost; the stream tries again (info.retrying) while
+  // anything is missing. One `error` event per outage (not for a server that drains:
+  // another one takes over at once).
+  onStreamError(sub, text, info = {}) {
+    if (sub !== this.sub) return;
+    if (!info.retrying) { // a refused request: a note in the label, the stream goes on
+      if (!this.complete) this.label.textContent = text;
+      return;
+    }
+    if (info.drained && info.attempt === 1) return;
+    this.trouble(`${text}; trying again in ${(info.delayMs / 1000).toFixed(1)} s`);
+  }
+
+  onStreamOpen(sub) {
+    if (sub !== this.sub) return;
+    this.times.open ??= performance.now();
+    if (this.outage) this.showMessage(this.loaded ? '' : 'Connected, loading…', true);
+    if (!this.ctx) setTimeout(() => this.ensureGl(this.gen), 0);
+  }
+
+  // A recoverable failure: a message (over the picture's foot once there is one) and,
+  // the first time in an outage, an `error` event {reason, retrying: true}.
+  trouble(reason) {
+    if (this.error) return;
+    this.showMessage(reason, true);
+    if (this.outage) return;
+    this.outage = {reason};
+    this.emit('error', {reason, retrying: true});
+  }
+
+  // Data flows again after trouble: the message goes.
+  recovered() {
+    if (!this.outage) return;
+    this.outage = null;
+    this.showMessage('');
   }
 
   // Re-uploads every chunk held by the subscription (after a context restore).
@@ -592,8 +717,10 @@ export class BtfViewer extends HTMLElement {
   resize() {
     const r = this.getBoundingClientRect();
     this.cssWidth = r.width;
-    const dpr = Math.min(window.devicePixelRatio || 1, num(this, 'max-dpr', 2));
-    const w = Math.max(1, Math.round(r.width * dpr)), h = Math.max(1, Math.round(r.height * dpr));
+    const dpr = Math.min(window.devicePixelRatio || 1, num(this, 'max-dpr', 2)), k = this.scale || 1;
+    // the display's device pixels (what budgets are for), and the canvas (fewer on a slow GPU, adapt())
+    this.display = [Math.max(1, Math.round(r.width * dpr)), Math.max(1, Math.round(r.height * dpr))];
+    const w = Math.max(1, Math.round(r.width * dpr * k)), h = Math.max(1, Math.round(r.height * dpr * k));
     if (this.canvas.width !== w || this.canvas.height !== h) {
       this.canvas.width = w;
       this.canvas.height = h;
@@ -609,12 +736,17 @@ export class BtfViewer extends HTMLElement {
   // The scene in btf render's terms (scene.js sceneDefaults / cameraMake).
   view() {
     const light = this.getAttribute('light') || 'orbit';
-    let phi = this.lightPhi;
-    if (light === 'orbit' && !reducedMotion()) phi += ((performance.now() - this.t0) / 1000) * 30;
+    const cam = {cameraTheta: 90 - this.orbit.el, cameraPhi: this.orbit.az, lightTheta: this.lightTheta,
+      lightPhi: this.lightPhi};
+    // the orbiting light circles the camera's direction, keeping its angle to it: the lit
+    // side stays the side the camera sees (scene.js orbitLight)
+    const lit = light === 'orbit' && !reducedMotion() ? orbitLight(cam, ((performance.now() - this.t0) / 1000) * 30)
+      : cam;
     return {
-      geometry: this.geometry, cameraTheta: 90 - this.orbit.el, cameraPhi: this.orbit.az,
-      cameraDist: this.orbit.dist, lightTheta: this.lightTheta, lightPhi: phi, fov: num(this, 'fov', 40),
+      geometry: this.geometry, ...cam, cameraDist: this.orbit.dist, lightTheta: lit.lightTheta,
+      lightPhi: lit.lightPhi, fov: num(this, 'fov', 40),
       repeat: num(this, 'repeat', 1) > 0 ? num(this, 'repeat', 1) : 1, chunks: this.drawableChunks(),
+      quads: this.quads || 0,
       background: sceneDefaults(this.geometry).background,
     };
   }
@@ -625,7 +757,7 @@ export class BtfViewer extends HTMLElement {
 
   // Draws into the shared context and copies the frame into this viewer's canvas.
   draw() {
-    if (!this.renderer || this.lost || this.ctx.lost) return false;
+    if (!this.renderer || this.lost || !this.ctx || this.ctx.lost) return false;
     const v = this.view(), w = this.canvas.width, h = this.canvas.height;
     this.ctx.fit(w, h);
     this.renderer.draw(this.gpu, v, w, h);
@@ -637,13 +769,17 @@ export class BtfViewer extends HTMLElement {
   // Bookkeeping and events of a frame that showed chunks.
   drawn(chunks) {
     this.frames++;
+    if (chunks > this.drawnChunks) this.times.drawn = [...(this.times.drawn || []), [chunks, Math.round(performance.now())]];
     this.drawnChunks = chunks;
     if (!this.loaded) {
       this.loaded = true;
       this.firstFrameMs = performance.now() - this.t0;
       this.firstFrameAt = performance.now(); // since navigation start
+      this.times.frame = this.firstFrameAt;
+      this.firstFrameChunks = chunks;
       this.firstFrameBytes = this.stream ? this.stream.bytes : null;
       this.posterImg.hidden = true;
+      this.waitEl.hidden = true;
       this.emit('load', {chunks});
     }
     const limit = this.ownLimit();
@@ -654,29 +790,86 @@ export class BtfViewer extends HTMLElement {
     }
   }
 
-  // One frame: at most one chunk upload, then the draw. An orbiting light asks for the
-  // next frame only after as long again as this one took (the copy into the 2D canvas
-  // waits for the shared context's draw), so software GL and many viewers on one page
-  // never queue frames faster than they are drawn.
-  frame() {
+  // One frame: every decoded chunk uploaded, then the draw of all of them, once the
+  // program is linked (until then the placeholder or poster stays and the next frame
+  // asks again). An orbiting light asks for the next frame only after as long again as
+  // this one took (the copy into the 2D canvas waits for the shared context's draw),
+  // so software GL and many viewers on one page never queue frames faster than they are drawn.
+  frame(tick) {
     this.raf = 0;
     const t0 = performance.now();
+    if (this.ctx && !this.ctx.idle(tick)) { // the GPU is still on the last frame
+      clearTimeout(this.gpuWait);
+      this.gpuWait = setTimeout(() => this.invalidate(), GPU_POLL_MS);
+      return;
+    }
+    this.adapt();
     try {
       this.uploadReady();
+      if (this.renderer && this.gpu && !this.lost && (this.quads = this.variant()) === null) return this.invalidate();
     } catch (e) {
-      this.fail(e);
+      return this.fail(e);
     }
-    this.draw();
-    if (this.ready.length) this.invalidate();
+    this.times.program ??= this.renderer && this.gpu ? performance.now() : undefined;
+    if (this.draw()) {
+      this.ctx.drewIn(tick);
+      this.measured = {frame: this.ctx.frameNo || 0, fresh: !this.usedVariants.has(this.quads)};
+      this.usedVariants.add(this.quads);
+    }
     clearTimeout(this.timer);
     if (!this.animating()) return;
     const cost = performance.now() - t0;
     this.timer = setTimeout(() => this.invalidate(), Math.max(16, cost));
   }
 
+  // Resolution follows the GPU: a frame that took it over SLOW_FRAME_MS (a program's
+  // first frame excluded: it includes the driver's compile) scales the canvas down so
+  // the next one would take about that long (pixels in proportion), to MIN_SCALE of its
+  // device pixels (software GL, weak phones); the picture stays whole, only softer, and
+  // the budget stays that of the display. A page that sets max-dpr keeps its resolution.
+  adapt() {
+    const m = this.measured;
+    if (this.hasAttribute('max-dpr')) return;
+    if (!m || m.frame + 1 !== this.ctx.frameNo) return; // the GPU time of this viewer's last frame
+    this.measured = null;
+    this.slowGpu = this.ctx.gpuMs > SLOW_FRAME_MS;
+    if (m.fresh || !this.slowGpu || (this.scale || 1) <= MIN_SCALE) return;
+    this.scale = Math.max(MIN_SCALE, (this.scale || 1) * Math.max(0.5, Math.sqrt(SLOW_FRAME_MS / this.ctx.gpuMs)));
+    this.resize();
+  }
+
+  // The program variant to draw with (MeshRenderer.defines' quads: 0 every slot the
+  // package has room for, 1 the first four), or null while it compiles. Until the first
+  // frame, a package with more room draws its first chunks with the one-layer variant
+  // (compiled while they travelled); the full one is compiled after the first frame.
+  // On a software rasteriser every frame draws with the variant that loops over the
+  // slots in use (-1): one program for any number of chunks, whose first draw (the
+  // rasteriser compiles the shader to machine code then, the longer the more layers are
+  // written out) is short.
+  variant() {
+    const r = this.renderer, g = this.gpu, software = this.ctx.software;
+    const full = MeshRenderer.defines(g, 1, software ? -1 : 0);
+    if (software) return r.ready(full) ? -1 : null;
+    if (g.capacity > 4 && g.slots <= 4 && !r.progs.has(MeshRenderer.key(full))) {
+      if (this.loaded) r.start(full);
+      return r.ready(MeshRenderer.defines(g, 1, 1)) ? 1 : null;
+    }
+    return r.ready(full) ? 0 : null;
+  }
+
+  // The variant a first frame draws with (started early so the driver compiles it while
+  // the first chunk travels): one 4-slot layer, or on a software rasteriser the loop.
+  firstVariant() {
+    const quads = this.ctx.software ? -1 : 1;
+    return this.gpu ? MeshRenderer.defines(this.gpu, 1, quads)
+      : decodeDefines({version: 1}, 1, 4).filter(([name]) => quads > 0 || name !== 'BTF_QUADS');
+  }
+
+  // The orbiting light moves (not while a slow GPU still has chunks to show: each
+  // frame would hold the next chunk back).
   animating() {
     return (this.getAttribute('light') || 'orbit') === 'orbit' && this.drawableChunks() > 0 && this.onScreen &&
-      !reducedMotion() && !document.hidden;
+      !reducedMotion() && !document.hidden && !(this.slowGpu && !this.complete);
   }
 
   // Test hook: draws now and returns the canvas pixels, rows top-down, RGBA, base64.
@@ -713,9 +906,11 @@ export class BtfViewer extends HTMLElement {
     this.label.textContent = t;
   }
 
-  showMessage(text) {
+  // soft: a note at the viewer's foot (trouble the viewer recovers from), else over it.
+  showMessage(text, soft = false) {
     this.msg.textContent = text;
     this.msg.hidden = !text;
+    this.msg.classList.toggle('soft', soft);
   }
 
   fail(e, noWebgl = false) {
@@ -742,7 +937,10 @@ export class BtfViewer extends HTMLElement {
       scene: this.pkg && this.pkg.version >= 2 ? (({level, components, needed, limit, bytes}) =>
         ({level, components, needed, limit, bytes}))(this.sceneBudget()) : null,
       slots: this.gpu ? this.gpu.slots : 0, poster: this.posterImg.hidden ? null : this.posterImg.src,
-      posterShown: this.posterShown ?? null,
+      posterShown: this.posterShown ?? null, firstFrameChunks: this.firstFrameChunks ?? null,
+      times: {...this.times}, decoder: decoderKind(), outage: this.outage ? this.outage.reason : null,
+      message: this.msg.hidden ? null : this.msg.textContent, scale: this.scale || 1, display: this.display || null,
+      gpuMs: this.ctx ? this.ctx.gpuMs ?? null : null,
     };
   }
 }
@@ -765,9 +963,9 @@ for (const [attr, type] of Object.entries(ATTRS)) {
   });
 }
 
-// Chunks a viewer asks for without a budget-chunks attribute. Replaceable (doc/client.md,
-// "Budgets": scene-driven budgets from the screen footprint and the manifest's per-chunk errors);
-// a viewer calls budgetChanged() when its inputs change.
-BtfViewer.budgetPolicy = (viewer) => autoBudget(viewer.cssWidth || 300);
+// Most chunks a viewer asks for without a budget-chunks attribute, -1 for no cap beyond
+// the scene budget. Replaceable (doc/client.md, "Budgets"); by default packages without
+// levels get autoBudget of the CSS width. A viewer calls budgetChanged() when its inputs change.
+BtfViewer.budgetPolicy = (viewer) => (viewer.pkg && viewer.pkg.version < 2 ? autoBudget(viewer.cssWidth || 300) : -1);
 
 if (!customElements.get('btf-viewer')) customElements.define('btf-viewer', BtfViewer);

@@ -1,0 +1,5 @@
+// btf-shader-pack.js - the shader files inside the script. In the source tree nothing
+// (the viewer fetches shaders/ next to its script); the bundle (tools/bundle.mjs)
+// replaces this module with the "render" program's manifest entry and files, read from
+// shaders/ at build time: {manifest: {prefix, programs: {render}}, files: {NAME: text}}.
+export const SHADER_PACK = null;
