@@ -60,6 +60,13 @@ ALL_CFLAGS  = $(call pkg,--cflags,$(CODEC_PKGS) $(GL_PKGS) gsl)
 $(TOOLS_OBJ) $(BUILD)/tools/btf_main.o: INC := $(ALL_INC)
 $(TOOLS_OBJ) $(BUILD)/tools/btf_main.o: PKG_CFLAGS = $(ALL_CFLAGS)
 
+# client/       the browser viewer; $(BUILD)/client/ its one-file bundle (esbuild, the
+#               "render" shaders inside) and the pages, what btfd serves in `make demo`
+BUNDLE     := $(BUILD)/client/btf-viewer.js
+$(BUNDLE): $(wildcard client/*) $(wildcard shaders/*.*) tools/bundle.mjs package-lock.json
+	@test -x node_modules/.bin/esbuild || { echo "esbuild is missing: run 'make setup' (npm ci)"; exit 1; }
+	node tools/bundle.mjs $(BUILD)/client
+
 # tests/        Criterion suites (one binary) and browser tests in tests/e2e/
 TEST_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/*.c))
 TEST_BIN   := $(BUILD)/run_tests
@@ -72,7 +79,7 @@ TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 
 .PHONY: all setup build test e2e check asan bench chart demo clean lib install uninstall
 all: build
-build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN)
+build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN) $(BUNDLE)
 lib: $(CODEC_LIB)
 # The library under its documented name, for programs outside this tree
 # (the default build only: sanitizer builds keep theirs in their own folder).

@@ -42,4 +42,5 @@ echo "demo: library $(ls "$LIBRARY" | wc -l) materials in $LIBRARY/"
 echo "demo: gallery  http://$BIND:$PORT/"
 echo "demo: embed    http://$BIND:$PORT/embed.html"
 echo "demo: stop with Ctrl-C"
-exec "$BUILD/btfd" --library "$LIBRARY" --port "$PORT" --bind "$BIND"
+# the client as one file (make build: $BUILD/client, tools/bundle.mjs), shaders inside
+exec "$BUILD/btfd" --library "$LIBRARY" --port "$PORT" --bind "$BIND" --client "$BUILD/client"

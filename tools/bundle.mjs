@@ -1,0 +1,52 @@
+// tools/bundle.mjs - the viewer as one file: esbuild bundles client/btf-viewer.js and its
+// modules (and the decode worker) into OUT/, minified, with the "render" program's
+// shader files inside (client/btf-shader-pack.js is replaced by them), so a page gets
+// the element and its shaders in one request. The pages of client/ are copied beside
+// it (their `import './btf-viewer.js'` gets the bundle). Run by `make build`:
+//   node tools/bundle.mjs OUT        (default build/client)
+import fs from 'node:fs';
+import path from 'node:path';
+import {fileURLToPath} from 'node:url';
+import * as esbuild from 'esbuild';
+
+const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
+const OUT = path.resolve(process.argv[2] || path.join(ROOT, 'build/client'));
+const PROGRAM = 'render';
+
+// {manifest: {prefix, programs: {render}}, files} of shaders/, as btf-gl.js loadShaders reads them.
+function shaderPack() {
+  const dir = path.join(ROOT, 'shaders');
+  const manifest = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
+  const prog = manifest.programs[PROGRAM];
+  if (!prog) throw new Error(`shaders/manifest.json has no program '${PROGRAM}'`);
+  const files = {};
+  for (const f of [...prog.vertex, ...prog.fragment]) files[f] = fs.readFileSync(path.join(dir, f), 'utf8');
+  return {manifest: {prefix: manifest.prefix, programs: {[PROGRAM]: prog}}, files};
+}
+
+const packPlugin = {
+  name: 'shader-pack',
+  setup(build) {
+    build.onLoad({filter: /btf-shader-pack\.js$/}, () => ({
+      contents: `export const SHADER_PACK = ${JSON.stringify(shaderPack())};\n`, loader: 'js'}));
+  },
+};
+
+const tmp = `${OUT}.tmp-${process.pid}`;
+fs.rmSync(tmp, {recursive: true, force: true});
+await esbuild.build({
+  entryPoints: ['btf-viewer.js', 'btf-decode-worker.js'].map((f) => path.join(ROOT, 'client', f)),
+  bundle: true, format: 'esm', minify: true, target: 'es2020', outdir: tmp, plugins: [packPlugin],
+  legalComments: 'none', logLevel: 'warning',
+});
+for (const f of fs.readdirSync(path.join(ROOT, 'client')))
+  if (/\.(html|css)$/.test(f) || ['gallery.js', 'viewer.js', 'embed.js'].includes(f))
+    fs.copyFileSync(path.join(ROOT, 'client', f), path.join(tmp, f));
+// replace OUT whole (a directory rename; the old one removed after)
+const old = `${OUT}.old-${process.pid}`;
+if (fs.existsSync(OUT)) fs.renameSync(OUT, old);
+fs.renameSync(tmp, OUT);
+fs.rmSync(old, {recursive: true, force: true});
+const size = (f) => fs.statSync(path.join(OUT, f)).size;
+console.log(`bundle: ${path.relative(ROOT, OUT)}/btf-viewer.js ${size('btf-viewer.js')} bytes (shaders inside), ` +
+  `btf-decode-worker.js ${size('btf-decode-worker.js')} bytes`);
