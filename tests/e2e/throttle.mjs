@@ -65,13 +65,61 @@ export function startThrottle({target, bps = 4e6, delayMs = 20, queue = 64 * 102
     pipe(client, upstream, {bps, delayMs, queue}, up, {bytes: 0, first: null, last: null});
     pipe(upstream, client, {bps, delayMs, queue}, down, conn);
   });
-  return new Promise((resolve) => srv.listen(0, '127.0.0.1', () => resolve({
-    port: srv.address().port, url: `http://127.0.0.1:${srv.address().port}/`, down,
-    close: () => new Promise((r) => {
-      for (const s of sockets) s.destroy();
-      srv.close(r);
-    }),
-  })));
+  return new Promise((resolve) => srv.listen(0, '127.0.0.1', () => {
+    const port = srv.address().port;
+    resolve({
+      port, url: `http://127.0.0.1:${port}/`, down,
+      // the link goes down: every connection is cut and new ones are refused for ms
+      drop: (ms) => new Promise((r) => {
+        for (const s of sockets) s.destroy();
+        srv.close(() => setTimeout(() => srv.listen(port, '127.0.0.1', r), ms));
+      }),
+      close: () => new Promise((r) => {
+        for (const s of sockets) s.destroy();
+        if (srv.listening) srv.close(r);
+        else r();
+      }),
+    });
+  }));
+}
+
+// Records cumulative layout shift (entries without recent input) in window.__cls; for addInitScript.
+export function clsRecorder() {
+  window.__cls = 0;
+  new PerformanceObserver((list) => {
+    for (const e of list.getEntries()) if (!e.hadRecentInput) window.__cls += e.value;
+  }).observe({type: 'layout-shift', buffered: true});
+}
+
+// One visit of `url` until viewer 0 has drawn its whole budget (timeout ms): what the
+// page showed and when, in ms from navigation start: {firstFrame, firstChunk (the first
+// chunk's last byte arrived), lastChunk, complete, scriptRequest (when the page asked for
+// btf-viewer.js), chunksAtFirstFrame, times (the viewer's loading sequence,
+// doc/client.md), streamBytes (chunk payload over the WebSocket), cls, error}.
+export async function visit(page, url, timeout = 120000) {
+  await page.goto(url);
+  const t0 = Date.now();
+  for (;;) {
+    const done = await page.evaluate(() => {
+      const v = window.__btf?.viewers()[0];
+      return v && v.complete && v.drawnChunks === v.ownLimit && v.frames > 0;
+    });
+    if (done) break;
+    if (Date.now() - t0 > timeout) {
+      const st = await page.evaluate(() => window.__btf?.viewers()).catch(() => null);
+      throw new Error(`the page did not complete in ${timeout} ms: ${JSON.stringify(st)}`);
+    }
+    await new Promise((r) => setTimeout(r, 50));
+  }
+  return page.evaluate(() => {
+    const v = window.__btf.viewers()[0], s = window.__btf.streams()[0], sub = s.subscriptions[0];
+    const script = performance.getEntriesByType('resource').find((e) => /\/btf-viewer\.js$/.test(e.name));
+    return {firstFrame: v.firstFrameAt, firstChunk: sub.arrivedAt[0] ?? null, complete: v.completeAt,
+      scriptRequest: script ? script.startTime : 0,
+      lastChunk: sub.arrivedAt.length ? Math.max(...sub.arrivedAt.filter(Number.isFinite)) : null,
+      chunksAtFirstFrame: v.firstFrameChunks, chunks: v.drawnChunks, times: v.times, streamBytes: v.streamBytes,
+      cached: sub.cached, cls: window.__cls ?? null, error: v.error, decoder: v.decoder};
+  });
 }
 
 // The page `pageName` of pagesUrl (given ?link=PORT: its script, shaders and stream come

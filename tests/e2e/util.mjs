@@ -41,8 +41,9 @@ export function hasRender() {
 
 // Library of small packages in a temp dir: name -> [generator kind, components,
 // optional spatial levels (a version-2 package, doc/package-format.md section 10),
-// optional further `btf compress` arguments, optional further `btf gen` arguments].
-export function makeLibrary(materials) {
+// optional further `btf compress` arguments, optional further `btf gen` arguments];
+// without {thumbnails: true} the packages have no thumbnail.png (no poster).
+export function makeLibrary(materials, {thumbnails = false} = {}) {
   const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-e2e-'));
   const lib = path.join(dir, 'lib');
   fs.mkdirSync(lib);
@@ -50,7 +51,7 @@ export function makeLibrary(materials) {
     const src = path.join(dir, `${name}.btf`);
     run(BTF, ['gen', kind, src, '--size', '32', '--format', 'btf', '--components', '16', ...genExtra]);
     run(BTF, ['compress', src, path.join(lib, name), '--k', '3', '--components', String(comps), '--quiet',
-      ...(levels ? ['--levels', String(levels)] : []), ...extra]);
+      ...(levels ? ['--levels', String(levels)] : []), ...(thumbnails ? [] : ['--no-thumbnail']), ...extra]);
     fs.rmSync(src);
   }
   return {dir, lib, remove: () => fs.rmSync(dir, {recursive: true, force: true})};
@@ -68,10 +69,10 @@ export function writeSpiralList(n, rot) {
   return file;
 }
 
-// Starts btfd on a free loopback port (extra: more options); resolves {port, url, ws, stop()}.
-export function startServer(lib, extra = []) {
+// Starts btfd on a free loopback port, or `port` (extra: more options); resolves {port, url, ws, stop()}.
+export function startServer(lib, extra = [], port = 0) {
   return new Promise((resolve, reject) => {
-    const p = spawn(BTFD, ['--library', lib, '--port', '0', '--client', path.join(ROOT, 'client'),
+    const p = spawn(BTFD, ['--library', lib, '--port', String(port), '--client', path.join(ROOT, 'client'),
       '--shaders', path.join(ROOT, 'shaders'), ...extra], {cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe']});
     let out = '', err = '';
     const timer = setTimeout(() => {
@@ -263,12 +264,27 @@ export function sideBySide(images) {
   return {width: w, height: h, data};
 }
 
+const TYPES = {'.js': 'text/javascript', '.json': 'application/json', '.html': 'text/html'};
+
 // A page server on another loopback port (another origin than btfd): GET /NAME.html
-// answers pages[NAME] (HTML text). Resolves {url, close()}.
-export async function servePages(pages) {
+// answers pages[NAME] (HTML text); with statics {'/prefix/': directory}, GET /prefix/FILE
+// answers that directory's plain file (a static host: no CORS header); hook(req, res)
+// may answer a request first (returns true). Resolves {url, port, close()}.
+export async function servePages(pages, {statics = {}, hook = null} = {}) {
   const http = await import('node:http');
   const srv = http.createServer((req, res) => {
-    const name = new URL(req.url, 'http://x').pathname.replace(/^\/|\.html$/g, '');
+    if (hook && hook(req, res)) return;
+    const pathname = new URL(req.url, 'http://x').pathname;
+    for (const [prefix, dir] of Object.entries(statics)) {
+      const file = pathname.startsWith(prefix) ? pathname.slice(prefix.length) : null;
+      if (file === null || !/^[A-Za-z0-9_.-]+$/.test(file) || file[0] === '.') continue;
+      const full = path.join(dir, file);
+      if (!fs.existsSync(full)) break;
+      res.writeHead(200, {'content-type': TYPES[path.extname(file)] || 'text/plain', 'cache-control': 'no-cache'});
+      res.end(fs.readFileSync(full));
+      return;
+    }
+    const name = pathname.replace(/^\/|\.html$/g, '');
     if (!(name in pages)) {
       res.writeHead(404).end();
       return;
@@ -277,11 +293,25 @@ export async function servePages(pages) {
     res.end(typeof pages[name] === 'function' ? pages[name](req) : pages[name]);
   });
   await new Promise((r) => srv.listen(0, '127.0.0.1', r));
-  return {url: `http://127.0.0.1:${srv.address().port}/`, close: () => new Promise((r) => srv.close(r))};
+  return {url: `http://127.0.0.1:${srv.address().port}/`, port: srv.address().port,
+    close: () => new Promise((r) => {
+      srv.closeAllConnections?.();
+      srv.close(r);
+    })};
 }
 
 // Every text frame the server sent on the page's WebSockets, parsed (frames.text), and
 // the binary payload bytes (frames.binary), as the browser's network layer saw them.
+// A loopback port nothing listens on now (for a server started later, or never).
+export async function freePort() {
+  const net = await import('node:net');
+  const srv = net.createServer();
+  await new Promise((r) => srv.listen(0, '127.0.0.1', r));
+  const {port} = srv.address();
+  await new Promise((r) => srv.close(r));
+  return port;
+}
+
 export function watchFrames(page) {
   const frames = {text: [], binary: 0, sockets: 0};
   page.on('websocket', (ws) => {

@@ -1,0 +1,266 @@
+// field.test.mjs - what the page shows in the field: the README's two-line embed on a
+// page of another origin, on an emulated phone behind a slow link (the throttling proxy
+// of throttle.mjs), judged by what was drawn and when, not by the bytes on the link:
+// the first frame comes with at most 2 chunks drawn and at most 1 s after the first
+// chunk's bytes arrived, everything within 1.25x the link time of the package plus 1 s
+// of the page's request for the script,
+// a reload streams at most 5% of the bytes, nothing below the viewer moves (layout
+// shift), and each failure (server down at page load, link dropped mid-stream, shader
+// files failing, server stopped after complete) ends in an `error` event and, once the
+// server is back, in a complete picture. Run: node --test tests/e2e/
+import assert from 'node:assert/strict';
+import {after, before, describe, it} from 'node:test';
+import path from 'node:path';
+import {clsRecorder, startThrottle, visit} from './throttle.mjs';
+import {BUILD, ROOT, capture, freePort, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor}
+  from './util.mjs';
+
+// 32x32 texels, 81 x 81 directions, 24 components at 2 spatial levels (a version-2
+// package: the viewer asks for what its footprint needs, 28 chunks and about 840 KB on
+// the phone), with its thumbnail (the poster)
+const MATERIALS = {knit: ['knit', 24, 2]};
+const RUNS = Number(process.env.FIELD_RUNS || 10); // fresh visits (each with a reload) on the 4 Mbit/s link
+const PHONE = {viewport: {width: 390, height: 700}, deviceScaleFactor: 2, isMobile: true, hasTouch: true};
+let lib, server, pages;
+
+// The README's two lines (script from `host`), with text above and below the viewer.
+const readme = (host, attrs = '') => `<!doctype html><html><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1"><link rel="icon" href="data:,">
+<script type="module" src="${host}btf-viewer.js"></script></head>
+<body><h1>A knitted jumper</h1>
+<btf-viewer material="knit" geometry="sphere" camera-controls alt="Knitted wool"
+style="display:inline-block;width:320px;height:320px"${attrs}></btf-viewer>
+<p>Soft merino, knitted in one piece. The text below the viewer must not move while it loads.</p>
+<p>Care: hand wash cold, dry flat.</p></body></html>`;
+
+// The element from a static host (the page's own origin) and btfd at `ws`.
+const staticPage = (ws, shaders) => `<!doctype html><html><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1"><link rel="icon" href="data:,">
+<script type="module" src="/client/btf-viewer.js"></script>
+<script type="module">
+  window.__events = [];
+  for (const t of ['load', 'complete', 'error'])
+    document.addEventListener(t, (e) => window.__events.push({type: t, detail: e.detail, at: performance.now()}));
+</script></head>
+<body><btf-viewer material="knit" light="fixed" src="${ws}" shaders="${shaders}" budget-chunks="1000"
+style="width:300px;height:300px" loading="eager"></btf-viewer></body></html>`;
+
+let shaderFailures = 0; // the next this many requests for the shader manifest answer 503
+
+before(async () => {
+  requireBuild();
+  lib = makeLibrary(MATERIALS, {thumbnails: true});
+  // what a deployment serves: the one-file bundle (make build: BUILD/client, shaders inside)
+  server = await startServer(lib.lib, ['--client', path.join(BUILD, 'client')]);
+  pages = await servePages({
+    // ?link=PORT: the README page with its script from btfd through the throttled link
+    readme: (req) => readme(`http://127.0.0.1:${new URL(req.url, 'http://x').searchParams.get('link')}/`),
+    // ?ws=URL&shaders=URL: the element from this (static) origin, streaming from ws
+    static: (req) => {
+      const q = new URL(req.url, 'http://x').searchParams;
+      return staticPage(q.get('ws'), q.get('shaders'));
+    },
+  }, {
+    statics: {'/client/': path.join(BUILD, 'client'), '/shaders/': path.join(ROOT, 'shaders')},
+    hook: (req, res) => {
+      if (!req.url.startsWith('/flaky-shaders/')) return false;
+      if (req.url.endsWith('/manifest.json') && shaderFailures > 0) {
+        shaderFailures--;
+        res.writeHead(503).end();
+        return true;
+      }
+      req.url = req.url.replace('/flaky-shaders/', '/shaders/');
+      return false;
+    },
+  });
+});
+
+after(async () => {
+  await pages?.close();
+  await server?.stop();
+  lib?.remove();
+});
+
+// Every run's verdicts at bps: the first frame, its chunks, load after the first chunk,
+// completion against the link time of the streamed package, and a reload.
+async function fieldRuns(bps, runs) {
+  const out = [];
+  for (let r = 0; r < runs; r++) {
+    const phone = await launch(PHONE);
+    const link = await startThrottle({target: server.port, bps, delayMs: 20});
+    try {
+      await phone.addInitScript(clsRecorder);
+      const page = await newPage(phone);
+      const url = `${pages.url}readme.html?link=${link.port}`;
+      const first = await visit(page, url);
+      const reload = await visit(page, url);
+      assert.equal(first.error, null);
+      const linkMs = (first.streamBytes * 8 * 1000) / bps;
+      out.push({first, reload, linkMs});
+      const problems = phone.problems.splice(0);
+      assert.deepEqual(problems, [], `run ${r}: the page reported errors`);
+    } finally {
+      await phone.close();
+      await link.close();
+    }
+  }
+  return out;
+}
+
+function report(name, runs) {
+  const f = (x) => (x === null || x === undefined ? '-' : x.toFixed(0));
+  for (const [i, {first, reload, linkMs}] of runs.entries()) {
+    const t = first.times;
+    console.log(`# ${name} run ${i}: first frame ${f(first.firstFrame)} ms with ${first.chunksAtFirstFrame} chunks, ` +
+      `first chunk ${f(first.firstChunk)}, load - first chunk ${f(first.firstFrame - first.firstChunk)}, ` +
+      `last chunk ${f(first.lastChunk)}, complete ${f(first.complete)} (${f(first.complete - first.scriptRequest)} after ` +
+      `the script request at ${f(first.scriptRequest)}; link time ${f(linkMs)}), ` +
+      `${first.streamBytes} B, cls ${first.cls.toFixed(3)}, drawn ${JSON.stringify(t.drawn)}; ` +
+      `script ${f(t.script)} start ${f(t.start)} open ${f(t.open)} manifest ${f(t.manifest)} gl ${f(t.gl)} ` +
+      `shaders ${f(t.shaders)} decoded ${f(t.decoded)} program ${f(t.program)} (${first.decoder}); ` +
+      `reload ${reload.streamBytes} B, first frame ${f(reload.firstFrame)} ms`);
+  }
+}
+
+function judge(runs) {
+  for (const [i, {first, reload, linkMs}] of runs.entries()) {
+    const run = `run ${i}: ${JSON.stringify({...first, times: undefined})}`;
+    assert.ok(first.chunksAtFirstFrame >= 1 && first.chunksAtFirstFrame <= 2, `first frame with 1-2 chunks; ${run}`);
+    assert.ok(first.firstFrame - first.firstChunk <= 1000, `load within 1 s of the first chunk; ${run}`);
+    // from the page's request for the script (the page itself and the browser's start are the page's)
+    assert.ok(first.complete - first.scriptRequest <= 1.25 * linkMs + 1000,
+      `complete within 1.25 x ${linkMs.toFixed(0)} ms + 1 s of the script request; ${run}`);
+    assert.ok(first.cls < 0.1, `layout shift ${first.cls}; ${run}`);
+    assert.ok(reload.streamBytes <= 0.05 * first.streamBytes,
+      `run ${i}: the reload streamed ${reload.streamBytes} of ${first.streamBytes} bytes`);
+    assert.ok(reload.cls < 0.1, `reload layout shift ${reload.cls}`);
+  }
+}
+
+describe('the README embed on a phone behind a slow link', () => {
+  it(`4 Mbit/s, 40 ms: the first frame from the first chunks, complete in link time, reloads from the cache (${RUNS} runs)`,
+    async () => {
+      const runs = await fieldRuns(4e6, RUNS);
+      report('4 Mbit/s', runs);
+      judge(runs);
+    });
+
+  it('1 Mbit/s, 40 ms: the same', async () => {
+    const runs = await fieldRuns(1e6, 1);
+    report('1 Mbit/s', runs);
+    judge(runs);
+  });
+});
+
+// A phone page of the static origin; events recorded in window.__events.
+async function staticVisit(ctx, ws, shaders) {
+  const page = await newPage(ctx);
+  await page.goto(`${pages.url}static.html?ws=${encodeURIComponent(ws)}&shaders=${encodeURIComponent(shaders)}`);
+  return page;
+}
+
+const events = (page, type) => page.evaluate((t) => window.__events.filter((e) => e.type === t), type);
+
+// The picture is whole: every chunk drawn and something other than background on the canvas.
+async function assertComplete(page) {
+  await waitFor(page, () => {
+    const v = window.__btf?.viewers()[0];
+    return v && v.complete && v.drawnChunks === v.ownLimit && v.drawnChunks === v.manifestChunks;
+  }, null, 'the complete picture', 60000);
+  const c = await capture(page, 0);
+  let fg = 0;
+  for (let p = 0; p < c.data.length; p += 4) if (Math.abs(c.data[p] - c.data[0]) > 8) fg++;
+  assert.ok(fg / (c.width * c.height) > 0.1, 'the material covers the canvas');
+  assert.equal((await page.evaluate(() => window.__btf.viewers()[0])).message, null, 'no message left');
+}
+
+// Console lines a failure case may show: the browser's own reports of refused connections.
+const refused = (p) => /ERR_CONNECTION_REFUSED|WebSocket connection to .* failed|503 \(Service Unavailable\)/.test(p);
+
+describe('failures a page owner can handle', () => {
+  it('btfd down at page load: an error event and a message, then the picture once it is up', async () => {
+    const port = await freePort();
+    const ctx = await launch(PHONE);
+    let late;
+    try {
+      const page = await staticVisit(ctx, `ws://127.0.0.1:${port}/stream`, `${pages.url}shaders/`);
+      const err = await waitFor(page, () => window.__events.find((e) => e.type === 'error'), null, 'the error event');
+      assert.equal(err.detail.retrying, true);
+      assert.match(err.detail.reason, /cannot reach/);
+      const v = (await page.evaluate(() => window.__btf.viewers()[0]));
+      assert.match(String(v.message), /cannot reach .*trying again/, 'a visible message');
+      assert.deepEqual(v.canvas.map((x) => x > 100), [true, true], 'the viewer has its size');
+      late = await startServer(lib.lib, [], port);
+      await assertComplete(page);
+      assert.equal((await events(page, 'error')).length, 1, 'one error event for the outage');
+      assert.deepEqual(ctx.problems.filter((p) => !refused(p)), []);
+    } finally {
+      await ctx.close();
+      await late?.stop();
+    }
+  });
+
+  it('the link dropped mid-stream: an error event, then the rest resumes and completes', async () => {
+    const link = await startThrottle({target: server.port, bps: 1e6, delayMs: 20});
+    const ctx = await launch(PHONE);
+    try {
+      const page = await staticVisit(ctx, `ws://127.0.0.1:${link.port}/stream`, `${pages.url}shaders/`);
+      await waitFor(page, () => window.__btf?.viewers()[0]?.drawnChunks >= 2, null, 'two chunks drawn');
+      const before = (await page.evaluate(() => window.__btf.viewers()[0])).received;
+      await link.drop(1500);
+      const err = await waitFor(page, () => window.__events.find((e) => e.type === 'error'), null, 'the error event');
+      assert.equal(err.detail.retrying, true);
+      await assertComplete(page);
+      const s = (await page.evaluate(() => window.__btf.streams()))[0];
+      assert.ok(s.connects >= 2, `reconnected (${s.connects} connections)`);
+      assert.ok(before >= 2 && before < 24, `dropped mid-stream after ${before} chunks`);
+      assert.deepEqual(ctx.problems.filter((p) => !refused(p)), []);
+    } finally {
+      await ctx.close();
+      await link.close();
+    }
+  });
+
+  it('shader files failing at first: an error event, then they load and the picture completes', async () => {
+    const ctx = await launch(PHONE);
+    try {
+      shaderFailures = 2;
+      const page = await staticVisit(ctx, server.ws, `${pages.url}flaky-shaders/`);
+      const err = await waitFor(page, () => window.__events.find((e) => e.type === 'error'), null, 'the error event');
+      assert.match(err.detail.reason, /shader.*503/);
+      await assertComplete(page);
+      assert.equal(shaderFailures, 0);
+      assert.deepEqual(ctx.problems.filter((p) => !refused(p)), []);
+    } finally {
+      shaderFailures = 0;
+      await ctx.close();
+    }
+  });
+
+  it('btfd stopped after complete: no reconnects until more is asked, then an error event and the picture', async () => {
+    const port = await freePort();
+    let own = await startServer(lib.lib, [], port);
+    const ctx = await launch(PHONE);
+    try {
+      const page = await staticVisit(ctx, `ws://127.0.0.1:${port}/stream`, `${pages.url}shaders/`);
+      await page.evaluate(() => { document.querySelector('btf-viewer').budgetChunks = 6; });
+      await waitFor(page, () => window.__btf?.viewers()[0]?.complete && window.__btf.viewers()[0].drawnChunks === 6,
+        null, 'six chunks');
+      await own.stop();
+      own = null;
+      await new Promise((r) => setTimeout(r, 3000));
+      const s = (await page.evaluate(() => window.__btf.streams()))[0];
+      assert.equal(s.attempts, 1, 'no reconnects while nothing is missing');
+      assert.deepEqual(ctx.problems, [], 'no console errors');
+      assert.equal((await events(page, 'error')).length, 0);
+      await page.evaluate(() => { document.querySelector('btf-viewer').budgetChunks = 1000; });
+      await waitFor(page, () => window.__events.some((e) => e.type === 'error'), null, 'the error event');
+      own = await startServer(lib.lib, [], port);
+      await assertComplete(page);
+      assert.deepEqual(ctx.problems.filter((p) => !refused(p)), []);
+    } finally {
+      await ctx.close();
+      await own?.stop();
+    }
+  });
+});
