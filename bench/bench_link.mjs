@@ -36,7 +36,8 @@ try {
       const res = await p.evaluate(() => performance.getEntriesByType('resource').map((e) => [e.name, e.responseEnd]));
       const t = r.times || {};
       t.script ??= Math.max(...res.filter(([n]) => n.endsWith('.js')).map(([, e]) => e));
-      t.shaders ??= Math.max(...res.filter(([n]) => n.includes('/shaders/')).map(([, e]) => e), NaN);
+      const shaderEnds = res.filter(([n]) => n.includes('/shaders/')).map(([, e]) => e);
+      t.shaders ??= shaderEnds.length ? Math.max(...shaderEnds) : NaN;
       const n = `link_${mbit}mbit`;
       const lines = [[`${n}_first_frame`, f(r.firstFrame), 'ms'], [`${n}_first_frame_chunks`, r.chunksAtFirstFrame, 'chunks'],
         [`${n}_first_chunk`, f(r.firstChunk), 'ms'], [`${n}_load_after_first_chunk`, f(r.firstFrame - r.firstChunk), 'ms'],

@@ -352,20 +352,45 @@ Test(render, horizon_fade_both_backends)
 
 /* ---------------------------------------------------------------- default light */
 
+/* A generated package, read, and a renderer of it on one backend; owned by one test,
+ * from render_fixture_open to render_fixture_close. */
+typedef struct render_fixture {
+    char tmp[256], pkg[300];
+    btf_gen_params gp;
+    btf_package *p;
+    btf_gl *gl;
+    btf_renderer *r;
+} render_fixture;
+
+static void render_fixture_open(render_fixture *f, btf_gl_backend b)
+{
+    btf_error err = {{0}};
+    make_package(f->tmp, sizeof f->tmp, f->pkg, sizeof f->pkg, &f->gp);
+    f->p = NULL;
+    cr_assert_eq(btf_package_read(f->pkg, 0, &f->p, &err), BTF_OK, "%s", err.msg);
+    f->gl = open_gl(b);
+    f->r = NULL;
+    cr_assert_eq(btf_renderer_create(f->gl, f->p, f->pkg, 0, &f->r, &err), BTF_OK, "%s", err.msg);
+}
+
+static void render_fixture_close(render_fixture *f)
+{
+    btf_renderer_free(f->r);
+    btf_gl_free(f->gl);
+    btf_package_free(f->p);
+    cr_assert_eq(test_rmtree(f->tmp), 0);
+}
+
 /* Fractions of the default scene's object pixels that are lit (a channel above
  * 10/255) for each geometry, under the default light or light[2] = (theta, phi): the
  * object is where two renders with different backgrounds agree. */
 static void lit_fractions(btf_gl_backend b, const float *light, double lit[BTF_RENDER_GEOMETRY_COUNT])
 {
-    char tmp[256], pkg[300];
-    btf_gen_params gp;
-    make_package(tmp, sizeof tmp, pkg, sizeof pkg, &gp);
-    btf_package *p = NULL;
+    render_fixture f;
+    render_fixture_open(&f, b);
+    btf_gl *gl = f.gl;
+    btf_renderer *r = f.r;
     btf_error err = {{0}};
-    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
-    btf_gl *gl = open_gl(b);
-    btf_renderer *r = NULL;
-    cr_assert_eq(btf_renderer_create(gl, p, pkg, 0, &r, &err), BTF_OK, "%s", err.msg);
     enum { W = 160, H = 120 };
     static uint8_t rgb[2][W * H * 3];
     static const float bgs[2][3] = {{0.12f, 0.12f, 0.12f}, {0.5f, 0.2f, 0.9f}};
@@ -395,10 +420,7 @@ static void lit_fractions(btf_gl_backend b, const float *light, double lit[BTF_R
         cr_log_info("%s default %s, light (%g, %g): %d object pixels, %.1f%% lit", btf_gl_backend_name(b),
                     btf_render_geometry_name(g), (double)rp.light_theta, (double)rp.light_phi, object, 100 * lit[g]);
     }
-    btf_renderer_free(r);
-    btf_gl_free(gl);
-    btf_package_free(p);
-    cr_assert_eq(test_rmtree(tmp), 0);
+    render_fixture_close(&f);
 }
 
 /* The default light faces the camera's side of each object: the sphere and the
@@ -672,15 +694,11 @@ Test(render, cli_writes_png_and_checks_arguments)
 /* A target of the wrong size and NULL arguments are errors, not crashes. */
 Test(render, draw_bad_arguments)
 {
-    char tmp[256], pkg[300];
-    btf_gen_params gp;
-    make_package(tmp, sizeof tmp, pkg, sizeof pkg, &gp);
-    btf_package *p = NULL;
+    render_fixture f;
+    render_fixture_open(&f, BTF_GL_EGL);
+    btf_gl *gl = f.gl;
+    btf_renderer *r = f.r;
     btf_error err = {{0}};
-    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
-    btf_gl *gl = open_gl(BTF_GL_EGL);
-    btf_renderer *r = NULL;
-    cr_assert_eq(btf_renderer_create(gl, p, pkg, 0, &r, &err), BTF_OK, "%s", err.msg);
     btf_gl_target *t = NULL;
     cr_assert_eq(btf_gl_target_create(gl, 8, 8, BTF_GL_RGBA8, 1, &t, &err), BTF_OK, "%s", err.msg);
     btf_render_params rp = btf_render_defaults(BTF_RENDER_PLANE);
@@ -692,12 +710,9 @@ Test(render, draw_bad_arguments)
     uint8_t rgb[8 * 8 * 3];
     cr_assert_eq(btf_render_read_rgb8(gl, t, rgb, &err), BTF_OK, "%s", err.msg);
     btf_renderer *r2 = NULL;
-    cr_assert_eq(btf_renderer_create(gl, NULL, pkg, 0, &r2, &err), BTF_ERR_ARG);
+    cr_assert_eq(btf_renderer_create(gl, NULL, f.pkg, 0, &r2, &err), BTF_ERR_ARG);
     cr_assert_null(r2);
     btf_gl_target_free(gl, t);
-    btf_renderer_free(r);
     btf_renderer_free(NULL);
-    btf_gl_free(gl);
-    btf_package_free(p);
-    cr_assert_eq(test_rmtree(tmp), 0);
+    render_fixture_close(&f);
 }

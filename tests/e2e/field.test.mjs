@@ -131,6 +131,7 @@ function judge(runs) {
     assert.ok(first.complete - first.scriptRequest <= 1.25 * linkMs + 1000,
       `complete within 1.25 x ${linkMs.toFixed(0)} ms + 1 s of the script request; ${run}`);
     assert.ok(first.cls < 0.1, `layout shift ${first.cls}; ${run}`);
+    assert.match(String(first.poster), /\/materials\/knit\/thumbnail\.png$/, `the package's poster showed first; ${run}`);
     assert.ok(reload.streamBytes <= 0.05 * first.streamBytes,
       `run ${i}: the reload streamed ${reload.streamBytes} of ${first.streamBytes} bytes`);
     assert.ok(reload.cls < 0.1, `reload layout shift ${reload.cls}`);

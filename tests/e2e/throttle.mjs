@@ -114,11 +114,12 @@ export async function visit(page, url, timeout = 120000) {
   return page.evaluate(() => {
     const v = window.__btf.viewers()[0], s = window.__btf.streams()[0], sub = s.subscriptions[0];
     const script = performance.getEntriesByType('resource').find((e) => /\/btf-viewer\.js$/.test(e.name));
-    return {firstFrame: v.firstFrameAt, firstChunk: sub.arrivedAt[0] ?? null, complete: v.completeAt,
+    const arrived = sub.arrivedAt || []; // a client without per-chunk times: its first and last piece
+    return {firstFrame: v.firstFrameAt, firstChunk: arrived[0] ?? s.pieces.first, complete: v.completeAt,
       scriptRequest: script ? script.startTime : 0,
-      lastChunk: sub.arrivedAt.length ? Math.max(...sub.arrivedAt.filter(Number.isFinite)) : null,
+      lastChunk: arrived.length ? Math.max(...arrived.filter(Number.isFinite)) : s.pieces.last,
       chunksAtFirstFrame: v.firstFrameChunks, chunks: v.drawnChunks, times: v.times, streamBytes: v.streamBytes,
-      cached: sub.cached, cls: window.__cls ?? null, error: v.error, decoder: v.decoder};
+      cached: sub.cached, cls: window.__cls ?? null, error: v.error, decoder: v.decoder, poster: v.posterShown};
   });
 }
 
