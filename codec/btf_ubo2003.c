@@ -1,4 +1,5 @@
-/* btf_ubo2003.c - UBO2003 image directories (doc/input-formats.md section 1): loader, writer, btf_load_any.
+/* btf_ubo2003.c - UBO2003 image directories (doc/input-formats.md section 1): loader, writer and view source
+ * (btf_load_any and btf_views_open, which pick the reader by the path, are btf_input.c).
  *
  * Loader: scans DIR (flat files and one level of "tvTTT_pvPPP" folders), takes the
  * angles from the last 23 characters of each image stem ("tlTTT_plPPP_tvTTT_pvPPP",
@@ -906,48 +907,4 @@ btf_result btf_views_save_ubo2003(btf_views *s, const char *dir, const char *pre
     }
     free(cols), free(one.data);
     return r == BTF_OK ? btf_fs_sync_dir(dir, err) : r;
-}
-
-/* ------------------------------------------------------------------ any */
-
-static int btf__has_file(const char *dir, const char *name)
-{
-    char *p = btf__join(dir, name);
-    struct stat st;
-    int ok = p && stat(p, &st) == 0 && S_ISREG(st.st_mode);
-    free(p);
-    return ok;
-}
-
-btf_result btf_input_kind_of(const char *path, btf_input_kind *kind, btf_error *err)
-{
-    struct stat st;
-    if (stat(path, &st) != 0)
-        return btf_fail(err, errno == ENOENT ? BTF_ERR_MISSING : BTF_ERR_IO, "%s: %s", path, strerror(errno));
-    size_t n = strlen(path);
-    if (S_ISREG(st.st_mode) && n >= 4 && !strcasecmp(path + n - 4, ".btf"))
-        return *kind = BTF_INPUT_DFMF, BTF_OK;
-    if (S_ISREG(st.st_mode))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unknown input (expected a .btf file or a directory)", path);
-    if (!S_ISDIR(st.st_mode))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: neither a file nor a directory", path);
-    if (btf__has_file(path, "meta.json"))
-        return *kind = BTF_INPUT_THESIS, BTF_OK;
-    if (btf__has_file(path, "manifest.json"))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: package: use the package API", path);
-    return *kind = BTF_INPUT_IMAGES, BTF_OK;
-}
-
-btf_result btf_load_any(const char *path, const btf_load_options *opt, btf **out, btf_error *err)
-{
-    if (!path || !out)
-        return btf_fail(err, BTF_ERR_ARG, "btf_load_any: NULL argument");
-    *out = NULL;
-    btf_input_kind kind;
-    btf_result r = btf_input_kind_of(path, &kind, err);
-    if (r != BTF_OK)
-        return r;
-    return kind == BTF_INPUT_DFMF     ? btf_load_dfmf(path, opt, out, err)
-           : kind == BTF_INPUT_THESIS ? btf_import_thesis(path, opt, out, err)
-                                      : btf_load_ubo2003_dir(path, opt, out, err);
 }

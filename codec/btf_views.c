@@ -1,14 +1,12 @@
-/* btf_views.c - view sources (btf_views.h): the in-memory wrapper, the opener that
- * picks a reader by the path, and whole-source loading. The image-directory and
- * DFMF sources live with their formats (btf_ubo2003.c, btf_dfmf.c). */
+/* btf_views.c - view sources (btf_views.h): what every source shares (fill, close,
+ * the 8-bit column copy), the in-memory wrapper and whole-source loading. The
+ * image-directory and DFMF sources live with their formats (btf_ubo2003.c,
+ * btf_dfmf.c); btf_views_open, which picks one by the path, is btf_input.c. */
 #include "btf_views.h"
 
-#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
-#include <sys/stat.h>
 
 size_t btf_views_floats(const btf_views *s)
 {
@@ -73,20 +71,6 @@ void btf_views_wrap(const btf *b, btf_views *out)
     out->name = "BTF in memory";
     out->fill = views_fill_btf;
     out->impl = (void *)b;
-}
-
-btf_result btf_views_open(const char *path, const btf_load_options *opt, btf_views *out, btf_error *err)
-{
-    if (!path || !out)
-        return btf_fail(err, BTF_ERR_ARG, "btf_views_open: NULL argument");
-    memset(out, 0, sizeof *out);
-    btf_input_kind kind;
-    btf_result r = btf_input_kind_of(path, &kind, err);
-    if (r != BTF_OK)
-        return r;
-    if (kind == BTF_INPUT_THESIS)
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: a thesis package is not read view by view (load it)", path);
-    return kind == BTF_INPUT_DFMF ? btf_views_open_dfmf(path, opt, out, err) : btf_views_open_ubo2003(path, opt, out, err);
 }
 
 btf_result btf_views_load(btf_views *s, int u8, btf **out, btf_error *err)
