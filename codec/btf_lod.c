@@ -1,6 +1,6 @@
 /* btf_lod.c - spatial levels of a package (version 2 of doc/package-format.md,
- * section 10): the builder (v1 package -> v2 with per-component mip levels) and the
- * level look-ups the CPU decoder uses; the chunk selection is btf_lod_select.c. */
+ * section 10): the builder (v1 package -> v2 with per-component mip levels); what the
+ * readers use (the texel look-up between levels, the chunk selection) is btf_lod_select.c. */
 #include "btf_lod.h"
 
 #include <errno.h>
@@ -684,12 +684,4 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
     }
     btf__lod_free(&s);
     return r;
-}
-
-int btf_lod_texel_of(int x, int level, int from)
-{
-    if (from >= level)
-        return x >> (from - level);
-    int d = level - from;
-    return (x << d) + (1 << (d - 1));
 }

@@ -1,10 +1,19 @@
-/* btf_lod_select.c - the scene-driven chunk selection of packages with spatial
- * levels (doc/package-format.md section 10): which prefix of the manifest's chunks
- * a view needs. Uses only manifest fields (no chunk data), so a server can link it
- * without the image or compression code. client/btf-lod.js is its browser twin. */
+/* btf_lod_select.c - the reader's side of spatial levels (doc/package-format.md
+ * section 10): the scene-driven chunk selection, which prefix of the manifest's
+ * chunks a view needs, and the texel look-up between levels the decoders share
+ * (btf_lod_texel_of). Uses only manifest fields (no chunk data), so a server can
+ * link it without the image or compression code. client/btf-lod.js is its browser twin. */
 #include <string.h>
 
 #include "btf_lod.h"
+
+int btf_lod_texel_of(int x, int level, int from)
+{
+    if (from >= level)
+        return x >> (from - level);
+    int d = level - from;
+    return (x << d) + (1 << (d - 1));
+}
 
 double btf_lod_footprint(int width, double repeat, double pixels)
 {
