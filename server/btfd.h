@@ -1,8 +1,10 @@
 /* btfd.h - pieces of the btfd server shared by its main and its protocol callback.
  *
  * btfd_main.c parses the command line, fills a btfd_server and runs the lws
- * event loop; btfd_protocol.c holds the two callbacks (HTTP for /materials,
- * WebSocket for btf-stream.v1). Everything runs on the one lws service thread.
+ * event loop; btfd_protocol.c holds the WebSocket callback (btf-stream.v1) and
+ * the protocol table, btfd_http.c the HTTP one (/materials, /healthz, /metrics),
+ * btfd_ops.c what both use (rescans, draining, the log, the metrics text).
+ * Everything runs on the one lws service thread.
  */
 #ifndef BTFD_H
 #define BTFD_H
@@ -15,6 +17,7 @@
 #include "btfd_request.h"
 
 #define BTFD_SUBPROTOCOL "btf-stream.v1"
+#define BTFD_VHOST "default"        /* the one vhost lws makes from the context's creation info */
 #define BTFD_HEADER_BYTES 20        /* binary piece header: 5 x u32 little-endian */
 #define BTFD_MAX_SUBS 32            /* subscriptions per connection */
 #define BTFD_MAX_QUEUED_TEXT 64     /* queued text replies per connection before it is closed */
@@ -66,8 +69,5 @@ int btfd_origin_allowed(const char *list, const char *origin, size_t n);
 int btfd_cors_headers(struct lws *wsi, const char *list, unsigned char **p, unsigned char *end);
 /* WebSocket handshake: 0 when its Origin is allowed, else -1 (the caller closes with 1008). */
 int btfd_origin_check(struct lws *wsi, const char *list);
-
-/* Rescans the library unless one ran in the last 200 ms (force: always). */
-void btfd_server_rescan(btfd_server *srv, int force);
 
 #endif

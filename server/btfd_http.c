@@ -74,7 +74,7 @@ static void set_mapped(btfd_http *h, btfd_material *m, const void *data, size_t 
 
 static void route_list(btfd_server *srv, btfd_http *h)
 {
-    btfd_server_rescan(srv, 0);
+    btfd_ops_rescan(srv, 0);
     size_t n = strlen(srv->lib->list_json) + 64;
     char *b = malloc(n);
     if (b)

@@ -138,7 +138,7 @@ static void raise_fd_limit(void)
 static void rescan_timer(lws_sorted_usec_list_t *sul)
 {
     btfd_server *srv = lws_container_of(sul, btfd_server, sul_rescan);
-    btfd_server_rescan(srv, 1);
+    btfd_ops_rescan(srv, 1);
     lws_sul_schedule(srv->ctx, 0, &srv->sul_rescan, rescan_timer, (lws_usec_t)srv->opt.rescan_ms * 1000);
 }
 
@@ -237,7 +237,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "btfd: %s\n", err.msg);
         return 1;
     }
-    btfd_server_rescan(&srv, 1);
+    btfd_ops_rescan(&srv, 1);
     srv.scratch_len = LWS_PRE + BTFD_HEADER_BYTES + o->fragment;
     srv.scratch = malloc(srv.scratch_len);
     btfd_protocols[0].per_session_data_size = btfd_http_user_size;
@@ -253,7 +253,7 @@ int main(int argc, char **argv)
         return 1;
     }
     btfd_ops_signals(srv.ctx);
-    int port = lws_get_vhost_listen_port(lws_get_vhost_by_name(srv.ctx, "default"));
+    int port = lws_get_vhost_listen_port(lws_get_vhost_by_name(srv.ctx, BTFD_VHOST));
     printf("btfd: listening on http://%s:%d/ (%d materials from %s)\n", o->bind, port, srv.lib->n,
            o->library_dir);
     fflush(stdout);

@@ -1,4 +1,4 @@
-/* btfd_ops.c - signals, draining, /metrics and the log of btfd; see btfd_ops.h. */
+/* btfd_ops.c - signals, draining, library rescans, /metrics and the log of btfd; see btfd_ops.h. */
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -57,11 +57,35 @@ void btfd_log(const btfd_server *srv, btfd_log_level lv, const char *fmt, ...)
     fprintf(stderr, "%s.%03dZ %s btfd: %s\n", stamp, (int)(ts.tv_nsec / 1000000), names[lv], msg);
 }
 
-void btfd_ops_scan_error(void *ud, const char *msg)
+/* Log sink of btfd_library_scan for packages it skipped. */
+static void scan_error(void *ud, const char *msg)
 {
     btfd_server *srv = ud;
     srv->stats.scan_errors++;
     btfd_log(srv, srv->last_scan_us ? BTFD_LOG_DEBUG : BTFD_LOG_WARN, "skipped package: %s", msg);
+}
+
+void btfd_ops_rescan(btfd_server *srv, int force)
+{
+    lws_usec_t now = lws_now_usecs();
+    if (!force && srv->last_scan_us && now - srv->last_scan_us < 200000)
+        return;
+    uint64_t gen = srv->lib->generation;
+    btfd_library_scan(srv->lib, scan_error, srv);
+    if (gen != srv->lib->generation && srv->last_scan_us)
+        btfd_log(srv, BTFD_LOG_INFO, "library now has %d materials (generation %llu)", srv->lib->n,
+                 (unsigned long long)srv->lib->generation);
+    srv->last_scan_us = now;
+}
+
+/* Asks for a WRITEABLE callback on every stream connection. The stream protocol is
+ * found by its name, so ops needs no part of btfd_protocol.c (which uses ops). */
+static void wake_streams(btfd_server *srv)
+{
+    struct lws_vhost *vh = lws_get_vhost_by_name(srv->ctx, BTFD_VHOST);
+    const struct lws_protocols *p = vh ? lws_vhost_name_to_protocol(vh, BTFD_SUBPROTOCOL) : NULL;
+    if (p)
+        lws_callback_on_writable_all_protocol_vhost(vh, p);
 }
 
 static void drain_timer(lws_sorted_usec_list_t *sul)
@@ -75,7 +99,7 @@ static void drain_timer(lws_sorted_usec_list_t *sul)
     srv->drain_expired = 1;
     btfd_log(srv, BTFD_LOG_INFO, "drain deadline: closing %d connections with 1001",
              srv->stats.connections);
-    lws_callback_on_writable_all_protocol(srv->ctx, &btfd_protocols[1]);
+    wake_streams(srv);
     lws_sul_schedule(srv->ctx, 0, &srv->sul_drain, drain_timer, DRAIN_GRACE_US);
 }
 
@@ -87,7 +111,7 @@ void btfd_ops_drain(btfd_server *srv)
     btfd_log(srv, BTFD_LOG_INFO, "draining: %d connections, up to %d s", srv->stats.connections,
              srv->opt.drain_s);
     lws_sul_schedule(srv->ctx, 0, &srv->sul_drain, drain_timer, (lws_usec_t)srv->opt.drain_s * 1000000);
-    lws_callback_on_writable_all_protocol(srv->ctx, &btfd_protocols[1]); /* idle ones go now */
+    wake_streams(srv); /* idle ones go now */
 }
 
 int btfd_ops_going_away(const btfd_server *srv, int idle)
@@ -100,7 +124,7 @@ int btfd_ops_tick(btfd_server *srv)
     if (sig_hup) {
         sig_hup = 0;
         btfd_log(srv, BTFD_LOG_INFO, "SIGHUP: rescanning %s", srv->opt.library_dir);
-        btfd_server_rescan(srv, 1);
+        btfd_ops_rescan(srv, 1);
     }
     if (sig_term) {
         sig_term = 0;

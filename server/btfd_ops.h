@@ -1,4 +1,4 @@
-/* btfd_ops.h - operating btfd: signals, draining, /healthz, /metrics and the log.
+/* btfd_ops.h - operating btfd: signals, draining, library rescans, /healthz, /metrics and the log.
  *
  *     btfd_ops_signals(ctx);                 // SIGTERM drains, SIGHUP rescans, SIGINT stops
  *     while (btfd_ops_tick(srv) && lws_service(ctx, 0) >= 0)
@@ -60,7 +60,8 @@ int btfd_ops_going_away(const struct btfd_server *srv, int idle);
 /* Body of /metrics (Prometheus text format 0.0.4), malloc'd; NULL if out of memory. */
 char *btfd_ops_metrics(const struct btfd_server *srv);
 
-/* Log sink for packages a scan skipped: counts them, logs them (WARN on the first scan). */
-void btfd_ops_scan_error(void *srv, const char *msg);
+/* Rescans the library unless one ran in the last 200 ms (force: always); a
+ * package the scan skipped is counted and logged (WARN on the first scan). */
+void btfd_ops_rescan(struct btfd_server *srv, int force);
 
 #endif

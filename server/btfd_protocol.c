@@ -76,21 +76,6 @@ static btfd_server *server_of(struct lws *wsi)
     return (btfd_server *)lws_context_user(lws_get_context(wsi));
 }
 
-/* ------------------------------------------------------------------ rescans */
-
-void btfd_server_rescan(btfd_server *srv, int force)
-{
-    lws_usec_t now = lws_now_usecs();
-    if (!force && srv->last_scan_us && now - srv->last_scan_us < 200000)
-        return;
-    uint64_t gen = srv->lib->generation;
-    btfd_library_scan(srv->lib, btfd_ops_scan_error, srv);
-    if (gen != srv->lib->generation && srv->last_scan_us)
-        btfd_log(srv, BTFD_LOG_INFO, "library now has %d materials (generation %llu)", srv->lib->n,
-                 (unsigned long long)srv->lib->generation);
-    srv->last_scan_us = now;
-}
-
 /* ------------------------------------------------------------------ text queue */
 
 static void conn_close_later(btfd_conn *c, int code, const char *reason)
@@ -499,7 +484,7 @@ static void do_subscribe(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
         return send_error(srv, c, rq, "too_many_subscriptions", "at most 32 subscriptions per connection");
     btfd_material *m = btfd_library_find(srv->lib, rq->material);
     if (!m) {
-        btfd_server_rescan(srv, 0);
+        btfd_ops_rescan(srv, 0);
         m = btfd_library_find(srv->lib, rq->material);
     }
     if (!m)
@@ -563,7 +548,7 @@ static void do_unsubscribe(btfd_server *srv, btfd_conn *c, const btfd_request *r
 
 static void do_list(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
 {
-    btfd_server_rescan(srv, 0);
+    btfd_ops_rescan(srv, 0);
     char seq[40] = "";
     if (rq->has_seq)
         snprintf(seq, sizeof seq, ",\"seq\":%lld", (long long)rq->seq);
