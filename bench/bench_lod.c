@@ -1,4 +1,4 @@
-/* bench_lod.c - scene-driven budgets (README.md, "Budgets"), printed as `name value unit` lines.
+/* bench_lod.c - scene-driven budgets (doc/performance.md section 6, "Budgets"), printed as `name value unit` lines.
  *
  * A generated knit, BENCH_LOD_SIDE (default 128) texels square, UBO2003 81 x 81
  * directions, k = 3, C = 8, compressed and given 4 spatial levels (btf_lod_build).

@@ -82,7 +82,7 @@ describe('gallery (index.html)', () => {
   });
 });
 
-// Scene budgets (README.md, "Budgets"; doc/client.md): the same version-2 material tiled 16 times on a plane, as a
+// Scene budgets (doc/performance.md section 6, "Budgets"; doc/client.md): the same version-2 material tiled 16 times on a plane, as a
 // 128-px thumbnail and as a 600-px view. The budgets come from client/btf-lod.js on
 // the viewer's footprint; the server must send exactly those prefixes.
 describe('scene budgets (version 2)', () => {
