@@ -159,7 +159,7 @@ void btf_lpyr_set_decode_levels(btf_model *m, int n);
  * (view, light) pair and the level's own texel (x, y), channel c: for tests. */
 float btf_lpyr_level_value(const btf_model *m, int level, int view, int light, int x, int y, int c);
 
-/* ---- shared helpers for the method implementations (not for users) ---- */
+/* ---- shared helpers for the method implementations (not for users; btf_m_shared.c) ---- */
 float btf__srgb_to_linear(float v);
 float btf__linear_to_srgb(float v);
 /* Unit direction in the local frame from any vector; NaN/zero -> the normal. */
