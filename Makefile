@@ -26,6 +26,10 @@ pkg = $(call pkg__or_stop,$(shell pkg-config $(1) $(2) 2>&1 || echo PKG-CONFIG-F
 pkg__or_stop = $(if $(filter PKG-CONFIG-FAILED,$(1)),$(error pkg-config $(2): $(filter-out PKG-CONFIG-FAILED,$(1)) (run 'make setup')),$(1))
 
 # --- Rooms: each folder one archive, one include path, dependencies one way ---
+# tools/check_rooms.sh $(BUILD) keeps it so (run by `make check` and `make test`):
+# no #include of a room a room may not use, no call between object files that goes
+# the wrong way or round a circle. Its room table mirrors the INC lines below
+# (and server/build.mk's).
 # codec/        product library: formats, PCA, decoder, levels, metrics, file helpers
 CODEC_PKGS := OpenImageIO libcjson lapacke openblas zlib qhull_r libwebp
 CODEC_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/*.c)) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/*.cpp))
@@ -118,6 +122,7 @@ $(TEST_BIN): $(TEST_OBJ) $(ROOM_LIBS)
 # Every test; Criterion prints the "Synthesis: Tested: N | Passing: N | Failing: N" line.
 test: setup
 	$(MAKE) build
+	bash tools/check_rooms.sh $(BUILD)
 	$(TEST_BIN) --jobs 2
 	bash tests/install_test.sh
 	BUILD=$(BUILD) bash tests/deploy_test.sh
@@ -127,8 +132,9 @@ test: setup
 e2e:
 	node --test --test-concurrency=1 tests/e2e/
 
-# Quick subset: skips suites whose name starts with "slow".
+# Quick subset: the rooms check, then every suite but those whose name starts with "slow".
 check: build
+	bash tools/check_rooms.sh $(BUILD)
 	$(TEST_BIN) --jobs 2 --filter '!(slow*)'
 
 asan: setup
