@@ -1,6 +1,6 @@
 # btf-stream: compress measured BTFs by k-view PCA and stream them to WebGL2.
 # Targets: setup all build test e2e check asan bench chart demo install clean
-# (README.md). The rooms and which may use which: doc/architecture.md.
+# (doc/cli.md section 13). The rooms and which may use which: doc/architecture.md.
 
 SHELL    := /bin/bash
 BUILD    ?= build

@@ -1,5 +1,5 @@
 // btf-lod.js - scene-driven chunk selection of package version 2
-// (doc/package-format.md section 10): the rule of btf_lod_select in codec/btf_lod.c,
+// (doc/package-format.md section 10): the rule of btf_lod_select in codec/btf_lod_select.c,
 // checked against the same cases (tests/lod_select_cases.json) in C and in node.
 // Browser-free: a manifest's chunk list in, a budget (prefix length, bytes) out.
 
