@@ -163,7 +163,7 @@ export class BtfViewer extends HTMLElement {
     this.loaded = false;
     this.completeFor = -1;
     this.error = null;
-    this.outage = null;     // the stream's current outage ({reason}), once its error event went out
+    this.outages = {stream: null, shaders: null}; // reasons of outages whose error event went out
     this.shaderTry = 0;
     this.shaderFiles = null;    // Promise of the "render" program's files
     this.nextDecode = 0;
@@ -409,7 +409,7 @@ export class BtfViewer extends HTMLElement {
     this.gl = ctx.gl;
     this.ctx2d = this.ctx2d || this.canvas.getContext('2d', {alpha: false});
     this.times.gl = performance.now();
-    if (ctx.software && !this.hasAttribute('max-dpr') && !this.scale) { // known slow: start at half the pixels
+    if (ctx.software && !this.hasAttribute('max-dpr') && !this.scale) { // known slow: start at fewer pixels
       this.scale = SOFTWARE_SCALE;
       this.resize();
     }
@@ -429,7 +429,7 @@ export class BtfViewer extends HTMLElement {
     }, (e) => {
       if (gen !== this.gen) return;
       const delay = SHADER_RETRY_MS[Math.min(this.shaderTry++, SHADER_RETRY_MS.length - 1)];
-      this.trouble(`${e.message}; trying again`);
+      this.trouble('shaders', `${e.message}; trying again`);
       setTimeout(() => gen === this.gen && this.fetchShaders(gen), delay);
     });
   }
@@ -442,7 +442,7 @@ export class BtfViewer extends HTMLElement {
       // the variant of a first frame (one 4-slot layer; levels once the manifest says)
       // compiles while the first chunk travels
       r.start(this.firstVariant());
-      this.recovered();
+      this.recovered('shaders');
       this.invalidate();
     }, () => {
       if (gen === this.gen) setTimeout(() => gen === this.gen && this.ctx && this.loadRenderer(gen), 250);
@@ -554,6 +554,7 @@ export class BtfViewer extends HTMLElement {
       return this.fail(e);
     }
     this.times.manifest ??= performance.now();
+    this.recovered('stream');
     if (!this.ctx && !this.ensureGl()) return;
     this.newGpu();
     if (this.renderer && this.gpu) this.renderer.start(this.firstVariant());
@@ -575,7 +576,7 @@ export class BtfViewer extends HTMLElement {
   onChunk(sub, j) {
     if (sub !== this.sub || !this.pkg) return;
     if (j === 0) this.times.chunk ??= sub.arrivedAt[0] ?? performance.now();
-    this.recovered();
+    this.recovered('stream');
     this.emit('progress', this.progress(j + 1)); // chunks arrive in order: j + 1 are here
     this.pump();
   }
@@ -659,6 +660,7 @@ export class BtfViewer extends HTMLElement {
 
   onComplete(sub) {
     if (sub !== this.sub) return;
+    this.recovered('stream');
     this.complete = true;
     this.updateLabel();
     this.invalidate();
@@ -678,31 +680,32 @@ export class BtfViewer extends HTMLElement {
       return;
     }
     if (info.drained && info.attempt === 1) return;
-    this.trouble(`${text}; trying again in ${(info.delayMs / 1000).toFixed(1)} s`);
+    this.trouble('stream', `${text}; trying again in ${(info.delayMs / 1000).toFixed(1)} s`);
   }
 
   onStreamOpen(sub) {
     if (sub !== this.sub) return;
     this.times.open ??= performance.now();
-    if (this.outage) this.showMessage(this.loaded ? '' : 'Connected, loading…', true);
+    if (this.outages.stream) this.showMessage(this.loaded ? '' : 'Connected, loading…', true);
     if (!this.ctx) setTimeout(() => this.ensureGl(this.gen), 0);
   }
 
-  // A recoverable failure: a message (over the picture's foot once there is one) and,
-  // the first time in an outage, an `error` event {reason, retrying: true}.
-  trouble(reason) {
+  // A recoverable failure of `source` ('stream' or 'shaders'): a note at the viewer's
+  // foot and, the first time in that source's outage, an `error` event {reason, retrying: true}.
+  trouble(source, reason) {
     if (this.error) return;
     this.showMessage(reason, true);
-    if (this.outage) return;
-    this.outage = {reason};
+    if (this.outages[source]) return;
+    this.outages[source] = reason;
     this.emit('error', {reason, retrying: true});
   }
 
-  // Data flows again after trouble: the message goes.
-  recovered() {
-    if (!this.outage) return;
-    this.outage = null;
-    this.showMessage('');
+  // `source` works again: its outage ends, and the note goes unless another one lasts.
+  recovered(source) {
+    if (!this.outages[source]) return;
+    this.outages[source] = null;
+    const other = Object.values(this.outages).find(Boolean);
+    this.showMessage(other || '', !!other);
   }
 
   // Re-uploads every chunk held by the subscription (after a context restore).
@@ -829,7 +832,9 @@ export class BtfViewer extends HTMLElement {
   // the budget stays that of the display. A page that sets max-dpr keeps its resolution.
   adapt() {
     const m = this.measured;
-    if (this.hasAttribute('max-dpr')) return;
+    // only while frames keep coming (chunks to show, an orbiting light): a still picture
+    // is not drawn again for it
+    if (this.hasAttribute('max-dpr') || (this.complete && !this.animating())) return;
     if (!m || m.frame + 1 !== this.ctx.frameNo) return; // the GPU time of this viewer's last frame
     this.measured = null;
     this.slowGpu = this.ctx.gpuMs > SLOW_FRAME_MS;
@@ -938,7 +943,8 @@ export class BtfViewer extends HTMLElement {
         ({level, components, needed, limit, bytes}))(this.sceneBudget()) : null,
       slots: this.gpu ? this.gpu.slots : 0, poster: this.posterImg.hidden ? null : this.posterImg.src,
       posterShown: this.posterShown ?? null, firstFrameChunks: this.firstFrameChunks ?? null,
-      times: {...this.times}, decoder: decoderKind(), outage: this.outage ? this.outage.reason : null,
+      times: {...this.times}, decoder: decoderKind(),
+      outage: Object.values(this.outages).filter(Boolean).join('; ') || null,
       message: this.msg.hidden ? null : this.msg.textContent, scale: this.scale || 1, display: this.display || null,
       gpuMs: this.ctx ? this.ctx.gpuMs ?? null : null,
     };
