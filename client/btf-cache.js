@@ -39,6 +39,29 @@ async function dropEntry(cache, index, key) {
   if (!e) return;
   await Promise.all(e.chunks.map((j) => cache.delete(chunkUrl(key, e.etag, j))));
   delete index.entries[key];
+  mark(key, false);
+}
+
+// A synchronous note (localStorage) of which materials have kept chunks, so a first
+// visit need not wait for the Cache API (slow to open in a fresh profile) before it
+// subscribes: without the note nothing is kept. Absent storage: always "maybe".
+const MARK = 'btf-chunks-v1|';
+function mark(key, on) {
+  try {
+    if (on) localStorage.setItem(MARK + key, '1');
+    else localStorage.removeItem(MARK + key);
+  } catch { /* no storage: mayHaveChunks answers true */ }
+}
+
+// False when this page has certainly kept no chunks of the material (so loadChunks
+// would answer null); true when it may have.
+export function mayHaveChunks(server, material) {
+  if (!chunkCache.enabled) return false;
+  try {
+    return localStorage.getItem(MARK + entryKey(server, material)) !== null;
+  } catch {
+    return true;
+  }
 }
 
 // Evicts least recently used entries (never `keep`) until the total fits the limit.
@@ -100,6 +123,7 @@ async function writeBatch(batch) {
   }
   for (const key of new Set(fresh.map((f) => f.key))) await evict(cache, index, key);
   await writeIndex(cache, index);
+  for (const key of Object.keys(index.entries)) mark(key, true);
 }
 
 // Forgets a material's kept chunks (the server no longer has that etag).

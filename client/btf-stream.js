@@ -15,7 +15,7 @@
 // anything it was asked for is missing, and stays closed once everything has arrived
 // until a listener asks for more.
 
-import {dropChunks, loadChunks, storeChunk} from './btf-cache.js';
+import {dropChunks, loadChunks, mayHaveChunks, storeChunk} from './btf-cache.js';
 
 export const SUBPROTOCOL = 'btf-stream.v1';
 const HEADER = 20;
@@ -24,7 +24,7 @@ const WINDOW_START = 256 * 1024;   // bytes in flight before the rate is known (
 const WINDOW_MIN = 64 * 1024;      // never less ...
 const WINDOW_MAX = 32 * 1024 * 1024; // ... nor more
 const RATE_SPAN_MS = 500;          // the receive rate is measured over this much of the recent past
-const STALL_MS = 400;              // the window also covers this long a pause of the page (acks wait for it)
+const STALL_MS = 700;              // the window also covers this long a pause of the page (acks wait for it)
 const RETRY_MS = [500, 1000, 2000, 4000, 8000, 15000]; // reconnect delays (then the last), +-25% jitter
 
 const streams = new Map(); // url -> BtfStream
@@ -296,7 +296,10 @@ export class BtfStream {
     sub.listeners.add(listener);
     if (listener.onSubscribe) listener.onSubscribe(sub); // before any replay below
     if (!this.ws && !this.retryTimer) this.connect(); // closed: nothing was subscribed, or all had arrived
-    if (fresh) {
+    if (fresh && !mayHaveChunks(this.url, material)) {
+      sub.adopt(null); // nothing kept: the subscribe goes out as soon as the socket opens
+      this.sendSubscribe(sub);
+    } else if (fresh) {
       loadChunks(this.url, material).then((kept) => {
         sub.adopt(kept);
         if (this.subs.get(material) === sub) this.sendSubscribe(sub);

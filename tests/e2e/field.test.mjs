@@ -175,8 +175,9 @@ async function assertComplete(page) {
   assert.equal((await page.evaluate(() => window.__btf.viewers()[0])).message, null, 'no message left');
 }
 
-// Console lines a failure case may show: the browser's own reports of refused connections.
-const refused = (p) => /ERR_CONNECTION_REFUSED|WebSocket connection to .* failed|503 \(Service Unavailable\)/.test(p);
+// Console lines a failure case may show: the browser's own reports of refused or cut
+// connections (a request in flight when the link drops, e.g. the poster).
+const refused = (p) => /ERR_CONNECTION_(REFUSED|RESET|CLOSED)|ERR_EMPTY_RESPONSE|WebSocket connection to .* failed|503 \(Service Unavailable\)/.test(p);
 
 describe('failures a page owner can handle', () => {
   it('btfd down at page load: an error event and a message, then the picture once it is up', async () => {
