@@ -19,7 +19,7 @@ class SharedGl {
     this.canvas.width = this.canvas.height = 1;
     this.gl = this.canvas.getContext('webgl2', {antialias: false, premultipliedAlpha: false, alpha: false});
     this.lost = false;
-    // a software rasteriser (SwiftShader, llvmpipe): viewers draw at most one device pixel per CSS pixel
+    // a software rasteriser (SwiftShader, llvmpipe): viewers start at fewer pixels and draw with the loop variant
     this.software = this.gl ? /swiftshader|llvmpipe|software/i.test(rendererName(this.gl)) : false;
     this.users = new Set();      // viewers: contextLost(), contextRestored()
     this.renderers = new Map();  // shader base URL -> Promise of MeshRenderer

@@ -117,8 +117,10 @@ export class MeshRenderer {
   free() {
     const gl = this.gl;
     for (const p of this.progs.values()) gl.deleteProgram(p.program);
-    for (const p of this.pending.values()) [p.vs, p.fs].forEach((sh) => gl.deleteShader(sh));
-    for (const p of this.pending.values()) gl.deleteProgram(p.program);
+    for (const p of this.pending.values()) {
+      [p.vs, p.fs].forEach((sh) => gl.deleteShader(sh));
+      gl.deleteProgram(p.program);
+    }
     this.progs.clear();
     this.pending.clear();
     for (const m of this.meshes.values()) {

@@ -117,7 +117,7 @@ class Subscription {
 
 // Flow state of one connection: bytes received, when, the round trip (ping at open).
 function newFlow() {
-  return {received: 0, acked: 0, window: WINDOW_START, rtt: null, hist: [], timer: 0, lastAck: 0, pingSeq: 0,
+  return {received: 0, window: WINDOW_START, rtt: null, hist: [], timer: 0, lastAck: 0, pingSeq: 0,
     pingAt: 0, refused: false};
 }
 
@@ -222,8 +222,8 @@ export class BtfStream {
     // else: everything asked for is here; the next subscribe or larger budget reconnects
   }
 
-  // Schedules the next attempt: RETRY_MS[retry - 1] (a server draining with 1001: at
-  // once, another one takes over), +-25% jitter so many pages do not come back in step.
+  // Schedules the next attempt: RETRY_MS[retry - 1], +-25% jitter so many pages do not
+  // come back in step (a draining server's 1001 too: another one behind the proxy takes over).
   reconnectLater() {
     if (this.retryTimer) return 0;
     const base = RETRY_MS[Math.min(this.retry, RETRY_MS.length) - 1] ?? RETRY_MS[0];
@@ -259,7 +259,6 @@ export class BtfStream {
     if (!f) return;
     f.timer = 0;
     f.lastAck = performance.now();
-    f.acked = f.received;
     f.window = flowWindow(f);
     this.send({type: 'ack', received: f.received, window: f.window});
     if (first) {
@@ -366,7 +365,7 @@ export class BtfStream {
       return this.onText(msg);
     }
     this.bytes += data.byteLength;
-    this.onFlow?.(data.byteLength);
+    this.onFlow(data.byteLength);
     this.pieces.bytes += data.byteLength;
     this.pieces.last = performance.now();
     if (this.pieces.first === null) [this.pieces.first, this.pieces.firstBytes] = [this.pieces.last, data.byteLength];

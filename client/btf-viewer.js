@@ -485,9 +485,12 @@ export class BtfViewer extends HTMLElement {
     const paused = !this.onScreen || document.hidden;
     const pixels = paused && !drawing ? 0 : this.pixelsPerRepeat();
     const threshold = num(this, 'lod-threshold', LOD_THRESHOLD);
-    let chunks = this.pkg ? this.sceneBudget(drawing).limit : -1;
-    const policy = this.pkg ? BtfViewer.budgetPolicy(this) : -1;
-    if (policy >= 0 && !(pixels === 0)) chunks = chunks < 0 ? policy : Math.min(chunks, policy);
+    let chunks = -1;
+    if (this.pkg) {
+      const policy = BtfViewer.budgetPolicy(this);
+      chunks = this.sceneBudget(drawing).limit;
+      if (policy >= 0) chunks = Math.min(chunks, policy);
+    }
     return {chunks, bytes, error: -1, pixels, threshold};
   }
 

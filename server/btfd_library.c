@@ -230,13 +230,11 @@ static btf_result make_summary(const cJSON *root, btfd_material *m, btf_error *e
     return m->summary ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", m->name);
 }
 
-/* Integer JSON number in [lo, hi], or -1. */
+/* Integer JSON number in [lo, hi] (lo >= 0), or -1. */
 static int int_in(const cJSON *v, int lo, int hi)
 {
-    if (!cJSON_IsNumber(v) || v->valuedouble != floor(v->valuedouble) || v->valuedouble < lo ||
-        v->valuedouble > hi)
-        return -1;
-    return (int)v->valuedouble;
+    int64_t x;
+    return btfd_json_int(v, lo, hi, &x) ? (int)x : -1;
 }
 
 /* m->lod for a package with levels (versions 2 and 4); left NULL when the manifest's

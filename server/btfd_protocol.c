@@ -283,15 +283,6 @@ static int pick_chunk(btfd_conn *c)
     return best >= 0;
 }
 
-/* 1 if some subscription has an allowed chunk the client does not hold. */
-static int pick_next_exists(const btfd_conn *c)
-{
-    for (int k = 0; k < c->n_subs; k++)
-        if (sub_next(&c->subs[k]) >= 0)
-            return 1;
-    return 0;
-}
-
 /* ------------------------------------------------------------------ writing */
 
 static void put_u32(uint8_t *p, uint32_t v)
@@ -571,8 +562,7 @@ static void do_ack(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
         c->acked = r;
     if (rq->window >= 0)
         c->window = (uint64_t)rq->window;
-    if (c->cur_mid || c->q_head || pick_next_exists(c))
-        want_write(srv, c);
+    want_write(srv, c); /* with nothing to send, the callback disarms the stall timeout again */
 }
 
 /* Token bucket: 0 if the client is over its request rate. */

@@ -73,8 +73,7 @@ static int has_nul(const char *buf, size_t len)
     return 0;
 }
 
-/* Integer JSON number in [lo, hi] into *v; 0 if not. */
-static int get_int(const cJSON *item, double lo, double hi, int64_t *v)
+int btfd_json_int(const cJSON *item, double lo, double hi, int64_t *v)
 {
     if (!cJSON_IsNumber(item))
         return 0;
@@ -91,10 +90,10 @@ static btfd_req_status parse_budget(const cJSON *b, btfd_budget *out, char *why,
     if (!cJSON_IsObject(b))
         return fail(why, n, BTFD_REQ_BAD_FIELD, "\"budget\" must be an object");
     const cJSON *c = cJSON_GetObjectItemCaseSensitive(b, "chunks");
-    if (c && !cJSON_IsNull(c) && !get_int(c, 0, BTFD_CHUNK_MAX, &out->max_chunks))
+    if (c && !cJSON_IsNull(c) && !btfd_json_int(c, 0, BTFD_CHUNK_MAX, &out->max_chunks))
         return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.chunks must be an integer 0..%d", BTFD_CHUNK_MAX);
     c = cJSON_GetObjectItemCaseSensitive(b, "bytes");
-    if (c && !cJSON_IsNull(c) && !get_int(c, 0, MAX_SAFE_INT, &out->max_bytes))
+    if (c && !cJSON_IsNull(c) && !btfd_json_int(c, 0, MAX_SAFE_INT, &out->max_bytes))
         return fail(why, n, BTFD_REQ_BAD_FIELD, "budget.bytes must be a non-negative integer");
     c = cJSON_GetObjectItemCaseSensitive(b, "error");
     if (c && !cJSON_IsNull(c)) {
@@ -128,7 +127,7 @@ static btfd_req_status parse_have(const cJSON *h, btfd_request *out, char *why, 
     out->n_have = 0;
     cJSON_ArrayForEach(e, h) {
         int64_t v;
-        if (!get_int(e, 0, BTFD_CHUNK_MAX - 1, &v))
+        if (!btfd_json_int(e, 0, BTFD_CHUNK_MAX - 1, &v))
             return fail(why, n, BTFD_REQ_BAD_FIELD, "\"have\"[%d] is not a chunk index 0..%d",
                         out->n_have, BTFD_CHUNK_MAX - 1);
         out->have[out->n_have++] = (uint32_t)v;
@@ -171,12 +170,12 @@ static btfd_req_status parse_type(const cJSON *root, btfd_request *out, char *wh
 /* ack: "received" (required) and "window" (optional: 0 or BTFD_WINDOW_MIN..MAX). */
 static btfd_req_status parse_ack(const cJSON *root, btfd_request *out, char *why, size_t n)
 {
-    if (!get_int(cJSON_GetObjectItemCaseSensitive(root, "received"), 0, MAX_SAFE_INT, &out->received))
+    if (!btfd_json_int(cJSON_GetObjectItemCaseSensitive(root, "received"), 0, MAX_SAFE_INT, &out->received))
         return fail(why, n, BTFD_REQ_BAD_FIELD, "ack.received must be a non-negative integer");
     const cJSON *w = cJSON_GetObjectItemCaseSensitive(root, "window");
     out->window = -1;
     if (w && !cJSON_IsNull(w) &&
-        (!get_int(w, 0, BTFD_WINDOW_MAX, &out->window) || (out->window && out->window < BTFD_WINDOW_MIN)))
+        (!btfd_json_int(w, 0, BTFD_WINDOW_MAX, &out->window) || (out->window && out->window < BTFD_WINDOW_MIN)))
         return fail(why, n, BTFD_REQ_BAD_FIELD, "ack.window must be 0 or an integer %d..%d", BTFD_WINDOW_MIN,
                     BTFD_WINDOW_MAX);
     return BTFD_REQ_OK;
@@ -187,7 +186,7 @@ static btfd_req_status parse_fields(const cJSON *root, btfd_request *out, char *
 {
     const cJSON *s = cJSON_GetObjectItemCaseSensitive(root, "seq");
     if (s) {
-        if (!get_int(s, -MAX_SAFE_INT, MAX_SAFE_INT, &out->seq))
+        if (!btfd_json_int(s, -MAX_SAFE_INT, MAX_SAFE_INT, &out->seq))
             return fail(why, n, BTFD_REQ_BAD_FIELD, "\"seq\" must be an integer");
         out->has_seq = 1;
     }

@@ -82,6 +82,10 @@ const char *btfd_req_status_code(btfd_req_status s);
 /* 1 if name is a valid material name (1..BTFD_NAME_MAX of [A-Za-z0-9._-], not starting with '.'). */
 int btfd_name_valid(const char *name, size_t len);
 
+/* 1 and the value in *v when item is an integer JSON number in [lo, hi], else 0. */
+struct cJSON;
+int btfd_json_int(const struct cJSON *item, double lo, double hi, int64_t *v);
+
 /* The budget with every limit off. */
 btfd_budget btfd_budget_unlimited(void);
 

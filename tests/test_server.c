@@ -73,6 +73,17 @@ static void fill_random(uint8_t *b, size_t n, uint32_t seed)
     }
 }
 
+/* Writes root as dir/manifest.json and frees it. */
+static void write_manifest(const char *dir, cJSON *root)
+{
+    char path[700];
+    char *txt = cJSON_Print(root);
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    write_file(path, txt, strlen(txt));
+    free(txt);
+    cJSON_Delete(root);
+}
+
 /* Writes package lib/name (through a .tmp-<pid> directory and a rename) with
  * n_chunks chunks of fpc files each; sizes[c * fpc + f] bytes per file; lab[c]
  * (rmse = 1.5 lab). Returns the total bytes. */
@@ -116,11 +127,7 @@ static size_t make_pkg(const char *lib, const char *name, int n_chunks, int fpc,
         total += bytes;
     }
     cJSON_AddItemToObject(root, "chunks", chunks);
-    char *txt = cJSON_Print(root);
-    snprintf(path, sizeof path, "%s/manifest.json", tmp);
-    write_file(path, txt, strlen(txt));
-    free(txt);
-    cJSON_Delete(root);
+    write_manifest(tmp, root);
     cr_assert_eq(rename(tmp, dst), 0, "rename %s", tmp);
     return total;
 }
@@ -1248,11 +1255,7 @@ Test(server, footprint_budget_selects_the_chunks_a_view_needs)
         cJSON_AddItemToArray(chunks, jc);
     }
     cJSON_AddItemToObject(root, "chunks", chunks);
-    char *txt = cJSON_Print(root);
-    snprintf(path, sizeof path, "%s/manifest.json", dir);
-    write_file(path, txt, strlen(txt));
-    free(txt);
-    cJSON_Delete(root);
+    write_manifest(dir, root);
     srv s;
     srv_start(&s, g_lib, NULL);
     wsc c;
