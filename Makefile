@@ -30,33 +30,52 @@ pkg__or_stop = $(if $(filter PKG-CONFIG-FAILED,$(1)),$(error pkg-config $(2): $(
 # no #include of a room a room may not use, no call between object files that goes
 # the wrong way or round a circle. Its room table mirrors the INC lines below
 # (and server/build.mk's).
-# codec/        product library: formats, PCA, decoder, levels, metrics, file helpers
-CODEC_PKGS := OpenImageIO libcjson lapacke openblas zlib qhull_r libwebp
-CODEC_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/*.c)) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/*.cpp))
-CODEC_LIB  := $(BUILD)/codec/libbtfcodec.a
-$(CODEC_OBJ): INC := -Icodec
+# codec/        product library, one archive; inner rooms (doc/architecture.md), each
+#               with the include path of the rooms it may use, bottom first:
+#   include/    the public headers, the only ones `make install` installs
+#   common/     core, direction sets and tables, interpolation, hull, colour, metrics,
+#               view streams, view blocks, file helpers
+#   image/      image files (OpenImageIO, PNG, WebP)
+#   format/     the package format: manifest, residual levels, weight tables
+#   input/      readers of measured BTFs; btf_input.c the one dispatcher
+#   decompress/ package reader, decoder, level selection
+#   compress/   PCA, rate control, budget search, writer, level builder, thumbnail
+CODEC_PKGS  := OpenImageIO libcjson lapacke openblas zlib qhull_r libwebp
+CODEC_ROOMS := common image format input decompress compress
+CODEC_OBJ   := $(foreach r,$(CODEC_ROOMS),$(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/$(r)/*.c)) \
+                 $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/$(r)/*.cpp)))
+CODEC_LIB   := $(BUILD)/codec/libbtfcodec.a
+# $(call codec_inc,ROOMS): -I for the public headers and for these inner rooms.
+codec_inc    = -Icodec/include $(addprefix -Icodec/,$(1))
+CODEC_INNER := $(call codec_inc,$(CODEC_ROOMS))
 $(CODEC_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(CODEC_PKGS))
+$(BUILD)/codec/common/%.o:     INC := $(call codec_inc,common)
+$(BUILD)/codec/image/%.o:      INC := $(call codec_inc,common image)
+$(BUILD)/codec/format/%.o:     INC := $(call codec_inc,common image format)
+$(BUILD)/codec/input/%.o:      INC := $(call codec_inc,common image input)
+$(BUILD)/codec/decompress/%.o: INC := $(call codec_inc,common image format decompress)
+$(BUILD)/codec/compress/%.o:   INC := $(call codec_inc,common image format decompress compress)
 
 # bench/gen/    synthetic materials with ground truth (uses codec)
 GEN_OBJ    := $(patsubst %.c,$(BUILD)/%.o,$(wildcard bench/gen/*.c))
 GEN_LIB    := $(BUILD)/bench/gen/libbtfgen.a
-$(GEN_OBJ): INC := -Icodec -Ibench/gen
+$(GEN_OBJ): INC := $(call codec_inc,common) -Ibench/gen
 
 # shaders/host/ headless GL host of shaders/: EGL and OSMesa backends, package upload, render (uses codec)
 GL_PKGS    := osmesa egl glesv2
 GL_OBJ     := $(patsubst %.c,$(BUILD)/%.o,$(wildcard shaders/host/*.c))
 GL_LIB     := $(BUILD)/shaders/host/libbtfgl.a
-$(GL_OBJ): INC := -Icodec -Ishaders/host
+$(GL_OBJ): INC := $(call codec_inc,common image) -Ishaders/host
 $(GL_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(GL_PKGS) libcjson)
 
 # bench/eval/   method families, thesis-format export, chart data (uses codec, shaders/host)
 EVAL_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(wildcard bench/eval/*.c))
 EVAL_LIB   := $(BUILD)/bench/eval/libbtfeval.a
-$(EVAL_OBJ): INC := -Icodec -Ishaders/host -Ibench/eval
+$(EVAL_OBJ): INC := $(CODEC_INNER) -Ishaders/host -Ibench/eval
 $(EVAL_OBJ): PKG_CFLAGS = $(call pkg,--cflags,libcjson gsl)
 
 # tools/        the `btf` command line (uses every room above)
-ALL_INC    := -Icodec -Ibench/gen -Ishaders/host -Ibench/eval -Itools
+ALL_INC    := $(CODEC_INNER) -Ibench/gen -Ishaders/host -Ibench/eval -Itools
 TOOLS_OBJ  := $(patsubst %.c,$(BUILD)/%.o,$(filter-out tools/btf_main.c,$(wildcard tools/*.c)))
 TOOLS_LIB  := $(BUILD)/tools/libbtftools.a
 BTF_BIN    := $(BUILD)/btf
@@ -173,18 +192,18 @@ clean:
 	rm -rf build build-asan codec/libbtfcodec.a
 
 # --- make install / uninstall: PREFIX (default /usr/local), DESTDIR for staging ---
-# bin/btf, bin/btfd, lib/libbtfcodec.a, include/btfcodec/ (codec/*.h),
+# bin/btf, bin/btfd, lib/libbtfcodec.a, include/btfcodec/ (codec/include/*.h),
 # lib/pkgconfig/btfcodec.pc, and under share/btf-stream/ the browser client and
 # the shader files it loads (what an installed btfd serves by default).
 PREFIX       ?= /usr/local
 DESTDIR      ?=
-PC_VERSION   := $(shell sed -n 's/.*define BTF_VERSION "\(.*\)".*/\1/p' codec/btf_version.h)
+PC_VERSION   := $(shell sed -n 's/.*define BTF_VERSION "\(.*\)".*/\1/p' codec/include/btf_version.h)
 INST_ROOT     = $(DESTDIR)$(PREFIX)
-INST_HEADERS := $(wildcard codec/*.h)
+INST_HEADERS := $(wildcard codec/include/*.h)
 INST_CLIENT  := $(wildcard client/*.*)
 INST_SHADERS := $(wildcard shaders/*.glsl shaders/*.vert shaders/*.frag) shaders/manifest.json
 INST_FILES    = bin/btf bin/btfd lib/libbtfcodec.a lib/pkgconfig/btfcodec.pc \
-    $(INST_HEADERS:codec/%=include/btfcodec/%) $(addprefix share/btf-stream/,$(INST_CLIENT) $(INST_SHADERS))
+    $(INST_HEADERS:codec/include/%=include/btfcodec/%) $(addprefix share/btf-stream/,$(INST_CLIENT) $(INST_SHADERS))
 
 install: $(BTF_BIN) $(BUILD)/btfd $(CODEC_LIB)
 	install -D -m 755 $(BTF_BIN) $(INST_ROOT)/bin/btf

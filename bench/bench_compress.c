@@ -38,6 +38,8 @@
 #include <unistd.h>
 
 #include "bench_util.h"
+#include "btf_input.h"
+#include "btf_blocks.h"
 
 static char g_tmp[1024], g_wool[1024];
 
@@ -173,15 +175,15 @@ static int stage_svd(void)
         return 1;
     btf_blocks *bl = NULL;
     btf_error err = {0};
-    if (btf_group_views(&b->views, 3, BTF_GROUP_CONSECUTIVE, &bl, &err) != BTF_OK)
+    if (btf_blocks_group(&b->views, 3, BTF_GROUP_CONSECUTIVE, &bl, &err) != BTF_OK)
         return fail("blocks", &err);
     int n = env_int("BENCH_SVD_BLOCKS", 2), rows = b->width * b->height;
     n = n > bl->n_blocks ? bl->n_blocks : n;
     float *A = malloc(sizeof(float) * (size_t)rows * 3 * 81 * 3);
     double t[2] = {0, 0}, dev = 0.0;
     for (int i = 0; A && i < n; i++) {
-        int cols = btf_block_cols(b, bl, i);
-        if (btf_block_matrix(b, bl, i, A, &err) != BTF_OK)
+        int cols = btf_blocks_cols(b, bl, i);
+        if (btf_pca_block_matrix(b, bl, i, A, &err) != BTF_OK)
             return fail("block matrix", &err);
         btf_pca_block res[2];
         for (int m = 0; m < 2; m++) {

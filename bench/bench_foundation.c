@@ -26,6 +26,7 @@
 #include <unistd.h>
 
 #include "bench_util.h"
+#include "btf_input.h"
 
 #define BENCH_SIDE 256
 

@@ -48,6 +48,7 @@
 #include <unistd.h>
 
 #include "bench_util.h"
+#include "btf_decode.h"
 
 #define BW 1280
 #define BH 720

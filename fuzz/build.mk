@@ -19,7 +19,7 @@ FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS)) -lstdc++ -lm
 FUZZ_BUILD        ?= build-fuzz
 FUZZ_RSS_MB       ?= 2048
 
-$(FUZZ_CODEC_OBJ): INC := -Icodec -Ibench/gen -Ifuzz
+$(FUZZ_CODEC_OBJ): INC := $(CODEC_INNER) -Ibench/gen -Ifuzz
 $(FUZZ_CODEC_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(CODEC_PKGS))
 build: $(FUZZ_CODEC_REPLAY)
 

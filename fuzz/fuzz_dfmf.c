@@ -5,6 +5,7 @@
  * libFuzzer with -rss_limit_mb to catch a reader that trusts a header). */
 #include "btf_io.h"
 #include "fuzz_util.h"
+#include "btf_input.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

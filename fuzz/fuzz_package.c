@@ -12,6 +12,7 @@
 #include "btf_lod.h"
 #include "btf_package.h"
 #include "fuzz_util.h"
+#include "btf_decode.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

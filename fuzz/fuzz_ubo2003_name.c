@@ -3,6 +3,7 @@
  * range, and the canonical name written back from them parses to the same angles. */
 #include "btf_io.h"
 #include "fuzz_util.h"
+#include "btf_input.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include "btfd_request.h"
+#include "btf_common.h"
 
 /* Manifest keys copied verbatim into the list summary when present. */
 static const char *const summary_keys[] = {"version", "levels", "width", "height", "k", "components", "bits",

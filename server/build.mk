@@ -8,7 +8,7 @@
 #   fuzz-request                  libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
 # (fuzz/build.mk runs it with the codec targets as `make fuzz`, and replays every corpus)
 #   $(BUILD)/resume_clients       the reconnecting load client of tests/deploy_test.sh (nginx + 2 btfd)
-# server/ uses codec/ only (btf.h for direction sets and package metadata).
+# server/ uses codec/ only: its public headers and common/ (error formatting).
 # `build` gains btfd and the replay binary, so `make test` runs the server tests
 # (tests/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
 
@@ -32,7 +32,7 @@ RESUME_BIN   := $(BUILD)/resume_clients
 server: $(BTFD_BIN)
 build: $(BTFD_BIN) $(FUZZ_REPLAY) $(RESUME_BIN)
 
-$(SERVER_OBJ): INC := -Icodec -Iserver
+$(SERVER_OBJ): INC := $(call codec_inc,common) -Iserver
 $(SERVER_OBJ): PKG_CFLAGS = $(SERVER_CFLAGS)
 
 $(BTFD_BIN): $(SERVER_OBJ) $(CODEC_LIB)
@@ -45,7 +45,7 @@ $(FUZZ_REPLAY): $(FUZZ_SRC) fuzz/replay_main.c server/btfd_request.h
 
 $(RESUME_BIN): tests/deploy/resume_clients.c tests/lws_connect.h $(CODEC_LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE -Icodec -Itests $(SERVER_CFLAGS) -o $@ $< $(CODEC_LIB) \
+	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE $(CODEC_INNER) -Itests $(SERVER_CFLAGS) -o $@ $< $(CODEC_LIB) \
 	    $(LDFLAGS) $(SERVER_LIBS) -lm
 
 # libFuzzer + ASan/UBSan; new interesting inputs land in fuzz/corpus/request.

@@ -14,7 +14,7 @@ PREFIX=/usr/local
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/btf-install-test.XXXXXX") || exit 1
 DEST=$TMP/dest
 INST=$DEST$PREFIX
-VERSION=$(sed -n 's/.*define BTF_VERSION "\(.*\)".*/\1/p' codec/btf_version.h)
+VERSION=$(sed -n 's/.*define BTF_VERSION "\(.*\)".*/\1/p' codec/include/btf_version.h)
 BTFD_PID=
 passed=0
 failed=0
@@ -55,7 +55,7 @@ installed_files() {
 
 installed_headers() {
     local h list=()
-    for h in codec/*.h; do list+=("include/btfcodec/${h#codec/}"); done
+    for h in codec/include/*.h; do list+=("include/btfcodec/${h#codec/include/}"); done
     all_present "${list[@]}"
 }
 
@@ -78,7 +78,7 @@ pc() {
 pc_version() {
     local v
     v=$(pc --modversion) || return 1
-    [ "$v" = "$VERSION" ] || { echo "btfcodec.pc says $v, codec/btf_version.h says $VERSION"; return 1; }
+    [ "$v" = "$VERSION" ] || { echo "btfcodec.pc says $v, codec/include/btf_version.h says $VERSION"; return 1; }
 }
 
 # A program outside the tree: direction sets, the JSON parser (cJSON), an image
@@ -197,7 +197,7 @@ uninstalled() {
 
 check "make install DESTDIR=\$(mktemp -d) PREFIX=$PREFIX" inst_make install
 check "bin/btf, bin/btfd, lib/libbtfcodec.a, lib/pkgconfig/btfcodec.pc" installed_files
-check "include/btfcodec/ holds codec/*.h" installed_headers
+check "include/btfcodec/ holds codec/include/*.h" installed_headers
 check "share/btf-stream/ holds client/ and shaders/" installed_share
 check "pkg-config --modversion btfcodec is $VERSION" pc_version
 check "a program builds with pkg-config --cflags --libs --static btfcodec" compile_program

@@ -13,6 +13,7 @@
 
 #include "btf_io.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 /* ------------------------------------------------------------ helpers */
 

@@ -13,6 +13,7 @@
 #include "btf_package.h"
 #include "test_gen_util.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 #define D2R 0.017453292519943295
 

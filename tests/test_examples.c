@@ -19,6 +19,7 @@
 #include "btf_wtz.h"
 #include "test_gen_util.h"
 #include "test_util.h"
+#include "btf_decode.h"
 
 /* A small generated material for the examples. */
 static btf *example_source(void)

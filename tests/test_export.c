@@ -17,6 +17,7 @@
 #include "btf_package.h"
 #include "btf_pca.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 /* 13 directions on three rings: small, and not a set the thesis reader knows. */
 static btf_dirset small_dirs(void)

@@ -14,6 +14,7 @@
 #include "btf_manifest.h"
 #include "btf_thesis.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 /* Caps this test process's address space at 1 GiB, so a reader that trusts a header
  * fails the test; not under AddressSanitizer, whose shadow memory needs more. */

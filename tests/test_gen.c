@@ -10,6 +10,7 @@
 #include "btf_gen.h"
 #include "btf_io.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 #define DEG (3.14159265358979 / 180.0)
 

@@ -733,6 +733,7 @@ Test(gl, interp_direction_list_both_backends)
 #include "btf_gen.h"
 #include "btf_gl_package.h"
 #include "btf_package.h"
+#include "btf_decode.h"
 
 #define DEC_W 16 /* material side: 16x16 texels, 81 x 81 directions */
 #define DEC_C 4  /* components */

@@ -17,6 +17,7 @@
 #include "btf_lod.h"
 #include "btf_package.h"
 #include "test_util.h"
+#include "btf_decode.h"
 
 #define SIZE 32
 #define COMPS 5

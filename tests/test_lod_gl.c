@@ -20,6 +20,7 @@
 #include "btf_shader.h"
 #include "test_gl_util.h"
 #include "test_util.h"
+#include "btf_decode.h"
 
 #define LG_W 32     /* material side (texels) */
 #define LG_C 4      /* components */

@@ -4,6 +4,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "btf_color.h"
 #include "btf_metrics.h"
 
 /* ---------------------------------------------------------------- helpers */

@@ -15,6 +15,8 @@
 #include "btf_package.h"
 #include "test_gen_util.h"
 #include "test_util.h"
+#include "btf_decode.h"
+#include "btf_compress.h"
 
 /* 11 directions: 1 + 4 + 6 on three rings. */
 static btf_dirset small_set(void)
@@ -363,11 +365,13 @@ Test(package, threaded_writes_match_one_thread)
     po.k = 1, po.components = 16;
     thread_log tl = {.fail = -1};
     btf_package_options ko = {0};
-    ko.write_hook = log_thread, ko.hook_ctx = &tl, ko.name = "m"; /* one name: the manifests compare */
+    ko.name = "m"; /* one name: the manifests compare */
+    btf_package_channel ch = {0};
+    ch.write_hook = log_thread, ch.hook_ctx = &tl;
     btf_package_options kb = {0};
     kb.name = "m";
     btf_error err = {0};
-    cr_assert_eq(btf_package_compress(src, &po, &ko, a, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, a, NULL, &err), BTF_OK, "%s", err.msg);
     int other = 0;
     for (int i = 0; i < 32; i++)
         other |= tl.thread[i] != 0;
@@ -387,7 +391,7 @@ Test(package, threaded_writes_match_one_thread)
     cr_assert_eq(files, 33, "16 textures, 16 weights and the manifest");
     /* the weights of component 7 (file 15) fail: that file's error, the old package kept */
     tl.fail = 15;
-    cr_assert_eq(btf_package_compress(src, &po, &ko, a, NULL, &err), BTF_ERR_IO);
+    cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, a, NULL, &err), BTF_ERR_IO);
     cr_expect(strstr(err.msg, "wt-07.bin: write failed"), "%s", err.msg);
     cr_assert_eq(count_entries(tmp), 2, "a temporary directory was left beside the packages");
     btf_free(src);
@@ -404,23 +408,23 @@ Test(package, failing_writer_leaves_no_package)
     po.k = 3, po.components = 3;
     int fail_at[] = {0, 3, 6}; /* first texture, a weights file, the manifest (3 chunks = 6 files + manifest) */
     for (int i = 0; i < 3; i++) {
-        btf_package_options ko = {0};
-        ko.write_hook = fail_nth;
-        ko.hook_ctx = &fail_at[i];
+        btf_package_channel ch = {0};
+        ch.write_hook = fail_nth;
+        ch.hook_ctx = &fail_at[i];
         btf_error err = {0};
-        cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_ERR_IO, "file %d", fail_at[i]);
+        cr_assert_eq(btf_package_compress_with(src, &po, NULL, &ch, out, NULL, &err), BTF_ERR_IO, "file %d", fail_at[i]);
         cr_assert(strstr(err.msg, "write failed"), "%s", err.msg);
         cr_assert_eq(count_entries(tmp), 0, "file %d: something was left in %s", fail_at[i], tmp);
     }
     /* an existing package survives a failed rewrite */
     compress_ok(src, 3, 3, 8, out);
-    btf_package_options ko = {0};
+    btf_package_channel ch = {0};
     int manifest_of_two = 4; /* 2 chunks = 4 files, then the manifest */
-    ko.write_hook = fail_nth;
-    ko.hook_ctx = &manifest_of_two;
+    ch.write_hook = fail_nth;
+    ch.hook_ctx = &manifest_of_two;
     btf_error err = {0};
     po.components = 2;
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_ERR_IO);
+    cr_assert_eq(btf_package_compress_with(src, &po, NULL, &ch, out, NULL, &err), BTF_ERR_IO);
     btf_package *p = read_ok(out, 0);
     cr_assert_eq(p->n_chunks, 3);
     btf_package_free(p);

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "btf_pca.h"
+#include "btf_blocks.h"
 
 /* 11 directions: 1 + 4 + 6 on three rings. */
 static btf_dirset small_set(void)
@@ -67,13 +68,13 @@ Test(pca, grouping_consecutive_matches_thesis)
     btf_dirset u = btf_dirset_ubo2003();
     btf_blocks *b = NULL;
     btf_error err = {0};
-    cr_assert_eq(btf_group_views(&u, 3, BTF_GROUP_CONSECUTIVE, &b, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_blocks_group(&u, 3, BTF_GROUP_CONSECUTIVE, &b, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(b->n_blocks, 27); /* 81 views in runs of k = 3: 27 blocks */
     for (int v = 0; v < 81; v++)
         cr_assert_eq(b->views[v], v);
     cr_assert(is_partition(b));
     btf_blocks_free(b);
-    cr_assert_eq(btf_group_views(&u, 4, BTF_GROUP_CONSECUTIVE, &b, &err), BTF_OK);
+    cr_assert_eq(btf_blocks_group(&u, 4, BTF_GROUP_CONSECUTIVE, &b, &err), BTF_OK);
     cr_assert_eq(b->n_blocks, 21);
     cr_assert_eq(b->start[21] - b->start[20], 1); /* 81 = 20*4 + 1 */
     btf_blocks_free(b);
@@ -86,8 +87,8 @@ Test(pca, grouping_spatial_is_partition_and_compact)
     int ks[] = {3, 5, 9, 27}; /* (k = 2: canonical pairs are already phi neighbours; greedy leftovers can be wider) */
     for (size_t i = 0; i < sizeof ks / sizeof ks[0]; i++) {
         btf_blocks *s = NULL, *c = NULL;
-        cr_assert_eq(btf_group_views(&u, ks[i], BTF_GROUP_SPATIAL, &s, &err), BTF_OK, "%s", err.msg);
-        cr_assert_eq(btf_group_views(&u, ks[i], BTF_GROUP_CONSECUTIVE, &c, &err), BTF_OK);
+        cr_assert_eq(btf_blocks_group(&u, ks[i], BTF_GROUP_SPATIAL, &s, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_blocks_group(&u, ks[i], BTF_GROUP_CONSECUTIVE, &c, &err), BTF_OK);
         cr_assert(is_partition(s), "k=%d", ks[i]);
         cr_assert_eq(s->n_blocks, c->n_blocks);
         /* measured: the greedy grouping is more compact than canonical runs for k >= 3
@@ -266,7 +267,7 @@ Test(pca, absurd_k_and_C_refused)
     }
     btf_blocks *b = NULL;
     btf_error err = {0};
-    cr_assert_eq(btf_group_views(&src->views, 0, BTF_GROUP_CONSECUTIVE, &b, &err), BTF_ERR_RANGE);
+    cr_assert_eq(btf_blocks_group(&src->views, 0, BTF_GROUP_CONSECUTIVE, &b, &err), BTF_ERR_RANGE);
     float A[4] = {1, 2, 3, 4};
     btf_pca_block blk;
     cr_assert_eq(btf_pca_block_compute(A, 2, 2, 0, BTF_PCA_GRAM, BTF_CENTER_NONE, &blk, &err), BTF_ERR_RANGE);

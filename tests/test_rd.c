@@ -23,6 +23,8 @@
 #include "btf_wtz.h"
 #include "test_gen_util.h"
 #include "test_util.h"
+#include "btf_input.h"
+#include "btf_compress.h"
 
 /* 15 directions on three rings. */
 static const btf_ring rings[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 10.0f}};
@@ -32,9 +34,10 @@ static void compress_ok(const btf *src, int C, int rd, const char *out, btf_rd_r
     btf_pca_options po = {0};
     po.k = 3, po.components = C;
     btf_package_options ko = {0};
-    ko.rd = rd, ko.rd_out = rr;
+    btf_package_channel ch = {0};
+    ko.rd = rd, ch.rd_out = rr;
     btf_error err = {0};
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, out, NULL, &err), BTF_OK, "%s", err.msg);
 }
 
 static btf_package *read_ok(const char *dir)
@@ -194,9 +197,10 @@ static void compress_k(const btf *src, int k, int C, int rd, btf_rd_ladder *ladd
     btf_pca_options po = {0};
     po.k = k, po.components = C;
     btf_package_options ko = {0};
-    ko.rd = rd, ko.rd_out = rr, ko.rd_ladder = ladder;
+    btf_package_channel ch = {0};
+    ko.rd = rd, ch.rd_out = rr, ch.rd_ladder = ladder;
     btf_error err = {0};
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, out, NULL, &err), BTF_OK, "%s", err.msg);
 }
 
 Test(rd, rates_of_a_large_atlas_are_measured_on_a_sample_of_its_rows)
@@ -330,10 +334,11 @@ static double compress_slot(const btf *src, int k, btf_pca_model **slot, const c
     btf_pca_options po = {0};
     po.k = k, po.components = 6;
     btf_package_options ko = {0};
-    ko.rd = 1, ko.rd_out = rr, ko.rd_model = slot;
+    btf_package_channel ch = {0};
+    ko.rd = 1, ch.rd_out = rr, ch.rd_model = slot;
     btf_error err = {0};
     btf_compress_stats st = {0};
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, &st, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, out, &st, &err), BTF_OK, "%s", err.msg);
     return st.rmse;
 }
 
@@ -641,12 +646,14 @@ static const btf_chunk_info *chunk_of(const btf_package *p, int j)
 
 /* The k 3, 6-component version-3 settings of the estimate tests: tex_noise (0:
  * the default), the textures counted scale times over (0: once). */
-static void estimate_settings(float tex_noise, double scale, btf_pca_options *po, btf_package_options *ko)
+static void estimate_settings(float tex_noise, double scale, btf_pca_options *po, btf_package_options *ko,
+                              btf_package_channel *ch)
 {
     *po = (btf_pca_options){0};
     po->k = 3, po->components = 6;
     *ko = (btf_package_options){0};
-    ko->rd = 1, ko->tex_noise = tex_noise, ko->tex_rate_scale = scale;
+    *ch = (btf_package_channel){0};
+    ko->rd = 1, ko->tex_noise = tex_noise, ch->tex_rate_scale = scale;
 }
 
 /* The manifest text (malloc'd) of an estimate of src with those settings, made
@@ -657,15 +664,16 @@ static char *estimate_text(const btf *src, float tex_noise, double scale, const 
     snprintf(out, sizeof out, "%s/e", tmp);
     btf_pca_options po;
     btf_package_options ko;
-    estimate_settings(tex_noise, scale, &po, &ko);
-    ko.estimate = &text;
+    btf_package_channel ch;
+    estimate_settings(tex_noise, scale, &po, &ko, &ch);
+    ch.estimate = &text;
     btf_error err = {0};
     test_rmtree(out);
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, out, NULL, &err), BTF_OK, "%s", err.msg);
     return text;
 }
 
-/* One estimate (btf_package_options.estimate) at tex_noise against the package then
+/* One estimate (btf_package_channel.estimate) at tex_noise against the package then
  * written into tmp/e with the same settings; returns how many components were
  * estimated exactly (an encoded ladder step). */
 static int check_estimate(const btf *src, float tex_noise, const char *tmp)
@@ -679,8 +687,9 @@ static int check_estimate(const btf *src, float tex_noise, const char *tmp)
     cr_assert_eq(btf_manifest_parse(text, "estimate", &est, &err), BTF_OK, "%s", err.msg);
     btf_pca_options po;
     btf_package_options ko;
-    estimate_settings(tex_noise, 0.0, &po, &ko);
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package_channel ch;
+    estimate_settings(tex_noise, 0.0, &po, &ko, &ch);
+    cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, out, NULL, &err), BTF_OK, "%s", err.msg);
     btf_package *p = read_ok(out);
     cr_assert_eq(est.n_chunks, p->n_chunks);
     cr_assert_str_eq(est.rd, p->rd, "the same steps chosen");
@@ -733,12 +742,12 @@ Test(rd, an_estimate_writes_nothing_and_matches_the_package_written)
     /* without the allocation there is nothing to estimate from */
     btf_pca_options po = {0};
     po.k = 3, po.components = 6;
-    btf_package_options ko = {0};
+    btf_package_channel ch = {0};
     char *none = NULL;
-    ko.estimate = &none;
+    ch.estimate = &none;
     btf_error err = {0};
     snprintf(out, sizeof out, "%s/e", tmp);
-    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_ERR_ARG);
+    cr_assert_eq(btf_package_compress_with(src, &po, NULL, &ch, out, NULL, &err), BTF_ERR_ARG);
     cr_assert_null(none);
     btf_free(src);
     cr_assert_eq(test_rmtree(tmp), 0);
@@ -827,7 +836,7 @@ Test(rd, a_large_material_is_screened_on_its_centre_window)
 }
 
 /* Counts the manifests the writer creates (file number 2C is a package's manifest:
- * the hook numbering of btf_package_options.write_hook). */
+ * the hook numbering of btf_package_channel.write_hook). */
 Test(rd, a_written_winner_over_the_budget_is_fitted_again)
 {
     /* The thesis wool at 64x64, k 3 centred, 8 components, at the thesis format's
@@ -879,11 +888,12 @@ Test(rd, a_budget_search_writes_only_the_winner)
     btf_budget b = {0};
     b.max_bytes = 60000, b.max_components = 6, b.k[0] = 1, b.k[1] = 3, b.n_k = 2;
     btf_package_options ko = {0};
+    btf_package_channel hook = {0};
     int manifests = 0;
-    ko.rd = 1, ko.write_hook = count_manifests, ko.hook_ctx = &manifests;
+    ko.rd = 1, hook.write_hook = count_manifests, hook.hook_ctx = &manifests;
     btf_budget_result res;
     btf_error err = {0};
-    cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_budget_compress_with(src, NULL, &ko, &hook, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(res.n_candidates, 3, "k 1 and 3 with fitted steps, the best centred");
     cr_assert_eq(manifests, 1, "%d packages written for %d candidates", manifests, res.n_candidates);
     /* the record's choice is the package as written: its bytes on disk, its error */

@@ -20,6 +20,7 @@
 #include "btf_render.h"
 #include "test_gl_util.h"
 #include "test_util.h"
+#include "btf_decode.h"
 
 #define TW 16 /* material side in texels */
 #define TC 4  /* components */

@@ -13,6 +13,7 @@
 #include "btf_gen.h"
 #include "btf_io.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 /* Writes the knit material in set d as an image directory dir (.ext). */
 static btf *write_dir(const btf_dirset *d, int size, const char *dir, const char *ext)

@@ -14,6 +14,7 @@
 #include "btf_io.h"
 #include "btf_thesis.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 /* ------------------------------------------------------------ helpers */
 

@@ -11,6 +11,7 @@
 #include "btf_image.h"
 #include "btf_io.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 /* 1 + 6 directions: the pole and a ring at 30 deg (phi 0, 60, ..., 300): 49 images. */
 static btf_dirset small_set(void)

@@ -14,6 +14,7 @@
 #include "btf_views.h"
 #include "test_gen_util.h"
 #include "test_util.h"
+#include "btf_input.h"
 
 /* Every file of package a equals the same file of package b (and b has no other). */
 static void expect_same_package(const char *a, const char *b, const char *what)

@@ -1,5 +1,6 @@
 /* btf_args.c - command-line parsing shared by the `btf` subcommands (btf_args.h). */
 #include "btf_args.h"
+#include "btf_common.h"
 
 #include <errno.h>
 #include <getopt.h>

@@ -2,6 +2,7 @@
 #include "btf_build.h"
 
 #include "btf_fs.h"
+#include "btf_common.h"
 
 #include <stdio.h>
 #include <string.h>

@@ -2,6 +2,7 @@
 #include "btf_source.h"
 
 #include "btf_gen.h"
+#include "btf_common.h"
 
 #include <errno.h>
 #include <stdio.h>

@@ -8,6 +8,7 @@
 #include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_source.h"
+#include "btf_common.h"
 
 #include <errno.h>
 #include <stdio.h>

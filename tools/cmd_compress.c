@@ -14,6 +14,7 @@
 #include "btf_budget.h"
 #include "btf_lod.h"
 #include "btf_output.h"
+#include "btf_common.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -10,6 +10,7 @@
 #include "btf_cli.h"
 #include "btf_io.h"
 #include "btf_source.h"
+#include "btf_input.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -10,6 +10,7 @@
 #include "btf_package.h"
 #include "btf_render.h"
 #include "btf_thesis.h"
+#include "btf_common.h"
 
 #include <dirent.h>
 #include <math.h>

@@ -4,6 +4,7 @@
  * draws every chart twice: SVG and PNG (pngcairo). */
 #include "btf_chart.h"
 #include "btf_fs.h"
+#include "btf_common.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -15,6 +15,8 @@
 #include <unistd.h>
 
 #include "btf_fs.h"
+#include "btf_common.h"
+#include "btf_blocks.h"
 
 #define BTF__H (1.0f / 255.0f) /* half a byte step over [-1, 1] */
 #define BTF__S 0.05f           /* half the 0.1 sigma step */

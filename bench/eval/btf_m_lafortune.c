@@ -16,6 +16,7 @@
  * worse than the grid start's; otherwise (solver error, divergence, out of bounds,
  * worse) the texel keeps the grid start (counted in btf_model.n_fallback). Never NaN. */
 #include "btf_method.h"
+#include "btf_common.h"
 
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit_nlinear.h>

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "btf_pca.h"
+#include "btf_common.h"
 
 #define BTF__LPYR_MAX 12
 

@@ -13,6 +13,9 @@
 
 #include "btf_package.h"
 #include "btf_fs.h"
+#include "btf_common.h"
+#include "btf_decode.h"
+#include "btf_blocks.h"
 
 /* Clamps k to the view count and C to what the smallest block allows. */
 static btf_result btf__pca_opts(const btf *src, btf_method_params *p, btf_pca_options *o, btf_error *err)
@@ -25,7 +28,7 @@ static btf_result btf__pca_opts(const btf *src, btf_method_params *p, btf_pca_op
         p->components = 8;
     o->k = p->k > V ? V : p->k;
     btf_blocks *bl = NULL;
-    btf_result r = btf_group_views(&src->views, o->k, BTF_GROUP_DEFAULT, &bl, err);
+    btf_result r = btf_blocks_group(&src->views, o->k, BTF_GROUP_DEFAULT, &bl, err);
     if (r != BTF_OK)
         return r;
     int smallest = V;

@@ -6,6 +6,7 @@
  * smallest residual over RGB is kept. The normal equations' matrix depends only on
  * the directions, so a texel costs one pass over its samples. */
 #include "btf_method.h"
+#include "btf_common.h"
 
 #include <math.h>
 #include <stdlib.h>

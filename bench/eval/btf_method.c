@@ -2,6 +2,7 @@
  * the one place that names every method (the helpers the methods share are
  * btf_m_shared.c, below both). */
 #include "btf_method.h"
+#include "btf_common.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -7,6 +7,7 @@
  * texel, so it reproduces stored values exactly. */
 #include "btf_gen.h"
 #include "btf_color.h"
+#include "btf_common.h"
 
 #include <math.h>
 #include <pthread.h>

@@ -2,6 +2,7 @@
  * function table, textures, framebuffers, readback. The backends live in
  * btf_gl_egl.c and btf_gl_osmesa.c; this file only calls them through their tables. */
 #include "btf_gl.h"
+#include "btf_common.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -1,5 +1,6 @@
 /* btf_gl_dirs.c - direction tables on the GPU (btf_gl_dirs.h). */
 #include "btf_gl_dirs.h"
+#include "btf_common.h"
 
 #include <stdint.h>
 #include <stdlib.h>

@@ -6,6 +6,7 @@
  * so they dispatch to this context even when libOSMesa is linked into the binary.
  */
 #include "btf_gl.h"
+#include "btf_common.h"
 
 #include <EGL/egl.h>
 #include <EGL/eglext.h>

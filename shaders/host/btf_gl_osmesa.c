@@ -6,6 +6,7 @@
  * OSMesaGetProcAddress, never from global symbols (glvnd would dispatch them to EGL).
  */
 #include "btf_gl.h"
+#include "btf_common.h"
 
 #include <GL/osmesa.h>
 #include <stdlib.h>

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "btf_lod.h"
+#include "btf_common.h"
 
 #include <math.h>
 #include <stdint.h>

@@ -3,6 +3,7 @@
 
 #include "btf_image.h"
 #include "btf_shader.h"
+#include "btf_common.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -2,6 +2,7 @@
  * btf_gl, error reports against the numbered assembled source (see btf_shader.h). */
 #include "btf_shader.h"
 #include "btf_fs.h"
+#include "btf_common.h"
 
 #include <cjson/cJSON.h>
 #include <ctype.h>

@@ -1,0 +1,44 @@
+/* btf_common.h - plumbing shared by the codec's rooms and the project's other
+ * rooms, not part of the installed API: error formatting, name lookup, area
+ * weights, 8-bit view columns. Implemented in btf_core.c and btf_views.c.
+ */
+#ifndef BTF_COMMON_H
+#define BTF_COMMON_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "btf.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Index of name in names[0..n-1] (exact match), -1 if absent or NULL: the one
+ * name-to-enum lookup of every module with named values. */
+int btf_name_index(const char *const *names, int n, const char *name);
+
+/* Formats into err (if non-NULL; control characters become ?, so the message is one
+ * line) and returns code: for use by library modules. */
+btf_result btf_fail(btf_error *err, btf_result code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+/* Area-weighted resampling from n_in to n_out <= n_in samples along one axis (the
+ * box filter, also for sizes that do not divide): output i covers
+ * [i*n_in/n_out, (i+1)*n_in/n_out) in input units and input sample first[i] + s
+ * (s < cnt[i]) weighs w[i*maxc + s], its overlap over the width; the weights of an
+ * output sum to 1. maxc >= n_in/n_out + 2 always suffices; 0, or -1 when an output
+ * would need more than maxc inputs. */
+int btf_area_weights(int n_in, int n_out, int *first, int *cnt, float *w, int maxc);
+
+/* Planar columns of one interleaved 8-bit RGB image (texels*3 bytes) into
+ * cols[c * texels + i] = px[3 i + c] * (1/255), the scale of btf_get. */
+void btf_views_put_u8(const uint8_t *px, size_t texels, float *cols);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,607 @@
+/* btf_budget.c - compression to a byte budget or a CIELab target: one compression
+ * per candidate k, every prefix measured from its manifest, the best cut and kept. */
+#include "btf_budget.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "btf_compress.h"
+#include "btf_fs.h"
+#include "btf_manifest.h"
+#include "btf_rd.h"
+#include "btf_common.h"
+
+/* The candidate k values: the budget's, else 1, 3 and 9, within 1..views. */
+static int btf__budget_ks(const btf_budget *b, int views, int *ks)
+{
+    static const int dflt[3] = {1, 3, 9};
+    const int *src = b->n_k > 0 ? b->k : dflt;
+    int n = 0, m = b->n_k > 0 ? b->n_k : 3;
+    for (int i = 0; i < m && i < BTF_BUDGET_MAX_K; i++)
+        if (src[i] >= 1 && src[i] <= views)
+            ks[n++] = src[i];
+    return n;
+}
+
+/* Bytes of the package made of the first n chunks of p: its manifest and files. */
+static long long btf__prefix_bytes(btf_package *p, int n)
+{
+    int all = p->n_chunks;
+    p->n_chunks = n;
+    char *text = btf_manifest_print(p, NULL);
+    p->n_chunks = all;
+    long long bytes = text ? (long long)strlen(text) : 0;
+    free(text);
+    for (int i = 0; i < n; i++)
+        bytes += p->chunk[i].bytes;
+    return bytes;
+}
+
+/* The best prefix of p under b (see btf_budget); n_chunks 0 when none fits. */
+static btf_budget_choice btf__best_prefix(btf_package *p, const btf_budget *b, int *met)
+{
+    btf_budget_choice c = {.k = p->k, .bytes = btf__prefix_bytes(p, 1)}, low = c; /* none: what one chunk needs */
+    *met = 0;
+    for (int n = 1; n <= p->n_chunks; n++) {
+        btf_budget_choice t = {.k = p->k, .n_chunks = n, .bytes = btf__prefix_bytes(p, n), .lab = p->chunk[n - 1].lab,
+                               .rmse = p->chunk[n - 1].rmse};
+        if (low.n_chunks == 0 || t.lab < low.lab)
+            low = t;
+        if (b->max_bytes > 0 && t.bytes <= b->max_bytes && (c.n_chunks == 0 || t.lab < c.lab))
+            c = t, *met = 1;
+        if (b->max_error > 0 && t.lab <= b->max_error && c.n_chunks == 0)
+            c = t, *met = 1;
+    }
+    return b->max_error > 0 && !*met ? low : c; /* an unreachable target: the lowest error, reported as unmet */
+}
+
+/* The "budget" record of the manifest: what was asked, chosen and measured. */
+static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
+{
+    cJSON *o = cJSON_CreateObject(), *cands = NULL;
+    if (b->max_bytes > 0)
+        cJSON_AddNumberToObject(o, "max_bytes", (double)b->max_bytes);
+    else
+        cJSON_AddNumberToObject(o, "max_error", b->max_error);
+    cJSON_AddBoolToObject(o, "met", res->met);
+    cJSON_AddNumberToObject(o, "k", res->k);
+    cJSON_AddNumberToObject(o, "components", res->components);
+    if (res->rd_fit)
+        cJSON_AddStringToObject(o, "rd_steps", "fitted");
+    if (res->center == BTF_CENTER_ROW)
+        cJSON_AddStringToObject(o, "center", "row");
+    cJSON_AddNumberToObject(o, "chunks", res->n_chunks);
+    cJSON_AddNumberToObject(o, "bytes", (double)res->bytes);
+    cJSON_AddNumberToObject(o, "lab", res->lab);
+    if (res->screen_width > 0) {
+        int wh[2] = {res->screen_width, res->screen_height};
+        cJSON_AddItemToObject(o, "screen", cJSON_CreateIntArray(wh, 2));
+    }
+    cands = cJSON_AddArrayToObject(o, "candidates");
+    for (int i = 0; cands && i < res->n_candidates; i++) {
+        const btf_budget_choice *c = &res->candidate[i];
+        cJSON *e = cJSON_CreateObject();
+        cJSON_AddNumberToObject(e, "k", c->k);
+        cJSON_AddNumberToObject(e, "components", c->components);
+        if (c->rd_fit)
+            cJSON_AddStringToObject(e, "rd_steps", "fitted");
+        if (c->center == BTF_CENTER_ROW)
+            cJSON_AddStringToObject(e, "center", "row");
+        cJSON_AddNumberToObject(e, "chunks", c->n_chunks);
+        cJSON_AddNumberToObject(e, "bytes", (double)c->bytes);
+        cJSON_AddNumberToObject(e, "lab", c->lab);
+        cJSON_AddItemToArray(cands, e);
+    }
+    char *s = cJSON_PrintUnformatted(o);
+    cJSON_Delete(o);
+    return s;
+}
+
+/* Cuts the package in dir to its first n chunks and records the budget. */
+static btf_result btf__budget_cut(const char *dir, int n, char *budget_json, btf_error *err)
+{
+    btf_package p;
+    btf_result r = btf_manifest_load(dir, &p, err);
+    char path[BTF_FS_PATH_MAX + 80];
+    for (int i = n; r == BTF_OK && i < p.n_chunks; i++)
+        for (int f = 0; f < p.chunk[i].n_files; f++) {
+            snprintf(path, sizeof path, "%s/%s", dir, p.chunk[i].files[f]);
+            unlink(path); /* a file of a dropped chunk, named by our own manifest */
+        }
+    char *text = NULL;
+    if (r == BTF_OK) {
+        int all = p.n_chunks;
+        char *old = p.budget; /* the record of an earlier round, if any: replaced */
+        p.n_chunks = n, p.budget = budget_json;
+        text = btf_manifest_print(&p, err);
+        p.budget = old, p.n_chunks = all; /* btf_manifest_clear frees every chunk's ranges */
+        r = text ? BTF_OK : BTF_ERR_NOMEM;
+    }
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(path, text, strlen(text), err);
+    free(text);
+    btf_manifest_clear(&p);
+    return r;
+}
+
+/* Bytes of the package in dir as written: its manifest and the files it lists. */
+static long long btf__package_bytes(const char *dir)
+{
+    btf_package p;
+    char path[BTF_FS_PATH_MAX + 80];
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    long long n = btf_fs_size(path);
+    if (btf_manifest_load(dir, &p, NULL) != BTF_OK)
+        return -1;
+    for (int i = 0; i < p.n_chunks; i++)
+        for (int f = 0; f < p.chunk[i].n_files; f++) {
+            snprintf(path, sizeof path, "%s/%s", dir, p.chunk[i].files[f]);
+            n += btf_fs_size(path);
+        }
+    btf_manifest_clear(&p);
+    return n;
+}
+
+/* Cuts the chosen package and records the budget; the record itself takes bytes, so
+ * under a byte budget the cut drops chunks until the package as written fits. */
+static btf_result btf__budget_finish(const char *dir, const btf_budget *b, btf_budget_result *rs, btf_error *err)
+{
+    btf_result r = BTF_OK;
+    for (int round = 0; round < 4 * BTF_PACKAGE_MAX_CHUNKS; round++) { /* ends: chunks only decrease */
+        char *json = btf__budget_json(b, rs);
+        r = json ? btf__budget_cut(dir, rs->n_chunks, json, err) : btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
+        free(json);
+        long long real = r == BTF_OK ? btf__package_bytes(dir) : -1;
+        if (r != BTF_OK || real < 0 || b->max_bytes <= 0 || real <= b->max_bytes || rs->n_chunks <= 1) {
+            if (r != BTF_OK || real < 0 || real == rs->bytes || round > 2 * BTF_PACKAGE_MAX_CHUNKS)
+                return r;
+            rs->bytes = real; /* once more, so the record states the bytes as written */
+            continue;
+        }
+        btf_package p; /* one chunk fewer: its error from the manifest */
+        if ((r = btf_manifest_load(dir, &p, err)) != BTF_OK)
+            return r;
+        rs->n_chunks--;
+        rs->lab = p.chunk[rs->n_chunks - 1].lab, rs->rmse = p.chunk[rs->n_chunks - 1].rmse;
+        btf_manifest_clear(&p);
+    }
+    return r;
+}
+
+/* The most components, up to n, that blocks of k views of src hold. */
+static int btf__fit_components(const btf *src, btf_pca_options po, int k, int n)
+{
+    po.k = k, po.components = n;
+    while (po.components > 1 && btf_pca_check(src, &po, NULL) != BTF_OK)
+        po.components--; /* small blocks hold fewer components */
+    return po.components;
+}
+
+/* Bytes of chunk i's texture files (tex-*) of p, as written in dir; 0 when none. */
+static long long btf__chunk_tex_bytes(const btf_package *p, const char *dir, int i)
+{
+    char path[BTF_FS_PATH_MAX + 80];
+    long long sum = 0;
+    for (int f = 0; f < p->chunk[i].n_files; f++)
+        if (!strncmp(p->chunk[i].files[f], "tex-", 4)) {
+            snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
+            long long n = btf_fs_size(path);
+            sum += n > 0 ? n : 0;
+        }
+    return sum;
+}
+
+/* Counts the texture files of every chunk of p, written in dir, scale times over (a
+ * version-1 package of the search's window standing for the whole material; a
+ * version-3 estimate scales its rates itself: btf_package_channel.tex_rate_scale). */
+static void btf__budget_scale_textures(btf_package *p, const char *dir, double scale)
+{
+    for (int i = 0; i < p->n_chunks; i++) {
+        long long n = btf__chunk_tex_bytes(p, dir, i);
+        p->chunk[i].bytes += n > 0 ? llround((double)n * (scale - 1.0)) : 0;
+    }
+}
+
+/* Compresses candidate k with up to n components into dir, or with estimate (rd
+ * only) measures it without writing anything (btf_package_channel.estimate), and
+ * reads off its best prefix; *all_kept = 1 when that prefix is every chunk. */
+static btf_result btf__budget_try(const btf *src, btf_pca_options po, const btf_package_options *o,
+                                  btf_package_channel ch, int k, int n,
+                                  const btf_budget *b, const char *dir, int estimate, btf_budget_choice *c, int *met,
+                                  int *all_kept, btf_error *err)
+{
+    po.k = k;
+    po.components = btf__fit_components(src, po, k, n);
+    char *text = NULL;
+    ch.estimate = estimate ? &text : NULL;
+    btf_fs_rmtree(dir, NULL);
+    btf_result r = btf_package_compress_with(src, &po, o, &ch, dir, NULL, err);
+    if (r != BTF_OK)
+        return r;
+    btf_package p;
+    memset(&p, 0, sizeof p);
+    r = estimate ? btf_manifest_parse(text, dir, &p, err) : btf_manifest_load(dir, &p, err);
+    if (r == BTF_OK && !estimate && ch.tex_rate_scale > 1.0)
+        btf__budget_scale_textures(&p, dir, ch.tex_rate_scale);
+    if (r == BTF_OK) {
+        *c = btf__best_prefix(&p, b, met);
+        c->components = po.components;
+        *all_kept = c->n_chunks > 0 && c->n_chunks == p.n_chunks;
+    }
+    btf_manifest_clear(&p);
+    free(text);
+    return r;
+}
+
+/* The candidate list of a search: settings in, measurements out; owned by
+ * btf_budget_compress for one call. */
+typedef struct btf__search {
+    const btf *src;
+    /* what the candidates are measured on, src or its centre window
+     * (btf__budget_screen; owned here when it is not src), and that window's
+     * texture bytes factor */
+    const btf *screen;
+    double screen_scale;
+    btf_pca_options pca;
+    btf_package_options po;
+    btf_package_channel hook; /* the caller's write_hook and hook_ctx, passed to every write */
+    const btf_budget *b;
+    const char *out;
+    char dir[BTF_BUDGET_MAX_CANDIDATES][BTF_FS_PATH_MAX];
+    int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
+    btf_budget_result rs;
+    int best, best_met;
+    /* with rd: [0] the best candidate's PCA model, measured steps and chosen steps
+     * (the winner is written from the first two when there is no window, with its
+     * ladder measured near the third when there is one), [1] the last other
+     * candidate's */
+    btf_pca_model *model[2];
+    btf_rd_ladder ladder[2];
+    btf_rd_result rd[2];
+    long long fit_bytes; /* with rd: the bytes steps are fitted to, 0 = the budget's (btf__budget_refit) */
+    int final_kept;      /* with rd: components the written winner's allocation kept within them */
+    long long *final_tex; /* with rd: its estimate of each component's atlas (malloc'd, n_final) */
+    int n_final;
+    double *tex_fix;     /* NULL, or per component the atlas written over its estimate (the refit) */
+} btf__search;
+
+/* 1 when candidates a and b have the same PCA model: k, components, centring. */
+static int btf__budget_same_model(const btf_budget_choice *a, const btf_budget_choice *b)
+{
+    return a->k == b->k && a->components == b->components && a->center == b->center;
+}
+
+/* The model and ladder slot of candidate i: the best's when it has the best's model. */
+static int btf__budget_model_slot(const btf__search *s, int i)
+{
+    return s->best >= 0 && btf__budget_same_model(&s->rs.candidate[s->best], &s->rs.candidate[i]) ? 0 : 1;
+}
+
+/* What candidate i's ladder is measured near (btf_package_channel.rd_near), or NULL
+ * for every step: the best's choice on the window when the best is written from the
+ * whole material, the one it grew from for a grown candidate (its first components).
+ * Measured on tiles, stone and knit at 128x128: the same steps as with every step
+ * measured, at half the ladder's time (doc/package-format.md section 11). */
+static const btf_rd_result *btf__budget_near(const btf__search *s, int i, int final)
+{
+    const btf_budget_choice *c = &s->rs.candidate[i], *b = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
+    if (!s->po.rd || !b || s->rd[0].n_comp < 1)
+        return NULL;
+    if (final)
+        return s->screen != s->src ? &s->rd[0] : NULL;
+    return b->k == c->k && b->center == c->center && b->components < c->components ? &s->rd[0] : NULL;
+}
+
+/* Keeps what the written winner's allocation rd kept and estimated, for the refit;
+ * frees rd. */
+static void btf__budget_keep_final(btf__search *s, btf_rd_result *rd)
+{
+    s->final_kept = rd->n_kept;
+    free(s->final_tex);
+    s->final_tex = rd->tex_bytes, s->n_final = rd->tex_bytes ? rd->n_comp : 0;
+    rd->tex_bytes = NULL;
+    btf_rd_result_free(rd);
+}
+
+/* Candidate i measured with its settings on the search's window (final: compressed
+ * from the whole material and written); into *got. With rd a measured candidate is
+ * only estimated, without it written on the window. */
+static btf_result btf__budget_run(btf__search *s, int i, int final, btf_budget_choice *got, int *met,
+                                  btf_error *err)
+{
+    int estimate = s->po.rd && !final;
+    const btf_budget_choice *c = &s->rs.candidate[i];
+    snprintf(s->dir[i], sizeof s->dir[i], "%s.tmp-%ld-k%d-c%d%s%s", s->out, (long)getpid(), c->k, c->components,
+             c->rd_fit ? "f" : "", c->center == BTF_CENTER_ROW ? "r" : "");
+    btf_package_options po = s->po;
+    btf_package_channel ch = {0};
+    ch.write_hook = s->hook.write_hook, ch.hook_ctx = s->hook.hook_ctx;
+    int slot = btf__budget_model_slot(s, i);
+    ch.rd_max_bytes = !c->rd_fit ? 0 : s->fit_bytes > 0 ? s->fit_bytes : s->b->max_bytes;
+    ch.rd_ladder = po.rd ? &s->ladder[slot] : NULL;
+    ch.rd_model = po.rd ? &s->model[slot] : NULL;
+    btf_rd_result rd = {0}; /* what this allocation chooses */
+    ch.rd_out = po.rd ? &rd : NULL;
+    ch.rd_near = btf__budget_near(s, i, final);
+    ch.rd_tex_fix = final ? s->tex_fix : NULL;
+    btf_pca_options pca = s->pca;
+    pca.center = c->center;
+    const btf *src = final ? s->src : s->screen;
+    if (src != s->src) { /* the window's textures stand for the material's */
+        ch.tex_rate_scale = s->screen_scale;
+        int lab = (int)((po.lab_max_texels > 0 ? po.lab_max_texels : 256) / s->screen_scale);
+        po.lab_max_texels = lab > 16 ? lab : 16;
+    }
+    *got = (btf_budget_choice){0};
+    btf_result r = btf__budget_try(src, pca, &po, ch, c->k, c->components, s->b, s->dir[i], estimate, got, met,
+                                   &s->all_kept[i], err);
+    got->rd_fit = c->rd_fit, got->center = c->center; /* the settings it was made with */
+    if (!final) /* kept with the model: the winner's whole-material ladder is measured near it */
+        btf_rd_result_free(&s->rd[slot]), s->rd[slot] = rd;
+    else
+        btf__budget_keep_final(s, &rd);
+    return r;
+}
+
+/* Measures candidate i (k, components, rd_fit and center already in
+ * rs.candidate[i]; on the window; with rd estimated, nothing written) and keeps it
+ * as the best if it keeps at least min_chunks chunks and its error (bytes, for an
+ * error target) is below edge x the best's. */
+static btf_result btf__budget_eval(btf__search *s, int i, int min_chunks, double edge, btf_error *err)
+{
+    btf_budget_choice got;
+    int met = 0;
+    int slot = btf__budget_model_slot(s, i);
+    btf_result r = btf__budget_run(s, i, 0, &got, &met, err);
+    btf_budget_choice *c = &s->rs.candidate[i];
+    *c = got;
+    s->rs.n_candidates = i + 1;
+    const btf_budget_choice *bc = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;
+    int better = c->n_chunks > 0 && c->n_chunks >= min_chunks &&
+                 (!bc || met > s->best_met ||
+                  (met == s->best_met && (s->b->max_bytes > 0 || !met ? c->lab < edge * bc->lab
+                                                                       : c->bytes < edge * bc->bytes)));
+    if (r == BTF_OK && better && slot == 1) { /* its model and steps are the best's now */
+        btf_pca_model *m = s->model[0];
+        btf_rd_ladder l = s->ladder[0];
+        s->model[0] = s->model[1], s->model[1] = m;
+        s->ladder[0] = s->ladder[1], s->ladder[1] = l;
+        btf_rd_result rd = s->rd[0];
+        s->rd[0] = s->rd[1], s->rd[1] = rd;
+    }
+    if (r == BTF_OK && better)
+        s->best = i, s->best_met = met;
+    return r;
+}
+
+/* Per component of the written winner (package p in dir), its atlas as written over
+ * the allocation's estimate of it (s->final_tex); a component without a written
+ * chunk gets the ratio of all written atlases over their estimates. malloc'd
+ * (n_final), or NULL when nothing was measured or without memory. */
+static double *btf__budget_tex_fix(const btf__search *s, const btf_package *p, const char *dir)
+{
+    double *fix = s->n_final > 0 ? calloc((size_t)s->n_final, sizeof(double)) : NULL;
+    double got = 0.0, est = 0.0;
+    for (int q = 0; fix && q < p->n_chunks; q++) {
+        int j = p->chunk[q].component;
+        long long n = j >= 0 && j < s->n_final ? btf__chunk_tex_bytes(p, dir, q) : 0;
+        if (n > 0 && s->final_tex[j] > 0)
+            fix[j] = (double)n / (double)s->final_tex[j], got += (double)n, est += (double)s->final_tex[j];
+    }
+    if (fix && !(est > 0.0))
+        free(fix), fix = NULL;
+    for (int j = 0; fix && j < s->n_final; j++)
+        fix[j] = fix[j] > 0.0 ? fix[j] : got / est;
+    return fix;
+}
+
+/* The written winner's steps fitted again when the chunks its allocation kept, as
+ * written, and the budget record came out over the budget and the cut dropped some
+ * of them (the chunk order is by error drop per byte, so the kept components are
+ * taken as the first chunks): the allocation's estimates fill the budget to within a
+ * few hundred bytes, but an atlas estimated from a sample of its tile rows can come
+ * out several percent larger, and the cut then loses a whole chunk (the thesis wool
+ * at 128x128, k 3 centred, 8 components: 7 chunks, CIELab 0.505, 220 bytes short of
+ * the eighth; at 256x256, 9 components: 8 chunks, 117 KB short, its atlases 0-14%
+ * above their estimates). Fitted again to the budget less the record and 0.2%, each
+ * component's texture rates scaled by its atlas as written over its estimate
+ * (btf_rd_params.tex_rate_fix), the better of the two writes is kept in the
+ * candidate's directory. */
+static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int *met, btf_error *err)
+{
+    int i = s->best;
+    btf_package p;
+    if (!s->po.rd || !s->rs.candidate[i].rd_fit || s->b->max_bytes <= 0 || got->n_chunks >= s->final_kept ||
+        btf_manifest_load(s->dir[i], &p, NULL) != BTF_OK)
+        return BTF_OK;
+    int n = s->final_kept < p.n_chunks ? s->final_kept : p.n_chunks;
+    long long kept_bytes = btf__prefix_bytes(&p, n); /* the chunks the allocation fitted, as written */
+    char *json = btf__budget_json(s->b, &s->rs);
+    long long record = json ? (long long)strlen(json) + 64 : 4096;
+    free(json);
+    long long over = kept_bytes + record - s->b->max_bytes;
+    long long fit = s->b->max_bytes - record - s->b->max_bytes / 500;
+    s->tex_fix = over > 0 ? btf__budget_tex_fix(s, &p, s->dir[i]) : NULL;
+    if (!s->tex_fix) /* no measured atlas: the budget less the overshoot instead */
+        fit = s->b->max_bytes - over - s->b->max_bytes / 500;
+    btf_manifest_clear(&p);
+    char aside[BTF_FS_PATH_MAX + 8];
+    snprintf(aside, sizeof aside, "%s.first", s->dir[i]);
+    if (over <= 0 || fit <= 0 || rename(s->dir[i], aside) != 0) {
+        free(s->tex_fix), s->tex_fix = NULL;
+        return BTF_OK; /* the error curve cut the chunks, not the bytes; or the first write stands */
+    }
+    btf_budget_choice again;
+    int met2 = 0, kept = s->all_kept[i];
+    s->fit_bytes = fit;
+    btf_result r = btf__budget_run(s, i, 1, &again, &met2, err);
+    s->fit_bytes = 0;
+    free(s->tex_fix), s->tex_fix = NULL;
+    if (r == BTF_OK && again.n_chunks > 0 && (met2 > *met || (met2 == *met && again.lab < got->lab))) {
+        *got = again, *met = met2;
+        btf_fs_rmtree(aside, NULL);
+        return BTF_OK;
+    }
+    btf_fs_rmtree(s->dir[i], NULL); /* the refit lost (or failed): the first write stands */
+    s->all_kept[i] = kept;
+    if (rename(aside, s->dir[i]) != 0)
+        return btf_fail(err, BTF_ERR_IO, "budget: cannot restore %s", s->dir[i]);
+    return BTF_OK;
+}
+
+/* The candidates were measured on a window or only estimated (rd): the best one is
+ * compressed from the whole material now (on the whole material with rd, from its
+ * kept model and ladder: the same steps), and its best prefix read off the files as
+ * written (fitted again when they overshoot the budget: btf__budget_refit). */
+static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
+{
+    btf_budget_choice got;
+    int met = 0;
+    btf_result r = btf__budget_run(s, s->best, 1, &got, &met, err);
+    if (r == BTF_OK && got.n_chunks > 0)
+        r = btf__budget_refit(s, &got, &met, err);
+    if (r == BTF_OK && got.n_chunks == 0)
+        r = btf_fail(err, BTF_ERR_RANGE, "budget: %lld bytes cannot hold even the first chunk as written (%lld)",
+                     s->b->max_bytes, got.bytes);
+    if (r == BTF_OK)
+        s->rs.candidate[s->best] = got, s->best_met = met;
+    return r;
+}
+
+/* While the best candidate keeps every component it has, it is tried again with
+ * half as many again, rounded up to a multiple of 4 (16, 24, 36, 56, 64: the
+ * renderer reads 4 per texel; up to BTF_BUDGET_MAX_COMPONENTS and what its blocks
+ * hold); stops when the larger one does not win. Steps of 1.5x, not 2x: with the
+ * steps fitted to the bytes the error is not monotonic in the count (tiles at
+ * 256x256: 16 components CIELab 1.82, 24 1.70, 32 1.74). The larger one wins only
+ * with more chunks kept, not by a lower error alone: with as many chunks it holds
+ * about the same components, and its edge is noise of the window (stone at 128x128:
+ * 24 components kept 16 chunks at the 16's error on the window, 5% more error on
+ * the whole material). */
+static btf_result btf__budget_grow(btf__search *s, btf_error *err)
+{
+    btf_result r = BTF_OK;
+    for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_GROW && s->best >= 0 && s->all_kept[s->best]; g++) {
+        btf_budget_choice c = s->rs.candidate[s->best];
+        int n = (c.components * 3 / 2 + 3) / 4 * 4;
+        n = n < BTF_BUDGET_MAX_COMPONENTS ? n : BTF_BUDGET_MAX_COMPONENTS;
+        n = btf__fit_components(s->src, s->pca, c.k, n);
+        if (n <= c.components)
+            break; /* the blocks hold no more */
+        int i = s->rs.n_candidates, was = s->best;
+        s->rs.candidate[i] = (btf_budget_choice){.k = c.k, .components = n, .rd_fit = c.rd_fit, .center = c.center};
+        r = btf__budget_eval(s, i, c.n_chunks + 1, 1.0, err);
+        if (s->best == was)
+            break;
+    }
+    return r;
+}
+
+/* The candidates are measured on the centre window of half the material's width
+ * and height where a side has at least BTF_BUDGET_SCREEN_MIN texels (a quarter of
+ * the texels: the PCA, the ladders, the quantisation pass and the files cost about
+ * a quarter), its texture bytes counted whole texels / window texels times over and
+ * its CIELab subsample as many times smaller (the same texel stride); the winner is
+ * then compressed from the whole material (btf__budget_write_best). */
+static btf_result btf__budget_screen(btf__search *s, btf_error *err)
+{
+    int w = s->src->width, h = s->src->height;
+    int cw = w >= BTF_BUDGET_SCREEN_MIN ? w / 2 : w, ch = h >= BTF_BUDGET_SCREEN_MIN ? h / 2 : h;
+    s->rs.screen_width = w, s->rs.screen_height = h;
+    if ((long)cw * ch == (long)w * h || s->b->full_search)
+        return BTF_OK;
+    btf *win = NULL;
+    btf_result r = btf_crop(s->src, (w - cw) / 2, (h - ch) / 2, cw, ch, &win, err);
+    if (r == BTF_OK) {
+        s->screen = win, s->screen_scale = (double)w * h / ((double)cw * ch);
+        s->rs.screen_width = cw, s->rs.screen_height = ch;
+    }
+    return r;
+}
+
+btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                               const btf_budget *budget, const char *out, btf_budget_result *res, btf_error *err)
+{
+    return btf_budget_compress_with(src, pca, opt, NULL, budget, out, res, err);
+}
+
+btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                                    const btf_package_channel *hook, const btf_budget *budget, const char *out,
+                                    btf_budget_result *res, btf_error *err)
+{
+    btf_budget_result rs;
+    memset(&rs, 0, sizeof rs);
+    if (!src || !budget || !out || strlen(out) > 4000 || (budget->max_bytes > 0) == (budget->max_error > 0))
+        return btf_fail(err, BTF_ERR_ARG, "budget: give exactly one of a byte budget and an error target");
+    btf_result r = btf_fs_replaceable(out, btf_manifest_owns_dir, NULL, err);
+    btf_package_options po = opt ? *opt : (btf_package_options){0};
+    int thumbnail = po.thumbnail; /* of the chosen package once it is cut, not of every candidate */
+    po.thumbnail = 0;
+    char name[BTF_PACKAGE_NAME_MAX];
+    if (!po.name) { /* the material is OUT's, not its temporaries' */
+        const char *slash = strrchr(out, '/');
+        snprintf(name, sizeof name, "%s", slash && slash[1] ? slash + 1 : out);
+        po.name = name;
+    }
+    btf__search *sr = calloc(1, sizeof *sr);
+    if (!sr)
+        return btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
+    *sr = (btf__search){.src = src, .screen = src, .screen_scale = 1.0, .pca = pca ? *pca : (btf_pca_options){0},
+                        .po = po, .b = budget, .out = out, .best = -1};
+    if (hook)
+        sr->hook.write_hook = hook->write_hook, sr->hook.hook_ctx = hook->hook_ctx;
+    if (r == BTF_OK)
+        r = btf__budget_screen(sr, err);
+    int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
+    int fit = po.rd && budget->max_bytes > 0; /* version 3: steps fitted to the bytes */
+    int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;
+    for (int i = 0; i < nk; i++)
+        sr->rs.candidate[nt++] = (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
+    for (int i = 0; r == BTF_OK && i < nt; i++)
+        r = btf__budget_eval(sr, i, 0, 1.0, err);
+    if (r == BTF_OK && sr->best >= 0 && sr->pca.center == BTF_CENTER_DEFAULT) { /* the best, centred */
+        sr->rs.candidate[nt] = sr->rs.candidate[sr->best];
+        sr->rs.candidate[nt].center = BTF_CENTER_ROW;
+        r = btf__budget_eval(sr, nt, 0, sr->screen != src ? 1.0 - BTF_BUDGET_SCREEN_EDGE : 1.0, err);
+    }
+    if (r == BTF_OK && budget->max_components <= 0)
+        r = btf__budget_grow(sr, err);
+    if (r == BTF_OK && sr->best >= 0 && (po.rd || sr->screen != src))
+        r = btf__budget_write_best(sr, err);
+    rs = sr->rs;
+    int best = sr->best, best_met = sr->best_met;
+    if (r == BTF_OK && best < 0) {
+        long long need = rs.candidate[0].bytes;
+        for (int i = 1; i < rs.n_candidates; i++)
+            need = rs.candidate[i].bytes < need ? rs.candidate[i].bytes : need;
+        r = btf_fail(err, BTF_ERR_RANGE, "budget: %lld bytes cannot hold even the first chunk (the smallest needs %lld)",
+                     budget->max_bytes, need);
+    }
+    if (r == BTF_OK) {
+        const btf_budget_choice *c = &rs.candidate[best];
+        rs.k = c->k, rs.components = c->components, rs.rd_fit = c->rd_fit, rs.center = c->center;
+        rs.n_chunks = c->n_chunks, rs.bytes = c->bytes;
+        rs.lab = c->lab, rs.rmse = c->rmse, rs.met = best_met;
+        r = btf__budget_finish(sr->dir[best], budget, &rs, err);
+        if (r == BTF_OK && thumbnail > 0)
+            r = btf_package_thumbnail(sr->dir[best], thumbnail, err);
+        if (r == BTF_OK)
+            r = btf_fs_replace_dir(sr->dir[best], out, btf_manifest_owns_dir, NULL, err);
+    }
+    for (int i = 0; i < rs.n_candidates; i++)
+        btf_fs_rmtree(sr->dir[i], NULL);
+    for (int i = 0; i < 2; i++)
+        btf_pca_model_free(sr->model[i]), btf_rd_ladder_free(&sr->ladder[i]), btf_rd_result_free(&sr->rd[i]);
+    free(sr->final_tex), free(sr->tex_fix);
+    if (sr->screen != src)
+        btf_free((btf *)sr->screen);
+    free(sr);
+    if (res)
+        *res = rs;
+    return r;
+}

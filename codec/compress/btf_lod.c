@@ -1,0 +1,689 @@
+/* btf_lod.c - spatial levels of a package (version 2 of doc/package-format.md,
+ * section 10): the builder (v1 package -> v2 with per-component mip levels); what the
+ * readers use (the texel look-up between levels, the chunk selection) is btf_lod_select.c. */
+#include "btf_lod.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "btf_fs.h"
+#include "btf_image.h"
+#include "btf_lap.h"
+#include "btf_manifest.h"
+#include "btf_png.h"
+#include "btf_wtz.h"
+#include "btf_common.h"
+#include "btf_read.h"
+
+/* ---------------------------------------------------------------- builder */
+
+/* State of one btf_lod_build call. Index a = position of the component in the v1
+ * chunk order; [a * nl + l] = its level l. */
+typedef struct btf__lod {
+    btf_package *p; /* the complete v1 package (owned) */
+    int nl, nb, C, W, H, ch, qmax;
+    int resid;       /* 1: version 4, levels < nl-1 may be stored as residuals */
+    char *isres;     /* [a*nl+l] version 4: 1 when that level's file is a residual (the smaller coding) */
+    char *iswebp;    /* [a*nl+l] version 4: 1 when that level's file is a lossless WebP (smaller than the PNG) */
+    int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
+    btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
+    char *w16res;    /* [a] version 4: 1 when the 16-bit weights are wt-JJ-r.z (the smaller coding) */
+    double thr;
+    float **lev;     /* [a*nl+l] dequantised texels, nb * Wl * Hl; level 0 borrowed from p->tex */
+    uint8_t **atlas; /* [a*nl+l] atlas pixels for l >= 1 */
+    double *contrib; /* [a*nl+l] */
+    long long *tbytes, *wbytes; /* [a*nl+l] texture file bytes; [a] weight file bytes */
+    long long *w8bytes;         /* [a] 8-bit weight file bytes (0: none, the first chunk is level 0) */
+    int *w8mult;                /* [a] step multiplier of the 8-bit weights (btf__w8_mult) */
+    uint8_t **w8q;              /* [a] the 8-bit weights written (V*L*3), NULL when none */
+    int *order;      /* n_chunks * 2: (a, l) in chunk order */
+    int n_order;
+    double *rmse_full; /* per chunk: RMSE against the complete package */
+} btf__lod;
+
+static void btf__lod_free(btf__lod *s)
+{
+    for (int i = 0; s->lev && i < s->C * s->nl; i++) {
+        if (i % s->nl)
+            free(s->lev[i]);
+        if (s->atlas)
+            free(s->atlas[i]);
+    }
+    free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
+    for (int a = 0; s->w8q && a < s->C; a++)
+        free(s->w8q[a]);
+    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->iswebp), free(s->w16res), free(s->pred);
+    free(s->rmse_full);
+    btf_package_free(s->p);
+}
+
+static int btf__default_levels(int W, int H, int want)
+{
+    int nl = 1;
+    while (nl < BTF_LOD_MAX_LEVELS && (want > 0 ? nl < want : nl < 4 && (W >> nl) >= 8 && (H >> nl) >= 8) &&
+           W % (1 << nl) == 0 && H % (1 << nl) == 0)
+        nl++;
+    return nl;
+}
+
+/* 2x2 box average of the exact previous level into ex (nb tiles of w x h, w = 2 * next). */
+static void btf__box(const float *prev, int nb, int w, int h, float *next)
+{
+    int w2 = w / 2, h2 = h / 2;
+    for (int b = 0; b < nb; b++)
+        for (int y = 0; y < h2; y++)
+            for (int x = 0; x < w2; x++) {
+                const float *t = prev + (size_t)b * w * h + (size_t)(2 * y) * w + 2 * x;
+                next[(size_t)b * w2 * h2 + (size_t)y * w2 + x] = 0.25f * ((t[0] + t[1]) + (t[w] + t[w + 1]));
+            }
+}
+
+/* Quantises level l of component a from the exact values ex with the v1 ranges. */
+static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
+{
+    const btf_package *p = s->p;
+    int w = s->W >> l, h = s->H >> l, aw = p->atlas_cols * w;
+    float *dq = s->lev[a * s->nl + l];
+    uint8_t *px = s->atlas[a * s->nl + l];
+    for (int b = 0; b < s->nb; b++) {
+        const float *rg = p->chunk[a].tex_range + 2 * b;
+        int x0 = (b % p->atlas_cols) * w, y0 = (b / p->atlas_cols) * h;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                size_t i = (size_t)b * w * h + (size_t)y * w + x;
+                float qf = rg[1] > 0.0f ? rintf((ex[i] - rg[0]) / rg[1]) : 0.0f;
+                unsigned q = qf <= 0.0f ? 0u : qf >= (float)s->qmax ? (unsigned)s->qmax : (unsigned)qf;
+                dq[i] = rg[0] + rg[1] * (float)q;
+                uint8_t *o = px + ((size_t)(y0 + y) * aw + (size_t)(x0 + x)) * s->ch;
+                if (s->ch == 3)
+                    o[0] = (uint8_t)(q >> 8), o[1] = (uint8_t)(q & 255u);
+                else
+                    o[0] = (uint8_t)q;
+            }
+    }
+}
+
+/* Levels 1..nl-1 of every component. */
+static btf_result btf__make_levels(btf__lod *s, btf_error *err)
+{
+    const btf_package *p = s->p;
+    size_t n0 = (size_t)s->nb * s->W * s->H;
+    float *ex = malloc(n0 * sizeof(float)), *ex2 = malloc(n0 * sizeof(float));
+    for (int a = 0; ex && ex2 && a < s->C; a++) {
+        s->lev[a * s->nl] = p->tex[a];
+        memcpy(ex, p->tex[a], n0 * sizeof(float));
+        for (int l = 1; l < s->nl; l++) {
+            int w = s->W >> l, h = s->H >> l;
+            btf__box(ex, s->nb, w * 2, h * 2, ex2);
+            float *t = ex;
+            ex = ex2, ex2 = t;
+            s->lev[a * s->nl + l] = malloc((size_t)s->nb * w * h * sizeof(float));
+            s->atlas[a * s->nl + l] = calloc((size_t)p->atlas_cols * w * p->atlas_rows * h * s->ch, 1);
+            if (!s->lev[a * s->nl + l] || !s->atlas[a * s->nl + l]) {
+                free(ex), free(ex2);
+                return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
+            }
+            btf__quant_level(s, a, l, ex);
+        }
+    }
+    int ok = ex && ex2;
+    free(ex), free(ex2);
+    return ok ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
+}
+
+/* RMS (0..255) of component a's contribution at level l over its texels and every
+ * measured (view, light, channel). */
+static void btf__contribs(btf__lod *s)
+{
+    const btf_package *p = s->p;
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    for (int a = 0; a < s->C; a++) {
+        double *wsum = calloc((size_t)s->nb, sizeof(double));
+        if (!wsum)
+            return; /* contrib stays 0: the order degrades, nothing breaks */
+        for (int v = 0; v < V; v++)
+            for (size_t k = 0; k < (size_t)L * 3; k++) {
+                double x = p->wt[a][(size_t)v * L * 3 + k];
+                wsum[p->blocks->block_of_view[v]] += x * x;
+            }
+        for (int l = 0; l < s->nl; l++) {
+            size_t n = (size_t)(s->W >> l) * (s->H >> l);
+            double e = 0.0;
+            for (int b = 0; b < s->nb; b++) {
+                const float *t = s->lev[a * s->nl + l] + (size_t)b * n;
+                double tt = 0.0;
+                for (size_t i = 0; i < n; i++)
+                    tt += (double)t[i] * t[i];
+                e += tt / (double)n * wsum[b];
+            }
+            s->contrib[a * s->nl + l] = 255.0 * sqrt(e / ((double)V * L * 3));
+        }
+        free(wsum);
+    }
+}
+
+/* Chunk order (section 10): groups by display level, coarsest first; component a
+ * with visibility level vis (coarsest level whose contrib >= thr) appears at every
+ * level it is needed: its levels >= vis all in group vis (coarse to fine), then one
+ * level per finer group; invisible components close the list. */
+static void btf__lod_order(btf__lod *s)
+{
+    int nl = s->nl;
+    s->n_order = 0;
+    for (int g = nl - 1; g >= -1; g--)
+        for (int a = 0; a < s->C; a++) {
+            int vis = -1;
+            for (int l = nl - 1; l >= 0 && vis < 0; l--)
+                if (s->contrib[a * nl + l] >= s->thr)
+                    vis = l;
+            if (a == 0)
+                vis = nl - 1;
+            if (vis != g && !(g >= 0 && vis > g))
+                continue;
+            int lo = g < 0 ? 0 : g, hi = vis == g ? nl - 1 : g;
+            for (int l = hi; l >= lo; l--) {
+                s->order[2 * s->n_order] = a;
+                s->order[2 * s->n_order + 1] = l;
+                s->n_order++;
+            }
+        }
+}
+
+/* Component a's level-l texels upsampled to level 0 (bilinear at the texel centres). */
+static void btf__upsample(const btf__lod *s, int a, int l, int b, float *out)
+{
+    int w = s->W >> l, h = s->H >> l;
+    const float *tile = s->lev[a * s->nl + l] + (size_t)b * w * h;
+    for (int y = 0; y < s->H; y++)
+        for (int x = 0; x < s->W; x++)
+            out[(size_t)y * s->W + x] = btf_package_level_sample(tile, l, w, h, x, y);
+}
+
+static double btf__dot(const float *x, const float *y, size_t n)
+{
+    double d = 0.0;
+    for (size_t i = 0; i < n; i++)
+        d += (double)x[i] * y[i];
+    return d;
+}
+
+/* RMSE against the complete package after each chunk of the order, at level 0 over
+ * every measured pair: |D W^T|^2 = sum_ab (d_a.d_b)(w_a.w_b) per block, where d_a is
+ * component a's full texture minus what the chunks so far give (0 if absent). */
+static btf_result btf__errors(btf__lod *s, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int C = s->C, V = p->views.n_dirs, L = p->lights.n_dirs;
+    size_t N = (size_t)s->W * s->H, CC = (size_t)C * C;
+    float *D = malloc((size_t)C * s->nb * N * sizeof(float)), *up = malloc(N * sizeof(float));
+    double *G = calloc(CC * s->nb, sizeof(double)), *WW = calloc(CC * s->nb, sizeof(double));
+    if (!D || !up || !G || !WW) {
+        free(D), free(up), free(G), free(WW);
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (error sums)");
+    }
+    for (int a = 0; a < C; a++)
+        memcpy(D + (size_t)a * s->nb * N, p->tex[a], s->nb * N * sizeof(float));
+    for (int v = 0; v < V; v++) {
+        double *ww = WW + CC * p->blocks->block_of_view[v];
+        for (int a = 0; a < C; a++)
+            for (int c = 0; c <= a; c++) {
+                double d = 0.0;
+                for (size_t k = 0; k < (size_t)L * 3; k++)
+                    d += (double)p->wt[a][(size_t)v * L * 3 + k] * p->wt[c][(size_t)v * L * 3 + k];
+                ww[(size_t)a * C + c] += d;
+                if (c != a)
+                    ww[(size_t)c * C + a] += d;
+            }
+    }
+    for (int b = 0; b < s->nb; b++)
+        for (int a = 0; a < C; a++)
+            for (int c = 0; c < C; c++)
+                G[CC * b + (size_t)a * C + c] = btf__dot(D + ((size_t)a * s->nb + b) * N, D + ((size_t)c * s->nb + b) * N, N);
+    for (int k = 0; k < s->n_order; k++) {
+        int a = s->order[2 * k], l = s->order[2 * k + 1];
+        double e = 0.0;
+        for (int b = 0; b < s->nb; b++) {
+            float *d = D + ((size_t)a * s->nb + b) * N;
+            btf__upsample(s, a, l, b, up);
+            for (size_t i = 0; i < N; i++)
+                d[i] = p->tex[a][(size_t)b * N + i] - up[i];
+            for (int c = 0; c < C; c++) {
+                double x = btf__dot(d, D + ((size_t)c * s->nb + b) * N, N);
+                G[CC * b + (size_t)a * C + c] = G[CC * b + (size_t)c * C + a] = x;
+            }
+            for (size_t i = 0; i < CC; i++)
+                e += G[CC * b + i] * WW[CC * b + i];
+        }
+        s->rmse_full[k] = 255.0 * sqrt((e > 0.0 ? e : 0.0) / ((double)N * V * L * 3));
+    }
+    free(D), free(up), free(G), free(WW);
+    return BTF_OK;
+}
+
+
+static btf_result btf__copy_file(const char *from, const char *to, btf_error *err)
+{
+    char *data;
+    size_t n;
+    btf_result r = btf_fs_read(from, (size_t)1 << 30, &data, &n, err);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(to, data, n, err);
+    free(data);
+    return r;
+}
+
+static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
+{
+    for (int i = 0; i < ci->n_files; i++) {
+        size_t n = strlen(ci->files[i]), e = strlen(ext);
+        if (n > e && !strcmp(ci->files[i] + n - e, ext))
+            return ci->files[i];
+    }
+    return NULL;
+}
+
+/* Level file name of component a without its extension: level 0 keeps the v1 name,
+ * level l adds -lL; version 4: a level stored as a residual (l < nl-1, level 0
+ * included) adds -dL. */
+static void btf__level_stem(const btf__lod *s, int a, int l, int residual, char *name, size_t n)
+{
+    const char *t = btf__file_ending(&s->p->chunk[a], ".png");
+    if (residual)
+        snprintf(name, n, "%.*s-d%d", (int)(strlen(t) - 4), t, l);
+    else if (l == 0)
+        snprintf(name, n, "%.*s", (int)(strlen(t) - 4), t);
+    else
+        snprintf(name, n, "%.*s-l%d", (int)(strlen(t) - 4), t, l);
+}
+
+/* The name of the file that holds level l of component a, as written. */
+static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t n)
+{
+    size_t k = (size_t)a * s->nl + l;
+    btf__level_stem(s, a, l, s->isres[k], name, n);
+    size_t e = strlen(name);
+    snprintf(name + e, n - e, "%s", s->iswebp[k] ? ".webp" : ".png");
+}
+
+/* Name of component a's 8-bit weights: "wt-JJ.bin" -> "wt-JJ-8.png". */
+static void btf__w8_name(const btf__lod *s, int a, char *name, size_t n)
+{
+    const char *w = btf__file_ending(&s->p->chunk[a], ".bin");
+    snprintf(name, n, "%.*s-8.png", (int)(strlen(w) - 4), w);
+}
+
+/* Level of component a's first chunk in the order (its coarse weights travel there when > 0). */
+static int btf__first_level(const btf__lod *s, int a)
+{
+    for (int k = 0; k < s->n_order; k++)
+        if (s->order[2 * k] == a)
+            return s->order[2 * k + 1];
+    return 0;
+}
+
+/* Step multiplier of component a's 8-bit weights: the largest m >= 1 with
+ * m * 257 * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a) in every block, so the
+ * coarse weights add at most that RMS noise (0..255 scale) per component (the
+ * equal-noise allocation of section 4 applied to weights). */
+#define BTF__W8_NOISE 0.25
+static int btf__w8_mult(const btf__lod *s, int a)
+{
+    const btf_package *p = s->p;
+    double m = 65535.0;
+    for (int b = 0; b < s->nb; b++) {
+        const float *t = p->tex[a] + (size_t)b * s->W * s->H;
+        double e = 0.0;
+        for (size_t k = 0; k < (size_t)s->W * s->H; k++)
+            e += (double)t[k] * t[k];
+        double rms = sqrt(e / ((double)s->W * s->H)), st = 257.0 * p->chunk[a].wt_range[2 * b + 1];
+        if (rms > 0.0 && st > 0.0 && BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st < m)
+            m = BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st;
+    }
+    return m < 1.0 ? 1 : (int)m;
+}
+
+/* Component a's weights requantised to 8 bits (q8 = round(q16 / (257 m)), the same lo),
+ * as a grey PNG of 3L x V pixels (doc/package-format.md section 10). */
+static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    uint8_t *q = malloc((size_t)V * L * 3);
+    if (!q)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
+        const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
+        double x = rg[1] > 0.0f ? ((double)p->wt[a][k] - rg[0]) / (257.0 * s->w8mult[a] * rg[1]) : 0.0;
+        q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
+    }
+    s->w8q[a] = q; /* version 4 codes the 16-bit weights over these */
+    return btf_image_write_flags(path, 3 * L, V, 1, 8, q, BTF_IMAGE_PNG_SMALLEST, err);
+}
+
+/* Name of component a's 16-bit weights: the v1 "wt-JJ.bin", or in version 4 when
+ * the component has 8-bit weights their residual "wt-JJ-r.z". */
+static void btf__w16_name(const btf__lod *s, int a, int residual, char *name, size_t n)
+{
+    const char *w = btf__file_ending(&s->p->chunk[a], ".bin");
+    if (residual)
+        snprintf(name, n, "%.*s-r.z", (int)(strlen(w) - 4), w);
+    else
+        snprintf(name, n, "%s", w);
+}
+
+/* Version 4: component a's 16-bit weights (the v1 file's q16) as wt-JJ-r.z, the
+ * btf_wtz stream of r = (q16 - s_c q8) mod 65536 with one light per "view" (section 12). */
+static btf_result btf__write_w16_residual(const btf__lod *s, int a, const char *from, const char *to, btf_error *err)
+{
+    const btf_package *p = s->p;
+    size_t n = (size_t)p->views.n_dirs * p->lights.n_dirs * 3, nd = 0, nz = 0;
+    char *raw = NULL;
+    uint8_t *z = NULL;
+    btf_result r = btf_fs_read(from, 2 * n, &raw, &nd, err);
+    if (r == BTF_OK && nd != 2 * n)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %zu bytes, expected %zu", from, nd, 2 * n);
+    uint16_t *q = r == BTF_OK ? malloc(n * sizeof *q) : NULL;
+    if (r == BTF_OK && !q)
+        r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    unsigned sc = 257u * (unsigned)s->w8mult[a];
+    for (size_t k = 0; q && k < n; k++) {
+        unsigned q16 = (unsigned)(uint8_t)raw[2 * k] | (unsigned)(uint8_t)raw[2 * k + 1] << 8;
+        q[k] = (uint16_t)((q16 - sc * s->w8q[a][k]) & 0xFFFFu);
+    }
+    if (q)
+        r = btf_wtz_encode(q, (int)(n / 3), 1, &z, &nz, err);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(to, z, nz, err);
+    free(raw), free(q), free(z);
+    return r;
+}
+
+/* A grey level file: stem.png (the smallest PNG filter choice), or stem.webp when
+ * WebP is allowed (s->webp) and smaller; *webp = 1 then, *bytes the size kept. */
+static btf_result btf__write_level_file(const btf__lod *s, const char *stem, int w, int h, const uint8_t *px,
+                                        char *webp, long long *bytes, btf_error *err)
+{
+    const char *ext = ".png";
+    btf_result r = btf_image_write_smallest(stem, w, h, px, BTF_IMAGE_PNG_SMALLEST | (s->webp ? 0 : BTF_IMAGE_NO_WEBP),
+                                            &ext, bytes, err);
+    *webp = !strcmp(ext, ".webp");
+    return r;
+}
+
+/* Version 4: component a's level-0 atlas bytes (the v1 PNG's) into s->atlas[a * nl]. */
+static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_error *err)
+{
+    const btf_package *p = s->p;
+    char path[8400];
+    int w, h;
+    snprintf(path, sizeof path, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
+    btf_result r = btf_image_read_grey(path, &w, &h, &s->atlas[a * s->nl], err); /* refuses what is not grey */
+    if (r == BTF_OK && (w != p->atlas_cols * s->W || h != p->atlas_rows * s->H))
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d, expected the %dx%d grey atlas", path, w, h,
+                     p->atlas_cols * s->W, p->atlas_rows * s->H);
+    return r;
+}
+
+/* Version 4: level l < nl-1 of component a as its residual over level l+1 with the
+ * least-squares predictor (kept in s->pred), into stem.png or stem.webp (*webp = 1);
+ * *bytes its size. */
+static btf_result btf__write_residual(btf__lod *s, int a, int l, const char *stem, char *webp, long long *bytes,
+                                      btf_error *err)
+{
+    const btf_package *p = s->p;
+    int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
+    const uint8_t *fine = s->atlas[a * s->nl + l], *coarse = s->atlas[a * s->nl + l + 1];
+    uint8_t *res = malloc((size_t)aw * ah);
+    if (!res)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (residual)");
+    btf_lap_pred *pr = &s->pred[a * s->nl + l];
+    *pr = btf_lap_pred_fit(fine, coarse, aw, ah, s->W >> l, s->H >> l);
+    btf_result r = btf_lap_encode(fine, coarse, aw, ah, s->W >> l, s->H >> l, pr, res, err);
+    /* the smallest PNG filter choice (residuals are noise-like, where filter None often wins) */
+    if (r == BTF_OK)
+        r = btf__write_level_file(s, stem, aw, ah, res, webp, bytes, err);
+    free(res);
+    return r;
+}
+
+/* Version 4: of two codings of one file (plain, alt) the smaller stays, the other is
+ * removed; *chose = 1 when alt stays (ties keep plain), *bytes = the size kept. */
+static btf_result btf__keep_smaller(const char *plain, const char *alt, char *chose, long long *bytes, btf_error *err)
+{
+    long long a = btf_fs_size(plain), b = btf_fs_size(alt);
+    *chose = b >= 0 && b < a;
+    *bytes = *chose ? b : a;
+    if (remove(*chose ? plain : alt) != 0)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot remove (%s)", *chose ? plain : alt, strerror(errno));
+    return BTF_OK;
+}
+
+/* Level l of component a into tmp: the direct file (level 0 copied from the v1
+ * package unless WebP may replace it) and, for version 4 below the coarsest level,
+ * the residual, the smaller kept; fills tbytes, isres, iswebp. */
+static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir, const char *tmp, btf_error *err)
+{
+    const btf_package *p = s->p;
+    size_t k = (size_t)a * s->nl + l;
+    char to[8400], g[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
+    btf_result r;
+    btf__level_stem(s, a, l, 0, name, sizeof name);
+    snprintf(to, sizeof to, "%s/%s", tmp, name);
+    if (l == 0 && !s->webp) {
+        char from[8400];
+        snprintf(from, sizeof from, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
+        snprintf(to, sizeof to, "%s/%s.png", tmp, name);
+        r = btf__copy_file(from, to, err);
+        s->tbytes[k] = btf_fs_size(to);
+    } else if (s->ch == 1) {
+        r = btf__write_level_file(s, to, aw, ah, s->atlas[k], &s->iswebp[k], &s->tbytes[k], err);
+        snprintf(to + strlen(to), sizeof to - strlen(to), "%s", s->iswebp[k] ? ".webp" : ".png");
+    } else {
+        snprintf(to + strlen(to), sizeof to - strlen(to), ".png");
+        r = btf_image_write_flags(to, aw, ah, s->ch, 8, s->atlas[k], BTF_IMAGE_PNG_SMALLEST, err);
+        s->tbytes[k] = btf_fs_size(to);
+    }
+    if (r != BTF_OK || !s->resid || l == s->nl - 1)
+        return r;
+    char rwebp = 0;
+    long long rbytes = -1;
+    btf__level_stem(s, a, l, 1, name, sizeof name);
+    snprintf(g, sizeof g, "%s/%s", tmp, name);
+    r = btf__write_residual(s, a, l, g, &rwebp, &rbytes, err);
+    snprintf(g + strlen(g), sizeof g - strlen(g), "%s", rwebp ? ".webp" : ".png");
+    r = r == BTF_OK ? btf__keep_smaller(to, g, &s->isres[k], &s->tbytes[k], err) : r;
+    if (r == BTF_OK && s->isres[k])
+        s->iswebp[k] = rwebp;
+    return r;
+}
+
+/* Every texture and weight file into tmp; fills tbytes, wbytes. */
+static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *tmp, btf_error *err)
+{
+    const btf_package *p = s->p;
+    char from[8400], to[8400], g[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    btf_result r = BTF_OK;
+    for (int a = 0; r == BTF_OK && a < s->C; a++) {
+        const char *wf = btf__file_ending(&p->chunk[a], ".bin");
+        if (btf__first_level(s, a) > 0) {
+            btf__w8_name(s, a, name, sizeof name);
+            snprintf(to, sizeof to, "%s/%s", tmp, name);
+            s->w8mult[a] = btf__w8_mult(s, a);
+            r = btf__write_w8(s, a, to, err);
+            s->w8bytes[a] = btf_fs_size(to);
+        }
+        snprintf(from, sizeof from, "%s/%s", in_dir, wf);
+        btf__w16_name(s, a, 0, name, sizeof name);
+        snprintf(to, sizeof to, "%s/%s", tmp, name);
+        if (r == BTF_OK)
+            r = btf__copy_file(from, to, err);
+        s->wbytes[a] = btf_fs_size(to);
+        if (r == BTF_OK && s->resid && s->w8q[a]) { /* version 4: the residual over the 8-bit weights when smaller */
+            btf__w16_name(s, a, 1, name, sizeof name);
+            snprintf(g, sizeof g, "%s/%s", tmp, name);
+            r = btf__write_w16_residual(s, a, from, g, err);
+            r = r == BTF_OK ? btf__keep_smaller(to, g, &s->w16res[a], &s->wbytes[a], err) : r;
+        }
+        if (r == BTF_OK && s->resid)
+            r = btf__level0_atlas(s, a, in_dir, err);
+        for (int l = 0; r == BTF_OK && l < s->nl; l++)
+            r = btf__write_level(s, a, l, in_dir, tmp, err);
+    }
+    return r;
+}
+
+
+
+
+/* The v2 chunk list: (component, level) pairs in s->order, with the files each carries. */
+static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info *c, long long *bytes)
+{
+    const btf_package *p = s->p;
+    int a = s->order[2 * k], l = s->order[2 * k + 1];
+    const btf_chunk_info *v1 = &p->chunk[a];
+    double rmse_end = p->chunk[s->C - 1].rmse, rf_end = p->chunk[s->C - 1].rmse_float;
+    c->component = v1->component, c->level = l, c->n_files = 0;
+    c->tex_range = v1->tex_range, c->wt_range = v1->wt_range; /* borrowed from the v1 package */
+    btf__level_name(s, a, l, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+    c->has_pred = s->isres[a * s->nl + l];
+    if (c->has_pred)
+        c->pred = s->pred[a * s->nl + l];
+    *bytes = s->tbytes[a * s->nl + l];
+    if (!seen[a] && l > 0) { /* a coarse first chunk carries the 8-bit weights */
+        btf__w8_name(s, a, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+        *bytes += s->w8bytes[a];
+    }
+    if (l == 0 || (!seen[a] && s->w8bytes[a] == 0)) { /* level 0 carries the 16-bit weights */
+        btf__w16_name(s, a, s->w16res[a], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
+        *bytes += s->wbytes[a];
+    }
+    seen[a] = 1;
+    c->bytes = *bytes;
+    c->rmse = sqrt(rmse_end * rmse_end + s->rmse_full[k] * s->rmse_full[k]);
+    c->psnr = c->rmse > 0 ? 20.0 * log10(255.0 / c->rmse) : 999.0;
+    c->rmse_float = sqrt(rf_end * rf_end + s->rmse_full[k] * s->rmse_full[k]);
+    c->contrib = s->contrib[a * s->nl + l];
+    c->rmse_full = s->rmse_full[k];
+    c->wt8_step = s->w8bytes[a] ? 257.0 * s->w8mult[a] : 257.0;
+}
+
+/* The v2 manifest: the v1 header with levels and the (component, level) chunk list. */
+static char *btf__lod_manifest(btf__lod *s, btf_lod_stats *st, btf_error *err)
+{
+    btf_package q = *s->p; /* header fields shared with the v1 package; chunks are new */
+    q.version = s->resid ? 4 : 2, q.n_levels = s->nl, q.lod_threshold = s->thr, q.n_chunks = s->n_order, q.n_loaded = 0;
+    q.chunk = calloc((size_t)s->n_order, sizeof *q.chunk);
+    char *seen = calloc((size_t)s->C, 1);
+    char *out = NULL;
+    if (!q.chunk || !seen)
+        btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (manifest)");
+    for (int k = 0; q.chunk && seen && k < s->n_order; k++) {
+        long long bytes;
+        btf__lod_chunk(s, k, seen, &q.chunk[k], &bytes);
+        if (st) {
+            st->bytes += bytes;
+            if (k == 0)
+                st->first_chunk = bytes;
+        }
+    }
+    if (q.chunk && seen)
+        out = btf_manifest_print(&q, err);
+    free(seen);
+    free(q.chunk);
+    return out;
+}
+
+
+
+static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_options *o, btf_error *err)
+{
+    btf_result r = btf_package_read(in_dir, 0, &s->p, err);
+    if (r != BTF_OK)
+        return r;
+    btf_package *p = s->p;
+    if (p->version == 3)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: version-3 packages (wt-JJ.z weights) take no spatial levels yet", in_dir);
+    if (p->version != 1 || p->n_levels != 1)
+        return btf_fail(err, BTF_ERR_ARG, "%s: already has spatial levels (version %d)", in_dir, p->version);
+    s->C = p->n_chunks, s->nb = p->blocks->n_blocks, s->W = p->width, s->H = p->height;
+    s->ch = p->bits == 16 ? 3 : 1, s->qmax = p->bits == 16 ? 65535 : 255;
+    s->resid = o && o->residual;
+    s->webp = s->resid && !o->png_only;
+    if (s->resid && p->bits != 8)
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: residual levels (version 4) need 8-bit textures, not %d", in_dir,
+                        p->bits);
+    s->thr = o && o->threshold > 0.0 ? o->threshold : BTF_LOD_THRESHOLD;
+    if (o && (o->levels < 0 || o->levels > BTF_LOD_MAX_LEVELS))
+        return btf_fail(err, BTF_ERR_ARG, "lod: %d levels (1..%d)", o->levels, BTF_LOD_MAX_LEVELS);
+    s->nl = btf__default_levels(s->W, s->H, o ? o->levels : 0);
+    if (o && o->levels > s->nl)
+        return btf_fail(err, BTF_ERR_ARG, "lod: %d levels do not divide %dx%d texels (at most %d)", o->levels, s->W,
+                        s->H, s->nl);
+    for (int a = 0; a < s->C; a++)
+        for (int e = 0; e < a; e++)
+            if (p->chunk[a].component == p->chunk[e].component)
+                return btf_fail(err, BTF_ERR_FORMAT, "%s: component %d in two chunks", in_dir, p->chunk[a].component);
+    size_t n = (size_t)s->C * s->nl;
+    s->lev = calloc(n, sizeof *s->lev), s->atlas = calloc(n, sizeof *s->atlas);
+    s->contrib = calloc(n, sizeof(double)), s->tbytes = calloc(n, sizeof(long long));
+    s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
+    s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
+    s->w8mult = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
+    s->isres = calloc(n, 1), s->iswebp = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
+    if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    return BTF_OK;
+}
+
+
+btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
+                         btf_error *err)
+{
+    if (!in_dir || !out_dir || strlen(out_dir) > 4000 || !strcmp(in_dir, out_dir))
+        return btf_fail(err, BTF_ERR_ARG, "lod: need two different package directories");
+    btf__lod s;
+    memset(&s, 0, sizeof s);
+    btf_lod_stats st = {0};
+    btf_result r = btf__lod_setup(&s, in_dir, opt, err);
+    if (r == BTF_OK)
+        r = btf__make_levels(&s, err);
+    if (r == BTF_OK) {
+        btf__contribs(&s);
+        btf__lod_order(&s);
+        r = btf__errors(&s, err);
+    }
+    char tmp[BTF_FS_PATH_MAX];
+    if (r == BTF_OK)
+        r = btf_fs_replaceable(out_dir, btf_manifest_owns_dir, NULL, err);
+    if (r == BTF_OK && (r = btf_fs_temp_dir(out_dir, tmp, sizeof tmp, btf_manifest_owns_temp, NULL, err)) == BTF_OK) {
+        r = btf__write_files(&s, in_dir, tmp, err);
+        char *man = r == BTF_OK ? btf__lod_manifest(&s, &st, err) : NULL;
+        if (r == BTF_OK && !man)
+            r = BTF_ERR_NOMEM;
+        char path[BTF_FS_PATH_MAX + 16];
+        snprintf(path, sizeof path, "%s/manifest.json", tmp);
+        if (r == BTF_OK)
+            r = btf_fs_write_atomic(path, man, strlen(man), err);
+        free(man);
+        if (r == BTF_OK && opt && opt->thumbnail > 0)
+            r = btf_package_thumbnail(tmp, opt->thumbnail, err);
+        if (r == BTF_OK)
+            r = btf_fs_replace_dir(tmp, out_dir, btf_manifest_owns_dir, NULL, err);
+        if (r != BTF_OK)
+            btf_fs_rmtree(tmp, NULL);
+    }
+    if (r == BTF_OK && stats) {
+        st.levels = s.nl, st.n_chunks = s.n_order;
+        for (int a = 0; a < s.C; a++)
+            st.bytes_v1 += s.p->chunk[a].bytes;
+        *stats = st;
+    }
+    btf__lod_free(&s);
+    return r;
+}

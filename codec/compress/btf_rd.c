@@ -1,0 +1,550 @@
+/* btf_rd.c - equal-slope choice of the quantisation steps (btf_rd.h,
+ * doc/package-format.md section 11): measured rate and distortion of every
+ * candidate step multiplier per component, then one Lagrange multiplier. */
+#include "btf_rd.h"
+
+#include <cblas.h>
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "btf_fs.h"
+#include "btf_image.h"
+#include "btf_webp.h"
+#include "btf_wtz.h"
+#include "btf_common.h"
+#include "btf_blocks.h"
+
+#define BTF__RD_TEX_LO (-8) /* texture ladder: tex_noise * 2^(i/2), i = LO..HI */
+#define BTF__RD_TEX_HI 6
+#define BTF__RD_WT_LO (-10) /* weight ladder: the full 16 bits, then tex_noise * 2^(i/2) */
+#define BTF__RD_WT_HI 6
+#define BTF__RD_NT (BTF__RD_TEX_HI - BTF__RD_TEX_LO + 1)
+/* texture rates are encoded at the even ladder indices (the equal-noise step among
+ * them) and interpolated between them, so both ends must be even */
+_Static_assert(BTF__RD_TEX_LO % 2 == 0 && BTF__RD_NT % 2 == 1, "texture ladder: even equal-noise index and ends");
+#define BTF__RD_NW (BTF__RD_WT_HI - BTF__RD_WT_LO + 2)
+#define BTF__RD_RATE_TILES 9 /* texture rates measured on whole atlas rows holding about this many tiles */
+
+/* Measured candidates of one allocation; lives for one btf_rd_allocate call. */
+typedef struct btf__rd {
+    const btf_rd_params *par;
+    const btf_pca_model *m;
+    int C, nb, W, H, rows, L, V, aw;
+    int *sub_row;          /* per atlas row of tiles: its row in the rate sample, -1 = not sampled */
+    int sub_rows;          /* tile rows in the rate sample (its atlas is aw x sub_rows * H) */
+    double rate_scale;     /* tiles of the atlas / tiles in the sample */
+    double *dt, *dw;       /* C x NT, C x NW: added squared error */
+    double *energy;        /* C: |T_j W_j^T|^2 summed over blocks: the error of leaving j out */
+    long long *rt, *rw;    /* the same: bytes */
+    float *gt, *gw;        /* the ladders' noise values */
+    float *wnorm;          /* C x nb: |W_j| per block (computed before the threads start) */
+    /* C x NT, C x NW: 1 = the step is measured (near a previous choice, par->near);
+     * NULL = every step. An unmeasured step's error is infinite: never chosen. */
+    unsigned char *mt, *mw;
+} btf__rd;
+
+/* The rate sample: whole rows of the atlas's tile grid, evenly spaced among the full
+ * ones, about BTF__RD_RATE_TILES tiles (all rows when the grid has no more). A row
+ * keeps its neighbours and its width, so its files deflate as in the whole atlas;
+ * the texture rates are the sample's bytes times rate_scale. 0, or -1 without memory. */
+static int btf__rd_sample(btf__rd *r)
+{
+    int cols = r->par->atlas_cols, rows = r->par->atlas_rows, full = r->nb / cols;
+    int want = (BTF__RD_RATE_TILES + cols - 1) / cols;
+    r->sub_row = malloc(sizeof(int) * (size_t)rows);
+    if (!r->sub_row)
+        return -1;
+    if (full < 1 || want >= full) { /* too few rows to choose from: every row */
+        for (int i = 0; i < rows; i++)
+            r->sub_row[i] = i;
+        r->sub_rows = rows, r->rate_scale = 1.0;
+        return 0;
+    }
+    for (int i = 0; i < rows; i++)
+        r->sub_row[i] = -1;
+    for (int i = 0; i < want; i++)
+        r->sub_row[(int)(((double)i + 0.5) * full / want)] = i;
+    r->sub_rows = want, r->rate_scale = (double)r->nb / ((double)want * cols);
+    return 0;
+}
+
+/* Texture of component j at noise g: the rate sample's atlas into atlas (aw x
+ * sub_rows * H), the added squared error of every block returned. */
+static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
+{
+    double d = 0.0;
+    memset(atlas, 0, (size_t)r->aw * r->sub_rows * r->H);
+    for (int b = 0; b < r->nb; b++) {
+        const btf_pca_block *pb = &r->m->block[b];
+        const float *t = pb->t + (size_t)j * r->rows;
+        float wn = r->wnorm[(size_t)j * r->nb + b], rg[2];
+        btf_rd_range(t, (size_t)r->rows, 255u, rg);
+        rg[1] = btf_rd_step(rg[1], g, pb->cols, wn);
+        int sub = r->sub_row[b / r->par->atlas_cols];
+        int tx0 = (b % r->par->atlas_cols) * r->W, ty0 = sub * r->H;
+        double e = 0.0;
+        for (int y = 0; y < r->H; y++)
+            for (int x = 0; x < r->W; x++) {
+                float v = t[(size_t)y * r->W + x];
+                unsigned qv = btf_rd_quant(v, rg, 255u);
+                if (sub >= 0)
+                    atlas[(size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)] = (uint8_t)qv;
+                double dv = (double)v - (double)(rg[0] + rg[1] * (float)qv);
+                e += dv * dv;
+            }
+        d += e * (double)wn * (double)wn;
+    }
+    return d;
+}
+
+/* Weights of component j at noise g (0 = full 16 bits): q (V*L*3) filled, the added squared error returned. */
+static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
+{
+    const btf_blocks *bl = r->m->blocks;
+    double d = 0.0;
+    for (int b = 0; b < r->nb; b++) {
+        const btf_pca_block *pb = &r->m->block[b];
+        const float *wj = pb->w + (size_t)j * pb->cols;
+        float tn = cblas_snrm2(r->rows, pb->t + (size_t)j * r->rows, 1), rg[2];
+        btf_rd_range(wj, (size_t)pb->cols, 65535u, rg);
+        rg[1] = btf_rd_step(rg[1], g, r->rows, tn);
+        double e = 0.0;
+        if (g == 0.0f) /* once per component: its energy */
+            r->energy[j] += (double)tn * tn * (double)cblas_snrm2(pb->cols, wj, 1) * cblas_snrm2(pb->cols, wj, 1);
+        for (int col = 0; col < pb->cols; col++) {
+            int pos = col / (3 * r->L), l = (col / 3) % r->L, c = col % 3;
+            int v = bl->views[bl->start[b] + pos];
+            unsigned qv = btf_rd_quant(wj[col], rg, 65535u);
+            q[((size_t)v * r->L + l) * 3 + c] = (uint16_t)qv;
+            double dv = (double)wj[col] - (double)(rg[0] + rg[1] * (float)qv);
+            e += dv * dv;
+        }
+        d += e * (double)tn * (double)tn;
+    }
+    return d;
+}
+
+/* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the rate
+ * sample's atlas encoded as the package writes it, times rate_scale: its lossless
+ * WebP bytes, or with png_only the PNG file (filter Up) in
+ * scratch/rd-candidate-T.png for thread T.
+ * atlas is the thread's own buffer. */
+static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
+{
+    if (r->mt && !r->mt[n]) {
+        r->dt[n] = INFINITY, r->rt[n] = 0;
+        return BTF_OK;
+    }
+    r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
+    if ((n % BTF__RD_NT) % 2) /* odd indices: the rate interpolated by btf__rd_measure_tex */
+        return BTF_OK;
+    int ah = r->sub_rows * r->H;
+    long long s = -1;
+    btf_result res = BTF_OK;
+    if (!r->par->png_only) {
+        uint8_t *webp = NULL;
+        size_t nw = 0;
+        res = btf_webp_encode_grey(atlas, r->aw, ah, &webp, &nw, err);
+        free(webp);
+        s = res == BTF_OK ? (long long)nw : -1;
+    } else {
+        char path[BTF_FS_PATH_MAX];
+        snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
+        res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
+        s = res == BTF_OK ? btf_fs_size(path) : -1;
+        remove(path);
+        if (res == BTF_OK && s < 0)
+            res = btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
+    }
+    r->rt[n] = s < 0 ? s : (long long)llround((double)s * r->rate_scale);
+    return res;
+}
+
+/* A thread's result into *res and its message into err, unless an error is there
+ * already (called inside the critical section that ends each parallel region). */
+static void btf__rd_first_error(btf_result mine, const btf_error *e, btf_result *res, btf_error *err)
+{
+    if (mine != BTF_OK && *res == BTF_OK) {
+        *res = mine;
+        if (err)
+            *err = *e;
+    }
+}
+
+/* 1 when r's ladders are measured on OpenMP's threads (BTF_RD_THREAD_MIN_BYTES):
+ * the bytes of every component's atlas and 16-bit weights. */
+static int btf__rd_threaded(const btf__rd *r)
+{
+    size_t atlas = (size_t)r->aw * (size_t)r->par->atlas_rows * (size_t)r->H;
+    size_t weights = (size_t)r->V * (size_t)r->L * 3u * sizeof(uint16_t);
+    return (size_t)r->C * (atlas + weights) >= BTF_RD_THREAD_MIN_BYTES;
+}
+
+/* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
+static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
+{
+    r->wnorm = malloc(sizeof(float) * (size_t)r->C * (size_t)r->nb);
+    if (!r->wnorm)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (norms)");
+    for (int j = 0; j < r->C; j++)
+        for (int b = 0; b < r->nb; b++)
+            r->wnorm[(size_t)j * r->nb + b] =
+                cblas_snrm2(r->m->block[b].cols, r->m->block[b].w + (size_t)j * r->m->block[b].cols, 1);
+    if (btf__rd_sample(r) != 0)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (rate sample)");
+    if (r->par->tex_rate_scale > 0.0)
+        r->rate_scale *= r->par->tex_rate_scale;
+    btf_result res = BTF_OK;
+#pragma omp parallel if (btf__rd_threaded(r))
+    {
+        uint8_t *atlas = malloc((size_t)r->aw * r->sub_rows * r->H);
+        btf_error e = {{0}};
+        btf_result mine = atlas ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (atlas)");
+#pragma omp for schedule(dynamic, 1)
+        for (int n = 0; n < r->C * BTF__RD_NT; n++)
+            if (mine == BTF_OK)
+                mine = btf__rd_tex_candidate(r, n, atlas, omp_get_thread_num(), &e);
+#pragma omp critical(btf__rd_result)
+        btf__rd_first_error(mine, &e, &res, err);
+        free(atlas);
+    }
+    /* odd indices: the mean of the neighbours' rates (a rate is about linear in the
+     * log of the step; tiles at 128x128: the package within 0.05% of the bytes and
+     * CIELab error of every step encoded, at half the encodings) */
+    for (int j = 0; res == BTF_OK && j < r->C; j++)
+        for (int i = 1; i < BTF__RD_NT; i += 2) {
+            long long *rt = r->rt + (size_t)j * BTF__RD_NT;
+            if (!r->mt || r->mt[(size_t)j * BTF__RD_NT + i]) /* its neighbours are measured too */
+                rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2;
+        }
+    return res;
+}
+
+/* Every candidate of every component: rates and distortions. */
+static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
+{
+    btf_result res = btf__rd_measure_tex(r, err);
+    if (res != BTF_OK)
+        return res;
+#pragma omp parallel if (btf__rd_threaded(r))
+    { /* one component's weight steps per thread at a time: energy[j] has one writer */
+        uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
+        btf_error e = {{0}};
+        btf_result mine = q ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (weights)");
+#pragma omp for schedule(dynamic, 1)
+        for (int j = 0; j < r->C; j++)
+            for (int i = 0; i < BTF__RD_NW && mine == BTF_OK; i++) {
+                if (r->mw && !r->mw[(size_t)j * BTF__RD_NW + i]) {
+                    r->dw[(size_t)j * BTF__RD_NW + i] = INFINITY, r->rw[(size_t)j * BTF__RD_NW + i] = 0;
+                    continue;
+                }
+                r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i], q);
+                uint8_t *z = NULL;
+                size_t nz = 0;
+                mine = btf_wtz_encode(q, r->V, r->L, &z, &nz, &e);
+                free(z);
+                r->rw[(size_t)j * BTF__RD_NW + i] = (long long)nz;
+            }
+#pragma omp critical(btf__rd_result)
+        btf__rd_first_error(mine, &e, &res, err);
+        free(q);
+    }
+    return res;
+}
+
+/* Index in 0..n-1 minimising d + lambda * rate. */
+static int btf__rd_best(const double *d, const long long *rate, int n, double lambda)
+{
+    int best = 0;
+    for (int i = 1; i < n; i++)
+        if (d[i] + lambda * (double)rate[i] < d[best] + lambda * (double)rate[best])
+            best = i;
+    return best;
+}
+
+/* Manifest bytes of a version-3 package with n chunks (an estimate for the byte
+ * budget: two ranges of about 55 characters per block and chunk, plus the header). */
+static long long btf__rd_manifest_bytes(const btf__rd *r, int n)
+{
+    return 2048 + (long long)n * (300 + 120LL * r->nb) + 8LL * r->V;
+}
+
+/* Total quantisation distortion and bytes at slope lambda; choices into it, iw when
+ * not NULL. With keep: *keep = components whose energy exceeds D + lambda R
+ * (component 0 always), bytes counted for those only (plus the manifest). */
+static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long long *bytes, int *keep)
+{
+    double d = 0.0;
+    long long s = 0;
+    int kept = 0;
+    for (int j = 0; j < r->C; j++) {
+        int a = btf__rd_best(r->dt + (size_t)j * BTF__RD_NT, r->rt + (size_t)j * BTF__RD_NT, BTF__RD_NT, lambda);
+        int b = btf__rd_best(r->dw + (size_t)j * BTF__RD_NW, r->rw + (size_t)j * BTF__RD_NW, BTF__RD_NW, lambda);
+        double dj = r->dt[(size_t)j * BTF__RD_NT + a] + r->dw[(size_t)j * BTF__RD_NW + b];
+        long long sj = r->rt[(size_t)j * BTF__RD_NT + a] + r->rw[(size_t)j * BTF__RD_NW + b];
+        d += dj;
+        if (!keep || j == 0 || dj + lambda * (double)sj < r->energy[j])
+            s += sj, kept++;
+        if (it)
+            it[j] = a, iw[j] = b;
+    }
+    if (keep)
+        *keep = kept, s += btf__rd_manifest_bytes(r, kept);
+    if (bytes)
+        *bytes = s;
+    return d;
+}
+
+/* One ladder notch finer for component j (tex: texture, else weights) from choice *at:
+ * the error it removes and the bytes it adds; 0 when already at the finest step. */
+static int btf__rd_notch(const btf__rd *r, int j, int tex, const int *at, double *dd, long long *ds)
+{
+    int n = tex ? BTF__RD_NT : BTF__RD_NW, a = *at;
+    const double *d = (tex ? r->dt : r->dw) + (size_t)j * n;
+    const long long *s = (tex ? r->rt : r->rw) + (size_t)j * n;
+    if (a <= 0)
+        return 0;
+    *dd = d[a] - d[a - 1], *ds = s[a - 1] - s[a];
+    return 1;
+}
+
+/* With a byte budget: what lambda's choice leaves of max_bytes, spent one ladder notch
+ * finer at a time where the measured error drop per byte is largest (the ladder is
+ * discrete, so the bisected slope alone stops short of the budget). Components that
+ * lambda left out stay out; *bytes is kept the way btf__rd_at counts it. */
+static void btf__rd_fill(const btf__rd *r, double lambda, long long max_bytes, int *it, int *iw, long long *bytes)
+{
+    unsigned char *kept = malloc((size_t)r->C);
+    if (!kept)
+        return; /* lambda's choice stands */
+    for (int j = 0; j < r->C; j++) { /* as btf__rd_at decided at lambda */
+        double dj = r->dt[(size_t)j * BTF__RD_NT + it[j]] + r->dw[(size_t)j * BTF__RD_NW + iw[j]];
+        long long sj = r->rt[(size_t)j * BTF__RD_NT + it[j]] + r->rw[(size_t)j * BTF__RD_NW + iw[j]];
+        kept[j] = j == 0 || dj + lambda * (double)sj < r->energy[j];
+    }
+    for (;;) {
+        int bj = -1, btex = 0;
+        double best = 0.0;
+        long long bds = 0;
+        for (int j = 0; j < r->C; j++)
+            for (int tex = 0; tex < 2 && kept[j]; tex++) {
+                double dd = 0.0;
+                long long ds = 0;
+                if (!btf__rd_notch(r, j, tex, tex ? &it[j] : &iw[j], &dd, &ds) || !(dd > 0.0) ||
+                    *bytes + ds > max_bytes)
+                    continue;
+                double gain = ds > 0 ? dd / (double)ds : INFINITY;
+                if (gain > best)
+                    best = gain, bj = j, btex = tex, bds = ds;
+            }
+        if (bj < 0)
+            break;
+        (btex ? it : iw)[bj]--;
+        *bytes += bds;
+    }
+    free(kept);
+}
+
+/* Index of the ladder step g nearest to noise v (by ratio; v <= 0: index 0, the
+ * weights' full 16 bits, when g[0] is 0). */
+static int btf__rd_nearest(const float *g, int n, float v)
+{
+    int best = 0;
+    double bd = INFINITY;
+    for (int i = 0; i < n; i++) {
+        double d = g[i] > 0.0f && v > 0.0f ? fabs(log((double)g[i] / v)) : g[i] == v ? 0.0 : INFINITY;
+        if (d < bd)
+            bd = d, best = i;
+    }
+    return best;
+}
+
+/* With par->near (at most as many components): the masks of the steps to measure.
+ * For its components those within BTF_RD_NEAR_NOTCHES of its choices (textures:
+ * widened to even ends, whose rates are encoded) and the references (the
+ * equal-noise texture step, the 16-bit weights); every step of the others. Steps
+ * outside a range stay out of btf__rd_fill's notches too. 0, or -1 without memory. */
+static int btf__rd_near(btf__rd *r)
+{
+    const btf_rd_result *nr = r->par->near;
+    if (!nr || nr->n_comp < 1 || nr->n_comp > r->C || !nr->tex_noise || !nr->wt_noise)
+        return 0;
+    r->mt = malloc((size_t)r->C * BTF__RD_NT), r->mw = malloc((size_t)r->C * BTF__RD_NW);
+    if (!r->mt || !r->mw)
+        return -1;
+    memset(r->mt, 1, (size_t)r->C * BTF__RD_NT), memset(r->mw, 1, (size_t)r->C * BTF__RD_NW);
+    for (int j = 0; j < nr->n_comp; j++) {
+        int a = btf__rd_nearest(r->gt, BTF__RD_NT, nr->tex_noise[j]);
+        int lo = a - BTF_RD_NEAR_NOTCHES, hi = a + BTF_RD_NEAR_NOTCHES;
+        lo = lo < 0 ? 0 : lo - (lo % 2), hi = hi >= BTF__RD_NT ? BTF__RD_NT - 1 : hi + (hi % 2);
+        for (int i = 0; i < BTF__RD_NT; i++)
+            r->mt[(size_t)j * BTF__RD_NT + i] = (i >= lo && i <= hi) || i == -BTF__RD_TEX_LO;
+        int b = btf__rd_nearest(r->gw, BTF__RD_NW, nr->wt_noise[j]);
+        for (int i = 0; i < BTF__RD_NW; i++)
+            r->mw[(size_t)j * BTF__RD_NW + i] = abs(i - b) <= BTF_RD_NEAR_NOTCHES || i == 0;
+    }
+    return 0;
+}
+
+/* What identifies r's model for btf_rd_ladder: its sizes, the noise and file choice
+ * of the ladders, and a sum over every block's first texel and weights. */
+static void btf__rd_key(const btf__rd *r, double key[8])
+{
+    double sum = 0.0;
+    for (int b = 0; b < r->nb; b++)
+        for (int j = 0; j < r->C; j++) {
+            const btf_pca_block *pb = &r->m->block[b];
+            sum += (double)pb->t[(size_t)j * r->rows] * (j + 1) + (double)pb->w[(size_t)j * pb->cols] * (b + 1);
+        }
+    double k[8] = {r->C, r->nb, r->W, r->H, (double)r->V * 65536.0 + r->L, r->par->tex_noise, r->par->png_only, sum};
+    memcpy(key, k, sizeof k);
+}
+
+/* The ladders of r: from par->ladder when it holds this model's, else measured (and
+ * stored there when there is one). */
+static btf_result btf__rd_ladder_use(btf__rd *r, btf_error *err)
+{
+    btf_rd_ladder *l = r->par->ladder;
+    double key[8];
+    btf__rd_key(r, key);
+    size_t nt = (size_t)r->C * BTF__RD_NT, nw = (size_t)r->C * BTF__RD_NW, c = (size_t)r->C;
+    if (l && l->n_comp == r->C && !memcmp(l->key, key, sizeof key)) {
+        memcpy(r->dt, l->dt, nt * sizeof(double)), memcpy(r->rt, l->rt, nt * sizeof(long long));
+        memcpy(r->dw, l->dw, nw * sizeof(double)), memcpy(r->rw, l->rw, nw * sizeof(long long));
+        memcpy(r->energy, l->energy, c * sizeof(double));
+        return BTF_OK;
+    }
+    if (btf__rd_near(r) != 0)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (near steps)");
+    btf_result res = btf__rd_measure(r, err);
+    if (res != BTF_OK || !l || r->mt)
+        return res;
+    btf_rd_ladder_free(l);
+    l->dt = malloc(nt * sizeof(double)), l->rt = malloc(nt * sizeof(long long));
+    l->dw = malloc(nw * sizeof(double)), l->rw = malloc(nw * sizeof(long long));
+    l->energy = malloc(c * sizeof(double));
+    if (!l->dt || !l->rt || !l->dw || !l->rw || !l->energy) {
+        btf_rd_ladder_free(l); /* no reuse next time; this allocation goes on */
+        return BTF_OK;
+    }
+    memcpy(l->dt, r->dt, nt * sizeof(double)), memcpy(l->rt, r->rt, nt * sizeof(long long));
+    memcpy(l->dw, r->dw, nw * sizeof(double)), memcpy(l->rw, r->rw, nw * sizeof(long long));
+    memcpy(l->energy, r->energy, c * sizeof(double));
+    memcpy(l->key, key, sizeof key);
+    l->n_comp = r->C, l->n_tex = BTF__RD_NT, l->n_wt = BTF__RD_NW;
+    return BTF_OK;
+}
+
+void btf_rd_ladder_free(btf_rd_ladder *l)
+{
+    if (!l)
+        return;
+    free(l->dt), free(l->dw), free(l->energy), free(l->rt), free(l->rw);
+    memset(l, 0, sizeof *l);
+}
+
+void btf_rd_result_free(btf_rd_result *r)
+{
+    if (!r)
+        return;
+    free(r->tex_noise), free(r->wt_noise), free(r->comp_bytes), free(r->tex_bytes);
+    memset(r, 0, sizeof *r);
+}
+
+static void btf__rd_free(btf__rd *r)
+{
+    free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->wnorm);
+    free(r->sub_row), free(r->mt), free(r->mw);
+}
+
+/* par->tex_rate_fix applied to the texture rates in use (the ladder keeps them as
+ * measured); a step not measured (negative rate) stays so. */
+static void btf__rd_fix_rates(btf__rd *r)
+{
+    for (int j = 0; r->par->tex_rate_fix && j < r->C; j++) {
+        double f = r->par->tex_rate_fix[j];
+        for (int i = 0; f > 0.0 && isfinite(f) && i < BTF__RD_NT; i++) {
+            long long *s = &r->rt[(size_t)j * BTF__RD_NT + i];
+            *s = *s < 0 ? *s : llround((double)*s * f);
+        }
+    }
+}
+
+btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err)
+{
+    memset(out, 0, sizeof *out);
+    const btf_pca_model *m = par->model;
+    if (!m || !(par->tex_noise > 0.0f) || !par->scratch || par->atlas_cols < 1 || par->atlas_rows < 1 ||
+        (long)par->atlas_cols * par->atlas_rows < m->blocks->n_blocks)
+        return btf_fail(err, BTF_ERR_ARG, "rate-distortion: needs a model, tex_noise > 0, a scratch directory and an atlas grid");
+    btf__rd r = {0};
+    r.par = par, r.m = m, r.C = m->n_comp, r.nb = m->blocks->n_blocks, r.W = m->width, r.H = m->height;
+    r.rows = r.W * r.H, r.L = m->lights.n_dirs, r.V = m->views.n_dirs;
+    r.aw = par->atlas_cols * r.W;
+    r.dt = calloc((size_t)r.C * BTF__RD_NT, sizeof(double));
+    r.dw = calloc((size_t)r.C * BTF__RD_NW, sizeof(double));
+    r.energy = calloc((size_t)r.C, sizeof(double));
+    r.rt = calloc((size_t)r.C * BTF__RD_NT, sizeof(long long));
+    r.rw = calloc((size_t)r.C * BTF__RD_NW, sizeof(long long));
+    r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
+    out->tex_noise = calloc((size_t)r.C, sizeof(float));
+    out->wt_noise = calloc((size_t)r.C, sizeof(float));
+    out->comp_bytes = calloc((size_t)r.C, sizeof(long long));
+    out->tex_bytes = calloc((size_t)r.C, sizeof(long long));
+    int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
+    btf_result res = BTF_OK;
+    if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !out->tex_noise || !out->wt_noise ||
+        !out->comp_bytes || !out->tex_bytes || !it || !iw)
+        res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
+    for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
+        r.gt[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_TEX_LO + i));
+    for (int i = 1; res == BTF_OK && i < BTF__RD_NW; i++) /* gw[0] = 0: the full 16-bit range */
+        r.gw[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_WT_LO + i - 1));
+    if (res == BTF_OK)
+        res = btf__rd_ladder_use(&r, err);
+    if (res == BTF_OK)
+        btf__rd_fix_rates(&r);
+    if (res == BTF_OK) {
+        /* reference: every texture at tex_noise (ladder index -LO), 16-bit weights (index 0) */
+        out->d_target = 0.0, out->bytes_equal = 0;
+        for (int j = 0; j < r.C; j++) {
+            out->d_target += r.dt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.dw[(size_t)j * BTF__RD_NW];
+            out->bytes_equal += r.rt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.rw[(size_t)j * BTF__RD_NW];
+        }
+        double lo = -60.0, hi = 10.0;
+        for (int k = 0; k < 80; k++) { /* bisection in log lambda */
+            double mid = 0.5 * (lo + hi);
+            long long bytes = 0;
+            int kept = 0;
+            if (par->max_bytes > 0) { /* the smallest slope whose kept components fit */
+                btf__rd_at(&r, exp(mid), NULL, NULL, &bytes, &kept);
+                *(bytes <= par->max_bytes ? &hi : &lo) = mid;
+            } else { /* the largest slope adding no more error than the reference */
+                *(btf__rd_at(&r, exp(mid), NULL, NULL, NULL, NULL) <= out->d_target ? &lo : &hi) = mid;
+            }
+        }
+        out->lambda = exp(par->max_bytes > 0 ? hi : lo);
+        out->n_kept = r.C;
+        out->d_rd = btf__rd_at(&r, out->lambda, it, iw, &out->bytes_rd, par->max_bytes > 0 ? &out->n_kept : NULL);
+        if (par->max_bytes > 0 && out->bytes_rd <= par->max_bytes) {
+            btf__rd_fill(&r, out->lambda, par->max_bytes, it, iw, &out->bytes_rd);
+            out->d_rd = 0.0;
+            for (int j = 0; j < r.C; j++)
+                out->d_rd += r.dt[(size_t)j * BTF__RD_NT + it[j]] + r.dw[(size_t)j * BTF__RD_NW + iw[j]];
+        }
+        out->n_comp = r.C;
+        for (int j = 0; j < r.C; j++) {
+            out->tex_noise[j] = r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
+            out->tex_bytes[j] = r.rt[(size_t)j * BTF__RD_NT + it[j]];
+            out->comp_bytes[j] = out->tex_bytes[j] + r.rw[(size_t)j * BTF__RD_NW + iw[j]];
+        }
+    }
+    free(it), free(iw);
+    btf__rd_free(&r);
+    if (res != BTF_OK)
+        btf_rd_result_free(out);
+    return res;
+}

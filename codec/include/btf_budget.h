@@ -1,0 +1,99 @@
+/* btf_budget.h - compression to a byte budget or an error target: the settings
+ * (views per block k, number of chunks) chosen by measuring, not guessed.
+ *
+ *     btf_budget b = {0};  b.max_bytes = 400000;          // or b.max_error = 1.0 (CIELab)
+ *     btf_budget_result res;
+ *     if (btf_budget_compress(src, NULL, NULL, &b, "lib/wool", &res, &err) == BTF_OK)
+ *         printf("k %d, %d chunks, %lld bytes, Lab %.3f\n", res.k, res.n_chunks, res.bytes, res.lab);
+ *
+ * Each candidate k is compressed once with the largest component count; its
+ * manifest gives the bytes and the measured CIELab error of every chunk prefix
+ * (the chunk order is by error drop per byte, doc/package-format.md section 7),
+ * so every budget of that k is read off one compression. With opt->rd (version 3)
+ * and max_bytes, each k's steps are fitted to the bytes
+ * (the writer's inside channel, compress/btf_compress.h). Unless pca sets a centring, the best
+ * candidate is then tried once more with the thesis's row centring (component 0 =
+ * the texel's mean; on a window it must win by BTF_BUDGET_SCREEN_EDGE), which wins
+ * on materials made of a mean and a few terms. When the best candidate keeps every component it
+ * was compressed with (the component count, not the budget, stopped it) and the
+ * caller did not fix the count, it is tried again with 1.5x the components (16,
+ * 24, 36, 56, 64: BTF_BUDGET_MAX_COMPONENTS) while that keeps more chunks at a
+ * lower error.
+ *
+ * The candidates are measured on the material's centre window of half its width
+ * and height when a side has BTF_BUDGET_SCREEN_MIN texels or more (texture bytes
+ * counted whole texels / window texels times over; budget->full_search: on the
+ * whole material), and with opt->rd only measured, nothing written
+ * (an estimate: chunk bytes the allocation's estimates, errors
+ * measured on the quantised model as ever). The best one is then compressed from
+ * the whole material (with rd and no window, from its kept model and ladder; with a
+ * window, its ladder measured near the steps the window chose, and a grown
+ * candidate's near those it grew from: btf_package_channel.rd_near), its prefix
+ * read off the files as written (fitted again once when the chunks its allocation
+ * kept came out over the budget, each texture's rates scaled by its atlas as
+ * written over its estimate), cut to the chosen prefix, and it replaces OUT like
+ * btf_package_compress. What the search costs and wins is measured by
+ * bench/bench_search.sh and bench/bench_rd.sh.
+ */
+#ifndef BTF_BUDGET_H
+#define BTF_BUDGET_H
+
+#include "btf_package.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BTF_BUDGET_MAX_K 8 /* candidate k values at most */
+#define BTF_BUDGET_COMPONENTS 16     /* components per candidate when the caller fixes none */
+#define BTF_BUDGET_MAX_COMPONENTS 64 /* the most the growth tries: the renderer's chunk limit */
+#define BTF_BUDGET_SCREEN_MIN 128 /* a side of at least this many texels is halved to screen */
+/* On a window the centred retry replaces the best only with this much less error (or
+ * fewer bytes): stone at 128x128, version 1: 1.3% less on the window, 7% more on the
+ * whole material; the centred wins where it pays by 15-25% (the thesis corduroy). */
+#define BTF_BUDGET_SCREEN_EDGE 0.03
+#define BTF_BUDGET_MAX_GROW 4        /* growth rounds: 16 -> 24 -> 36 -> 56 -> 64 */
+/* each k, one centred, the growth rounds */
+#define BTF_BUDGET_MAX_CANDIDATES (BTF_BUDGET_MAX_K + 1 + BTF_BUDGET_MAX_GROW)
+
+/* What to meet; plain value. Exactly one of max_bytes, max_error is set. */
+typedef struct btf_budget {
+    long long max_bytes; /* > 0: the least error within this many bytes (manifest + chunk files) */
+    double max_error;    /* > 0: the fewest bytes whose CIELab error (as btf eval reports) is <= this */
+    int max_components;  /* components compressed per candidate; 0 = 16, then 1.5x while all are kept */
+    int k[BTF_BUDGET_MAX_K], n_k; /* candidate k; n_k = 0: 1, 3 and 9 (those the views allow) */
+    int full_search; /* with rd: 1 = candidates measured on the whole material, not on its centre window */
+} btf_budget;
+
+/* One candidate's best prefix; plain value. */
+typedef struct btf_budget_choice {
+    int k, n_chunks; /* n_chunks 0: no prefix of this k meets the budget */
+    int components;  /* components compressed (the chunks available before the cut) */
+    long long bytes;
+    double lab, rmse;
+    int rd_fit; /* with opt->rd and max_bytes: 1 = steps fitted to the bytes, 0 = the equal-noise error */
+    btf_center center; /* the PCA's centring (BTF_CENTER_ROW: the centred retry) */
+} btf_budget_choice;
+
+/* What was chosen and what each candidate measured; plain value. */
+typedef struct btf_budget_result {
+    int k, n_chunks, rd_fit;
+    int components; /* components the chosen candidate was compressed with */
+    btf_center center;
+    long long bytes;
+    double lab, rmse;
+    int met;         /* 1: the budget is met (0 with max_error: the lowest error reached is reported) */
+    int screen_width, screen_height; /* the window the candidates were measured on (with rd) */
+    int n_candidates;
+    btf_budget_choice candidate[BTF_BUDGET_MAX_CANDIDATES];
+} btf_budget_result;
+
+/* Compresses src into the package OUT under the budget. pca and opt give the other
+ * settings (k and components are the budget's to choose; NULL = defaults). */
+btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                               const btf_budget *budget, const char *out, btf_budget_result *res, btf_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
