@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "btf_gen.h"
 #include "btf_lod.h"
@@ -426,5 +427,49 @@ Test(lod, compact_manifest_and_coarse_weights)
     cr_assert_null(q);
     btf_package_free(p1);
     btf_package_free(p);
+    cr_assert_eq(test_rmtree(dir), 0);
+}
+
+/* btf_lod_compress, the library call `btf compress --levels` makes: the same
+ * package as btf_package_compress then btf_lod_build, and without levels the
+ * same as btf_package_compress; nothing but OUT is left beside it. */
+Test(lod, lod_compress_is_compress_then_build)
+{
+    char dir[512], x[600], a[700], b[600];
+    btf_lod_stats st = {0};
+    make_packages(dir, sizeof dir, &st); /* dir/v1, and dir/v2 from it by btf_lod_build */
+    snprintf(x, sizeof x, "%s/x", dir); /* the same names in another folder */
+    cr_assert_eq(mkdir(x, 0700), 0);
+    btf_dirset d = small_set();
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_KNIT);
+    btf *src = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_gen_create(&gp, SIZE, SIZE, &d, &d, BTF_U8, &src, &err), BTF_OK, "%s", err.msg);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = COMPS;
+    btf_lod_options lo = {0};
+    lo.levels = LEVELS;
+    btf_compress_stats cs = {0};
+    snprintf(a, sizeof a, "%s/v2", x);
+    snprintf(b, sizeof b, "%s/v2", dir);
+    btf_package_options ko = {0};
+    ko.name = "v1"; /* btf_lod_build keeps its input's name: dir/v2 is named v1 */
+    cr_assert_eq(btf_lod_compress(src, &po, &ko, &lo, a, &cs, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(cs.bytes, st.bytes);
+    cr_assert_eq(cs.n_chunks, st.n_chunks);
+    cr_assert(test_same_file(a, b, "manifest.json"), "btf_lod_compress wrote another manifest than compress + build");
+    btf_package *p = read_ok(x, "v2", 0);
+    cr_assert_eq(p->n_levels, LEVELS);
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; f < p->chunk[i].n_files; f++)
+            cr_expect(test_same_file(a, b, p->chunk[i].files[f]), "%s differs", p->chunk[i].files[f]);
+    btf_package_free(p);
+    /* no levels: version 1, as btf_package_compress writes it */
+    snprintf(a, sizeof a, "%s/v1", x);
+    snprintf(b, sizeof b, "%s/v1", dir);
+    cr_assert_eq(btf_lod_compress(src, &po, NULL, NULL, a, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert(test_same_file(a, b, "manifest.json"));
+    cr_assert_eq(test_count_files(x), 2, "only v1 and v2 in %s", x);
+    btf_free(src);
     cr_assert_eq(test_rmtree(dir), 0);
 }

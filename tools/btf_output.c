@@ -1,24 +1,19 @@
 /* btf_output.c - progress line and --json output of the `btf` commands (btf_output.h). */
 #include "btf_output.h"
 
+#include "btf_common.h"
+
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
-
-double btf_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 void btf_progress_start(btf_progress *p, const char *what, const char *unit)
 {
     memset(p, 0, sizeof *p);
     p->what = what, p->unit = unit;
     p->on = isatty(STDERR_FILENO);
-    p->t0 = p->last = btf_now();
+    p->t0 = p->last = btf_seconds();
 }
 
 void btf_progress_format(char *buf, size_t n, const char *what, const char *unit, int done, int total,
@@ -32,7 +27,7 @@ void btf_progress_format(char *buf, size_t n, const char *what, const char *unit
 void btf_progress_update(void *ctx, int done, int total)
 {
     btf_progress *p = ctx;
-    double t = btf_now();
+    double t = btf_seconds();
     if (!p->on || (done < total && t - p->last < 0.1))
         return;
     char line[160];

@@ -34,8 +34,6 @@ void btf_progress_end(btf_progress *p);
 void btf_progress_format(char *buf, size_t n, const char *what, const char *unit, int done, int total,
                          double elapsed);
 
-/* Monotonic clock in seconds. */
-double btf_now(void);
 
 /* {"path": dir, "bytes", "chunks", "chunk": [{index, component, level, bytes,
  * cumulative, rmse, rmse_float, lab, psnr, delta_e76}]} of the package dir as

@@ -5,7 +5,6 @@
  *     btf compress knit.btf lib/knit --k 9 --components 16 --bits 16 --grouping spatial
  */
 #include "btf_args.h"
-#include "btf_build.h"
 #include "btf_cli.h"
 #include "btf_fs.h"
 #include "btf_io.h"
@@ -227,10 +226,10 @@ static btf_result compress_run(const btf *src, btf_views *views, compress_opts *
     btf_progress pr;
     btf_progress_start(&pr, "compress", "blocks");
     o->pca.progress = btf_progress_update, o->pca.progress_ctx = &pr;
-    btf_result r = !src ? btf_build_package_views(views, &o->pca, &o->pkg, &o->lod, o->out, st, err)
+    btf_result r = !src ? btf_lod_compress_views(views, &o->pca, &o->pkg, &o->lod, o->out, st, err)
                    : o->budget.max_bytes > 0 || o->budget.max_error > 0
                        ? compress_budget(src, o, st, err)
-                       : btf_build_package(src, &o->pca, &o->pkg, &o->lod, o->out, st, err);
+                       : btf_lod_compress(src, &o->pca, &o->pkg, &o->lod, o->out, st, err);
     btf_progress_end(&pr);
     return r;
 }
@@ -260,10 +259,10 @@ static int compress_main(void *opts)
     btf_error err = {0};
     btf *src = NULL;
     btf_views views;
-    double t0 = btf_now();
+    double t0 = btf_seconds();
     if (compress_open(o, &src, &views))
         return 1;
-    double t1 = btf_now();
+    double t1 = btf_seconds();
     btf_compress_stats st = {0};
     btf_result r = compress_run(src, &views, o, &st, &err);
     if (!src && r == BTF_OK)

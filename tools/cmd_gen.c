@@ -16,6 +16,7 @@
 #include "btf_io.h"
 #include "btf_source.h"
 #include "btf_output.h"
+#include "btf_common.h"
 
 #include <ctype.h>
 #include <stdio.h>
@@ -130,7 +131,7 @@ static int gen_main(void *opts)
     btf_gen_params p = btf_gen_defaults((btf_gen_kind)o->kind);
     p.seed = o->seed;
     btf *b = NULL;
-    double t0 = btf_now();
+    double t0 = btf_seconds();
     btf_result r = BTF_OK;
     if (!strcmp(o->format, "btf")) {
         r = btf_gen_create(&p, o->size, o->size, &d, &d, BTF_U8, &b, &err);
@@ -139,7 +140,7 @@ static int gen_main(void *opts)
     } else {
         r = gen_write_images(&p, &d, o, &err);
     }
-    double t1 = btf_now();
+    double t1 = btf_seconds();
     btf_free(b);
     if (r != BTF_OK) {
         fprintf(stderr, "btf gen: %s\n", err.msg);

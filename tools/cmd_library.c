@@ -23,7 +23,6 @@
  */
 #define _XOPEN_SOURCE 700
 #include "btf_args.h"
-#include "btf_build.h"
 #include "btf_cli.h"
 #include "btf_fs.h"
 #include "btf_lod.h"
@@ -31,6 +30,7 @@
 #include "btf_package.h"
 #include "btf_source.h"
 #include "btf_version.h"
+#include "btf_common.h"
 
 #include <errno.h>
 #include <ftw.h>
@@ -220,7 +220,7 @@ static int build_one(const library_opts *o, const library_job *j)
     btf_views views;
     btf_result r = btf_source_open_views(j->spec, &sa, &views, &err); /* one block of views in memory */
     if (r == BTF_OK)
-        r = btf_build_package_views(&views, &o->pca, &pkg, &lod, out, NULL, &err);
+        r = btf_lod_compress_views(&views, &o->pca, &pkg, &lod, out, NULL, &err);
     btf_views_close(&views);
     btf_dirset set;
     if (r == BTF_ERR_UNSUPPORTED && o->sampling) /* read only whole (a thesis package) */
@@ -229,7 +229,7 @@ static int build_one(const library_opts *o, const library_job *j)
     if (r == BTF_ERR_UNSUPPORTED) {
         r = btf_source_load(j->spec, &lo, &src, &err);
         if (r == BTF_OK)
-            r = btf_build_package(src, &o->pca, &pkg, &lod, out, NULL, &err);
+            r = btf_lod_compress(src, &o->pca, &pkg, &lod, out, NULL, &err);
     }
     btf_free(src);
     stamp_path(o, j, path, sizeof path);
@@ -245,7 +245,7 @@ static int start_job(const library_opts *o, library_job *j)
 {
     fflush(stdout);
     fflush(stderr);
-    j->t0 = btf_now();
+    j->t0 = btf_seconds();
     j->pid = fork();
     if (j->pid == 0)
         _exit(build_one(o, j));
@@ -264,7 +264,7 @@ static int reap_job(const library_opts *o, library_job *jobs, int n, int *built)
             if (!ok)
                 fprintf(stderr, "btf library build: %s: FAILED\n", jobs[i].name);
             else if (!o->quiet)
-                printf("%s: built in %.1f s\n", jobs[i].name, btf_now() - jobs[i].t0);
+                printf("%s: built in %.1f s\n", jobs[i].name, btf_seconds() - jobs[i].t0);
             *built += ok;
             return !ok;
         }

@@ -23,13 +23,6 @@
 #include <unistd.h>
 
 
-static double btf__chart_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static void btf__chart_log(const btf_chart_options *o, const char *fmt, ...)
 {
     if (!o || !o->log)
@@ -294,9 +287,9 @@ static btf_result btf__chart_shader_time(const char *const *dirs, int n, const b
     for (int f = 0; res == BTF_OK && f < frames; f++)
         for (int i = 0; res == BTF_OK && i < n; i++) {
             rp.light_phi += 7.0f; /* a different frame each time, same work */
-            double t0 = btf__chart_now();
+            double t0 = btf_seconds();
             res = btf_renderer_draw(r[i], &rp, t, err);
-            double dt = 1000.0 * (btf__chart_now() - t0);
+            double dt = 1000.0 * (btf_seconds() - t0);
             ms[i] = dt < ms[i] ? dt : ms[i];
         }
     for (int i = 0; i < n && i < BTF__CHART_MAX_SHADER; i++) {
@@ -414,9 +407,9 @@ static btf_result btf__chart_setting(btf_chart *c, btf_chart_row *row, const btf
     row->fetches = cost.fetches, row->flops = cost.flops;
     row->n_fallback = m->n_fallback, row->n_unconverged = m->n_unconverged;
     btf_metrics met;
-    double t0 = btf__chart_now();
+    double t0 = btf_seconds();
     r = btf__chart_error(src, btf__chart_model_image, m, o->threads, &met, err);
-    row->decode_s = btf__chart_now() - t0;
+    row->decode_s = btf_seconds() - t0;
     if (r == BTF_OK) {
         row->ok = 1;
         row->lab = met.lab_thesis, row->delta_e76 = met.delta_e76, row->rmse = met.rmse;
@@ -660,21 +653,21 @@ btf_result btf_chart_add_material(btf_chart *c, const char *name, const btf *src
         btf__chart_clean(row->material, sizeof row->material, name);
         r = btf__chart_setting(c, row, &set[i], src, &o, tmp, err);
     }
-    double t0 = btf__chart_now();
+    double t0 = btf_seconds();
     if (r == BTF_OK && !o.no_stream)
         r = btf__chart_stream_package(c, name, src, &o, tmp, 3, err);
-    double t1 = btf__chart_now();
+    double t1 = btf_seconds();
     for (int i = 0; i < 2 && r == BTF_OK && !o.no_stream && !o.quick; i++) /* PCA-RF and PCA-BTF */
         r = btf__chart_stream_package(c, name, src, &o, tmp, i ? src->views.n_dirs : 1, err);
-    double t1k = btf__chart_now();
+    double t1k = btf_seconds();
     if (r == BTF_OK && !o.no_stream)
         r = btf__chart_stream_thesis(c, name, src, &o, tmp, err);
-    double t2 = btf__chart_now();
+    double t2 = btf_seconds();
     if (r == BTF_OK && !o.no_stream)
         r = btf__chart_stream_levels(c, name, src, &o, tmp, err);
     if (r == BTF_OK && !o.no_stream)
         btf__chart_log(&o, "  streaming: package %.1f s, k = 1 and all %.1f s, thesis format %.1f s, package with "
-                       "levels %.1f s\n", t1 - t0, t1k - t1, t2 - t1k, btf__chart_now() - t2);
+                       "levels %.1f s\n", t1 - t0, t1k - t1, t2 - t1k, btf_seconds() - t2);
     btf_fs_rmtree(tmp, NULL);
     if (r == BTF_OK && !o.no_methods)
         c->n_materials++; /* materials with method rows (for the mean rows) */

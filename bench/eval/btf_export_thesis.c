@@ -28,13 +28,6 @@ const char *btf_thesis_scale_name(btf_thesis_scale s)
     return s == BTF_THESIS_SCALE_FIT ? "fit" : "thesis";
 }
 
-static double btf__xnow(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static float btf__absmax(const float *x, size_t n)
 {
     float m = 0.0f;
@@ -227,17 +220,17 @@ btf_result btf_export_thesis(const btf *src, const btf_export_options *opt, cons
 {
     if (!dir || !*dir || strlen(dir) > 4000)
         return btf_fail(err, BTF_ERR_ARG, "export-thesis: no or over-long output directory");
-    double t0 = btf__xnow();
+    double t0 = btf_seconds();
     btf_thesis_pkg p;
     btf_result r = btf_export_thesis_model(src, opt, &p, err);
     if (r != BTF_OK)
         return r;
-    double t1 = btf__xnow();
+    double t1 = btf_seconds();
     r = btf__write_replacing(dir, &p, err);
     btf_thesis_free(&p);
     if (stats) {
         stats->seconds_pca = t1 - t0;
-        stats->seconds_write = btf__xnow() - t1;
+        stats->seconds_write = btf_seconds() - t1;
         stats->bytes = r == BTF_OK ? btf_dir_bytes(dir) : 0;
     }
     return r;

@@ -9,13 +9,6 @@
 #include <string.h>
 #include <time.h>
 
-static double btf__now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* Smallest and largest sample; BTF_ERR_NUMERIC names the first non-finite one. */
 static btf_result btf__range(const btf *src, float *lo, float *hi, btf_error *err)
 {
@@ -50,10 +43,10 @@ btf_result btf_model_encode(const btf_method *method, const btf *src, const btf_
     m->width = src->width, m->height = src->height;
     m->lights = src->lights, m->views = src->views;
     btf_result r = btf__range(src, &m->lo, &m->hi, err);
-    double t0 = btf__now();
+    double t0 = btf_seconds();
     if (r == BTF_OK)
         r = method->encode(src, m, err);
-    m->seconds = btf__now() - t0;
+    m->seconds = btf_seconds() - t0;
     if (r != BTF_OK) {
         btf_model_free(m);
         return r;

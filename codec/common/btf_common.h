@@ -1,6 +1,6 @@
 /* btf_common.h - plumbing shared by the codec's rooms and the project's other
  * rooms, not part of the installed API: error formatting, name lookup, area
- * weights, 8-bit view columns. Implemented in btf_core.c and btf_views.c.
+ * weights, 8-bit view columns, a monotonic clock. Implemented in btf_core.c and btf_views.c.
  */
 #ifndef BTF_COMMON_H
 #define BTF_COMMON_H
@@ -37,6 +37,9 @@ int btf_area_weights(int n_in, int n_out, int *first, int *cnt, float *w, int ma
 /* Planar columns of one interleaved 8-bit RGB image (texels*3 bytes) into
  * cols[c * texels + i] = px[3 i + c] * (1/255), the scale of btf_get. */
 void btf_views_put_u8(const uint8_t *px, size_t texels, float *cols);
+
+/* Monotonic clock in seconds (CLOCK_MONOTONIC): for durations only. */
+double btf_seconds(void);
 
 #ifdef __cplusplus
 }

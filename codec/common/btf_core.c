@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <time.h>
 #include <string.h>
 
 const char *btf_result_string(btf_result r)
@@ -193,4 +194,11 @@ btf_result btf_check_finite(const btf *b, btf_error *err)
                             img % (size_t)b->lights.n_dirs);
         }
     return BTF_OK;
+}
+
+double btf_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }

@@ -25,13 +25,6 @@
 
 /* ---------------------------------------------------------------- small helpers */
 
-static double btf__now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 
 
 
@@ -585,18 +578,19 @@ static int btf__model_fits(const btf_pca_model *m, const btf_views *src, const b
 static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
                                    const btf_package_options *o, const char *tmp, btf_error *err)
 {
-    btf_rd_params par = {m,           w->acols,     w->arows,     noise, tmp, w->chan->rd_max_bytes,
-                         o->png_only, w->chan->rd_ladder, w->chan->estimate ? w->chan->tex_rate_scale : 0.0, w->chan->rd_near, w->chan->rd_tex_fix};
-    btf_rd_result rr, *keep = w->chan->rd_out;
+    const btf_package_channel *c = w->chan;
+    btf_rd_params par = {m,           w->acols,     w->arows,  noise,   tmp, c->rd_max_bytes, o->png_only,
+                         c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix};
+    btf_rd_result rr, *keep = c->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)
         return r;
     memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
     memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
     w->rd_json = btf__rd_json(&rr);
-    if (w->chan->estimate && (w->est_bytes = malloc((size_t)w->C * sizeof(long long))) != NULL)
+    if (c->estimate && (w->est_bytes = malloc((size_t)w->C * sizeof(long long))) != NULL)
         memcpy(w->est_bytes, rr.comp_bytes, (size_t)w->C * sizeof(long long));
-    if (w->chan->estimate && !w->est_bytes)
+    if (c->estimate && !w->est_bytes)
         r = btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (estimates)");
     if (keep)
         *keep = rr;
@@ -711,7 +705,7 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
     if (r == BTF_OK)
         r = btf_fs_temp_dir(out_dir, tmp, sizeof tmp, btf_manifest_owns_temp, NULL, err);
     int made = r == BTF_OK;
-    double t0 = btf__now(), t1 = t0;
+    double t0 = btf_seconds(), t1 = t0;
     if (r == BTF_OK) {
         /* the writer keeps what it needs per block; --rd keeps the model and passes the blocks again */
         btf_pca_model *m = NULL, **slot = o.rd ? c.rd_model : NULL;
@@ -730,7 +724,7 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
             *slot = m; /* the slot owns it now */
         else
             btf_pca_model_free(m);
-        t1 = btf__now();
+        t1 = btf_seconds();
     }
     if (r == BTF_OK)
         r = btf__write_all(&w, &po, &o, name, tmp, stats, err);
@@ -742,7 +736,7 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
         btf_fs_rmtree(tmp, NULL); /* the scratch of an estimate, or a failed package */
     if (stats) {
         stats->seconds_pca = t1 - t0;
-        stats->seconds_write = btf__now() - t1;
+        stats->seconds_write = btf_seconds() - t1;
     }
     btf__writer_free(&w);
     btf_blocks_free(bl);

@@ -27,6 +27,7 @@
 
 #include "btf_fs.h"
 #include "lws_connect.h"
+#include "btf_common.h"
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -73,13 +74,6 @@ static const char *g_mat;
 static struct lws_context *g_ctx;
 static long long g_delivered, g_dups, g_bad_bytes, g_not_resumed, g_goaway, g_killed;
 static unsigned g_seed = 12345;
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
 
 static uint32_t le32(const uint8_t *p)
 {
@@ -261,7 +255,7 @@ static void piece_end(client *c)
     c->have[chunk] = 1;
     c->held++;
     if (chunk == 0 && !c->t_first)
-        c->t_first = now_s();
+        c->t_first = btf_seconds();
     g_delivered++;
     maybe_kill();
 }
@@ -427,21 +421,21 @@ static int parse_args(int argc, char **argv)
 /* Starts every client and services them until all hold every chunk or RUN_LIMIT_S. */
 static double run_clients(void)
 {
-    double t0 = now_s();
+    double t0 = btf_seconds();
     for (int i = 0; i < g_n; i++) {
         g_cl[i].idx = i;
         g_cl[i].cur_chunk = -1;
-        g_cl[i].t_start = now_s();
+        g_cl[i].t_start = btf_seconds();
         connect_client(&g_cl[i]);
     }
     int done = 0;
-    while (done < g_n && now_s() - t0 < RUN_LIMIT_S) {
+    while (done < g_n && btf_seconds() - t0 < RUN_LIMIT_S) {
         lws_service(g_ctx, 0);
         done = 0;
         for (int i = 0; i < g_n; i++)
             done += g_cl[i].held == g_pkg.n_chunks;
     }
-    return now_s() - t0;
+    return btf_seconds() - t0;
 }
 
 int main(int argc, char **argv)

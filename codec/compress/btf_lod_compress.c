@@ -1,5 +1,6 @@
-/* btf_build.c - one package from one loaded BTF or one view source (btf_build.h). */
-#include "btf_build.h"
+/* btf_lod_compress.c - a package with spatial levels in one call (btf_lod.h):
+ * btf_package_compress into a writer's temporary, then btf_lod_build into OUT. */
+#include "btf_lod.h"
 
 #include "btf_fs.h"
 #include "btf_common.h"
@@ -44,19 +45,21 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
     return r;
 }
 
-btf_result btf_build_package(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg,
-                             const btf_lod_options *lod, const char *out, btf_compress_stats *stats, btf_error *err)
+btf_result btf_lod_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *pkg,
+                            const btf_lod_options *lod, const char *out, btf_compress_stats *stats, btf_error *err)
 {
+    btf_package_options none = {0};
     if (lod && lod->levels > 0)
-        return build_v2(src, NULL, pca, *pkg, lod, out, stats, err);
+        return build_v2(src, NULL, pca, pkg ? *pkg : none, lod, out, stats, err);
     return build_v1(src, NULL, pca, pkg, out, stats, err);
 }
 
-btf_result btf_build_package_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *pkg,
-                                   const btf_lod_options *lod, const char *out, btf_compress_stats *stats,
-                                   btf_error *err)
+btf_result btf_lod_compress_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *pkg,
+                                  const btf_lod_options *lod, const char *out, btf_compress_stats *stats,
+                                  btf_error *err)
 {
+    btf_package_options none = {0};
     if (lod && lod->levels > 0)
-        return build_v2(NULL, src, pca, *pkg, lod, out, stats, err);
+        return build_v2(NULL, src, pca, pkg ? *pkg : none, lod, out, stats, err);
     return build_v1(NULL, src, pca, pkg, out, stats, err);
 }
