@@ -1,4 +1,4 @@
-/* bench_lap.c - package version 4 (residual levels, doc/package-format.md section 12)
+/* bench_lap.c - package version 4 (residual levels, doc/package-format.md section 4.4)
  * against version 2 (independent mips) and version 1 (no levels), and its streaming
  * order against the thesis format (issue 14, items 4 and 5); `name value unit` lines.
  *
@@ -48,7 +48,7 @@ static long long file_bytes(const char *dir, const char *name)
 }
 
 /* dir_bytes with every tex-* file counted at the smaller of its size and the
- * lossless WebP of its grey pixels (codec/btf_webp.h). */
+ * lossless WebP of its grey pixels (codec/image/btf_webp.h). */
 static long long dir_bytes_best(const char *dir)
 {
     DIR *d = opendir(dir);

@@ -1,5 +1,5 @@
 /* fuzz_dfmf.c - libFuzzer target for the DFMF08FC `.btf` reader (btf_load_dfmf,
- * codec/btf_dfmf.c): the input is written to a scratch file and loaded. An
+ * codec/input/btf_dfmf.c): the input is written to a scratch file and loaded. An
  * accepted file must give a BTF within the limits with finite samples; a refused
  * one a one-line message. Memory is bounded by the reader's own limits (run
  * libFuzzer with -rss_limit_mb to catch a reader that trusts a header). */

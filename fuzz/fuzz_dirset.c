@@ -1,5 +1,5 @@
 /* fuzz_dirset.c - libFuzzer target for the direction-set JSON reader
- * (btf_dirset_parse_json, codec/btf_dirset_json.c): ring tables and direction
+ * (btf_dirset_parse_json, codec/common/btf_dirset_json.c): ring tables and direction
  * lists. An accepted set must be
  * within the limits and interpolate: finite weights that sum to 1, indices in range. */
 #include <math.h>

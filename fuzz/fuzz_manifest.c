@@ -1,5 +1,5 @@
 /* fuzz_manifest.c - libFuzzer target for the package manifest parser
- * (btf_manifest_parse, codec/btf_manifest.c). An accepted manifest must print
+ * (btf_manifest_parse, codec/format/btf_manifest.c). An accepted manifest must print
  * back (btf_manifest_print) into one that parses to the same chunk list, and
  * the level selection must stay within it. */
 #include "btf_lod.h"

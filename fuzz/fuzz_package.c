@@ -1,5 +1,5 @@
 /* fuzz_package.c - libFuzzer target for the package reader's files
- * (btf_package_read, codec/btf_package_read.c). A small valid package is made
+ * (btf_package_read, codec/decompress/btf_package_read.c). A small valid package is made
  * once; each input replaces one of its files (first byte: 0 texture PNG, 1
  * weights .bin, 2 manifest.json, 3 an 8-bit weights PNG of a version-2 package,
  * 4 the manifest and 5 a residual level of a version-4 package: a lossless WebP,

@@ -1,5 +1,5 @@
 /* fuzz_thesis.c - libFuzzer target for the thesis package reader (btf_thesis_read,
- * codec/btf_thesis.c). A small valid package is written once; each input
+ * codec/input/btf_thesis.c). A small valid package is written once; each input
  * replaces one of its files (first byte: 0 meta.json, 1 R.png, 2 0.png), PNG
  * checksums repaired. Accepted packages must stay in range and reconstruct. */
 #include <math.h>

@@ -1,5 +1,5 @@
 /* fuzz_ubo2003_name.c - libFuzzer target for the UBO2003 file-name parser
- * (btf_ubo2003_name_angles, codec/btf_ubo2003.c): accepted names give angles in
+ * (btf_ubo2003_name_angles, codec/input/btf_ubo2003.c): accepted names give angles in
  * range, and the canonical name written back from them parses to the same angles. */
 #include "btf_io.h"
 #include "fuzz_util.h"

@@ -89,7 +89,7 @@ typedef struct btfd_library {
 } btfd_library;
 
 /* The prefix of m's chunks a view needs where one repeat of the material spans `pixels`
- * device pixels, at visibility threshold (doc/package-format.md section 10:
+ * device pixels, at visibility threshold (doc/package-format.md section 7.4:
  * btf_lod_select at width / pixels texels per pixel); every chunk for packages without
  * levels, none when pixels <= 0 (off screen). */
 int btfd_material_lod_limit(const btfd_material *m, double pixels, double threshold);

@@ -1,5 +1,5 @@
 // btf_decode.glsl - PCA package decoder: the GLSL twin of btf_decode
-// (codec/btf_decode.c, doc/package-format.md section 6) on the packed GPU layout of
+// (codec/decompress/btf_decode.c, doc/package-format.md section 6) on the packed GPU layout of
 // shaders/README.md ("GPU layout"). Needs btf_dirs.glsl before it. Tested against the
 // CPU decoder on both headless backends (tests/test_gl.c, tests/test_lod_gl.c).
 //

@@ -1,5 +1,5 @@
 // btf_dirs.glsl - angular interpolation by direction table: the GLSL twin of
-// btf_dirtab_interp_vec (codec/btf_dirtab.c; doc/data-model.md, "Direction tables"),
+// btf_dirtab_interp_vec (codec/common/btf_dirtab.c; doc/data-model.md, "Direction tables"),
 // operation by operation in float. Per query: one table texel, three vertex reads
 // from a uniform block and three determinants; a step to a neighbouring triangle
 // (one more texel) only where the cell's triangle does not contain the query.

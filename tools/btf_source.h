@@ -34,7 +34,7 @@ typedef struct btf_source_args {
 btf_result btf_source_load_args(const char *cmd, const char *spec, const btf_source_args *a, btf **out,
                                 btf_error *err);
 
-/* Opens spec as a view source (codec/btf_views.h) with the same options: an image
+/* Opens spec as a view source (codec/include/btf_views.h) with the same options: an image
  * directory, a `.btf` file or gen:... BTF_ERR_UNSUPPORTED for what is only read
  * whole (a thesis package; --downsample of a .btf or gen:): load it instead. */
 btf_result btf_source_open_views(const char *spec, const btf_source_args *a, btf_views *out, btf_error *err);

@@ -28,10 +28,10 @@ typedef struct compress_opts {
     btf_package_options pkg;
     int quiet, json;
     int in_memory;     /* --in-memory: load the whole input first (the baseline of the view-by-view read) */
-    btf_budget budget; /* --max-bytes / --max-error (codec/btf_budget.h); both 0 = none */
+    btf_budget budget; /* --max-bytes / --max-error (codec/include/btf_budget.h); both 0 = none */
     int k_set;         /* --k given: the only candidate of a budget */
     int components_set; /* --components given: a budget's fixed component count */
-    btf_lod_options lod; /* levels > 0: package version 2 (4 with residual) with spatial levels (codec/btf_lod.h) */
+    btf_lod_options lod; /* levels > 0: package version 2 (4 with residual) with spatial levels (codec/include/btf_lod.h) */
 } compress_opts;
 
 static void compress_usage(FILE *f)
@@ -192,7 +192,7 @@ static int compress_json(const char *out, const btf_compress_stats *st, double s
     return btf_json_print(o);
 }
 
-/* --max-bytes / --max-error: the k and chunk count chosen by measuring (codec/btf_budget.h). */
+/* --max-bytes / --max-error: the k and chunk count chosen by measuring (codec/include/btf_budget.h). */
 static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
 {
     if (o->lod.levels > 0)

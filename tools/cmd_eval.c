@@ -6,7 +6,7 @@
  * Both inputs go through btf_load_any (UBO2003 directory, thesis package,
  * `.btf`), must have the same size and direction sets, and are compared with
  * btf_compare: RGB MAE/RMSE (0..255), PSNR, CIELab MAE as the thesis computes
- * it and mean CIE76 Delta E (codec/btf_metrics.h).
+ * it and mean CIE76 Delta E (codec/include/btf_metrics.h).
  */
 #include "btf_args.h"
 #include "btf_cli.h"

@@ -1,5 +1,5 @@
 /* cmd_export_thesis.c - `btf export-thesis IN OUT`: the project's k-view PCA written
- * in the thesis's package format (codec/btf_thesis.h; bench/eval/btf_export.h), the
+ * in the thesis's package format (codec/input/btf_thesis.h; bench/eval/btf_export.h), the
  * baseline for comparisons at equal bytes.
  *
  *     btf export-thesis knit/ out/knit-thesis --k 3 --components 8
@@ -32,7 +32,7 @@ static void export_usage(FILE *f)
             "                                [--sampling S] [--fill-missing] [--eval] [--quiet]\n"
             "\n"
             "Writes IN (anything the loaders read) as a thesis package OUT (meta.json, J.png,\n"
-            "R.png; codec/btf_thesis.h): K consecutive views per block, component 0 = the\n"
+            "R.png; codec/input/btf_thesis.h): K consecutive views per block, component 0 = the\n"
             "texel mean, components 1..C-1 = row-centred PCA, 8-bit U and V, sigma in 0.1 steps.\n"
             "Needs the same light and view directions and a square texture of even side.\n"
             "  --k K            views per block, 1..views (default 3)\n"

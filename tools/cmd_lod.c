@@ -1,5 +1,5 @@
 /* cmd_lod.c - `btf lod IN_PKG OUT_PKG`: adds spatial levels to a version-1 package
- * (doc/package-format.md section 10, codec/btf_lod.h).
+ * (doc/package-format.md section 9.2, codec/include/btf_lod.h).
  *
  *     btf lod lib/wool-v1 lib/wool --levels 4
  */
@@ -31,7 +31,7 @@ static void lod_usage(FILE *f)
                "                  tiles >= 8 texels, at most 4); W and H must divide by 2^(N-1)\n"
                "  --threshold T   visibility threshold (RMS on 0..255) of the chunk order (default %.1f)\n"
                "  --residual      version 4: every level but the coarsest stored as a residual over\n"
-               "                  the next coarser one (doc/package-format.md section 12); 8 bits only\n"
+               "                  the next coarser one (doc/package-format.md section 4.4); 8 bits only\n"
                "  --png           with --residual: every texture a PNG (default: each the smaller\n"
                "                  of a PNG and a lossless WebP, doc/package-format.md section 4)\n"
                "  --no-thumbnail  write no thumbnail.png (default: as `btf compress`, decoded from OUT_PKG)\n"

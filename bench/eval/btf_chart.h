@@ -1,4 +1,4 @@
-/* btf_chart.h - `btf chart`: every method setting of the registry (codec/btf_method.h)
+/* btf_chart.h - `btf chart`: every method setting of the registry (bench/eval/btf_method.h)
  * run on a set of materials, the numbers behind doc/chart-*.csv, and the gnuplot
  * charts drawn from those CSV files.
  *

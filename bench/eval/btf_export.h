@@ -4,9 +4,9 @@
  *     btf_export_options o = {0};  o.k = 3; o.components = 8;   // zero = 3, 8, thesis scaling
  *     btf_export_stats st;
  *     if (btf_export_thesis(src, &o, "out/wool-thesis", &st, &err) != BTF_OK) puts(err.msg);
- *     // read back: btf_thesis_read / btf_import_thesis (codec/btf_thesis.h, btf_io.h)
+ *     // read back: btf_thesis_read / btf_import_thesis (codec/input/btf_thesis.h, btf_io.h)
  *
- * Model: the project's k-view block PCA (codec/btf_pca.h) in the thesis's layout:
+ * Model: the project's k-view block PCA (codec/include/btf_pca.h) in the thesis's layout:
  * k consecutive views per block (block b = views k*b .. k*b+k-1, the last block
  * padded to k view slots with zero weights), component 0 = the texel's mean over
  * the block (L0 = mean, sigma0 = 1, V0 = 1), components 1..C-1 = the top C-1

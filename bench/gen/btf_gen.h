@@ -67,7 +67,7 @@ btf_result btf_gen_check_params(const btf_gen_params *p, btf_error *err);
 /* Fills a new BTF of size w x h sampled at the given direction sets (uses all cores). */
 btf_result btf_gen_create(const btf_gen_params *p, int w, int h, const btf_dirset *lights, const btf_dirset *views,
                           btf_storage storage, btf **out, btf_error *err);
-/* The same material as a view source (codec/btf_views.h): each fill renders one view
+/* The same material as a view source (codec/include/btf_views.h): each fill renders one view
  * (the samples btf_gen_create stores as BTF_U8, bit for bit), so a full-size
  * material (151 x 151 directions at 400 x 400 texels) needs one view's images and
  * the shadow table (4 * lights * w * h bytes) in memory, never the material. */

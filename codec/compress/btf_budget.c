@@ -286,7 +286,7 @@ static int btf__budget_model_slot(const btf__search *s, int i)
  * for every step: the best's choice on the window when the best is written from the
  * whole material, the one it grew from for a grown candidate (its first components).
  * Measured on tiles, stone and knit at 128x128: the same steps as with every step
- * measured, at half the ladder's time (doc/package-format.md section 11). */
+ * measured, at half the ladder's time (doc/package-format.md section 11.4). */
 static const btf_rd_result *btf__budget_near(const btf__search *s, int i, int final)
 {
     const btf_budget_choice *c = &s->rs.candidate[i], *b = s->best >= 0 ? &s->rs.candidate[s->best] : NULL;

@@ -348,7 +348,7 @@ static int btf__w8_mult(const btf__lod *s, int a)
 }
 
 /* Component a's weights requantised to 8 bits (q8 = round(q16 / (257 m)), the same lo),
- * as a grey PNG of 3L x V pixels (doc/package-format.md section 10). */
+ * as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2). */
 static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error *err)
 {
     const btf_package *p = s->p;

@@ -37,7 +37,7 @@ typedef struct btf__writer {
     int C, bits, qmax, ch, W, H, L, V, rows;
     float *tnoise;        /* C: RMS noise (0..255 scale) of component j's texture steps; <= 0 = full range */
     float *wnoise;        /* C: the same for its weights; <= 0 = the full 16-bit range */
-    int version;          /* 1, or 3: wt-JJ.z weights (doc/package-format.md section 11) */
+    int version;          /* 1, or 3: wt-JJ.z weights (doc/package-format.md section 9.3) */
     char *rd_json;        /* version 3: the manifest's "rd" record (malloc'd), NULL otherwise */
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
@@ -421,7 +421,7 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
 
 /* Component j's atlas as tmp/tex-JJ.png, or for version 3 (8 bits) as a lossless
  * tmp/tex-JJ.webp unless o->png_only: the smaller of the two on nearly every atlas,
- * as the allocation's ladder assumes (doc/package-format.md section 11 has the
+ * as the allocation's ladder assumes (doc/package-format.md section 11.4 has the
  * numbers); *bytes its size. */
 static btf_result btf__write_texture(btf__writer *w, const btf_package_options *o, const char *tmp, int j,
                                      long long *bytes, btf_error *err)
@@ -544,7 +544,7 @@ done:
 }
 
 
-/* The manifest's "rd" record (doc/package-format.md section 11), malloc'd; NULL when out of memory. */
+/* The manifest's "rd" record (doc/package-format.md section 10.8), malloc'd; NULL when out of memory. */
 static char *btf__rd_json(const btf_rd_result *rr)
 {
     cJSON *o = cJSON_CreateObject();

@@ -1,5 +1,5 @@
 /* btf_rd.c - equal-slope choice of the quantisation steps (btf_rd.h,
- * doc/package-format.md section 11): measured rate and distortion of every
+ * doc/package-format.md section 10.8): measured rate and distortion of every
  * candidate step multiplier per component, then one Lagrange multiplier. */
 #include "btf_rd.h"
 

@@ -1,5 +1,5 @@
 /* btf_rd.h - rate-distortion choice of the quantisation steps of a package
- * (doc/package-format.md section 11): per component one texture and one weight
+ * (doc/package-format.md section 10.8): per component one texture and one weight
  * step multiplier, chosen with one Lagrange multiplier (equal slope) so that the
  * quantisation adds the same squared error as the equal-noise allocation of
  * section 4 with fewer bytes. Used by the package writer (btf_package_options.rd).
@@ -34,7 +34,7 @@ extern "C" {
 
 /* Ladder notches (factors of sqrt 2 in noise) measured either side of a near choice
  * (btf_rd_params.near): tiles at 128x128, the winner written from the whole material
- * after the search on its centre window: see doc/package-format.md section 11. */
+ * after the search on its centre window: see doc/package-format.md section 11.4. */
 #define BTF_RD_NEAR_NOTCHES 2
 
 /* The measured ladders of one model (rates and distortions of every candidate step),

@@ -104,7 +104,7 @@ static float btf__tex_level(const btf_package *p, int n, int c, int b, int l, in
     return s;
 }
 
-/* Version 2 (doc/package-format.md section 10): lod clamped to [0, N-1], trilinear
+/* Version 2 (doc/package-format.md section 6): lod clamped to [0, N-1], trilinear
  * between floor(lod) and the next level; a level a component has not loaded takes
  * its nearest loaded level, texel by texel (btf_lod_texel_of). */
 static void btf__decode_levels(const btf_package *p, float u, float v, const float light[3], const float view[3],

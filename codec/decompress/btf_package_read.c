@@ -36,7 +36,7 @@ static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext, in
 }
 
 
-/* Version 2 coarse weights (doc/package-format.md section 10): an 8-bit grey PNG of
+/* Version 2 coarse weights (doc/package-format.md section 5.2): an 8-bit grey PNG of
  * 3L x V pixels, Wt = lo + wt8_step * step * q with the 16-bit [lo, step]. */
 static btf_result btf__load_weights8(btf_package *p, const char *dir, int i, const char *wf, float *wt,
                                      btf_error *err)
@@ -92,7 +92,7 @@ static btf_result btf__read_wtz(const char *path, int rows, int cols, uint16_t *
     return r;
 }
 
-/* Version 3: wt-JJ.z (doc/package-format.md section 11). */
+/* Version 3: wt-JJ.z (doc/package-format.md section 9.3). */
 static btf_result btf__load_weights_z(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
 {
     int L = p->lights.n_dirs, V = p->views.n_dirs;
@@ -106,7 +106,7 @@ static btf_result btf__load_weights_z(const btf_package *p, const char *path, in
 }
 
 
-/* Version 4: wt-JJ-r.z (doc/package-format.md section 12), the 16-bit weights as a
+/* Version 4: wt-JJ-r.z (doc/package-format.md section 5.3), the 16-bit weights as a
  * btf_wtz stream (one light per "view") of r = (q16 - s_c q8) mod 65536 over the
  * component's 8-bit weights, which an earlier chunk carried. */
 static btf_result btf__load_weights_r(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
@@ -179,7 +179,7 @@ static btf_result btf__shared_weights(const btf_package *p, int i, float *wt, bt
 }
 
 
-/* Version 4 (doc/package-format.md section 12): chunk i's atlas bytes *px, a residual
+/* Version 4 (doc/package-format.md section 4.4): chunk i's atlas bytes *px, a residual
  * when its level is not the coarsest, replaced by the level they reconstruct over the
  * bytes of the component's next coarser level (an earlier chunk, already loaded),
  * On failure *px is the caller's to free (NULL when freed here). */

@@ -1,5 +1,5 @@
 /* btf_lap.c - version-4 residual levels: the predictor, its least-squares fit, the
- * residual transform and its inverse (doc/package-format.md section 12). */
+ * residual transform and its inverse (doc/package-format.md section 4.4). */
 #include "btf_lap.h"
 #include "btf_common.h"
 

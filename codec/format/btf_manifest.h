@@ -1,4 +1,4 @@
-/* btf_manifest.h - the package manifest (doc/package-format.md sections 3 and 10)
+/* btf_manifest.h - the package manifest (doc/package-format.md section 3)
  * as text and as the in-memory btf_package: one parser and one serializer for
  * both versions. Used by the package writer, reader and level builder.
  *
@@ -49,7 +49,7 @@ int btf_manifest_owns_dir(const char *dir, void *ctx);
  * a writer's unfinished temporary directory, safe to remove. */
 int btf_manifest_owns_temp(const char *dir, void *ctx);
 
-/* Version 4 (doc/package-format.md section 12): 1 when chunk i's texture is a residual
+/* Version 4 (doc/package-format.md section 4.3): 1 when chunk i's texture is a residual
  * over its component's next coarser level (its name ends "-dL.png", L = its level,
  * below the coarsest level), 0 when it holds the level's texels directly. */
 int btf_package_chunk_residual(const btf_package *p, int i);

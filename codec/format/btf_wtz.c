@@ -1,4 +1,4 @@
-/* btf_wtz.c - wt-JJ.z weights coding (doc/package-format.md section 11). */
+/* btf_wtz.c - wt-JJ.z weights coding (doc/package-format.md section 9.3). */
 #include "btf_wtz.h"
 #include "btf_common.h"
 

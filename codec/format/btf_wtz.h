@@ -1,4 +1,4 @@
-/* btf_wtz.h - the version-3 weights file wt-JJ.z (doc/package-format.md section 11):
+/* btf_wtz.h - the version-3 weights file wt-JJ.z (doc/package-format.md section 9.3):
  * 16-bit quantised weights as zigzag differences along the lights, in two byte
  * planes, in one zlib stream.
  *

@@ -8,7 +8,7 @@
  *
  * Each candidate k is compressed once with the largest component count; its
  * manifest gives the bytes and the measured CIELab error of every chunk prefix
- * (the chunk order is by error drop per byte, doc/package-format.md section 7),
+ * (the chunk order is by error drop per byte, doc/package-format.md section 10.3),
  * so every budget of that k is read off one compression. With opt->rd (version 3)
  * and max_bytes, each k's steps are fitted to the bytes
  * (the writer's inside channel, compress/btf_compress.h). Unless pca sets a centring, the best

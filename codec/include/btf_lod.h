@@ -34,7 +34,7 @@ extern "C" {
 typedef struct btf_lod_options {
     int levels;       /* levels including level 0; 0 = as many as keep tiles >= 8 texels, at most 4 */
     double threshold; /* reference visibility threshold used for the chunk order; 0 = BTF_LOD_THRESHOLD */
-    int residual;     /* 1: version 4 (doc/package-format.md section 12): every level but the coarsest stored as
+    int residual;     /* 1: version 4 (doc/package-format.md section 4.3): every level but the coarsest stored as
                        * a residual over the coarser one (8-bit packages only); 0: version 2 (independent mips) */
     int png_only;     /* with residual: 1 = every texture file a PNG; 0 = each the smaller of PNG and lossless WebP */
     int thumbnail;    /* > 0: out_dir gets thumbnail.png of at most this many pixels a side, decoded from the new
@@ -52,14 +52,14 @@ typedef struct btf_lod_stats {
 /* Reads the complete version-1 package in_dir and writes out_dir (a different path)
  * as version 2: level 0 = the v1 files unchanged, level l = 2x2 box averages of
  * level l-1 (dequantised, requantised with the component's ranges) in tex-JJ-lL.png;
- * chunks are (component, level) pairs in the order of doc/package-format.md section 10. */
+ * chunks are (component, level) pairs in the order of doc/package-format.md section 7.3. */
 btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
                          btf_error *err);
 
 /* Texels per screen pixel of a material W texels wide, repeated `repeat` times
  * across `pixels` device pixels. <= 0 when pixels <= 0 (nothing visible). */
 /* Texel (along one axis, inside a tile) of level `from` that texel x of level `level`
- * takes when a component lacks `level` (doc/package-format.md section 10): a finer
+ * takes when a component lacks `level` (doc/package-format.md section 6): a finer
  * level's texel repeats its coarser one (x >> d), a coarser level's texel takes the
  * finer texel at its centre ((x << d) + 2^(d-1)). The GPU packing uses the same. */
 int btf_lod_texel_of(int x, int level, int from);
@@ -80,7 +80,7 @@ typedef struct btf_lod_selection {
     long long bytes;  /* bytes of that prefix */
 } btf_lod_selection;
 
-/* Selection rule (doc/package-format.md section 10): level = the largest l < levels
+/* Selection rule (doc/package-format.md section 7.4): level = the largest l < levels
  * with 2^l <= texels_per_pixel (0 below 2); component c is visible when the
  * `contrib` of its chunk at that level is >= threshold (the component of chunk 0
  * always); a chunk is needed when its component is visible and its level >= level.

@@ -34,7 +34,7 @@ extern "C" {
 #define BTF_PACKAGE_MAX_CHUNKS 1024
 #define BTF_PACKAGE_MAX_FILES 8   /* files per chunk */
 #define BTF_PACKAGE_NAME_MAX 64   /* file and material name length, including NUL */
-#define BTF_PACKAGE_TEX_NOISE 0.5f /* default tex_noise (doc/package-format.md section 4) */
+#define BTF_PACKAGE_TEX_NOISE 0.5f /* default tex_noise (doc/package-format.md section 10.4) */
 #define BTF_PACKAGE_THUMBNAIL_SIDE 128 /* longest side of the thumbnail.png `btf compress` writes */
 
 /* Writer options; zero means default. Plain value. */
@@ -48,8 +48,8 @@ typedef struct btf_package_options {
      * component; minor components get fewer levels and compress better).
      * 0 = BTF_PACKAGE_TEX_NOISE; negative = always the full 8-bit range. */
     float tex_noise;
-    /* 1: version 3 (doc/package-format.md section 11): per-component texture and
-     * weight steps chosen by rate-distortion (codec/btf_rd.h) for the same added
+    /* 1: version 3 (doc/package-format.md section 10.8): per-component texture and
+     * weight steps chosen by rate-distortion (codec/compress/btf_rd.h) for the same added
      * error as tex_noise's equal noise, weights deflated as wt-JJ.z. 8 bits only. */
     int rd;
     /* With rd: 1 = every texture a PNG; 0 = every texture a lossless WebP
@@ -85,7 +85,7 @@ typedef struct btf_chunk_info {
     double rmse, lab, psnr, delta_e76, rmse_float; /* after chunks 0..id have arrived */
     float *tex_range; /* n_blocks x {lo, step} (malloc'd) */
     float *wt_range;  /* n_blocks x {lo, step} (malloc'd) */
-    int level;        /* spatial level (version 2, codec/btf_lod.h): texels are (W >> level) x (H >> level); 0 in version 1 */
+    int level;        /* spatial level (version 2, codec/include/btf_lod.h): texels are (W >> level) x (H >> level); 0 in version 1 */
     double contrib;   /* version 2: RMS (0..255) of this component's contribution seen at this level; 0 if absent */
     double wt8_step;  /* version 2: 8-bit weights are lo + wt8_step * step * q ("weights8_step"; 257 if absent) */
     double rmse_full; /* version 2: RMS (0..255) of what the prefix up to this chunk still lacks at level 0 */
@@ -120,7 +120,7 @@ typedef struct btf_package {
 } btf_package;
 
 /* 1 when the package has spatial levels: version 2 (independent mips) or version 4
- * (finer levels as residuals over the coarser one, doc/package-format.md section 12). */
+ * (finer levels as residuals over the coarser one, doc/package-format.md section 4.3). */
 static inline int btf_package_has_levels(const btf_package *p)
 {
     return p->version == 2 || p->version == 4;

@@ -73,7 +73,7 @@ btf_result btf_thesis_read(const char *dir, btf_thesis_pkg *p, btf_error *err);
  * through a temporary sibling directory renamed into place. */
 btf_result btf_thesis_write(const char *dir, const btf_thesis_pkg *p, btf_error *err);
 /* 1 when dir holds a thesis package and nothing else (meta.json, R.png, N.png):
- * one this writer may replace. ctx unused (a btf_fs_owned_fn, codec/btf_fs.h). */
+ * one this writer may replace. ctx unused (a btf_fs_owned_fn, codec/common/btf_fs.h). */
 int btf_thesis_owns_dir(const char *dir, void *ctx);
 
 /* Decodes one unclamped RGB value (view, light < N; x, y < S) by the formula above. */
