@@ -405,10 +405,7 @@ static double *btf__budget_tex_fix(const btf__search *s, const btf_package *p, c
  * of them (the chunk order is by error drop per byte, so the kept components are
  * taken as the first chunks): the allocation's estimates fill the budget to within a
  * few hundred bytes, but an atlas estimated from a sample of its tile rows can come
- * out several percent larger, and the cut then loses a whole chunk (the thesis wool
- * at 128x128, k 3 centred, 8 components: 7 chunks, CIELab 0.505, 220 bytes short of
- * the eighth; at 256x256, 9 components: 8 chunks, 117 KB short, its atlases 0-14%
- * above their estimates). Fitted again to the budget less the record and 0.2%, each
+ * out several percent larger, and the cut then loses a whole chunk. Fitted again to the budget less the record and 0.2%, each
  * component's texture rates scaled by its atlas as written over its estimate
  * (btf_rd_params.tex_rate_fix), the better of the two writes is kept in the
  * candidate's directory. */
@@ -476,13 +473,11 @@ static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
 /* While the best candidate keeps every component it has, it is tried again with
  * half as many again, rounded up to a multiple of 4 (16, 24, 36, 56, 64: the
  * renderer reads 4 per texel; up to BTF_BUDGET_MAX_COMPONENTS and what its blocks
- * hold); stops when the larger one does not win. Steps of 1.5x, not 2x: with the
- * steps fitted to the bytes the error is not monotonic in the count (tiles at
- * 256x256: 16 components CIELab 1.82, 24 1.70, 32 1.74). The larger one wins only
- * with more chunks kept, not by a lower error alone: with as many chunks it holds
- * about the same components, and its edge is noise of the window (stone at 128x128:
- * 24 components kept 16 chunks at the 16's error on the window, 5% more error on
- * the whole material). */
+ * hold); stops when the larger one does not win. Steps of half as many again, not
+ * doubling: with the steps fitted to the bytes the error is not monotonic in the
+ * count, so a doubling can step over the best. The larger one wins only with more
+ * chunks kept, not by a lower error alone: with as many chunks it holds about the
+ * same components, and its edge is noise of the window. */
 static btf_result btf__budget_grow(btf__search *s, btf_error *err)
 {
     btf_result r = BTF_OK;

@@ -212,8 +212,8 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
         free(atlas);
     }
     /* odd indices: the mean of the neighbours' rates (a rate is about linear in the
-     * log of the step; tiles at 128x128: the package within 0.05% of the bytes and
-     * CIELab error of every step encoded, at half the encodings) */
+     * log of the step, so the package comes out nearly as with every step encoded,
+     * at half the encodings) */
     for (int j = 0; res == BTF_OK && j < r->C; j++)
         for (int i = 1; i < BTF__RD_NT; i += 2) {
             long long *rt = r->rt + (size_t)j * BTF__RD_NT;

@@ -152,12 +152,11 @@ static btf_result encode_image(const std::string &tmp, const char *path, int w, 
 // With BTF_IMAGE_PNG_SMALLEST: the filter choice that deflates smallest among libpng's
 // per-row adaptive one and filter None, Up or Average on every row, judged on the
 // image's middle 64 rows (the whole image when it has at most 128), then the whole
-// image in tmp with that choice. Up wins on most component atlases (4-9% below the
-// adaptive choice on the thesis wool at 256x256), Average on some, None on residuals;
-// Sub and Paeth never won there. On 22 atlases and residuals the strip's choice gave
-// files within 0.01% of the best of the three on the whole image; it can lose a
-// little to the adaptive choice (the knit at 64x64: 0.1% larger atlases), where
-// comparing both on the whole image would cost a second full encoding.
+// image in tmp with that choice. Up wins on most component atlases, Average on some,
+// None on residuals; Sub and Paeth did not win on the materials measured
+// (doc/package-format.md section 11.2). The strip's choice is nearly always the
+// whole image's; it can lose a little to the adaptive choice, where comparing both
+// on the whole image would cost a second full encoding.
 static btf_result encode_smallest_png(const std::string &tmp, const std::string &ext, const char *path, int w, int h,
                                       int channels, int bits, const void *pixels, btf_error *err)
 {

@@ -44,7 +44,8 @@ btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels
  * without spatial correlation, such as prediction residuals) and
  * BTF_IMAGE_PNG_SMALLEST (of libpng's per-row adaptive filter choice and filter
  * None, Up or Average on every row, the one that deflates the image's middle rows
- * smallest: 2-8% smaller texture atlases for about 1.4 times the encoding time)
+ * smallest: smaller texture atlases for a longer encoding, doc/package-format.md
+ * section 11.2)
  * and BTF_IMAGE_PNG_UP (filter Up on every row: the usual winner of that choice, at
  * one encoding). Other formats ignore the PNG flags. */
 #define BTF_IMAGE_UNSYNCED 1

@@ -16,7 +16,7 @@
  * the texel's mean; on a window it must win by BTF_BUDGET_SCREEN_EDGE), which wins
  * on materials made of a mean and a few terms. When the best candidate keeps every component it
  * was compressed with (the component count, not the budget, stopped it) and the
- * caller did not fix the count, it is tried again with 1.5x the components (16,
+ * caller did not fix the count, it is tried again with half as many components again (16,
  * 24, 36, 56, 64: BTF_BUDGET_MAX_COMPONENTS) while that keeps more chunks at a
  * lower error.
  *
@@ -49,8 +49,8 @@ extern "C" {
 #define BTF_BUDGET_MAX_COMPONENTS 64 /* the most the growth tries: the renderer's chunk limit */
 #define BTF_BUDGET_SCREEN_MIN 128 /* a side of at least this many texels is halved to screen */
 /* On a window the centred retry replaces the best only with this much less error (or
- * fewer bytes): stone at 128x128, version 1: 1.3% less on the window, 7% more on the
- * whole material; the centred wins where it pays by 15-25% (the thesis corduroy). */
+ * fewer bytes): a small edge on the window can be a loss on the whole material,
+ * and where centring pays it wins by much more. */
 #define BTF_BUDGET_SCREEN_EDGE 0.03
 #define BTF_BUDGET_MAX_GROW 4        /* growth rounds: 16 -> 24 -> 36 -> 56 -> 64 */
 /* each k, one centred, the growth rounds */

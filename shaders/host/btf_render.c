@@ -38,7 +38,7 @@ btf_render_params btf_render_defaults(btf_render_geometry g)
     p.camera_theta = g == BTF_RENDER_PLANE ? 30.0f : g == BTF_RENDER_SPHERE ? 60.0f : 50.0f;
     p.camera_dist = g == BTF_RENDER_PLANE ? 3.5f : 3.6f;
     /* 28 to 35 degrees off the camera, up and to the right: the lit side faces the
-     * camera (97% of the default sphere's pixels lit) and the relief shows */
+     * camera (nearly all of the default sphere's visible pixels lit) and the relief shows */
     p.light_theta = 45.0f;
     p.light_phi = -50.0f;
     p.fov_deg = 40.0f;
