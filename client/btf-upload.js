@@ -1,0 +1,81 @@
+// btf-upload.js - the chunks of one subscription into one GPU package, in order: each
+// decoded off the main thread (btf-decode.js: its image files; btf-package.js: its
+// weights), queued, and uploaded by the next frame (btf-session.js drives it).
+import {GpuPackage} from './btf-gl.js';
+import {decodeImage} from './btf-decode.js';
+import {decodeWeights, dequantWeights8} from './btf-package.js';
+
+// Owned by a session; one per GPU package (made for a manifest, again after a context
+// restore), dropped with it (free()).
+export class ChunkUploads {
+  // sub: the subscription (btf-stream.js) whose chunks go in; on.decoded(): a chunk waits
+  // for the upload; on.fail(e): a chunk could not be decoded.
+  constructor(gl, pkg, sub, capacity, on) {
+    this.gpu = new GpuPackage(gl, pkg, capacity);
+    this.pkg = pkg;
+    this.sub = sub;
+    this.on = on;
+    this.chain = Promise.resolve();
+    this.ready = [];  // decoded chunks in order, waiting for the upload
+    this.next = 0;    // the first chunk not queued for decoding yet
+    this.freed = false;
+  }
+
+  free() {
+    this.freed = true;
+    this.ready = [];
+    this.gpu.free();
+  }
+
+  // Queues the decode of every held chunk below `limit` not queued yet: the subscription
+  // may hold more (a larger budget of another viewer, the browser cache).
+  pump(limit) {
+    for (; this.next < limit && this.sub.chunks[this.next]; this.next++) {
+      const j = this.next;
+      this.chain = this.chain.then(() => this.decode(j)).catch((e) => this.on.fail(e));
+    }
+  }
+
+  // Decodes chunk j (a texture is a PNG or, versions 3 and 4, a lossless WebP:
+  // doc/package-format.md) and queues it.
+  async decode(j) {
+    if (this.freed || j < this.gpu.uploaded) return;
+    const chunk = this.pkg.chunks[j], files = this.sub.chunks[j];
+    const data = (name) => files[chunk.files.indexOf(name)];
+    const img = await decodeImage(data(chunk.tex), chunk.tex.endsWith('.webp') ? 'image/webp' : 'image/png');
+    if (this.freed) return;
+    const wt = await this.weights(chunk, data);
+    if (this.freed) return;
+    this.ready.push({j, img, wt});
+    this.on.decoded();
+  }
+
+  // Dequantised weights of a chunk, all by btf-package.js: decodeWeights for the 16-bit
+  // files (wt-JJ.bin, version 3's wt-JJ.z, version 4's wt-JJ-r.z over the component's
+  // 8-bit weights; marked .precise), dequantWeights8 for version 2's wt-JJ-8.png (8-bit
+  // coarse, its pixels kept for version 4's residuals), else null (only a texture).
+  async weights(chunk, data) {
+    const pkg = this.pkg, gpu = this.gpu;
+    if (chunk.wt) {
+      const w = await decodeWeights(pkg, chunk, data(chunk.wt), gpu.w8q.get(chunk.component));
+      w.precise = true;
+      return w;
+    }
+    if (!chunk.wt8) return null;
+    const img = await decodeImage(data(chunk.wt8), 'image/png');
+    const L = pkg.lights.dirs, V = pkg.views.dirs;
+    if (img.width !== 3 * L || img.height !== V)
+      throw new Error(`package ${pkg.name}: ${chunk.wt8} is ${img.width}x${img.height}, expected ${3 * L}x${V}`);
+    const px = gpu.readGrey(img);
+    gpu.w8q.set(chunk.component, px);
+    return dequantWeights8(pkg, chunk, px);
+  }
+
+  // Uploads up to `max` queued chunks, in order; returns how many left the queue.
+  upload(max) {
+    let n = 0;
+    for (let r; n < max && (r = this.ready.shift()); n++)
+      if (r.j === this.gpu.uploaded) this.gpu.upload(r.j, r.img, r.wt);
+    return n;
+  }
+}
