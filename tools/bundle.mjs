@@ -1,8 +1,9 @@
 // tools/bundle.mjs - the viewer as one file: esbuild bundles client/btf-viewer.js and its
 // modules (and the decode worker) into OUT/, minified, with the "render" program's
 // shader files inside (client/btf-shader-pack.js is replaced by them), so a page gets
-// the element and its shaders in one request. The pages of client/ are copied beside
-// it (their `import './btf-viewer.js'` gets the bundle). Run by `make build`:
+// the element and its shaders in one request. The demo pages (client/pages/) are copied
+// beside it, to the root btfd serves (their `import '../btf-viewer.js'` resolves to
+// /btf-viewer.js there, the bundle). Run by `make build`:
 //   node tools/bundle.mjs OUT        (default build/client)
 import fs from 'node:fs';
 import path from 'node:path';
@@ -39,9 +40,8 @@ await esbuild.build({
   bundle: true, format: 'esm', minify: true, target: 'es2020', outdir: tmp, plugins: [packPlugin],
   legalComments: 'none', logLevel: 'warning',
 });
-for (const f of fs.readdirSync(path.join(ROOT, 'client')))
-  if (/\.(html|css)$/.test(f) || ['gallery.js', 'viewer.js', 'embed.js'].includes(f))
-    fs.copyFileSync(path.join(ROOT, 'client', f), path.join(tmp, f));
+for (const f of fs.readdirSync(path.join(ROOT, 'client/pages')))
+  fs.copyFileSync(path.join(ROOT, 'client/pages', f), path.join(tmp, f));
 // replace OUT whole (a directory rename; the old one removed after)
 const old = `${OUT}.old-${process.pid}`;
 if (fs.existsSync(OUT)) fs.renameSync(OUT, old);

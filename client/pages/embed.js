@@ -1,7 +1,7 @@
 // embed.js - the embed demo page: three <btf-viewer> elements, one per material of
 // the library (repeating when it has fewer), each with a different surface. The
 // page only fills in names; the embed itself is the script + element shown above.
-import './btf-viewer.js';
+import '../btf-viewer.js'; // one folder up here; at the served root (the bundle, an install) '..' is the root
 
 const GEOMETRIES = ['sphere', 'cylinder', 'plane'];
 

@@ -1,6 +1,6 @@
 // gallery.js - the library page: a grid of the materials listed by GET /materials
 // (thumbnail, size, chunks, final error), each opening a large viewer (#m=NAME).
-import './btf-viewer.js';
+import '../btf-viewer.js'; // one folder up here; at the served root (the bundle, an install) '..' is the root
 
 const $ = (id) => document.getElementById(id);
 const wsUrl = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`;

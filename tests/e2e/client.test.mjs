@@ -42,7 +42,7 @@ describe('gallery (index.html)', () => {
   it('lists every material with its size and opens a large viewer', async () => {
     const page = await newPage(desktop);
     await page.setViewportSize({width: 860, height: 560});
-    await page.goto(server.url);
+    await page.goto(`${server.pagesUrl}index.html`);
     await page.waitForSelector('#grid .card');
     const cards = await page.$$eval('#grid .card', (els) => els.map((e) => e.textContent));
     assert.equal(cards.length, Object.keys(MATERIALS).length);
@@ -89,7 +89,7 @@ describe('scene budgets (version 2)', () => {
   const open = async (size) => {
     const page = await newPage(desktop);
     await page.setViewportSize({width: size + 40, height: size + 40});
-    await page.goto(`${server.url}viewer.html?material=tiles-lod&geometry=plane&light=fixed&repeat=16` +
+    await page.goto(`${server.pagesUrl}viewer.html?material=tiles-lod&geometry=plane&light=fixed&repeat=16` +
       `&width=${size}&height=${size}&max-dpr=1`);
     await waitFor(page, () => {
       const v = window.__btf && window.__btf.viewers()[0];
@@ -134,7 +134,7 @@ describe('scene budgets (version 2)', () => {
   it('pauses while the tab is hidden and while the viewer is off screen', async () => {
     const page = await newPage(desktop);
     await page.setViewportSize({width: 400, height: 400});
-    await page.goto(`${server.url}viewer.html?material=tiles-lod&geometry=plane&light=fixed&repeat=16` +
+    await page.goto(`${server.pagesUrl}viewer.html?material=tiles-lod&geometry=plane&light=fixed&repeat=16` +
       '&width=128&height=128&max-dpr=1');
     await waitFor(page, () => window.__btf && window.__btf.viewers()[0].scene, null, 'the manifest');
     const sentBudget = () => page.evaluate(() => window.__btf.streams()[0].subscriptions[0].budget.chunks);
@@ -166,7 +166,7 @@ describe('embed (embed.html)', () => {
     await page.setViewportSize({width: 1000, height: 700});
     const sockets = [];
     page.on('websocket', (ws) => sockets.push(ws.url()));
-    await page.goto(`${server.url}embed.html`);
+    await page.goto(`${server.pagesUrl}embed.html`);
     await waitFor(page, () => window.__btf && window.__btf.viewers().length === 3, null, 'three viewers');
     await waitFor(page, () => window.__btf.viewers().every((v) => v.complete && v.drawnChunks === v.ownLimit &&
       v.frames > 0), null, 'every embed drawn with its budget');
@@ -196,7 +196,7 @@ describe('progressive refinement', () => {
   it('draws from the first chunk and converges on the final image', async () => {
     const page = await newPage(desktop);
     await page.setViewportSize({width: 400, height: 400});
-    await page.goto(`${server.url}viewer.html?material=knit&geometry=plane&light=fixed&light-theta=40` +
+    await page.goto(`${server.pagesUrl}viewer.html?material=knit&geometry=plane&light=fixed&light-theta=40` +
       '&light-phi=-60&camera-theta=30&budget-chunks=1&width=256&height=256&max-dpr=1');
     const shots = {};
     for (const n of [1, 2, 4, 6]) {
@@ -223,7 +223,7 @@ describe('progressive refinement', () => {
 
   it('survives a lost WebGL context and redraws every chunk after the restore', async () => {
     const page = await newPage(desktop);
-    await page.goto(`${server.url}viewer.html?material=tiles&light=fixed&width=200&height=200&max-dpr=1`);
+    await page.goto(`${server.pagesUrl}viewer.html?material=tiles&light=fixed&width=200&height=200&max-dpr=1`);
     await waitFor(page, () => window.__btf.viewers()[0]?.complete && window.__btf.viewers()[0].drawnChunks === 3,
       null, 'all chunks');
     const before = await capture(page, 0);
@@ -244,7 +244,7 @@ describe('progressive refinement', () => {
 
 describe('mobile', () => {
   it('renders on a phone, orbits by touch, zooms by pinch and asks for a smaller budget', async () => {
-    const url = `${server.url}viewer.html?material=knit&geometry=sphere&light=fixed&height=300`;
+    const url = `${server.pagesUrl}viewer.html?material=knit&geometry=sphere&light=fixed&height=300`;
     const dpage = await newPage(desktop);
     await dpage.setViewportSize({width: 1280, height: 800});
     await dpage.goto(url);
@@ -304,7 +304,7 @@ describe('without WebGL2', () => {
           return type === 'webgl2' ? null : get.call(this, type, ...rest);
         };
       });
-      await page.goto(`${server.url}viewer.html?material=knit`);
+      await page.goto(`${server.pagesUrl}viewer.html?material=knit`);
       await waitFor(page, () => window.__btf?.viewers()[0]?.error, null, 'the error');
       const msg = await page.evaluate(() => window.__btf.element(0).shadowRoot.querySelector('.msg').textContent);
       assert.match(msg, /WebGL2 is not available/);
@@ -341,7 +341,7 @@ describe('benchmark: first frame on a 4 Mbit/s link (recorded, not judged)', () 
         downloadThroughput: bps, uploadThroughput: bps});
       const lines = [];
       for (const m of ['knit', 'tiles']) {
-        await page.goto(`${server.url}viewer.html?material=${m}&light=fixed&width=300&height=300&max-dpr=1`);
+        await page.goto(`${server.pagesUrl}viewer.html?material=${m}&light=fixed&width=300&height=300&max-dpr=1`);
         await waitFor(page, () => window.__btf?.viewers()[0]?.complete &&
           window.__btf.viewers()[0].drawnChunks === window.__btf.viewers()[0].ownLimit, null, 'all chunks', 120000);
         const r = await page.evaluate(() => {

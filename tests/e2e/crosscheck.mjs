@@ -40,7 +40,7 @@ export async function crossCheck(ctx, server, lib, assert) {
       const r = spawnSync(BTF, args, {encoding: 'utf8'});
       assert.equal(r.status, 0, `btf ${args.join(' ')} failed: ${r.stderr}`);
       const ref = readPng(out);
-      await page.goto(`${server.url}viewer.html?material=${s.material}&geometry=${s.geometry}&light=fixed` +
+      await page.goto(`${server.pagesUrl}viewer.html?material=${s.material}&geometry=${s.geometry}&light=fixed` +
         `&light-theta=${s.light[0]}&light-phi=${s.light[1]}&camera-theta=${s.camera[0]}&camera-phi=${s.camera[1]}` +
         `&camera-dist=${s.camera[2]}&fov=${s.fov}&budget-chunks=${s.chunks}&width=${s.w}&height=${s.h}&max-dpr=1` +
         (s.repeat ? `&repeat=${s.repeat}` : ''));

@@ -125,7 +125,7 @@ describe('version 4 (residual levels)', () => {
     for (const chunks of [2, n]) {
       const shots = {};
       for (const m of ['tiles-lod', 'tiles-lap']) {
-        await page.goto(`${server.url}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
+        await page.goto(`${server.pagesUrl}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
           `&light-phi=-60&camera-theta=30&width=256&height=256&max-dpr=1&repeat=4&budget-chunks=${chunks}`);
         await waitFor(page, (k) => {
           const v = window.__btf && window.__btf.viewers()[0];

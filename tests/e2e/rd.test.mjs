@@ -29,7 +29,7 @@ describe('version 3 (wt-JJ.z weights)', () => {
     await page.setViewportSize({width: 400, height: 400});
     const shots = {};
     for (const m of ['tiles', 'tiles-rd']) {
-      await page.goto(`${server.url}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
+      await page.goto(`${server.pagesUrl}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
         '&light-phi=-60&camera-theta=30&width=256&height=256&max-dpr=1');
       await waitFor(page, () => {
         const v = window.__btf && window.__btf.viewers()[0];

@@ -69,8 +69,12 @@ export function writeSpiralList(n, rot) {
   return file;
 }
 
-// Starts btfd on a free loopback port, or `port` (extra: more options); resolves {port, url, ws, stop()}.
+// Starts btfd on a free loopback port, or `port` (extra: more options); resolves {port,
+// url, ws, pagesUrl, stop()}. It serves client/ (the source modules) unless extra has a
+// --client; pagesUrl: where the demo pages are, client/pages/ in the source tree, the
+// root in a bundle (tools/bundle.mjs).
 export function startServer(lib, extra = [], port = 0) {
+  const pagesUrl = (url) => (extra.includes('--client') ? url : `${url}pages/`);
   return new Promise((resolve, reject) => {
     const p = spawn(BTFD, ['--library', lib, '--port', String(port), '--client', path.join(ROOT, 'client'),
       '--shaders', path.join(ROOT, 'shaders'), ...extra], {cwd: ROOT, stdio: ['ignore', 'pipe', 'pipe']});
@@ -86,7 +90,8 @@ export function startServer(lib, extra = [], port = 0) {
       if (m) {
         clearTimeout(timer);
         const port = +m[1];
-        resolve({port, url: `http://127.0.0.1:${port}/`, ws: `ws://127.0.0.1:${port}/stream`, proc: p,
+        const url = `http://127.0.0.1:${port}/`;
+        resolve({port, url, ws: `ws://127.0.0.1:${port}/stream`, pagesUrl: pagesUrl(url), proc: p,
           stop: () => new Promise((res) => {
             if (p.exitCode !== null) return res();
             p.once('exit', res);
