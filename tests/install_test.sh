@@ -64,6 +64,7 @@ installed_share() {
     for f in client/*.* shaders/*.glsl shaders/*.vert shaders/*.frag shaders/manifest.json; do
         list+=("share/btf-stream/$f")
     done
+    for f in client/pages/*.*; do list+=("share/btf-stream/client/${f#client/pages/}"); done
     all_present "${list[@]}"
 }
 
@@ -176,6 +177,7 @@ serves() {
 serves_installed_client() {
     start_btfd || return 1
     serves /btf-viewer.js "$INST/share/btf-stream/client/btf-viewer.js" &&
+        serves /index.html "$INST/share/btf-stream/client/index.html" &&
         serves /shaders/manifest.json "$INST/share/btf-stream/shaders/manifest.json"
     local rc=$?
     kill "$BTFD_PID" && wait "$BTFD_PID"
