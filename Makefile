@@ -61,9 +61,10 @@ GEN_OBJ    := $(patsubst %.c,$(BUILD)/%.o,$(wildcard bench/gen/*.c))
 GEN_LIB    := $(BUILD)/bench/gen/libbtfgen.a
 $(GEN_OBJ): INC := $(call codec_inc,common) -Ibench/gen
 
-# shaders/host/ headless GL host of shaders/: EGL and OSMesa backends, package upload, render (uses codec)
-GL_PKGS    := osmesa egl glesv2
-GL_OBJ     := $(patsubst %.c,$(BUILD)/%.o,$(wildcard shaders/host/*.c))
+# shaders/host/ headless GL host of shaders/: EGL and OSMesa backends, package upload, render,
+#               glTF models (tinygltf, btf_gltf.cpp) (uses codec)
+GL_PKGS    := osmesa egl glesv2 tinygltf
+GL_OBJ     := $(patsubst %.c,$(BUILD)/%.o,$(wildcard shaders/host/*.c)) $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard shaders/host/*.cpp))
 GL_LIB     := $(BUILD)/shaders/host/libbtfgl.a
 $(GL_OBJ): INC := $(call codec_inc,common image) -Ishaders/host
 $(GL_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(GL_PKGS) libcjson)
@@ -86,12 +87,13 @@ $(TOOLS_OBJ) $(BUILD)/tools/btf_main.o: PKG_CFLAGS = $(ALL_CFLAGS)
 # client/       the browser viewer; $(BUILD)/client/ its one-file bundle (esbuild, the
 #               "render" shaders inside) and the pages, what btfd serves in `make demo`
 BUNDLE     := $(BUILD)/client/btf-viewer.js
-$(BUNDLE): $(wildcard client/*) $(wildcard shaders/*.*) tools/bundle.mjs package-lock.json
+$(BUNDLE): $(wildcard client/*) $(wildcard client/pages/*) $(wildcard shaders/*.*) tools/bundle.mjs package-lock.json
 	@test -x node_modules/.bin/esbuild || { echo "esbuild is missing: run 'make setup' (npm ci)"; exit 1; }
 	node tools/bundle.mjs $(BUILD)/client
 
-# tests/        Criterion suites (one binary) and browser tests in tests/e2e/
-TEST_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(wildcard tests/*.c))
+# tests/        Criterion suites (one binary), one folder per room they test (tests/ROOM/), and
+#               their shared fixtures (tests/fixtures.h); not deploy/ (its own program) or e2e/ (browser)
+TEST_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(filter-out tests/deploy/%,$(wildcard tests/*.c tests/*/*.c)))
 TEST_BIN   := $(BUILD)/run_tests
 $(TEST_OBJ): INC := $(ALL_INC) -Itests
 $(TEST_OBJ): PKG_CFLAGS = $(ALL_CFLAGS) $(call pkg,--cflags,criterion libwebsockets)
@@ -201,16 +203,18 @@ PC_VERSION   := $(shell sed -n 's/.*define BTF_VERSION "\(.*\)".*/\1/p' codec/in
 INST_ROOT     = $(DESTDIR)$(PREFIX)
 INST_HEADERS := $(wildcard codec/include/*.h)
 INST_CLIENT  := $(wildcard client/*.*)
+INST_PAGES   := $(wildcard client/pages/*.*)
 INST_SHADERS := $(wildcard shaders/*.glsl shaders/*.vert shaders/*.frag) shaders/manifest.json
 INST_FILES    = bin/btf bin/btfd lib/libbtfcodec.a lib/pkgconfig/btfcodec.pc \
-    $(INST_HEADERS:codec/include/%=include/btfcodec/%) $(addprefix share/btf-stream/,$(INST_CLIENT) $(INST_SHADERS))
+    $(INST_HEADERS:codec/include/%=include/btfcodec/%) $(addprefix share/btf-stream/,$(INST_CLIENT) $(INST_SHADERS)) \
+    $(INST_PAGES:client/pages/%=share/btf-stream/client/%)
 
 install: $(BTF_BIN) $(BUILD)/btfd $(CODEC_LIB)
 	install -D -m 755 $(BTF_BIN) $(INST_ROOT)/bin/btf
 	install -D -m 755 $(BUILD)/btfd $(INST_ROOT)/bin/btfd
 	install -D -m 644 $(CODEC_LIB) $(INST_ROOT)/lib/libbtfcodec.a
 	install -D -m 644 -t $(INST_ROOT)/include/btfcodec $(INST_HEADERS)
-	install -D -m 644 -t $(INST_ROOT)/share/btf-stream/client $(INST_CLIENT)
+	install -D -m 644 -t $(INST_ROOT)/share/btf-stream/client $(INST_CLIENT) $(INST_PAGES)
 	install -D -m 644 -t $(INST_ROOT)/share/btf-stream/shaders $(INST_SHADERS)
 	install -d -m 755 $(INST_ROOT)/lib/pkgconfig
 	printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$${prefix}/lib' 'includedir=$${prefix}/include' '' \

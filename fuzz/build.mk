@@ -9,21 +9,21 @@
 # Targets: dirset (direction-set JSON), dfmf (.btf files), manifest (package
 # manifest), package (package files: textures, weights, 8-bit weights, manifest),
 # thesis (thesis packages), ubo2003_name (image file names), roundtrip (random
-# small BTFs through compress + read + decode), request (btfd's request parser,
-# server/build.mk).
+# small BTFs through compress + read + decode), gltf (glTF models of the GL host,
+# shaders/host/btf_gltf.cpp), request (btfd's request parser, server/build.mk).
 
-FUZZ_CODEC        := dirset dfmf manifest package thesis ubo2003_name roundtrip
+FUZZ_CODEC        := dirset dfmf manifest package thesis ubo2003_name roundtrip gltf
 FUZZ_CODEC_OBJ    := $(FUZZ_CODEC:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 FUZZ_CODEC_REPLAY := $(FUZZ_CODEC:%=$(BUILD)/fuzz/replay_%)
-FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS)) -lstdc++ -lm
+FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) tinygltf) -lstdc++ -lm
 FUZZ_BUILD        ?= build-fuzz
 FUZZ_RSS_MB       ?= 2048
 
-$(FUZZ_CODEC_OBJ): INC := $(CODEC_INNER) -Ibench/gen -Ifuzz
+$(FUZZ_CODEC_OBJ): INC := $(CODEC_INNER) -Ibench/gen -Ishaders/host -Ifuzz
 $(FUZZ_CODEC_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(CODEC_PKGS))
 build: $(FUZZ_CODEC_REPLAY)
 
-$(BUILD)/fuzz/replay_%: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay_main.o $(GEN_LIB) $(CODEC_LIB)
+$(BUILD)/fuzz/replay_%: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay_main.o $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(FUZZ_LINK)
 
 .PHONY: fuzz fuzz-replay fuzz-codec
@@ -39,10 +39,11 @@ fuzz-codec:
 	$(MAKE) BUILD=$(FUZZ_BUILD) CC=clang CXX=clang++ OPT='-O1 -g' WARN='-Wall -Wextra' \
 	    SAN='-fsanitize=address,undefined,fuzzer-no-link' \
 	    $(FUZZ_BUILD)/codec/libbtfcodec.a $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
-	    $(FUZZ_CODEC:%=$(FUZZ_BUILD)/fuzz/fuzz_%.o)
+	    $(FUZZ_BUILD)/shaders/host/libbtfgl.a $(FUZZ_CODEC:%=$(FUZZ_BUILD)/fuzz/fuzz_%.o)
 	@for t in $(FUZZ_CODEC); do \
 	    clang++ -fsanitize=fuzzer,address,undefined -fopenmp -o $(FUZZ_BUILD)/fuzz/fuzz_$$t \
-	        $(FUZZ_BUILD)/fuzz/fuzz_$$t.o $(FUZZ_BUILD)/bench/gen/libbtfgen.a $(FUZZ_BUILD)/codec/libbtfcodec.a \
+	        $(FUZZ_BUILD)/fuzz/fuzz_$$t.o $(FUZZ_BUILD)/shaders/host/libbtfgl.a $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
+	        $(FUZZ_BUILD)/codec/libbtfcodec.a \
 	        $(FUZZ_LINK) || exit 1; \
 	done
 	@mkdir -p $(FUZZ_BUILD)/fuzz/log

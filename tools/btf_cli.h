@@ -10,6 +10,7 @@ int cmd_compress(int argc, char **argv);
 int cmd_eval(int argc, char **argv);
 int cmd_export_thesis(int argc, char **argv);
 int cmd_gen(int argc, char **argv);
+int cmd_gen_model(int argc, char **argv);
 int cmd_import_thesis(int argc, char **argv);
 int cmd_library(int argc, char **argv);
 int cmd_lod(int argc, char **argv);

@@ -20,10 +20,11 @@ static const btf_command commands[] = {
     {"eval", cmd_eval, "error metrics (RGB MAE/RMSE, PSNR, CIELab) of TEST against REF"},
     {"export-thesis", cmd_export_thesis, "k-view PCA written in the thesis's package format (baseline)"},
     {"gen", cmd_gen, "synthetic material (knit, tiles, stone) with known ground truth"},
+    {"gen-model", cmd_gen_model, "a small glTF product (a stool of three materials) with known geometry"},
     {"import-thesis", cmd_import_thesis, "reconstruct a thesis package into images or a .btf file"},
     {"library", cmd_library, "build a library: one package per source, parallel jobs, up-to-date skipping"},
     {"lod", cmd_lod, "add spatial levels (package version 2) to a compressed package"},
-    {"render", cmd_render, "render a package on a plane, sphere or cylinder to PNG (headless GL)"},
+    {"render", cmd_render, "render a package on a plane, sphere, cylinder or glTF model to PNG (headless GL)"},
     {NULL, NULL, NULL},
 };
 

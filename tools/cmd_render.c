@@ -1,8 +1,10 @@
 /* cmd_render.c - `btf render PACKAGE OUT.png`: a package (possibly partial) on a
- * plane, sphere or cylinder, headless (EGL or OSMesa), through the shared shaders.
+ * plane, sphere or cylinder, or on a glTF model with other packages bound to its
+ * materials, headless (EGL or OSMesa), through the shared shaders.
  *
  *     btf render lib/wool wool.png --geometry cylinder --size 640x480
  *     btf render lib/knit knit-2.png --chunks 2 --camera 60,-90,3.5 --light 30,0
+ *     btf render lib/wool sofa.png --model sofa.glb --bind Frame=lib/impalla,2
  *
  * Scene conventions (camera and light angles, objects, uv): shaders/host/btf_render.h and
  * shaders/README.md ("Scene conventions").
@@ -10,6 +12,7 @@
 #include "btf_args.h"
 #include "btf_cli.h"
 #include "btf_render.h"
+#include "btf_scene.h"
 
 #include <errno.h>
 #include <math.h>
@@ -24,6 +27,11 @@ typedef struct render_opts {
     const char *pkg, *out;
     btf_render_params p;
     btf_gl_backend backend;
+    const char *model;  /* --model: a glTF file, PACKAGE bound to every part no --bind names */
+    int dist_given;     /* --camera gave a distance (else a model is framed) */
+    int n_bind;         /* --bind NAME=DIR[,REPEAT], into bind[1..]; bind[0] is PACKAGE's "*" */
+    btf_scene_binding bind[BTF_SCENE_MAX_BINDINGS];
+    char bind_text[BTF_SCENE_MAX_BINDINGS][512];
 } render_opts;
 
 static void render_usage(FILE *f)
@@ -32,6 +40,7 @@ static void render_usage(FILE *f)
                "                  [--size W[xH]] [--camera THETA,PHI[,DIST]] [--light THETA,PHI]\n"
                "                  [--fov DEG] [--repeat R] [--filter nearest|bilinear]\n"
                "                  [--no-horizon-fade] [--backend egl|osmesa] [--background R,G,B]\n"
+               "                  [--model FILE.glb|FILE.gltf [--bind MATERIAL=DIR[,REPEAT]]...]\n"
                "\n"
                "Renders the package directory PACKAGE (its first N chunks; default: every chunk\n"
                "present) headless with the shaders the browser runs, and writes OUT (PNG).\n"
@@ -49,7 +58,15 @@ static void render_usage(FILE *f)
                "  --filter F           texel filter (default bilinear)\n"
                "  --no-horizon-fade    keep the decoder's value for lights below the measured range\n"
                "  --backend B          egl or osmesa (default $BTF_GL_BACKEND, else egl, else osmesa)\n"
-               "  --background R,G,B   0..1 each (default 0.12,0.12,0.12)\n");
+               "  --background R,G,B   0..1 each (default 0.12,0.12,0.12)\n"
+               "  --model FILE         a glTF 2.0 model (.glb, or .gltf with its buffers) instead of\n"
+               "                       the geometry: PACKAGE on every part no --bind names (R\n"
+               "                       repeats per unit of its TEXCOORD_0; PACKAGE - for none:\n"
+               "                       those parts in their glTF base colour), the camera framing\n"
+               "                       the model (+y up in the file is +z here; --camera T,P,D\n"
+               "                       sets the distance)\n"
+               "  --bind M=DIR[,R]     with --model: the package DIR on the parts of material M\n"
+               "                       (R repeats per uv unit, default 1); repeatable\n");
     btf_args_exit_codes(f);
 }
 
@@ -93,6 +110,28 @@ static int render_size(const char *s, int *w, int *h)
     return 1;
 }
 
+/* --bind NAME=DIR[,REPEAT] into the next binding; 0 ok, 2 usage error. */
+static int render_bind(const btf_args *a, const char *val, render_opts *o)
+{
+    if (o->n_bind + 1 >= BTF_SCENE_MAX_BINDINGS)
+        return btf_args_bad(a, val, "at most %d bindings", BTF_SCENE_MAX_BINDINGS - 1);
+    char *t = o->bind_text[o->n_bind + 1];
+    snprintf(t, sizeof o->bind_text[0], "%s", val);
+    char *eq = strchr(t, '='), *comma = eq ? strrchr(eq, ',') : NULL;
+    btf_scene_binding *b = &o->bind[o->n_bind + 1];
+    b->repeat = 1.0f;
+    if (comma && !render_floats(comma + 1, &b->repeat, 1, 1))
+        comma = NULL; /* a comma in the folder name, no repeat */
+    else if (comma)
+        *comma = '\0';
+    if (!eq || eq == t || !eq[1] || strlen(val) >= sizeof o->bind_text[0])
+        return btf_args_bad(a, val, "MATERIAL=DIR[,REPEAT]");
+    *eq = '\0';
+    b->material = t, b->dir = eq + 1;
+    o->n_bind++;
+    return 0;
+}
+
 /* One option with its value of the second pass (btf_args_fn); 0 ok, 2 usage error. */
 static int render_option(void *ctx, const btf_args *a, int c, const char *val)
 {
@@ -109,7 +148,10 @@ static int render_option(void *ctx, const btf_args *a, int c, const char *val)
     case 'c':
         ok = render_floats(val, v, 2, 3), want = "THETA,PHI[,DIST]";
         p->camera_theta = v[0], p->camera_phi = v[1], p->camera_dist = v[2];
+        o->dist_given = ok && strchr(strchr(val, ',') + 1, ',') != NULL;
         break;
+    case 'm': o->model = val; break;
+    case 'M': return render_bind(a, val, o);
     case 'l':
         ok = render_floats(val, v, 2, 2), want = "THETA,PHI";
         p->light_theta = v[0], p->light_phi = v[1];
@@ -130,10 +172,13 @@ static int render_option(void *ctx, const btf_args *a, int c, const char *val)
     return ok ? 0 : btf_args_bad(a, val, "%s", want);
 }
 
-/* --geometry, the first pass (btf_args_fn): it sets the defaults the others change. */
+/* --geometry (and --model, which takes the sphere's view), the first pass
+ * (btf_args_fn): it sets the defaults the others change. */
 static int render_geometry(void *ctx, const btf_args *a, int c, const char *val)
 {
     btf_render_geometry *g = ctx;
+    if (c == 'm')
+        *g = BTF_RENDER_SPHERE;
     if (c != 'g')
         return 0;
     int k = btf_render_geometry_from_name(val);
@@ -149,7 +194,8 @@ static int render_parse(int argc, char **argv, render_opts *o)
 {
     static const btf_args_spec spec = {"render",
                                        "chunks:n geometry:g size:s camera:c light:l "
-                                       "fov:F repeat:r filter:f backend:b background:B no-horizon-fade!H",
+                                       "fov:F repeat:r filter:f backend:b background:B no-horizon-fade!H "
+                                       "model:m bind:M",
                                        render_usage, 2};
     memset(o, 0, sizeof *o);
     btf_render_geometry g = BTF_RENDER_PLANE;
@@ -165,7 +211,34 @@ static int render_parse(int argc, char **argv, render_opts *o)
         fprintf(stderr, "btf render: %s\n", err.msg);
         return 2;
     }
+    if (o->n_bind > 0 && !o->model) {
+        fprintf(stderr, "btf render: --bind needs --model\n");
+        return 2;
+    }
+    if (strcmp(o->pkg, "-") == 0 && !o->model) {
+        fprintf(stderr, "btf render: PACKAGE \"-\" (no package) needs --model\n");
+        return 2;
+    }
+    o->bind[0] = (btf_scene_binding){"*", o->pkg, o->p.repeat};
     return 0;
+}
+
+/* The model drawn with its bindings: framed unless --camera gave a distance. */
+static btf_result render_model(render_opts *o, btf_error *err)
+{
+    btf_gltf *m = NULL;
+    btf_result r = btf_gltf_load(o->model, &m, err);
+    if (r != BTF_OK)
+        return r;
+    btf_render_params p = o->p;
+    float dist = p.camera_dist;
+    btf_scene_frame(m, &p);
+    if (o->dist_given)
+        p.camera_dist = dist;
+    int none = strcmp(o->pkg, "-") == 0; /* only the --bind packages */
+    r = btf_scene_png(m, o->bind + none, o->n_bind + 1 - none, &p, o->backend, o->out, err);
+    btf_gltf_free(m);
+    return r;
 }
 
 /* When neither $BTF_SHADERS nor $BTF_ROOT is set and ./shaders has no manifest,
@@ -198,7 +271,8 @@ static int render_main(void *opts)
     render_opts *o = opts;
     render_find_shaders();
     btf_error err = {{0}};
-    if (btf_render_png(o->pkg, &o->p, o->backend, o->out, &err) != BTF_OK) {
+    btf_result r = o->model ? render_model(o, &err) : btf_render_png(o->pkg, &o->p, o->backend, o->out, &err);
+    if (r != BTF_OK) {
         fprintf(stderr, "btf render: %s\n", err.msg);
         return 1;
     }

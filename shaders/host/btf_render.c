@@ -66,8 +66,8 @@ btf_result btf_render_check_params(const btf_render_params *p, btf_error *err)
     if (p->camera_theta < 0 || p->camera_theta > 180 || p->light_theta < 0 || p->light_theta > 180)
         return btf_fail(err, BTF_ERR_RANGE, "render: theta outside 0..180 (camera %g, light %g)",
                         (double)p->camera_theta, (double)p->light_theta);
-    if (!btf__finite(p->camera_dist) || !(p->camera_dist > 0.0f) || p->camera_dist > 1e4f)
-        return btf_fail(err, BTF_ERR_RANGE, "render: camera distance %g outside (0, 1e4]", (double)p->camera_dist);
+    if (!btf__finite(p->camera_dist) || !(p->camera_dist > 0.0f) || p->camera_dist > 1e7f)
+        return btf_fail(err, BTF_ERR_RANGE, "render: camera distance %g outside (0, 1e7]", (double)p->camera_dist);
     if (!(p->fov_deg >= 1.0f && p->fov_deg <= 170.0f))
         return btf_fail(err, BTF_ERR_RANGE, "render: field of view %g outside 1..170 degrees", (double)p->fov_deg);
     for (int c = 0; c < 3; c++)
@@ -80,6 +80,11 @@ btf_result btf_render_check_params(const btf_render_params *p, btf_error *err)
         return btf_fail(err, BTF_ERR_ARG, "render: filter %d is neither 0 (nearest) nor 1 (bilinear)", p->filter);
     if (p->n_chunks < 0)
         return btf_fail(err, BTF_ERR_RANGE, "render: negative chunk count %d", p->n_chunks);
+    for (int c = 0; c < 3; c++)
+        if (!btf__finite(p->target[c]) || fabsf(p->target[c]) > 1e6f)
+            return btf_fail(err, BTF_ERR_RANGE, "render: camera target component %d is not finite or beyond 1e6", c);
+    if (!btf__finite(p->extent) || p->extent < 0.0f || p->extent > 1e6f)
+        return btf_fail(err, BTF_ERR_RANGE, "render: extent %g outside [0, 1e6]", (double)p->extent);
     return BTF_OK;
 }
 
@@ -133,7 +138,7 @@ void btf_render_camera_make(const btf_render_params *p, btf_render_camera *c)
     btf__dir(p->camera_theta, p->camera_phi, dir);
     double up0[3] = {-cos(t) * cos(ph), -cos(t) * sin(ph), sin(t)}; /* -d(dir)/d(theta) */
     for (int i = 0; i < 3; i++) {
-        eye[i] = d * dir[i];
+        eye[i] = p->target[i] + d * dir[i];
         fwd[i] = -dir[i];
     }
     btf__cross(fwd, up0, right);
@@ -145,7 +150,7 @@ void btf_render_camera_make(const btf_render_params *p, btf_render_camera *c)
                        fwd[0] * eye[0] + fwd[1] * eye[1] + fwd[2] * eye[2], 1};
     double aspect = (double)p->width / p->height;
     double th = tan(p->fov_deg * BTF__PI / 360.0) / (aspect < 1.0 ? aspect : 1.0); /* fov spans the narrower side */
-    double zn = 0.05 * d, zf = d + 4.0;
+    double zn = 0.05 * d, zf = d + 2.0 * (p->extent > 0.0f ? p->extent : 2.0);
     double proj[16] = {1 / (th * aspect), 0, 0, 0, 0, 1 / th, 0, 0, 0, 0, -(zf + zn) / (zf - zn), -1, 0, 0,
                        -2 * zf * zn / (zf - zn), 0};
     double vp[16], ident[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
@@ -370,6 +375,45 @@ static void btf__renderer_uniforms(btf_renderer *r, const btf_render_params *p, 
     btf_gl_package_settings(r->gl, r->pkg, r->prog, &s);
 }
 
+btf_result btf_renderer_use(btf_renderer *r, const btf_render_params *p, const btf_render_camera *c, btf_error *err)
+{
+    btf_gl_fn(r->gl)->UseProgram(r->prog->id);
+    btf_result res = btf_gl_package_bind(r->gl, r->pkg, r->prog, 0, err);
+    if (res == BTF_OK)
+        btf__renderer_uniforms(r, p, c);
+    return res;
+}
+
+btf_result btf_render_frame_begin(btf_gl *gl, const btf_render_params *p, btf_gl_target *t, GLuint *depth,
+                                  btf_error *err)
+{
+    if (t->width != p->width || t->height != p->height)
+        return btf_fail(err, BTF_ERR_ARG, "render: target %dx%d, parameters ask for %dx%d", t->width, t->height,
+                        p->width, p->height);
+    const btf_gl_api *f = btf_gl_fn(gl);
+    btf_gl_target_bind(gl, t);
+    f->GenRenderbuffers(1, depth);
+    f->BindRenderbuffer(GL_RENDERBUFFER, *depth);
+    f->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, t->width, t->height);
+    f->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, *depth);
+    f->Enable(GL_DEPTH_TEST);
+    const float zero[4] = {0, 0, 0, 0};
+    f->ClearColor(p->background[0], p->background[1], p->background[2], 1.0f);
+    f->Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    for (int i = 1; i < t->n_color; i++) /* debug outputs: 0 where nothing is drawn */
+        f->ClearBufferfv(GL_COLOR, i, zero);
+    return BTF_OK;
+}
+
+void btf_render_frame_end(btf_gl *gl, GLuint depth)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    f->Disable(GL_DEPTH_TEST);
+    f->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, 0);
+    f->DeleteRenderbuffers(1, &depth);
+    f->BindVertexArray(0);
+}
+
 btf_result btf_renderer_draw(btf_renderer *r, const btf_render_params *p, btf_gl_target *t, btf_error *err)
 {
     if (!r || !p || !t)
@@ -377,39 +421,22 @@ btf_result btf_renderer_draw(btf_renderer *r, const btf_render_params *p, btf_gl
     btf_result res = btf_render_check_params(p, err);
     if (res != BTF_OK)
         return res;
-    if (t->width != p->width || t->height != p->height)
-        return btf_fail(err, BTF_ERR_ARG, "renderer: target %dx%d, parameters ask for %dx%d", t->width, t->height,
-                        p->width, p->height);
-    btf_gl *gl = r->gl;
-    const btf_gl_api *f = btf_gl_fn(gl);
     btf_render_camera cam;
     btf_render_camera_make(p, &cam);
-    btf_gl_target_bind(gl, t);
     GLuint depth = 0;
-    f->GenRenderbuffers(1, &depth);
-    f->BindRenderbuffer(GL_RENDERBUFFER, depth);
-    f->RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, t->width, t->height);
-    f->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
-    f->Enable(GL_DEPTH_TEST);
-    const float bg[4] = {p->background[0], p->background[1], p->background[2], 1.0f}, zero[4] = {0, 0, 0, 0};
-    f->ClearColor(bg[0], bg[1], bg[2], bg[3]);
-    f->Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    for (int i = 1; i < t->n_color; i++) /* debug outputs: 0 where nothing is drawn */
-        f->ClearBufferfv(GL_COLOR, i, zero);
-    f->UseProgram(r->prog->id);
-    res = btf_gl_package_bind(gl, r->pkg, r->prog, 0, err);
+    res = btf_render_frame_begin(r->gl, p, t, &depth, err);
+    if (res != BTF_OK)
+        return res;
+    res = btf_renderer_use(r, p, &cam, err);
     if (res == BTF_OK)
         res = btf__renderer_mesh(r, p->geometry, err);
     if (res == BTF_OK) {
-        btf__renderer_uniforms(r, p, &cam);
+        const btf_gl_api *f = btf_gl_fn(r->gl);
         f->DrawElements(GL_TRIANGLES, r->n_indices, GL_UNSIGNED_INT, 0);
         f->Finish();
-        res = btf_gl_check(gl, "drawing the scene", err);
+        res = btf_gl_check(r->gl, "drawing the scene", err);
     }
-    f->Disable(GL_DEPTH_TEST);
-    f->FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, 0);
-    f->DeleteRenderbuffers(1, &depth);
-    f->BindVertexArray(0);
+    btf_render_frame_end(r->gl, depth);
     return res;
 }
 

@@ -25,11 +25,11 @@
  *            towards -y (seam along the bottom line)
  *   default repeats: plane 1 x 1, sphere 2 x 1, cylinder 1 x 2 (square texels)
  *   times `repeat`.
- * - Camera at dist * dir(camera_theta, camera_phi), looking at the origin, up =
+ * - Camera at target + dist * dir(camera_theta, camera_phi), looking at target, up =
  *   -d(dir)/d(theta) = (-cos t cos p, -cos t sin p, sin t) (defined at theta 0 too),
  *   field of view fov_deg across the narrower side (vertical when width >= height;
  *   taller than wide: horizontal, tan(fovy/2) = tan(fov/2) / aspect), aspect =
- *   width/height, near 0.05*dist, far dist+4.
+ *   width/height, near 0.05*dist, far dist + 2*extent (extent 0: 2).
  * - Light: distant, towards dir(light_theta, light_phi) (u_light.w = 0).
  * Output values are the BTF's own (sRGB-encoded, byte/255 scale), clamped to 0..1.
  *
@@ -73,6 +73,9 @@ typedef struct btf_render_params {
     int n_chunks;                   /* first n uploaded chunks; 0 = all */
     int horizon_fade;               /* 1 (default): light beyond the outermost measured
                                        ring fades linearly in cos(theta) to 0 at the horizon */
+    float target[3];                /* the point the camera looks at (0 = the origin) */
+    float extent;                   /* radius around target of what is drawn (the far plane);
+                                       0 = 2, the built-in geometries' */
 } btf_render_params;
 
 /* Defaults for a geometry: 320 x 240, a camera that frames the object in any aspect,
@@ -132,6 +135,16 @@ void btf_renderer_free(btf_renderer *r);
 const btf_gl_package *btf_renderer_package(const btf_renderer *r);
 /* Clears t to the background (depth too), draws the scene, waits for the GPU. */
 btf_result btf_renderer_draw(btf_renderer *r, const btf_render_params *p, btf_gl_target *t, btf_error *err);
+
+/* A frame in t for p: a depth buffer, colour cleared to p's background (debug
+ * attachments to 0), depth test on. *depth goes to btf_render_frame_end, which
+ * detaches and frees it. */
+btf_result btf_render_frame_begin(btf_gl *gl, const btf_render_params *p, btf_gl_target *t, GLuint *depth,
+                                  btf_error *err);
+void btf_render_frame_end(btf_gl *gl, GLuint depth);
+/* Makes r's program current with its package bound and the uniforms of p and c:
+ * any mesh in a bound vertex array (btf_render_mesh_upload) then draws with it. */
+btf_result btf_renderer_use(btf_renderer *r, const btf_render_params *p, const btf_render_camera *c, btf_error *err);
 
 /* Reads colour attachment 0 of an RGBA8 target into rgb (width*height*3 bytes),
  * top row first (image order). */
