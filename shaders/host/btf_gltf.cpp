@@ -6,6 +6,7 @@
 #include <tiny_gltf.h>
 
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -34,11 +35,14 @@ struct Loader {
             free(p.mesh.vertices), free(p.mesh.indices);
     }
     // Records the first failure (a btf_fail message naming the model) and returns false.
-    template <typename... A> bool fail(btf_result code, const char *fmt, A... a)
+    bool fail(btf_result code, const char *fmt, ...) __attribute__((format(printf, 3, 4)))
     {
         if (r == BTF_OK) {
             char msg[400];
-            snprintf(msg, sizeof msg, fmt, a...);
+            va_list ap;
+            va_start(ap, fmt);
+            vsnprintf(msg, sizeof msg, fmt, ap);
+            va_end(ap);
             r = btf_fail(err, code, "%s: %s", name, msg);
         }
         return false;
@@ -414,8 +418,9 @@ void xform3(const double m3[9], const float *v, double out[3], int stride4, cons
 void unit(double v[3], float *dst, const float fallback[3])
 {
     double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    bool ok = l > 0 && std::isfinite(l);
     for (int c = 0; c < 3; c++)
-        dst[c] = l > 0 ? (float)(v[c] / l) : fallback[c];
+        dst[c] = ok ? (float)(v[c] / l) : fallback[c];
 }
 
 // One drawn part: geo under world matrix m, its material's name and colour.
@@ -453,6 +458,11 @@ bool add_part(Loader &L, const Geometry &geo, const tinygltf::Primitive &p, cons
         unit(x, d + 6, ux);
         d[9] = (s[9] < 0 ? -1.0f : 1.0f) * (det < 0 ? -1.0f : 1.0f);
         d[10] = s[10], d[11] = s[11];
+        for (int c = 0; c < BTF_RENDER_VERTEX_FLOATS; c++)
+            if (!std::isfinite(d[c])) {
+                free(part.mesh.vertices), free(part.mesh.indices);
+                return L.fail(BTF_ERR_NUMERIC, "a vertex is not finite under its node's transform (%zu)", i);
+            }
     }
     for (size_t t = 0; t < ni; t += 3) { // a mirroring transform turns the triangles over
         part.mesh.indices[t] = geo.idx[t];
