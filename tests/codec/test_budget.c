@@ -1,0 +1,215 @@
+/* test_budget.c - room codec, suite "budget": compression to a byte budget or an
+ * error target (codec/include/btf_budget.h), checked against packages compressed independently here. */
+#include <criterion/criterion.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "btf_budget.h"
+#include "btf_fs.h"
+#include "btf_gen.h"
+#include "fixtures.h"
+
+static btf *material(void)
+{
+    static const btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 0.0f}};
+    return fx_material(BTF_GEN_TILES, 16, r, 3);
+}
+
+/* Bytes on disk of a package: every regular file in dir. */
+static long long dir_bytes(const char *dir)
+{
+    DIR *d = opendir(dir);
+    long long n = 0;
+    char path[512];
+    for (struct dirent *e; d && (e = readdir(d));) {
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        n += e->d_name[0] != '.' && btf_fs_size(path) > 0 ? btf_fs_size(path) : 0;
+    }
+    if (d)
+        closedir(d);
+    return n;
+}
+
+/* An independent package of k at 16 components: its chunk bytes and prefix errors. */
+static btf_package *reference(const btf *src, int k, const char *dir)
+{
+    btf_pca_options po = {0};
+    po.k = k, po.components = 16;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, NULL, dir, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read(dir, 1, &p, &err), BTF_OK, "%s", err.msg);
+    return p;
+}
+
+Test(budget, max_bytes_is_met_and_no_prefix_of_the_same_k_does_better)
+{
+    char dir[64], out[128], ref[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/wool", dir);
+    snprintf(ref, sizeof ref, "%s/ref", dir);
+    btf *src = material();
+    btf_budget b = {0};
+    b.max_bytes = 40000, b.k[0] = 3, b.n_k = 1;
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect(res.met && res.k == 3 && res.n_chunks >= 1);
+    cr_expect_eq(dir_bytes(out), res.bytes, "on disk %lld, reported %lld", dir_bytes(out), res.bytes);
+    cr_expect_leq(res.bytes, b.max_bytes);
+    btf_package *got = NULL, *p = reference(src, 3, ref);
+    cr_assert_eq(btf_package_read(out, 0, &got, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(got->n_chunks, res.n_chunks);
+    cr_expect_str_eq(got->name, "wool");
+    cr_expect(got->budget && strstr(got->budget, "\"max_bytes\":40000"), "%s", got->budget ? got->budget : "none");
+    long long files = 0;
+    for (int n = 1; n <= p->n_chunks; n++) { /* every prefix of the same k within the budget is no better */
+        files += p->chunk[n - 1].bytes;
+        if (files + 2000 < b.max_bytes - 4000) /* clearly inside even with a larger manifest */
+            cr_expect_geq(p->chunk[n - 1].lab + 1e-9, res.lab, "prefix %d: Lab %.4f < chosen %.4f", n,
+                          p->chunk[n - 1].lab, res.lab);
+    }
+    btf_package_free(got), btf_package_free(p);
+    btf_free(src);
+    fx_rmtree(dir);
+}
+
+Test(budget, max_error_is_reached_with_the_fewest_chunks)
+{
+    char dir[64], out[128], ref[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    snprintf(ref, sizeof ref, "%s/ref", dir);
+    btf *src = material();
+    btf_package *p = reference(src, 1, ref);
+    double target = p->chunk[p->n_chunks / 2].lab; /* reachable at about half the chunks */
+    btf_budget b = {0};
+    b.max_error = target, b.k[0] = 1, b.n_k = 1;
+    btf_pca_options po = {0}; /* the reference's centring: no centred retry */
+    po.center = BTF_CENTER_NONE;
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect(res.met);
+    cr_expect_leq(res.lab, target);
+    int first = 0;
+    while (first < p->n_chunks && p->chunk[first].lab > target)
+        first++;
+    cr_expect_eq(res.n_chunks, first + 1, "chose %d chunks, the first prefix reaching %.4f has %d", res.n_chunks,
+                 target, first + 1);
+    btf_package_free(p);
+    btf_free(src);
+    fx_rmtree(dir);
+}
+
+Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
+{
+    char dir[64], out[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    btf *src = material();
+    btf_budget b = {0};
+    b.max_bytes = 60000; /* default candidates 1, 3, 9 */
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(res.n_candidates, 4, "k 1, 3, 9 and the best of them with row centring");
+    for (int i = 0; i < res.n_candidates; i++)
+        if (res.candidate[i].n_chunks > 0)
+            cr_expect_geq(res.candidate[i].lab + 1e-12, res.lab, "k %d beats the choice", res.candidate[i].k);
+    b.max_bytes = 100;
+    cr_expect_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_ERR_RANGE);
+    cr_expect(strstr(err.msg, "cannot hold"), "%s", err.msg);
+    cr_expect_eq(btf_fs_size(out), -1, "a directory is not a file");
+    btf_package *p = NULL;
+    cr_expect_eq(btf_package_read(out, 0, &p, &err), BTF_OK, "the refused budget touched the earlier package: %s",
+                 err.msg);
+    btf_package_free(p);
+    btf_free(src);
+    fx_rmtree(dir);
+}
+
+/* The best candidate is tried once more with row centring, unless the caller chose a
+ * centring; the choice is the lower error either way, and the package says how it
+ * was made (its manifest's "center" and the budget record). */
+Test(budget, the_best_candidate_is_retried_with_row_centring)
+{
+    char dir[64], out[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    btf *src = material();
+    btf_budget b = {0};
+    b.max_bytes = 60000, b.k[0] = 1, b.k[1] = 3, b.n_k = 2;
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(res.n_candidates, 3);
+    const btf_budget_choice *c = res.candidate, *best = c[0].lab <= c[1].lab ? &c[0] : &c[1];
+    cr_expect_eq(c[0].center, BTF_CENTER_DEFAULT);
+    cr_expect_eq(c[1].center, BTF_CENTER_DEFAULT);
+    cr_expect_eq(c[2].center, BTF_CENTER_ROW);
+    cr_expect_eq(c[2].k, best->k, "the retry is the best uncentred candidate's k");
+    const btf_budget_choice *win = c[2].n_chunks > 0 && c[2].lab < best->lab ? &c[2] : best;
+    cr_expect_eq(res.center, win->center);
+    cr_expect_eq(res.k, win->k);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(p->center, win->center == BTF_CENTER_ROW ? BTF_CENTER_ROW : BTF_CENTER_NONE, "package center %d",
+                 (int)p->center);
+    cr_expect(p->budget && strstr(p->budget, "\"center\":\"row\""), "the record lists the centred candidate: %s",
+              p->budget ? p->budget : "none");
+    btf_package_free(p);
+    btf_pca_options po = {0}; /* a centring of the caller's: no retry */
+    po.center = BTF_CENTER_NONE;
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(res.n_candidates, 2);
+    cr_expect_eq(res.center, BTF_CENTER_NONE);
+    btf_free(src);
+    fx_rmtree(dir);
+}
+
+/* A budget that holds every component of the best candidate tries it again with
+ * 1.5x the components (the renderer's limit and the blocks permitting), keeps the
+ * larger one only when it wins, and grows nothing when the caller fixes the count. */
+Test(budget, a_candidate_keeping_every_component_is_tried_with_more)
+{
+    char dir[64], out[128], ref[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    snprintf(ref, sizeof ref, "%s/ref", dir);
+    btf *src = material();
+    btf_budget b = {0};
+    b.max_bytes = 50000000, b.k[0] = 3, b.n_k = 1; /* holds any package of this material */
+    btf_package_options opt = {0};
+    opt.bits = 16; /* fine steps: every further component lowers the error (8 bits stop at about 8) */
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, &opt, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_geq(res.n_candidates, 3, "k 3, its centred retry, then the best with more components");
+    const btf_budget_choice *c = res.candidate, *best = c[0].lab <= c[1].lab ? &c[0] : &c[1];
+    cr_expect_eq(c[0].components, BTF_BUDGET_COMPONENTS);
+    cr_expect_eq(best->n_chunks, best->components, "the budget holds every chunk of the first two");
+    cr_expect_eq(c[2].components, BTF_BUDGET_COMPONENTS * 3 / 2, "components %d", c[2].components);
+    cr_expect_eq(c[2].k, best->k);
+    cr_expect_eq(c[2].center, best->center, "the grown candidate keeps the best one's centring");
+    for (int i = 0; i < res.n_candidates; i++)
+        if (c[i].n_chunks > 0)
+            cr_expect_geq(c[i].lab + 1e-12, res.lab, "candidate %d beats the choice", i);
+    /* the choice's error, recomputed by an independent compression with its settings */
+    btf_pca_options po = {0};
+    po.k = res.k, po.components = res.components, po.center = res.center == BTF_CENTER_ROW ? BTF_CENTER_ROW
+                                                                                         : BTF_CENTER_NONE;
+    cr_assert_eq(btf_package_compress(src, &po, &opt, ref, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read(ref, 1, &p, &err), BTF_OK, "%s", err.msg);
+    cr_assert_leq(res.n_chunks, p->n_chunks);
+    cr_expect_float_eq(p->chunk[res.n_chunks - 1].lab, res.lab, 1e-9, "reference %.6f, chosen %.6f",
+                       p->chunk[res.n_chunks - 1].lab, res.lab);
+    btf_package_free(p);
+    b.max_components = BTF_BUDGET_COMPONENTS; /* fixed by the caller: no growth */
+    cr_assert_eq(btf_budget_compress(src, NULL, &opt, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(res.n_candidates, 2, "k 3 and its centred retry only");
+    btf_free(src);
+    fx_rmtree(dir);
+}

@@ -1,0 +1,270 @@
+/* test_image.c - room codec, suite "image": the image writer's PNG filter choice
+ * (BTF_IMAGE_PNG_SMALLEST, codec/image/btf_image.h), checked against the writer's own
+ * default encoding of the same pixels and against the pixels themselves; filter Up
+ * on every row (BTF_IMAGE_PNG_UP) read back from the file's rows; lossless
+ * WebP (codec/image/btf_webp.h): grey round trips, the smaller-of-two writer, and damaged
+ * or non-grey files refused with one clear error. */
+#include <criterion/criterion.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "btf_fs.h"
+#include "btf_image.h"
+#include "btf_webp.h"
+#include "fixtures.h"
+
+#include <webp/encode.h>
+#include <zlib.h>
+
+/* One image written both ways: the smallest choice decodes to the same samples, is no
+ * larger than the default (adaptive) encoding, and leaves no temporary file. */
+static long long check_one(const char *dir, int w, int h, int ch, int bits, const void *px, long long *adaptive)
+{
+    char a[600], s[600];
+    btf_error err = {0};
+    snprintf(a, sizeof a, "%s/a.png", dir);
+    snprintf(s, sizeof s, "%s/s.png", dir);
+    cr_assert_eq(btf_image_write(a, w, h, ch, bits, px, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_image_write_flags(s, w, h, ch, bits, px, BTF_IMAGE_PNG_SMALLEST, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(fx_count_files(dir), 2, "temporary files left in %s", dir);
+    size_t n = (size_t)w * h * ch;
+    if (bits == 8) {
+        uint8_t *back = NULL;
+        int bw, bh, bc;
+        cr_assert_eq(btf_image_read_u8(s, &bw, &bh, &bc, &back, &err), BTF_OK, "%s", err.msg);
+        cr_assert(bw == w && bh == h && bc == ch);
+        cr_assert_eq(memcmp(back, px, n), 0, "%dx%d: the smallest choice decodes to other samples", w, h);
+        free(back);
+    }
+    *adaptive = btf_fs_size(a);
+    long long sz = btf_fs_size(s);
+    remove(a);
+    remove(s);
+    return sz;
+}
+
+Test(image, smallest_png_filter_choice)
+{
+    char dir[256];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 99;
+    /* sizes with the whole image judged (<= 128 rows) and with the middle strip */
+    int sizes[3][2] = {{40, 30}, {96, 128}, {300, 260}};
+    for (int k = 0; k < 3; k++) {
+        int w = sizes[k][0], h = sizes[k][1];
+        uint8_t *px = malloc((size_t)w * h);
+        /* columns that vary, rows that repeat them with a little noise (Up's case),
+         * then noise (None's case) */
+        for (int kind = 0; kind < 2; kind++) {
+            for (int y = 0; y < h; y++)
+                for (int x = 0; x < w; x++)
+                    px[y * w + x] = (uint8_t)(kind == 0 ? (x * 37 % 200) + fx_lcg(&seed) % 3 : fx_lcg(&seed) & 255);
+            long long adaptive, s = check_one(dir, w, h, 1, 8, px, &adaptive);
+            cr_assert(s > 0 && s <= adaptive, "%dx%d kind %d: %lld bytes, adaptive %lld", w, h, kind, s, adaptive);
+        }
+        free(px);
+    }
+    /* more channels and 16 bits go through the same choice */
+    int w = 64, h = 200;
+    uint16_t *p16 = malloc((size_t)w * h * 2 * sizeof *p16);
+    for (int i = 0; i < w * h * 2; i++)
+        p16[i] = (uint16_t)((i % (2 * w)) * 300 + fx_lcg(&seed) % 5);
+    long long adaptive, s = check_one(dir, w, h, 2, 16, p16, &adaptive);
+    cr_assert(s > 0 && s <= adaptive, "16-bit: %lld bytes, adaptive %lld", s, adaptive);
+    free(p16);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* w x h grey bytes: a ramp with noise (kind 0, where PNG's filters and WebP's
+ * predictors both work) or pure noise (kind 1). */
+static uint8_t *grey_image(int w, int h, int kind, unsigned *seed)
+{
+    uint8_t *px = malloc((size_t)w * h);
+    cr_assert_not_null(px);
+    for (int i = 0; i < w * h; i++)
+        px[i] = (uint8_t)(kind == 0 ? (i % w) * 3 + (i / w) + fx_lcg(seed) % 4 : fx_lcg(seed) & 255);
+    return px;
+}
+
+/* The filter type byte of every row of an 8-bit grey PNG of width w and height h,
+ * read here from its IDAT chunks (PNG: 8-byte signature, then length, type, data,
+ * CRC per chunk; the inflated data is h rows of a filter byte and w samples). */
+static void png_row_filters(const char *path, int w, int h, uint8_t *filters)
+{
+    FILE *f = fopen(path, "rb");
+    cr_assert_not_null(f);
+    static uint8_t file[1 << 20], idat[1 << 20];
+    size_t n = fread(file, 1, sizeof file, f), ni = 0;
+    fclose(f);
+    for (size_t i = 8; i + 12 <= n;) {
+        size_t len = (size_t)file[i] << 24 | (size_t)file[i + 1] << 16 | (size_t)file[i + 2] << 8 | file[i + 3];
+        cr_assert(i + 12 + len <= n);
+        if (!memcmp(file + i + 4, "IDAT", 4)) {
+            memcpy(idat + ni, file + i + 8, len);
+            ni += len;
+        }
+        i += 12 + len;
+    }
+    uLongf raw_n = (uLongf)(w + 1) * h;
+    uint8_t *raw = malloc(raw_n);
+    cr_assert_eq(uncompress(raw, &raw_n, idat, ni), Z_OK);
+    cr_assert_eq(raw_n, (uLongf)(w + 1) * h);
+    for (int y = 0; y < h; y++)
+        filters[y] = raw[(size_t)y * (w + 1)];
+    free(raw);
+}
+
+Test(image, png_filter_up_on_every_row)
+{
+    char dir[256], path[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(path, sizeof path, "%s/u.png", dir);
+    unsigned seed = 7;
+    int w = 50, h = 40;
+    uint8_t px[50 * 40], filters[40], *back = NULL;
+    for (int i = 0; i < w * h; i++)
+        px[i] = (uint8_t)(fx_lcg(&seed) & 255); /* noise: the adaptive choice would pick None */
+    btf_error err = {0};
+    cr_assert_eq(btf_image_write_flags(path, w, h, 1, 8, px, BTF_IMAGE_PNG_UP | BTF_IMAGE_UNSYNCED, &err), BTF_OK, "%s",
+                 err.msg);
+    png_row_filters(path, w, h, filters);
+    for (int y = 0; y < h; y++)
+        cr_assert_eq(filters[y], 2, "row %d has filter type %d, not Up (2)", y, filters[y]);
+    int bw, bh, bc;
+    cr_assert_eq(btf_image_read_u8(path, &bw, &bh, &bc, &back, &err), BTF_OK, "%s", err.msg);
+    cr_assert(bw == w && bh == h && bc == 1 && !memcmp(back, px, sizeof px));
+    free(back);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+Test(image, webp_grey_round_trip)
+{
+    char dir[256], path[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 4711;
+    int sizes[3][2] = {{1, 1}, {37, 5}, {256, 192}};
+    for (int k = 0; k < 3; k++)
+        for (int kind = 0; kind < 2; kind++) {
+            int w = sizes[k][0], h = sizes[k][1], bw, bh, bc;
+            uint8_t *px = grey_image(w, h, kind, &seed), *back = NULL;
+            btf_error err = {0};
+            snprintf(path, sizeof path, "%s/g.webp", dir);
+            cr_assert_eq(btf_image_write_flags(path, w, h, 1, 8, px, 0, &err), BTF_OK, "%s", err.msg);
+            cr_assert_eq(fx_count_files(dir), 1, "temporary files left in %s", dir);
+            /* OpenImageIO decodes it as RGB; the grey reader gives the bytes back */
+            cr_assert_eq(btf_image_info(path, &bw, &bh, &bc, &err), BTF_OK, "%s", err.msg);
+            cr_assert(bw == w && bh == h && bc >= 3, "%dx%dx%d", bw, bh, bc);
+            cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &back, &err), BTF_OK, "%s", err.msg);
+            cr_assert_eq(memcmp(back, px, (size_t)w * h), 0, "%dx%d kind %d: WebP is not lossless", w, h, kind);
+            free(back), free(px);
+            remove(path);
+        }
+    /* only 8-bit grey is written as WebP */
+    uint8_t rgb[12] = {0};
+    btf_error err = {0};
+    cr_assert_eq(btf_image_write_flags(path, 2, 2, 3, 8, rgb, 0, &err), BTF_ERR_UNSUPPORTED);
+    cr_assert_eq(fx_count_files(dir), 0);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* btf_image_write_smallest keeps the smaller file, only that one, with its size. */
+Test(image, webp_or_png_smallest)
+{
+    char dir[256], stem[600], path[640];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 815;
+    int seen_webp = 0;
+    for (int kind = 0; kind < 2; kind++) {
+        int w = 200, h = 150;
+        uint8_t *px = grey_image(w, h, kind, &seed), *back = NULL, *webp = NULL;
+        btf_error err = {0};
+        const char *ext = NULL;
+        long long bytes = -1;
+        snprintf(stem, sizeof stem, "%s/t%d", dir, kind);
+        cr_assert_eq(btf_image_write_smallest(stem, w, h, px, BTF_IMAGE_PNG_SMALLEST, &ext, &bytes, &err), BTF_OK, "%s",
+                     err.msg);
+        snprintf(path, sizeof path, "%s%s", stem, ext);
+        cr_assert_eq(btf_fs_size(path), bytes);
+        cr_assert_eq(fx_count_files(dir), kind + 1, "the losing file or a temporary was left");
+        /* independent sizes: the PNG alone, the WebP of the same pixels in memory */
+        char png[640];
+        snprintf(png, sizeof png, "%s/png-only", dir);
+        const char *pext = NULL;
+        long long pbytes = -1;
+        cr_assert_eq(btf_image_write_smallest(png, w, h, px, BTF_IMAGE_PNG_SMALLEST | BTF_IMAGE_NO_WEBP, &pext, &pbytes,
+                                              &err), BTF_OK, "%s", err.msg);
+        cr_assert_str_eq(pext, ".png");
+        size_t nw = 0;
+        cr_assert_eq(btf_webp_encode_grey(px, w, h, &webp, &nw, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(bytes, (long long)nw < pbytes ? (long long)nw : pbytes, "kept %lld of PNG %lld / WebP %zu", bytes,
+                     pbytes, nw);
+        cr_assert_str_eq(ext, (long long)nw < pbytes ? ".webp" : ".png");
+        seen_webp += !strcmp(ext, ".webp");
+        snprintf(png + strlen(png), sizeof png - strlen(png), ".png");
+        remove(png);
+        int bw, bh;
+        cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &back, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(memcmp(back, px, (size_t)w * h), 0);
+        free(back), free(px), free(webp);
+    }
+    cr_assert_geq(seen_webp, 1, "WebP won on neither image: the test no longer covers it");
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* Writes n bytes to dir/name, returns the path in buf. */
+static const char *put(const char *dir, const char *name, const uint8_t *d, size_t n, char *buf, size_t bn)
+{
+    snprintf(buf, bn, "%s/%s", dir, name);
+    btf_error err = {0};
+    cr_assert_eq(btf_fs_write_atomic(buf, d, n, &err), BTF_OK, "%s", err.msg);
+    return buf;
+}
+
+Test(image, webp_damaged_or_not_grey_refused)
+{
+    char dir[256], path[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 5;
+    uint8_t *px = grey_image(64, 48, 0, &seed), *f = NULL, *g = NULL;
+    size_t n = 0;
+    btf_error err = {0};
+    cr_assert_eq(btf_webp_encode_grey(px, 64, 48, &f, &n, &err), BTF_OK, "%s", err.msg);
+    int w = 0, h = 0, bw, bh;
+    cr_assert_eq(btf_webp_check(f, n, "ok", &w, &h, &err), BTF_OK, "%s", err.msg);
+    cr_assert(w == 64 && h == 48);
+    g = malloc(n);
+    /* cut short, a RIFF size that lies, a lossy chunk, a bad signature byte */
+    const char *want[4] = {"RIFF size", "RIFF size", "not a lossless image", "signature"};
+    for (int k = 0; k < 4; k++) {
+        memcpy(g, f, n);
+        size_t m = k == 0 ? n - 7 : n;
+        if (k == 1)
+            g[4] ^= 0x10;
+        if (k == 2)
+            memcpy(g + 12, "VP8 ", 4);
+        if (k == 3)
+            g[20] = 0x2e;
+        put(dir, "bad.webp", g, m, path, sizeof path);
+        uint8_t *back = NULL;
+        err.msg[0] = 0;
+        cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &back, &err), BTF_ERR_FORMAT, "case %d", k);
+        cr_assert_not_null(strstr(err.msg, want[k]), "case %d: %s", k, err.msg);
+        cr_assert_null(back);
+    }
+    /* a well-formed lossless WebP whose channels differ is no grey texture */
+    uint8_t rgb[16 * 8 * 3];
+    for (size_t i = 0; i < sizeof rgb; i++)
+        rgb[i] = (uint8_t)(i * 7);
+    uint8_t *out = NULL;
+    size_t no = WebPEncodeLosslessRGB(rgb, 16, 8, 16 * 3, &out);
+    cr_assert_gt(no, 0);
+    put(dir, "rgb.webp", out, no, path, sizeof path);
+    WebPFree(out);
+    uint8_t *back = NULL;
+    cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &back, &err), BTF_ERR_FORMAT);
+    cr_assert_not_null(strstr(err.msg, "not a grey image"), "%s", err.msg);
+    free(px), free(f), free(g);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}

@@ -1,0 +1,260 @@
+/* fixtures.c - the fixtures every Criterion suite shares (see fixtures.h). */
+#include "fixtures.h"
+
+#include <criterion/criterion.h>
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "btf_common.h"
+#include "btf_fs.h"
+#include "btf_pca.h"
+
+/* ------------------------------------------------------------ files and folders */
+
+int fx_shared_path(char *buf, size_t n, const char *rel)
+{
+    const char *root = getenv("BTF_SHARED");
+    snprintf(buf, n, "%s/%s", root ? root : "../shared", rel);
+    struct stat st;
+    return stat(buf, &st) == 0;
+}
+
+int fx_tmpdir(char *buf, size_t n)
+{
+    snprintf(buf, n, "/tmp/btftest-XXXXXX");
+    return mkdtemp(buf) != NULL;
+}
+
+int fx_count_files(const char *dir)
+{
+    DIR *d = opendir(dir);
+    int n = 0;
+    for (struct dirent *e; d && (e = readdir(d));)
+        n += e->d_name[0] != '.';
+    if (d)
+        closedir(d);
+    return n;
+}
+
+int fx_same_file(const char *dir_a, const char *dir_b, const char *name)
+{
+    char pa[1024], pb[1024];
+    snprintf(pa, sizeof pa, "%s/%s", dir_a, name);
+    snprintf(pb, sizeof pb, "%s/%s", dir_b, name);
+    FILE *fa = fopen(pa, "rb"), *fb = fopen(pb, "rb");
+    int same = fa && fb;
+    for (int ca = 0; same && ca != EOF;) {
+        ca = fgetc(fa);
+        same = ca == fgetc(fb);
+    }
+    if (fa)
+        fclose(fa);
+    if (fb)
+        fclose(fb);
+    return same;
+}
+
+int fx_rmtree(const char *path)
+{
+    return btf_fs_rmtree(path, NULL) == BTF_OK ? 0 : -1;
+}
+
+void fx_write(const char *path, const void *data, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    cr_assert_not_null(f, "cannot write %s", path);
+    cr_assert_eq(fwrite(data, 1, n, f), n, "cannot write %s", path);
+    cr_assert_eq(fclose(f), 0, "cannot write %s", path);
+}
+
+void fx_write_text(const char *path, const char *text)
+{
+    fx_write(path, text, strlen(text));
+}
+
+void fx_put(const char *dir, const char *name, const void *data, size_t n)
+{
+    char path[4400];
+    cr_assert_lt((size_t)snprintf(path, sizeof path, "%s/%s", dir, name), sizeof path, "path too long: %s/%s", dir,
+                 name);
+    fx_write(path, data, n);
+}
+
+void fx_put_text(const char *dir, const char *name, const char *text)
+{
+    fx_put(dir, name, text, strlen(text));
+}
+
+char *fx_read(const char *path, size_t *n)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *b = malloc(len > 0 ? (size_t)len + 1 : 1);
+    cr_assert_not_null(b);
+    size_t got = len > 0 ? fread(b, 1, (size_t)len, f) : 0;
+    cr_assert_eq(got, len > 0 ? (size_t)len : 0, "%s: short read", path);
+    b[got] = 0;
+    fclose(f);
+    if (n)
+        *n = got;
+    return b;
+}
+
+/* ------------------------------------------------------------ direction sets */
+
+btf_dirset fx_rings(const btf_ring *r, int n)
+{
+    btf_dirset d;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_dirset_make(r, n, &d, &err), BTF_OK, "%s", err.msg);
+    return d;
+}
+
+btf_dirset fx_dirs7(void)
+{
+    return FX_RINGS({0.0f, 1, 0.0f}, {45.0f, 6, 0.0f});
+}
+
+btf_dirset fx_dirs11(void)
+{
+    return FX_RINGS({0.0f, 1, 0.0f}, {30.0f, 4, 0.0f}, {60.0f, 6, 15.0f});
+}
+
+btf_dirset fx_dirs19(void)
+{
+    return FX_RINGS({0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 12, 15.0f});
+}
+
+void fx_dir(double theta_deg, double phi_deg, double v[3])
+{
+    double t = theta_deg * M_PI / 180.0, p = phi_deg * M_PI / 180.0;
+    v[0] = sin(t) * cos(p);
+    v[1] = sin(t) * sin(p);
+    v[2] = cos(t);
+}
+
+void fx_dirf(double theta_deg, double phi_deg, float v[3])
+{
+    double d[3];
+    fx_dir(theta_deg, phi_deg, d);
+    v[0] = (float)d[0], v[1] = (float)d[1], v[2] = (float)d[2];
+}
+
+/* ------------------------------------------------------------ materials and packages */
+
+btf *fx_gen(btf_gen_kind kind, int size, const btf_dirset *d, btf_storage st)
+{
+    btf_dirset dflt;
+    if (!d) {
+        dflt = fx_dirs7();
+        d = &dflt;
+    }
+    btf_gen_params gp = btf_gen_defaults(kind);
+    btf *b = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_gen_create(&gp, size, size, d, d, st, &b, &err), BTF_OK, "%s", err.msg);
+    return b;
+}
+
+btf *fx_material(btf_gen_kind kind, int size, const btf_ring *rings, int n)
+{
+    btf_dirset d = rings ? fx_rings(rings, n) : fx_dirs7();
+    return fx_gen(kind, size, &d, BTF_U8);
+}
+
+btf_package *fx_package(const char *dir, const char *sub, int n_chunks)
+{
+    char path[4400];
+    if (sub)
+        snprintf(path, sizeof path, "%s/%s", dir, sub);
+    else
+        snprintf(path, sizeof path, "%s", dir);
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_read(path, n_chunks, &p, &err), BTF_OK, "%s", err.msg);
+    return p;
+}
+
+void fx_levels(char *dir, size_t n, const fx_levels_spec *s, btf_lod_stats *st)
+{
+    cr_assert(fx_tmpdir(dir, n));
+    btf *src = fx_gen(s->kind, s->size, s->dirs, s->storage);
+    btf_pca_options po = {0};
+    po.k = s->k, po.components = s->components;
+    btf_package_options ko = {0};
+    ko.bits = s->bits;
+    char v1[4400], v2[4400];
+    snprintf(v1, sizeof v1, "%s/v1", dir);
+    snprintf(v2, sizeof v2, "%s/v2", dir);
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, v1, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_free(src);
+    btf_lod_options lo = {0};
+    lo.levels = s->levels;
+    cr_assert_eq(btf_lod_build(v1, v2, &lo, st, &err), BTF_OK, "%s", err.msg);
+}
+
+/* ------------------------------------------------------------ pseudo-random numbers */
+
+uint32_t fx_xorshift32(uint32_t *s)
+{
+    uint32_t x = *s;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    return *s = x;
+}
+
+uint32_t fx_lcg(uint32_t *s)
+{
+    *s = *s * 1103515245u + 12345u;
+    return *s >> 16;
+}
+
+uint32_t fx_lcg_nr(uint32_t *s)
+{
+    return *s = *s * 1664525u + 1013904223u;
+}
+
+double fx_unit(uint32_t x)
+{
+    return (double)(x >> 8) / 16777216.0;
+}
+
+/* ------------------------------------------------------------ clock */
+
+long long fx_now_ms(void)
+{
+    return (long long)(btf_seconds() * 1000.0);
+}
+
+/* ------------------------------------------------------------ GL (shaders/host) */
+
+btf_gl *fx_gl_open(btf_gl_backend b)
+{
+    btf_gl *gl = NULL;
+    btf_error err = {{0}};
+    btf_gl_desc d = {.backend = b};
+    cr_assert_eq(btf_gl_create(&d, &gl, &err), BTF_OK, "%s: %s", btf_gl_backend_name(b), err.msg);
+    return gl;
+}
+
+btf_shader_program *fx_gl_build(btf_gl *gl, const char *program)
+{
+    btf_shader_desc d = {.program = program};
+    btf_shader_program *p = NULL;
+    char *report = NULL;
+    btf_error err = {{0}};
+    btf_result r = btf_shader_build(gl, &d, &p, &report, &err);
+    cr_assert_eq(r, BTF_OK, "%s\n%s", err.msg, report ? report : "");
+    free(report);
+    return p;
+}

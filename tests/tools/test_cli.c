@@ -1,0 +1,297 @@
+/* test_cli.c - room tools, suite "cli": the `btf` command line as people use it: getopt_long forms
+ * (`--k 3` and `--k=3`), `--version`, `--json` of compress, eval and lod, exit
+ * codes and their place in every --help, the progress callback of the PCA loop. */
+#include <criterion/criterion.h>
+#include <cjson/cJSON.h>
+
+#include "btf_cli.h"
+#include "btf_output.h"
+#include "btf_package.h"
+#include "btf_source.h"
+#include "btf_version.h"
+#include "fixtures.h"
+
+/* Runs cmd with stdout (fd 1) or stderr (fd 2) captured into buf (NUL-terminated). */
+static int run_captured(int (*cmd)(int, char **), int argc, char **argv, int fd, char *buf, size_t n)
+{
+    FILE *stream = fd == 1 ? stdout : stderr;
+    fflush(stream);
+    int saved = dup(fd);
+    FILE *tmp = tmpfile();
+    cr_assert(saved >= 0 && tmp);
+    dup2(fileno(tmp), fd);
+    int rc = cmd(argc, argv);
+    fflush(stream);
+    dup2(saved, fd);
+    close(saved);
+    rewind(tmp);
+    size_t k = fread(buf, 1, n - 1, tmp);
+    buf[k] = '\0';
+    fclose(tmp);
+    return rc;
+}
+
+static double num(const cJSON *o, const char *k)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+    cr_assert(cJSON_IsNumber(v), "field %s missing or not a number", k);
+    return v->valuedouble;
+}
+
+static const char *str(const cJSON *o, const char *k)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, k);
+    cr_assert(cJSON_IsString(v), "field %s missing or not a string", k);
+    return v->valuestring;
+}
+
+/* The whole of out must be one JSON object (trailing whitespace allowed). */
+static cJSON *parse_only_object(const char *out)
+{
+    const char *end = NULL;
+    cJSON *j = cJSON_ParseWithOpts(out, &end, 1);
+    cr_assert(j && cJSON_IsObject(j), "stdout is not exactly one JSON object: %.300s", out);
+    return j;
+}
+
+/* `btf compress gen:knit:16 DIR/NAME --k K --components 4 --name p --quiet` (a small package). */
+static void compress_small(const char *dir, const char *name, const char *k)
+{
+    char out[400];
+    snprintf(out, sizeof out, "%s/%s", dir, name);
+    char *argv[] = {"compress", "gen:knit:16", out, "--k", (char *)k, "--components", "4", "--name", "p", "--quiet",
+                    NULL};
+    cr_assert_eq(cmd_compress(10, argv), 0, "compress %s", out);
+}
+
+Test(cli, k_with_equals_or_space_gives_the_same_package)
+{
+    char dir[256], a[400], b[400], c[400];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(a, sizeof a, "%s/a", dir);
+    snprintf(b, sizeof b, "%s/b", dir);
+    snprintf(c, sizeof c, "%s/c", dir);
+    /* options after the positionals with '=', before them with a space */
+    char *eq[] = {"compress", "gen:knit:16", a, "--k=2", "--components=4", "--name=p", "--quiet", NULL};
+    char *sp[] = {"compress", "--k", "2", "--components", "4", "--name", "p", "--quiet", "gen:knit:16", b, NULL};
+    cr_assert_eq(cmd_compress(7, eq), 0);
+    cr_assert_eq(cmd_compress(10, sp), 0);
+    compress_small(dir, "c", "3");
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_read(a, 1, &p, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(p->k, 2, "--k=2 gave k %d", p->k);
+    cr_assert_eq(p->n_chunks, 4, "--components=4 gave %d chunks", p->n_chunks);
+    cr_assert_str_eq(p->name, "p");
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; f < p->chunk[i].n_files; f++)
+            cr_assert(fx_same_file(a, b, p->chunk[i].files[f]), "%s differs", p->chunk[i].files[f]);
+    btf_package_free(p);
+    cr_assert(fx_same_file(a, b, "manifest.json"), "manifests differ");
+    cr_assert(!fx_same_file(a, c, "manifest.json"), "--k 3 wrote what --k=2 wrote");
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* `btf --version` and `btfd --version`: the programs themselves (main is not in this binary). */
+Test(cli, version_of_btf_and_btfd)
+{
+    const char *build = getenv("BTF_BUILD");
+    const char *prog[] = {"btf", "btfd"};
+    for (int i = 0; i < 2; i++) {
+        char cmd[600], line[128] = "", want[64];
+        snprintf(cmd, sizeof cmd, "'%s/%s' --version", build ? build : "build", prog[i]);
+        FILE *f = popen(cmd, "r");
+        cr_assert(f, "%s", cmd);
+        size_t n = fread(line, 1, sizeof line - 1, f);
+        line[n] = '\0';
+        cr_assert_eq(pclose(f), 0, "%s failed", cmd);
+        snprintf(want, sizeof want, "%s %s\n", prog[i], BTF_VERSION);
+        cr_assert_str_eq(line, want);
+    }
+    char cmd[600], help[8192] = "";
+    snprintf(cmd, sizeof cmd, "'%s/btf' --help", build ? build : "build");
+    FILE *f = popen(cmd, "r");
+    cr_assert(f);
+    help[fread(help, 1, sizeof help - 1, f)] = '\0';
+    cr_assert_eq(pclose(f), 0);
+    cr_assert(strstr(help, "0 ok, 1 failure, 2 usage error"), "btf --help: %s", help);
+}
+
+/* Every `btf` command by name; static table, lives for the program. */
+static const struct {
+    const char *name;
+    int (*run)(int, char **);
+} commands[] = {
+    {"chart", cmd_chart},   {"compress", cmd_compress},           {"eval", cmd_eval},
+    {"export-thesis", cmd_export_thesis}, {"gen", cmd_gen},       {"import-thesis", cmd_import_thesis},
+    {"library", cmd_library}, {"lod", cmd_lod},   {"render", cmd_render},
+};
+
+Test(cli, bad_option_exits_2_and_every_help_lists_exit_codes)
+{
+    char out[16384];
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
+        char *bad[] = {(char *)commands[i].name, "--no-such-option", "in", "out", NULL};
+        cr_assert_eq(run_captured(commands[i].run, 4, bad, 2, out, sizeof out), 2, "%s", commands[i].name);
+        cr_assert(strstr(out, "--no-such-option"), "btf %s does not name the option: %s", commands[i].name, out);
+        char *help[] = {(char *)commands[i].name, "--help", NULL};
+        cr_assert_eq(run_captured(commands[i].run, 2, help, 1, out, sizeof out), 0, "%s --help", commands[i].name);
+        cr_assert(strstr(out, "Exit status: 0 ok, 1 failure, 2 usage error."), "btf %s --help: %s",
+                  commands[i].name, out);
+    }
+    /* a value with '=' is checked like one after a space; a missing value is a usage error */
+    char *eq[] = {"compress", "in", "out", "--k=0", NULL};
+    cr_assert_eq(run_captured(cmd_compress, 4, eq, 2, out, sizeof out), 2);
+    cr_assert(strstr(out, "--k 0: expected"), "%s", out);
+    char *dangling[] = {"lod", "in", "out", "--levels", NULL};
+    cr_assert_eq(run_captured(cmd_lod, 4, dangling, 2, out, sizeof out), 2);
+    char *flag_value[] = {"eval", "a", "b", "--json=yes", NULL};
+    cr_assert_eq(run_captured(cmd_eval, 4, flag_value, 2, out, sizeof out), 2);
+}
+
+Test(cli, compress_json_describes_the_package)
+{
+    char dir[256], pkg[400], out[65536];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(pkg, sizeof pkg, "%s/p", dir);
+    char *argv[] = {"compress", "gen:knit:16", pkg, "--components=4", "--json", NULL};
+    cr_assert_eq(run_captured(cmd_compress, 5, argv, 1, out, sizeof out), 0);
+    cJSON *j = parse_only_object(out);
+    cr_assert_str_eq(str(j, "path"), pkg);
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq((int)num(j, "chunks"), p->n_chunks);
+    const cJSON *list = cJSON_GetObjectItemCaseSensitive(j, "chunk");
+    cr_assert_eq(cJSON_GetArraySize(list), p->n_chunks);
+    long long total = 0;
+    for (int i = 0; i < p->n_chunks; i++) {
+        const cJSON *c = cJSON_GetArrayItem(list, i);
+        total += p->chunk[i].bytes;
+        cr_assert_eq((int)num(c, "index"), i);
+        cr_assert_eq((int)num(c, "component"), p->chunk[i].component);
+        cr_assert_eq((long long)num(c, "bytes"), p->chunk[i].bytes);
+        cr_assert_eq((long long)num(c, "cumulative"), total);
+        cr_assert_float_eq(num(c, "rmse"), p->chunk[i].rmse, 1e-9);
+        cr_assert_float_eq(num(c, "lab"), p->chunk[i].lab, 1e-9);
+        cr_assert(num(c, "rmse_float") > 0);
+    }
+    cr_assert_eq((long long)num(j, "bytes"), total);
+    cr_assert(num(j, "seconds_pca") >= 0 && num(j, "seconds_write") >= 0 && num(j, "seconds_load") >= 0);
+    btf_package_free(p);
+    cJSON_Delete(j);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+Test(cli, eval_json_has_the_error_curve)
+{
+    char dir[256], pkg[400], out[65536];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    compress_small(dir, "p", "3");
+    snprintf(pkg, sizeof pkg, "%s/p", dir);
+    char *argv[] = {"eval", "--json", "gen:knit:16", pkg, NULL};
+    cr_assert_eq(run_captured(cmd_eval, 4, argv, 1, out, sizeof out), 0);
+    cJSON *j = parse_only_object(out);
+    cr_assert_str_eq(str(j, "path"), pkg);
+    cr_assert_str_eq(str(j, "ref"), "gen:knit:16");
+    cr_assert_eq((int)num(j, "chunks"), 4);
+    const cJSON *list = cJSON_GetObjectItemCaseSensitive(j, "chunk");
+    cr_assert_eq(cJSON_GetArraySize(list), 4);
+    double prev = 1e9;
+    for (int i = 0; i < 4; i++) {
+        const cJSON *c = cJSON_GetArrayItem(list, i);
+        cr_assert_eq((int)num(c, "index"), i);
+        cr_assert_lt(num(c, "rgb_rmse"), prev, "chunk %d does not lower the error", i);
+        prev = num(c, "rgb_rmse");
+        cr_assert(num(c, "lab_mae") > 0 && num(c, "delta_e76") > 0);
+    }
+    const cJSON *last = cJSON_GetArrayItem(list, 3);
+    cr_assert_eq(num(last, "cumulative_bytes"), num(j, "bytes"));
+    cr_assert_float_eq(num(j, "rgb_rmse"), num(last, "rgb_rmse"), 1e-12);
+    cr_assert_eq((int)num(j, "pairs"), 81 * 81);
+    cr_assert(num(j, "psnr") > 0 && num(j, "pixels") > 0);
+    /* --no-curve: the same whole-package metrics and bytes, one entry (the last) */
+    char *whole[] = {"eval", "--json", "--no-curve", "gen:knit:16", pkg, NULL};
+    cr_assert_eq(run_captured(cmd_eval, 5, whole, 1, out, sizeof out), 0);
+    cJSON *w = parse_only_object(out);
+    const cJSON *wl = cJSON_GetObjectItemCaseSensitive(w, "chunk");
+    cr_assert_eq(cJSON_GetArraySize(wl), 1);
+    cr_assert_eq((int)num(cJSON_GetArrayItem(wl, 0), "index"), 3);
+    cr_assert_eq(num(w, "bytes"), num(j, "bytes"));
+    cr_assert_eq((int)num(w, "chunks"), 4);
+    cr_assert_float_eq(num(w, "rgb_rmse"), num(j, "rgb_rmse"), 1e-12);
+    cr_assert_float_eq(num(w, "lab_mae"), num(j, "lab_mae"), 1e-12);
+    cJSON_Delete(w);
+    cJSON_Delete(j);
+    char *both[] = {"eval", "--json", "--csv", "gen:knit:16", pkg, NULL};
+    cr_assert_eq(run_captured(cmd_eval, 5, both, 2, out, sizeof out), 2, "--json with --csv");
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+Test(cli, lod_json_lists_the_levels)
+{
+    char dir[256], in[400], pkg[400], out[65536];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    compress_small(dir, "v1", "3");
+    snprintf(in, sizeof in, "%s/v1", dir);
+    snprintf(pkg, sizeof pkg, "%s/v2", dir);
+    char *argv[] = {"lod", in, pkg, "--levels=2", "--json", NULL};
+    cr_assert_eq(run_captured(cmd_lod, 5, argv, 1, out, sizeof out), 0);
+    cJSON *j = parse_only_object(out);
+    cr_assert_str_eq(str(j, "path"), pkg);
+    cr_assert_eq((int)num(j, "levels"), 2);
+    cr_assert_eq((int)num(j, "chunks"), 8, "4 components x 2 levels");
+    const cJSON *list = cJSON_GetObjectItemCaseSensitive(j, "chunk");
+    cr_assert_eq(cJSON_GetArraySize(list), 8);
+    int coarse = 0;
+    long long total = 0;
+    for (int i = 0; i < 8; i++) {
+        const cJSON *c = cJSON_GetArrayItem(list, i);
+        coarse += num(c, "level") == 1;
+        total += (long long)num(c, "bytes");
+        cr_assert_eq((long long)num(c, "cumulative"), total);
+        cr_assert(num(c, "rmse") > 0);
+    }
+    cr_assert_eq(coarse, 4);
+    cr_assert_eq((long long)num(j, "bytes"), total);
+    cr_assert(num(j, "bytes_v1") > 0 && num(j, "first_chunk_bytes") > 0);
+    cJSON_Delete(j);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* Counts the callback's calls; stack value of the test. */
+typedef struct progress_count {
+    int calls, last_done, total, ordered;
+} progress_count;
+
+static void count_progress(void *ctx, int done, int total)
+{
+    progress_count *c = ctx;
+    c->ordered &= done == c->last_done + 1;
+    c->calls++, c->last_done = done, c->total = total;
+}
+
+/* The PCA options' progress callback reaches the PCA loop through btf_package_compress. */
+Test(cli, progress_callback_once_per_block)
+{
+    btf *src = NULL;
+    btf_error err = {{0}};
+    btf_load_options lo = {0};
+    cr_assert_eq(btf_source_load("gen:tiles:8", &lo, &src, &err), BTF_OK, "%s", err.msg);
+    char dir[256], pkg[400];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(pkg, sizeof pkg, "%s/p", dir);
+    progress_count n = {0, 0, 0, 1};
+    btf_pca_options po = {.k = 3, .components = 2, .progress = count_progress, .progress_ctx = &n};
+    cr_assert_eq(btf_package_compress(src, &po, NULL, pkg, NULL, &err), BTF_OK, "%s", err.msg);
+    int blocks = (src->views.n_dirs + 2) / 3;
+    cr_assert_eq(n.calls, blocks, "%d calls for %d blocks", n.calls, blocks);
+    cr_assert(n.ordered && n.last_done == blocks && n.total == blocks);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(dir), 0);
+    char line[160];
+    btf_progress_format(line, sizeof line, "compress", "blocks", 3, 12, 1.5);
+    cr_assert_str_eq(line, "btf compress: 3/12 blocks, 1.5 s elapsed, about 4.5 s left");
+    btf_progress_format(line, sizeof line, "compress", "blocks", 12, 12, 6.0);
+    cr_assert_str_eq(line, "btf compress: 12/12 blocks, 6.0 s elapsed");
+}
