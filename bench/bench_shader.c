@@ -19,7 +19,7 @@
  * Error: RGB RMSE and max (0..255 scale) of the RGBA8 output against the CPU
  * reference btf_decode (float, same package, same C, clamped to 0..1) at every 4th
  * pixel in x and y, evaluated at the uv / local light / local view that the product
- * program reports through its debug outputs (tests/test_render.c checks those).
+ * program reports through its debug outputs (tests/gl/test_render.c checks those).
  * BENCH_MAX_C=N limits the run to C <= N (quick checks).
  * Fetches and ALU per fragment: counted from the shader sources (see the
  * `fetches`/`alu` comments below; this Mesa build prints no shader statistics);

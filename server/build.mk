@@ -10,7 +10,7 @@
 #   $(BUILD)/resume_clients       the reconnecting load client of tests/deploy_test.sh (nginx + 2 btfd)
 # server/ uses codec/ only: its public headers and common/ (error formatting).
 # `build` gains btfd and the replay binary, so `make test` runs the server tests
-# (tests/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
+# (tests/server/test_server.c starts $(BTF_BUILD)/btfd) and the corpus replay.
 
 SERVER_C     := $(wildcard server/*.c)
 SERVER_OBJ   := $(SERVER_C:%.c=$(BUILD)/%.o)

@@ -1,7 +1,7 @@
 // btf_decode.glsl - PCA package decoder: the GLSL twin of btf_decode
 // (codec/decompress/btf_decode.c, doc/package-format.md section 6) on the packed GPU layout of
 // shaders/README.md ("GPU layout"). Needs btf_dirs.glsl before it. Tested against the
-// CPU decoder on both headless backends (tests/test_gl.c, tests/test_lod_gl.c).
+// CPU decoder on both headless backends (tests/gl/test_gl.c, tests/gl/test_lod_gl.c).
 //
 // Public:  vec3 btf_decode_lod(vec2 uv, vec3 light, vec3 view, float lod)
 //          vec3 btf_decode(vec2 uv, vec3 light, vec3 view)   (lod = u_btf_lod)

@@ -1,4 +1,4 @@
-// decode_probe.frag - test program (tests/test_gl.c): each fragment decodes the query
+// decode_probe.frag - test program (tests/gl/test_gl.c): each fragment decodes the query
 // stored in its texels of u_q0 = (light.xyz, u) and u_q1 = (view.xyz, v).
 uniform sampler2D u_q0;
 uniform sampler2D u_q1;

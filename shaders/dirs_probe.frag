@@ -1,4 +1,4 @@
-// dirs_probe.frag - test program (tests/test_gl.c): each fragment reads one direction
+// dirs_probe.frag - test program (tests/gl/test_gl.c): each fragment reads one direction
 // from its texel of u_dirs and writes btf_dirs_interp_vec's indices and weights for
 // set 0 (the lights of btf_dirs_block).
 uniform sampler2D u_dirs; // RGBA32F: (theta_deg, phi_deg, -, -), or a vector (x, y, z, -) when u_vector != 0

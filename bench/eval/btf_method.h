@@ -36,7 +36,7 @@
  * horizon gets no direct term; a view below the horizon is clamped to it). The
  * tabulated methods (pca, lpyr) interpolate their measured directions with
  * btf_dirset_interp_vec. Decoders never return NaN for finite input; outputs are
- * not clamped (the stability suite, tests/test_stability.c, measures the range).
+ * not clamped (the stability suite, tests/eval/test_stability.c, measures the range).
  * Sizes (btf_model_bytes) count float32 parameters (4 bytes each) except "pca-q",
  * which counts its package files.
  *

@@ -12,7 +12,7 @@
  *     btf_render_png("lib/wool", &rp, BTF_GL_DEFAULT, "wool.png", &err);  // all in one
  *
  * Conventions (shaders/README.md, "Scene conventions", is the spec the browser
- * client follows; tests/test_render.c checks them with an independent ray cast):
+ * client follows; tests/gl/test_render.c checks them with an independent ray cast):
  * - World: right-handed, +z up. Angles in degrees. A direction (theta, phi) is
  *   (sin t cos p, sin t sin p, cos t): theta from +z, phi from +x towards +y.
  * - Objects (model matrix = identity, uv in 0..1 scaled by u_uv_scale):

@@ -80,7 +80,7 @@ static uint32_t le32(const uint8_t *p)
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
 
-/* Whole file (codec/btf_fs.h), NULL if unreadable. */
+/* Whole file (codec/common/btf_fs.h), NULL if unreadable. */
 static uint8_t *slurp(const char *path, size_t *n)
 {
     char *text = NULL;
