@@ -15,7 +15,7 @@
 FUZZ_CODEC        := dirset dfmf manifest package thesis ubo2003_name roundtrip gltf
 FUZZ_CODEC_OBJ    := $(FUZZ_CODEC:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 FUZZ_CODEC_REPLAY := $(FUZZ_CODEC:%=$(BUILD)/fuzz/replay_%)
-FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) tinygltf) -lstdc++ -lm
+FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS)) -lstdc++ -lm
 FUZZ_BUILD        ?= build-fuzz
 FUZZ_RSS_MB       ?= 2048
 

@@ -1,6 +1,8 @@
 /* fixtures.c - the fixtures every Criterion suite shares (see fixtures.h). */
 #include "fixtures.h"
 
+#include "btf_render.h"
+
 #include <criterion/criterion.h>
 #include <dirent.h>
 #include <math.h>
@@ -257,4 +259,35 @@ btf_shader_program *fx_gl_build(btf_gl *gl, const char *program)
     cr_assert_eq(r, BTF_OK, "%s\n%s", err.msg, report ? report : "");
     free(report);
     return p;
+}
+
+/* ------------------------------------------------------------ the documented camera */
+
+fx_cam fx_cam_make(const btf_render_params *p)
+{
+    fx_cam c;
+    double d[3], t = p->camera_theta * M_PI / 180, ph = p->camera_phi * M_PI / 180;
+    fx_dir(p->camera_theta, p->camera_phi, d);
+    double up0[3] = {-cos(t) * cos(ph), -cos(t) * sin(ph), sin(t)};
+    for (int i = 0; i < 3; i++)
+        c.eye[i] = p->target[i] + p->camera_dist * d[i], c.fwd[i] = -d[i];
+    c.right[0] = c.fwd[1] * up0[2] - c.fwd[2] * up0[1];
+    c.right[1] = c.fwd[2] * up0[0] - c.fwd[0] * up0[2];
+    c.right[2] = c.fwd[0] * up0[1] - c.fwd[1] * up0[0];
+    double n = sqrt(c.right[0] * c.right[0] + c.right[1] * c.right[1] + c.right[2] * c.right[2]);
+    for (int i = 0; i < 3; i++)
+        c.right[i] /= n;
+    c.up[0] = c.right[1] * c.fwd[2] - c.right[2] * c.fwd[1];
+    c.up[1] = c.right[2] * c.fwd[0] - c.right[0] * c.fwd[2];
+    c.up[2] = c.right[0] * c.fwd[1] - c.right[1] * c.fwd[0];
+    c.aspect = (double)p->width / p->height;
+    c.th = tan(p->fov_deg * M_PI / 360) / (c.aspect < 1 ? c.aspect : 1);
+    return c;
+}
+
+void fx_cam_ray(const fx_cam *c, int px, int py, int w, int h, double d[3])
+{
+    double nx = 2.0 * (px + 0.5) / w - 1, ny = 2.0 * (py + 0.5) / h - 1;
+    for (int i = 0; i < 3; i++)
+        d[i] = c->fwd[i] + c->right[i] * nx * c->th * c->aspect + c->up[i] * ny * c->th;
 }

@@ -146,4 +146,20 @@ btf_gl *fx_gl_open(btf_gl_backend b);
 /* Program `program` of shaders/manifest.json; the test fails with the numbered-source report. */
 btf_shader_program *fx_gl_build(btf_gl *gl, const char *program);
 
+/* ------------------------------------------------------------ the documented camera */
+
+/* shaders/README.md "Scene conventions", restated apart from btf_render's matrices:
+ * eye = target + dist * dir(theta, phi), forward = -dir, up0 = (-cos t cos p,
+ * -cos t sin p, sin t), right = normalize(forward x up0), up = right x forward,
+ * aspect = width / height, tan(fovy/2) = tan(fov/2) / min(aspect, 1). Plain value. */
+typedef struct fx_cam {
+    double eye[3], fwd[3], right[3], up[3], th, aspect;
+} fx_cam;
+
+struct btf_render_params;
+fx_cam fx_cam_make(const struct btf_render_params *p);
+/* Direction (not unit) of the ray through the centre of pixel (px, py) of a w x h
+ * image, py = 0 the bottom row (GL order). */
+void fx_cam_ray(const fx_cam *c, int px, int py, int w, int h, double d[3]);
+
 #endif

@@ -348,18 +348,7 @@ bool load_geometry(Loader &L, const tinygltf::Primitive &p, int mi, Geometry &ge
 
 // ---------------------------------------------------------------- transforms
 
-// 4x4 column-major products and the node's local matrix (matrix, else T * R * S).
-void mat_mul(const double a[16], const double b[16], double c[16])
-{
-    for (int col = 0; col < 4; col++)
-        for (int row = 0; row < 4; row++) {
-            double s = 0;
-            for (int k = 0; k < 4; k++)
-                s += a[k * 4 + row] * b[col * 4 + k];
-            c[col * 4 + row] = s;
-        }
-}
-
+// The node's local matrix (column-major): its matrix, else T * R * S.
 bool local_matrix(Loader &L, const tinygltf::Node &nd, int ni, double m[16])
 {
     if (nd.matrix.size() == 16) {
@@ -497,7 +486,7 @@ bool visit(Loader &L, int ni, const double pm[16], int depth, std::vector<std::v
     double lm[16], m[16];
     if (!local_matrix(L, nd, ni, lm))
         return false;
-    mat_mul(pm, lm, m);
+    btf_render_mat4_mul(pm, lm, m);
     if (nd.mesh >= 0) {
         if ((size_t)nd.mesh >= L.g.meshes.size())
             return L.fail(BTF_ERR_FORMAT, "node %d: mesh %d does not exist", ni, nd.mesh);

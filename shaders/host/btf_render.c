@@ -112,8 +112,7 @@ static void btf__normalize(double v[3])
         v[i] /= n;
 }
 
-/* c = a * b, column-major 4x4. */
-static void btf__mat_mul(const double a[16], const double b[16], double c[16])
+void btf_render_mat4_mul(const double a[16], const double b[16], double c[16])
 {
     for (int col = 0; col < 4; col++)
         for (int row = 0; row < 4; row++) {
@@ -154,7 +153,7 @@ void btf_render_camera_make(const btf_render_params *p, btf_render_camera *c)
     double proj[16] = {1 / (th * aspect), 0, 0, 0, 0, 1 / th, 0, 0, 0, 0, -(zf + zn) / (zf - zn), -1, 0, 0,
                        -2 * zf * zn / (zf - zn), 0};
     double vp[16], ident[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    btf__mat_mul(proj, view, vp);
+    btf_render_mat4_mul(proj, view, vp);
     btf__to_float(ident, c->model, 16);
     btf__to_float(view, c->view, 16);
     btf__to_float(proj, c->proj, 16);
@@ -461,20 +460,46 @@ btf_result btf_render_read_rgb8(btf_gl *gl, const btf_gl_target *t, uint8_t *rgb
     return res;
 }
 
-/* Renders with an open context into rgb (w*h*3). */
-static btf_result btf__render_rgb(btf_gl *gl, const btf_package *pkg, const char *dir, const btf_render_params *p,
-                                  uint8_t *rgb, btf_error *err)
+btf_result btf_render_to_png(const btf_render_params *p, btf_gl_backend backend, btf_render_draw_fn draw, void *ctx,
+                             const char *out_path, btf_error *err)
 {
-    btf_renderer *r = NULL;
+    btf_result res = btf_render_check_params(p, err);
+    uint8_t *rgb = NULL;
+    if (res == BTF_OK && !(rgb = malloc((size_t)p->width * (size_t)p->height * 3)))
+        res = btf_fail(err, BTF_ERR_NOMEM, "render: out of memory for %dx%d pixels", p->width, p->height);
+    btf_gl *gl = NULL;
     btf_gl_target *t = NULL;
-    btf_result res = btf_renderer_create(gl, pkg, dir, 0, &r, err);
+    btf_gl_desc gd = {.backend = backend};
+    if (res == BTF_OK)
+        res = btf_gl_create(&gd, &gl, err);
     if (res == BTF_OK)
         res = btf_gl_target_create(gl, p->width, p->height, BTF_GL_RGBA8, 1, &t, err);
     if (res == BTF_OK)
-        res = btf_renderer_draw(r, p, t, err);
+        res = draw(ctx, gl, t, err);
     if (res == BTF_OK)
         res = btf_render_read_rgb8(gl, t, rgb, err);
     btf_gl_target_free(gl, t);
+    btf_gl_free(gl);
+    if (res == BTF_OK)
+        res = btf_image_write(out_path, p->width, p->height, 3, 8, rgb, err);
+    free(rgb);
+    return res;
+}
+
+/* What btf_render_png draws (a btf_render_draw_fn): the package on its geometry. */
+typedef struct btf__render_job {
+    const btf_package *pkg;
+    const char *dir;
+    const btf_render_params *p;
+} btf__render_job;
+
+static btf_result btf__render_draw(void *ctx, btf_gl *gl, btf_gl_target *t, btf_error *err)
+{
+    const btf__render_job *j = ctx;
+    btf_renderer *r = NULL;
+    btf_result res = btf_renderer_create(gl, j->pkg, j->dir, 0, &r, err);
+    if (res == BTF_OK)
+        res = btf_renderer_draw(r, j->p, t, err);
     btf_renderer_free(r);
     return res;
 }
@@ -491,19 +516,9 @@ btf_result btf_render_png(const char *dir, const btf_render_params *p, btf_gl_ba
     res = btf_package_read(dir, -1, &pkg, err);
     if (res == BTF_OK && pkg->n_loaded < 1)
         res = btf_fail(err, BTF_ERR_MISSING, "render: %s: no chunk present", dir);
-    uint8_t *rgb = NULL;
-    if (res == BTF_OK && !(rgb = malloc((size_t)p->width * (size_t)p->height * 3)))
-        res = btf_fail(err, BTF_ERR_NOMEM, "render: out of memory for %dx%d pixels", p->width, p->height);
-    btf_gl *gl = NULL;
-    btf_gl_desc gd = {.backend = backend};
+    btf__render_job job = {pkg, dir, p};
     if (res == BTF_OK)
-        res = btf_gl_create(&gd, &gl, err);
-    if (res == BTF_OK)
-        res = btf__render_rgb(gl, pkg, dir, p, rgb, err);
-    btf_gl_free(gl);
-    if (res == BTF_OK)
-        res = btf_image_write(out_path, p->width, p->height, 3, 8, rgb, err);
-    free(rgb);
+        res = btf_render_to_png(p, backend, btf__render_draw, &job, out_path, err);
     btf_package_free(pkg);
     return res;
 }

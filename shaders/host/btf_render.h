@@ -97,6 +97,8 @@ typedef struct btf_render_camera {
 } btf_render_camera;
 
 void btf_render_camera_make(const btf_render_params *p, btf_render_camera *out);
+/* c = a * b for column-major 4x4 matrices (c may not alias a or b). */
+void btf_render_mat4_mul(const double a[16], const double b[16], double c[16]);
 /* Pixels per world unit at the origin's distance (the object's scale on screen):
  * min(width, height) / (2 dist tan(fov/2)). The client's pixelsPerUnit (client/scene.js). */
 double btf_render_pixels_per_unit(const btf_render_params *p);
@@ -149,6 +151,14 @@ btf_result btf_renderer_use(btf_renderer *r, const btf_render_params *p, const b
 /* Reads colour attachment 0 of an RGBA8 target into rgb (width*height*3 bytes),
  * top row first (image order). */
 btf_result btf_render_read_rgb8(btf_gl *gl, const btf_gl_target *t, uint8_t *rgb, btf_error *err);
+
+/* Draws one frame into t (an RGBA8 target of the parameters' size) with gl current. */
+typedef btf_result (*btf_render_draw_fn)(void *ctx, btf_gl *gl, btf_gl_target *t, btf_error *err);
+/* All in one around draw: a context of the backend, an RGBA8 target of p's size,
+ * draw(ctx, ...), the pixels written as an RGB PNG (or any format btf_image_write
+ * knows) to out_path. */
+btf_result btf_render_to_png(const btf_render_params *p, btf_gl_backend backend, btf_render_draw_fn draw, void *ctx,
+                             const char *out_path, btf_error *err);
 
 /* All in one: reads the package in dir (the first n_chunks present when
  * p->n_chunks > 0, else every chunk present), renders with the backend into an

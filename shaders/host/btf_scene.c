@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "btf_common.h"
-#include "btf_image.h"
 #include "btf_shader.h"
 
 #define BTF__PI 3.14159265358979323846
@@ -223,20 +222,21 @@ btf_result btf_scene_draw(btf_scene *s, const btf_render_params *p, btf_gl_targe
     return r;
 }
 
-/* Draws with an open context into rgb (w*h*3). */
-static btf_result btf__scene_rgb(btf_gl *gl, const btf_gltf *m, const btf_scene_binding *b, int n,
-                                 const btf_render_params *p, uint8_t *rgb, btf_error *err)
+/* What btf_scene_png draws (a btf_render_draw_fn): the model with its bindings. */
+typedef struct btf__scene_job {
+    const btf_gltf *m;
+    const btf_scene_binding *b;
+    int n;
+    const btf_render_params *p;
+} btf__scene_job;
+
+static btf_result btf__scene_draw_job(void *ctx, btf_gl *gl, btf_gl_target *t, btf_error *err)
 {
+    const btf__scene_job *j = ctx;
     btf_scene *s = NULL;
-    btf_gl_target *t = NULL;
-    btf_result r = btf_scene_create(gl, m, b, n, &s, err);
+    btf_result r = btf_scene_create(gl, j->m, j->b, j->n, &s, err);
     if (r == BTF_OK)
-        r = btf_gl_target_create(gl, p->width, p->height, BTF_GL_RGBA8, 1, &t, err);
-    if (r == BTF_OK)
-        r = btf_scene_draw(s, p, t, err);
-    if (r == BTF_OK)
-        r = btf_render_read_rgb8(gl, t, rgb, err);
-    btf_gl_target_free(gl, t);
+        r = btf_scene_draw(s, j->p, t, err);
     btf_scene_free(s);
     return r;
 }
@@ -246,19 +246,6 @@ btf_result btf_scene_png(const btf_gltf *m, const btf_scene_binding *b, int n, c
 {
     if (!m || !p || !out_path)
         return btf_fail(err, BTF_ERR_ARG, "scene: NULL argument");
-    btf_result r = btf_render_check_params(p, err);
-    uint8_t *rgb = NULL;
-    if (r == BTF_OK && !(rgb = malloc((size_t)p->width * (size_t)p->height * 3)))
-        r = btf_fail(err, BTF_ERR_NOMEM, "render: out of memory for %dx%d pixels", p->width, p->height);
-    btf_gl *gl = NULL;
-    btf_gl_desc gd = {.backend = backend};
-    if (r == BTF_OK)
-        r = btf_gl_create(&gd, &gl, err);
-    if (r == BTF_OK)
-        r = btf__scene_rgb(gl, m, b, n, p, rgb, err);
-    btf_gl_free(gl);
-    if (r == BTF_OK)
-        r = btf_image_write(out_path, p->width, p->height, 3, 8, rgb, err);
-    free(rgb);
-    return r;
+    btf__scene_job job = {m, b, n, p};
+    return btf_render_to_png(p, backend, btf__scene_draw_job, &job, out_path, err);
 }

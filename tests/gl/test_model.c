@@ -22,17 +22,26 @@
 
 static double dot3(const float *a, const float *b) { return (double)a[0] * b[0] + (double)a[1] * b[1] + (double)a[2] * b[2]; }
 
+/* The stool written into a fresh tmp (path = tmp/stool.glb); when m, read back
+ * into *m, and when ref, its formula surfaces into ref. */
+static void stool(char tmp[256], char path[300], btf_gltf **m, btf_gen_stool_part *ref)
+{
+    cr_assert(fx_tmpdir(tmp, 256));
+    snprintf(path, 300, "%s/stool.glb", tmp);
+    btf_error err = {{0}};
+    cr_assert_eq(btf_gen_stool_write(path, SEG, &err), BTF_OK, "%s", err.msg);
+    if (m)
+        cr_assert_eq(btf_gltf_load(path, m, &err), BTF_OK, "%s", err.msg);
+    if (ref)
+        cr_assert_eq(btf_gen_stool_parts(SEG, ref, &err), BTF_OK, "%s", err.msg);
+}
+
 Test(model, stool_loads_as_its_formulas)
 {
     char tmp[256], path[300];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(path, sizeof path, "%s/stool.glb", tmp);
-    btf_error err = {{0}};
-    cr_assert_eq(btf_gen_stool_write(path, SEG, &err), BTF_OK, "%s", err.msg);
     btf_gltf *m = NULL;
-    cr_assert_eq(btf_gltf_load(path, &m, &err), BTF_OK, "%s", err.msg);
     btf_gen_stool_part ref[BTF_GEN_STOOL_PARTS];
-    cr_assert_eq(btf_gen_stool_parts(SEG, ref, &err), BTF_OK, "%s", err.msg);
+    stool(tmp, path, &m, ref);
     cr_assert_eq(m->n_parts, BTF_GEN_STOOL_PARTS);
     /* generated tangents: the mean of the faces' u directions around a vertex, exact on
      * a tube's inner vertices, half a segment off at the seam (one face only) */
@@ -242,10 +251,8 @@ static void e_accessor(glb *g)
 Test(model, hostile_glb_refused)
 {
     char tmp[256], path[300];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(path, sizeof path, "%s/stool.glb", tmp);
+    stool(tmp, path, NULL, NULL);
     btf_error err = {{0}};
-    cr_assert_eq(btf_gen_stool_write(path, SEG, &err), BTF_OK, "%s", err.msg);
     glb g = glb_open(path); /* the round trip itself loads: each case below fails by its edit alone */
     cr_assert_eq(glb_load(&g, &err), BTF_OK, "%s", err.msg);
     cJSON_Delete(g.json);
@@ -291,42 +298,13 @@ Test(model, hostile_glb_refused)
 #define MW 64 /* render size */
 #define MH 48
 
-/* The documented camera (shaders/README.md "Scene conventions") with a target:
- * eye = target + dist * dir(theta, phi), looking at target. */
-typedef struct ray_cam {
-    double eye[3], fwd[3], right[3], up[3], th, aspect;
-} ray_cam;
-
-static ray_cam make_cam(const btf_render_params *p)
-{
-    ray_cam c;
-    double d[3], t = p->camera_theta * M_PI / 180, ph = p->camera_phi * M_PI / 180;
-    fx_dir(p->camera_theta, p->camera_phi, d);
-    double up0[3] = {-cos(t) * cos(ph), -cos(t) * sin(ph), sin(t)};
-    for (int i = 0; i < 3; i++)
-        c.eye[i] = p->target[i] + p->camera_dist * d[i], c.fwd[i] = -d[i];
-    c.right[0] = c.fwd[1] * up0[2] - c.fwd[2] * up0[1];
-    c.right[1] = c.fwd[2] * up0[0] - c.fwd[0] * up0[2];
-    c.right[2] = c.fwd[0] * up0[1] - c.fwd[1] * up0[0];
-    double n = sqrt(c.right[0] * c.right[0] + c.right[1] * c.right[1] + c.right[2] * c.right[2]);
-    for (int i = 0; i < 3; i++)
-        c.right[i] /= n;
-    c.up[0] = c.right[1] * c.fwd[2] - c.right[2] * c.fwd[1];
-    c.up[1] = c.right[2] * c.fwd[0] - c.right[0] * c.fwd[2];
-    c.up[2] = c.right[0] * c.fwd[1] - c.right[1] * c.fwd[0];
-    c.aspect = (double)p->width / p->height;
-    c.th = tan(p->fov_deg * M_PI / 360) / (c.aspect < 1 ? c.aspect : 1);
-    return c;
-}
-
 /* Nearest hit of the ray through pixel (px, py) (py = 0 the bottom row) on the
  * formula surfaces: part index (-1 none), the interpolated vertex (12 floats) and
  * the distance to the nearest triangle edge in barycentric units (*edge). */
-static int ray_cast(const ray_cam *c, int px, int py, const btf_gen_stool_part *parts, float *out, double *edge)
+static int ray_cast(const fx_cam *c, int px, int py, const btf_gen_stool_part *parts, float *out, double *edge)
 {
-    double nx = 2.0 * (px + 0.5) / MW - 1, ny = 2.0 * (py + 0.5) / MH - 1, d[3];
-    for (int i = 0; i < 3; i++)
-        d[i] = c->fwd[i] + c->right[i] * nx * c->th * c->aspect + c->up[i] * ny * c->th;
+    double d[3];
+    fx_cam_ray(c, px, py, MW, MH, d);
     double best = INFINITY;
     int hit = -1;
     for (int pi = 0; pi < BTF_GEN_STOOL_PARTS; pi++)
@@ -361,7 +339,7 @@ static float srgb(float c) { return c <= 0.0031308f ? 12.92f * c : 1.055f * powf
 
 /* What the shaders compute at a hit: btf_decode in the hit's frame for a bound part
  * (shaders/btf_render.frag), the flat rule for the others (shaders/btf_flat.frag). */
-static void shade(const btf_package *pkg, float repeat, const float *h, const float *base, const ray_cam *c,
+static void shade(const btf_package *pkg, float repeat, const float *h, const float *base, const fx_cam *c,
                   const float light[3], float rgb[3])
 {
     double n[3], t[3], b[3], nl = 0, td = 0, tl = 0;
@@ -439,7 +417,7 @@ static float *render_stool(btf_gl_backend be, const btf_gltf *m, const btf_scene
 static void check_render(const float *px, const btf_gen_stool_part *ref, btf_package *pkg[2], const btf_gltf *m,
                          const btf_render_params *p, const char *what)
 {
-    ray_cam c = make_cam(p);
+    fx_cam c = fx_cam_make(p);
     double ld[3];
     float light[3];
     fx_dir(p->light_theta, p->light_phi, ld);
@@ -485,14 +463,9 @@ static void check_render(const float *px, const btf_gen_stool_part *ref, btf_pac
 Test(model, render_matches_ray_cast_both_backends, .timeout = 120)
 {
     char tmp[256], path[300], dirs[2][400];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(path, sizeof path, "%s/stool.glb", tmp);
-    btf_error err = {{0}};
-    cr_assert_eq(btf_gen_stool_write(path, SEG, &err), BTF_OK, "%s", err.msg);
     btf_gltf *m = NULL;
-    cr_assert_eq(btf_gltf_load(path, &m, &err), BTF_OK, "%s", err.msg);
     btf_gen_stool_part ref[BTF_GEN_STOOL_PARTS];
-    cr_assert_eq(btf_gen_stool_parts(SEG, ref, &err), BTF_OK, "%s", err.msg);
+    stool(tmp, path, &m, ref);
     btf_package *pkg[2];
     make_packages(tmp, dirs, pkg);
     btf_scene_binding b[2] = {{"Seat", dirs[0], 1.0f}, {"Frame", dirs[1], 3.0f}};

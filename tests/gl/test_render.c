@@ -50,47 +50,12 @@ static void make_package(char *tmp, size_t n, char *pkg, size_t pn, btf_gen_para
     btf_free(m);
 }
 
-/* ---------------------------------------------------------------- the documented camera, again */
-
-typedef struct ray_cam {
-    double eye[3], fwd[3], right[3], up[3], th, aspect;
-} ray_cam;
-
-/* shaders/README.md "Scene conventions": eye = dist * dir(theta, phi), forward = -dir,
- * up0 = (-cos t cos p, -cos t sin p, sin t), right = normalize(forward x up0),
- * up = right x forward, aspect = width / height, fov across the narrower side:
- * tan(fovy/2) = tan(fov/2) / min(aspect, 1). */
-static ray_cam make_ray_cam(const btf_render_params *p)
-{
-    ray_cam c;
-    double d[3], t = p->camera_theta * M_PI / 180, ph = p->camera_phi * M_PI / 180;
-    fx_dir(p->camera_theta, p->camera_phi, d);
-    double up0[3] = {-cos(t) * cos(ph), -cos(t) * sin(ph), sin(t)};
-    for (int i = 0; i < 3; i++) {
-        c.eye[i] = p->camera_dist * d[i];
-        c.fwd[i] = -d[i];
-    }
-    c.right[0] = c.fwd[1] * up0[2] - c.fwd[2] * up0[1];
-    c.right[1] = c.fwd[2] * up0[0] - c.fwd[0] * up0[2];
-    c.right[2] = c.fwd[0] * up0[1] - c.fwd[1] * up0[0];
-    double n = sqrt(c.right[0] * c.right[0] + c.right[1] * c.right[1] + c.right[2] * c.right[2]);
-    for (int i = 0; i < 3; i++)
-        c.right[i] /= n;
-    c.up[0] = c.right[1] * c.fwd[2] - c.right[2] * c.fwd[1];
-    c.up[1] = c.right[2] * c.fwd[0] - c.right[0] * c.fwd[2];
-    c.up[2] = c.right[0] * c.fwd[1] - c.right[1] * c.fwd[0];
-    c.aspect = (double)p->width / p->height;
-    c.th = tan(p->fov_deg * M_PI / 360) / (c.aspect < 1 ? c.aspect : 1);
-    return c;
-}
-
 /* Ray through pixel (px, py) (py = 0 the bottom row, GL order) hits the plane z = 0
  * at (x, y); 0 if it misses the square [-lim, lim]^2. */
-static int ray_plane(const ray_cam *c, int px, int py, int w, int h, double lim, double hit[3])
+static int ray_plane(const fx_cam *c, int px, int py, int w, int h, double lim, double hit[3])
 {
-    double nx = 2.0 * (px + 0.5) / w - 1, ny = 2.0 * (py + 0.5) / h - 1, d[3];
-    for (int i = 0; i < 3; i++)
-        d[i] = c->fwd[i] + c->right[i] * nx * c->th * c->aspect + c->up[i] * ny * c->th;
+    double d[3];
+    fx_cam_ray(c, px, py, w, h, d);
     if (!(d[2] < -1e-9))
         return 0;
     double s = -c->eye[2] / d[2];
@@ -127,7 +92,7 @@ static void check_setting(btf_gl *gl, btf_renderer *r, const btf_package *p, con
     for (int a = 0; a < 4; a++)
         cr_assert_eq(btf_gl_target_read(gl, t, a, out[a], &err), BTF_OK, "%s", err.msg);
     btf_gl_target_free(gl, t);
-    ray_cam c = make_ray_cam(&rp);
+    fx_cam c = fx_cam_make(&rp);
     float l[3];
     double ld[3];
     fx_dir(rp.light_theta, rp.light_phi, ld);
@@ -294,7 +259,7 @@ Test(render, horizon_fade_both_backends)
             static float out[RW * RH * 4];
             cr_assert_eq(btf_gl_target_read(gl, t, 0, out, &err), BTF_OK, "%s", err.msg);
             btf_gl_target_free(gl, t);
-            ray_cam c = make_ray_cam(&rp);
+            fx_cam c = fx_cam_make(&rp);
             double ld[3];
             fx_dir(rp.light_theta, rp.light_phi, ld);
             float l[3] = {(float)ld[0], (float)ld[1], (float)ld[2]};
