@@ -1,9 +1,11 @@
 // btf-render.js - draws a package on a surface with the program "render" of
 // shaders/manifest.json (btf_render.vert, btf_dirs.glsl, btf_decode.glsl,
 // btf_render.frag): the very program `btf render` draws with in the headless C
-// harness, with the same mesh, camera and uniforms (scene.js ports shaders/host/btf_render.c).
+// harness, with the same mesh, camera and uniforms (scene.js ports shaders/host/btf_render.c);
+// and a model's parts (btf-model.js) with their packages, the unbound ones with the
+// program "flat" (btf_flat.frag), as btf_scene_draw (shaders/host/btf_scene.c) does.
 
-import {decodeDefines, finishProgram, programReady, startProgram} from './btf-gl.js';
+import {buildProgram, decodeDefines, finishProgram, programReady, startProgram} from './btf-gl.js';
 import {buildMesh, cameraMake} from './scene.js';
 
 // MeshRenderer uses the program "render" (btf_render.vert, btf_dirs.glsl,
@@ -13,10 +15,14 @@ import {buildMesh, cameraMake} from './scene.js';
 // only the ones drawn: start() sends a variant to the driver as soon as it is known
 // (the page goes on meanwhile), ready() says whether using it would wait, draw()
 // waits for it where it must.
+const FLAT_AMBIENT = 0.25; // BTF_SCENE_FLAT_AMBIENT: u_flat_ambient, the share of full light an unlit side keeps
+const IDENTITY = new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+
 export class MeshRenderer {
   constructor(gl, shaders) {
     this.gl = gl;
-    this.shaders = shaders;
+    this.shaders = {manifest: {...shaders.manifest, programs: {...shaders.manifest.programs}}, files: new Map(shaders.files)};
+    this.flat = null; // the linked program "flat" (drawScene), once a model drew
     this.progs = new Map(); // defines key -> linked program
     this.pending = new Map(); // defines key -> startProgram's compile in flight
     this.meshes = new Map(); // geometry -> {vao, count, buffers}
@@ -24,6 +30,13 @@ export class MeshRenderer {
 
   static key(defines) {
     return defines.map((d) => d.join('=')).join(',');
+  }
+
+  // Adds the programs and files of more shader files (a model's viewer adds "flat" to a
+  // renderer a viewer of one material made with "render" only).
+  include(shaders) {
+    Object.assign(this.shaders.manifest.programs, shaders.manifest.programs);
+    for (const [k, v] of shaders.files) this.shaders.files.set(k, v);
   }
 
   // Starts compiling a variant (the GPU process compiles it while the page goes on).
@@ -84,6 +97,54 @@ export class MeshRenderer {
     return r;
   }
 
+  // Clears to the background and draws a model's parts for the scene `view` (as draw(),
+  // plus target and extent: scene.js cameraMake): each layer ({gpu, chunks, quads,
+  // groups: [{uvScale, meshes: [{vao, count}]}]}, btf-model.js layers()) with the render
+  // program of its package, tiled (wrap) with each group's repeats; then each flat part
+  // ({mesh, color}) with the program "flat" in its base colour, all into one depth buffer.
+  drawScene({layers, flats}, view, w, h) {
+    const gl = this.gl;
+    gl.viewport(0, 0, w, h);
+    gl.clearColor(...view.background, 1);
+    gl.clearDepth(1);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    const cam = cameraMake(view, w / h);
+    gl.enable(gl.DEPTH_TEST);
+    for (const l of layers) {
+      const p = this.program(MeshRenderer.defines(l.gpu, 1, l.quads));
+      gl.useProgram(p.program);
+      l.gpu.bind(p, 0, {chunks: l.chunks, filter: 1, wrap: 1});
+      gl.uniformMatrix4fv(p.loc('u_model'), false, IDENTITY);
+      gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
+      gl.uniform3fv(p.loc('u_camera'), cam.eye);
+      gl.uniform4f(p.loc('u_light'), cam.light[0], cam.light[1], cam.light[2], 0);
+      gl.uniform1i(p.loc('u_horizon_fade'), view.horizonFade === false ? 0 : 1);
+      for (const g of l.groups) {
+        gl.uniform2f(p.loc('u_uv_scale'), g.uvScale[0], g.uvScale[1]);
+        for (const m of g.meshes) {
+          gl.bindVertexArray(m.vao);
+          gl.drawElements(gl.TRIANGLES, m.count, gl.UNSIGNED_INT, 0);
+        }
+      }
+    }
+    if (flats.length) {
+      if (!this.flat) this.flat = buildProgram(gl, this.shaders, 'flat');
+      const p = this.flat;
+      gl.useProgram(p.program);
+      gl.uniformMatrix4fv(p.loc('u_model'), false, IDENTITY);
+      gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
+      gl.uniform4f(p.loc('u_light'), cam.light[0], cam.light[1], cam.light[2], 0);
+      gl.uniform1f(p.loc('u_flat_ambient'), FLAT_AMBIENT);
+      for (const f of flats) {
+        gl.uniform4f(p.loc('u_base_color'), f.color[0], f.color[1], f.color[2], f.color[3]);
+        gl.bindVertexArray(f.mesh.vao);
+        gl.drawElements(gl.TRIANGLES, f.mesh.count, gl.UNSIGNED_INT, 0);
+      }
+    }
+    gl.bindVertexArray(null);
+    gl.disable(gl.DEPTH_TEST);
+  }
+
   // Clears to the background and draws pkg (a GpuPackage) for the scene `view`
   // ({geometry, camera/light angles, fov, repeat, background, chunks, horizonFade,
   // filter: 0 nearest, else bilinear, quads: the variant's layers, see defines}), as
@@ -117,6 +178,8 @@ export class MeshRenderer {
   free() {
     const gl = this.gl;
     for (const p of this.progs.values()) gl.deleteProgram(p.program);
+    if (this.flat) gl.deleteProgram(this.flat.program);
+    this.flat = null;
     for (const p of this.pending.values()) {
       [p.vs, p.fs].forEach((sh) => gl.deleteShader(sh));
       gl.deleteProgram(p.program);

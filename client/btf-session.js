@@ -1,8 +1,10 @@
-// btf-session.js - one stream of one material for a <btf-viewer> (btf-viewer.js): the
-// subscription and its budget, the GPU package its chunks go into (btf-upload.js), and
-// the frames drawn into the viewer's canvas; its status (label, notes, events) goes
-// out through the host it was given. The session never holds the element: it reads the
-// page through the host's functions and reports through its callbacks.
+// btf-session.js - what a <btf-viewer> (btf-viewer.js) shows between two restarts: one
+// material on a built-in surface, or a glTF model (btf-model.js) with library materials
+// bound to its parts. Each library material is a feed (btf-feed.js: its subscription on
+// the page's shared stream, its budget, its GPU package); the session owns the feeds,
+// the frames drawn into the viewer's canvas, and the status (label, notes, events),
+// which goes out through the host it was given. The session never holds the element:
+// it reads the page through the host's functions and reports through its callbacks.
 //
 //   host = {
 //     canvas                  the viewer's 2D canvas; frames are copied into it (the viewer sizes it)
@@ -12,10 +14,12 @@
 //     resize()                lay the canvas out again (after resolution.scale changed; at start)
 //     scene(seconds)          the scene in btf render's terms (scene.js), the orbiting light at
 //                             `seconds` after the session began: {geometry, camera and light angles,
-//                             cameraDist, fov, repeat, background}
+//                             cameraDist, fov, repeat, background; a model: target, extent}
 //     asked()                 {chunks: the budget-chunks attribute (null: none), bytes, threshold}
-//     policy()                chunks for a package without budget-chunks, -1 no cap (budgetPolicy)
+//     policy(pkg)             chunks for a package without budget-chunks, -1 no cap (budgetPolicy)
 //     pixelsPerRepeat()       device pixels one repeat of the material spans (the scene budget)
+//     display()               [width, height] of the view in device pixels (a model's budgets)
+//     framed(frame)           a model arrived: {target, extent, cameraDist} frame it (scene.js frameModel)
 //     seen()                  on screen and the tab shown (else streaming pauses)
 //     moving()                the light orbits (attribute, and motion allowed, and seen)
 //     emit(type, detail)      an event of the element: load, progress, complete, error
@@ -30,10 +34,11 @@ import {decodeDefines, loadShaders} from './btf-gl.js';
 import {MeshRenderer} from './btf-render.js';
 import {sharedGl} from './btf-context.js';
 import {decoderKind} from './btf-decode.js';
-import {chunksWithinBytes, parseManifest, promisedError} from './btf-package.js';
-import {lodSelect} from './btf-lod.js';
+import {promisedError} from './btf-package.js';
 import {SHADER_PACK} from './btf-shader-pack.js';
-import {ChunkUploads} from './btf-upload.js';
+import {MaterialFeed} from './btf-feed.js';
+import {ModelScene, modelAt} from './btf-model.js';
+import {parseBindings} from './btf-gltf.js';
 
 const SCRIPT_AT = performance.now(); // when the element's modules ran (ms from navigation start)
 const GL_AFTER_MS = 1000; // the WebGL context is made once the subscribe is out, or this long after start
@@ -43,31 +48,50 @@ const MIN_SCALE = 0.35;    // ... down to this share of the device pixels per CS
 const GPU_POLL_MS = 8;     // how often a frame waiting for the GPU asks again
 const SHADER_RETRY_MS = [500, 1000, 2000, 4000, 8000]; // then the last, while the viewer lives
 
+// The shader files of programs (all inside the bundle, else fetched per program) as one
+// {manifest, files}.
+function shaderFiles(base, programs) {
+  if (base === 'inside:')
+    return Promise.resolve({manifest: SHADER_PACK.manifest, files: new Map(Object.entries(SHADER_PACK.files))});
+  return Promise.all(programs.map((p) => loadShaders(base, p))).then((all) => ({
+    manifest: {...all[0].manifest, programs: Object.assign({}, ...all.map((s) => s.manifest.programs))},
+    files: new Map(all.flatMap((s) => [...s.files])),
+  }));
+}
+
 // Owned by one <btf-viewer>; lives from the viewer's creation or its last stop (material,
-// src or shaders changed, removed from the page) until its next stop. Started at most once.
+// model, materials, src or shaders changed, removed from the page) until its next stop.
+// Started at most once.
 export class BtfSession {
   constructor(host) {
     this.host = host;
     this.started = false;
     this.closed = false;
     this.frames = 0;
-    this.drawnChunks = 0;
-    this.uploads = null;       // the GPU package and the chunks decoded for it (btf-upload.js)
-    this.ctx = this.gl = this.pkg = this.sub = this.stream = this.renderer = null;
+    this.feeds = [];           // one per library material (btf-feed.js)
+    this.model = null;         // a model's ModelScene (btf-model.js), once loaded
+    this.modelUrl = null;      // the model attribute (a model session), else null
+    this.ctx = this.gl = this.stream = this.renderer = null;
     this.lost = false;
     this.t0 = performance.now();
     this.firstFrameMs = this.firstFrameBytes = null;
-    this.complete = this.loaded = false;
-    this.completeFor = -1;
+    this.loaded = false;
+    this.completeFor = null;
     this.error = null;
     this.outages = {stream: null, shaders: null}; // reasons of outages whose error event went out
     this.shaderTry = 0;
-    this.shaderFiles = null;   // Promise of the "render" program's files
+    this.shaderFiles = null;   // Promise of the programs' files
     this.times = {script: SCRIPT_AT}; // ms from navigation start: the loading sequence (doc/client.md)
     this.usedVariants = new Set(); // program variants drawn with (a first draw includes the driver's compile)
     this.measured = null;
     this.raf = 0;
   }
+
+  // The first feed's, for the viewer (its budgetPolicy, test hooks) and a one-material session.
+  get pkg() { return this.feeds[0] ? this.feeds[0].pkg : null; }
+  get sub() { return this.feeds[0] ? this.feeds[0].sub : null; }
+  get gpu() { return this.feeds[0] ? this.feeds[0].gpu : null; }
+  get complete() { return this.feeds.length > 0 && this.feeds.every((f) => f.complete); }
 
   // ------------------------------------------------------------ lifetime
 
@@ -76,29 +100,71 @@ export class BtfSession {
   // context is made while they travel; the program compiles once the manifest says
   // which variant; chunks decode in a worker and every frame draws all that arrived.
   // shaderBase: a URL, or 'inside:' for the files inside the script (the bundle).
-  start(material, src, shaderBase) {
+  // model: null, or {url, materials (the attribute's text, or null)}: the model's parts
+  // with the materials' bindings, `material` bound to every part no binding names.
+  start(material, src, shaderBase, model = null) {
     this.started = true;
-    if (!material) return this.fail(new Error('no material attribute'));
+    if (!material && !model) return this.fail(new Error('no material attribute'));
     if (typeof WebGL2RenderingContext === 'undefined') return this.noWebgl();
     this.src = src;
     this.shaderBase = shaderBase;
     this.times.start = performance.now();
     this.host.resize(); // the canvas size: the first subscribe's footprint
-    this.fetchShaders(); // before the subscribe: a shared subscription replays its manifest at once
-    this.stream = BtfStream.for(src);
-    this.stream.subscribe(material, this); // sets this.sub (onSubscribe)
+    this.fetchShaders(model ? ['render', 'flat'] : ['render']); // before the subscribe: a shared subscription replays its manifest at once
+    this.stream = BtfStream.for(src); // connects now (a model's subscriptions follow it)
+    if (model) return this.startModel(material, model);
+    const feed = new MaterialFeed(this, material, {
+      pixels: (drawing) => (!this.host.seen() && !drawing ? 0 : this.host.pixelsPerRepeat()),
+      policy: (pkg) => this.host.policy(pkg),
+    });
+    this.feeds = [feed];
+    feed.subscribe(this.stream);
     this.updateLabel();
     // the context once the subscribe is out (onStreamOpen: made while the manifest and the
     // first chunk travel; it blocks the page, so not before), or later if the server is slow
     setTimeout(() => this.ensureGl(), GL_AFTER_MS);
   }
 
-  // Cancels everything in flight: subscription, uploads, GPU package, frames. Final.
+  // A model session: the model (fetched once per page) and the bindings; then one feed
+  // per library material, its footprint from the pixels its parts cover.
+  startModel(material, {url, materials}) {
+    this.modelUrl = url;
+    let bindings;
+    try {
+      bindings = parseBindings(materials);
+      if (material && !bindings.some((b) => b.name === '*')) bindings.push({name: '*', id: material, repeat: null});
+    } catch (e) {
+      return this.fail(e);
+    }
+    this.host.label('loading the model…');
+    modelAt(url).then((m) => {
+      if (this.closed) return;
+      this.times.model = performance.now();
+      this.model = new ModelScene(m, bindings);
+      this.host.framed(this.model.frame(this.host.scene(0).fov));
+      this.feeds = this.model.materialIds().map((id) => new MaterialFeed(this, id, {
+        pixels: (drawing) => (!this.host.seen() && !drawing ? 0 : this.coverage().get(id)?.ppr || 0),
+        policy: (pkg) => this.host.policy(pkg),
+      }));
+      for (const f of this.feeds) f.subscribe(this.stream);
+      this.updateLabel();
+      if (!this.ensureGl()) return;
+      this.invalidate();
+    }).catch((e) => !this.closed && this.fail(e));
+  }
+
+  // Per library material of the model: {pixels covered, ppr} in the current view (btf-model.js).
+  coverage() {
+    if (!this.model) return new Map();
+    const [w, h] = this.host.display();
+    return this.model.coverage(this.host.scene(0), w, h);
+  }
+
+  // Cancels everything in flight: subscriptions, uploads, GPU packages, frames. Final.
   stop() {
     this.closed = true;
-    if (this.sub) this.sub.stream.unsubscribe(this.sub, this);
-    this.sub = null;
-    this.dropGpu();
+    for (const f of this.feeds) f.stop();
+    this.model?.dropGpu();
     this.ctx?.users.delete(this);
     this.ctx = null;
     cancelAnimationFrame(this.raf);
@@ -109,11 +175,6 @@ export class BtfSession {
 
   get live() {
     return this.started && !this.closed;
-  }
-
-  // The GPU package (btf-gl.js GpuPackage), or null.
-  get gpu() {
-    return this.uploads ? this.uploads.gpu : null;
   }
 
   // ------------------------------------------------------------ WebGL and shaders
@@ -143,33 +204,41 @@ export class BtfSession {
       this.host.resize();
     }
     this.loadRenderer();
-    if (this.pkg && !this.gpu) this.newGpu();
+    for (const f of this.feeds) if (f.pkg && !f.gpu) f.newGpu(this.gl);
     return true;
   }
 
-  // The "render" program's files (only those), fetched at once; a failed fetch is tried
-  // again with backoff (a dropped link must not leave the viewer without shaders).
-  fetchShaders() {
-    this.shaderFiles = this.shaderBase === 'inside:'
-      ? Promise.resolve({manifest: SHADER_PACK.manifest, files: new Map(Object.entries(SHADER_PACK.files))})
-      : loadShaders(this.shaderBase, 'render');
+  // The programs' files (only those), fetched at once; a failed fetch is tried again
+  // with backoff (a dropped link must not leave the viewer without shaders).
+  fetchShaders(programs) {
+    this.shaderFiles = shaderFiles(this.shaderBase, programs);
     this.shaderFiles.then(() => {
       if (!this.closed) this.times.shaders ??= performance.now();
     }, (e) => {
       if (this.closed) return;
       const delay = SHADER_RETRY_MS[Math.min(this.shaderTry++, SHADER_RETRY_MS.length - 1)];
       this.trouble('shaders', `${e.message}; trying again`);
-      setTimeout(() => !this.closed && this.fetchShaders(), delay);
+      setTimeout(() => !this.closed && this.fetchShaders(programs), delay);
     });
   }
 
+  // The context's renderer of this shader base, with this session's programs in it.
+  rendererWithPrograms() {
+    const files = this.shaderFiles;
+    return files.then(() => this.ctx.renderer(this.shaderBase, files)).then((r) => files.then((sh) => {
+      r.include(sh);
+      return r;
+    }));
+  }
+
   loadRenderer() {
-    this.shaderFiles.then(() => this.ctx.renderer(this.shaderBase, this.shaderFiles)).then((r) => {
+    this.rendererWithPrograms().then((r) => {
       if (this.closed) return;
       this.renderer = r;
       // the variant of a first frame (one 4-slot layer; levels once the manifest says)
       // compiles while the first chunk travels
-      r.start(this.firstVariant());
+      if (this.feeds.length) for (const f of this.feeds) r.start(this.firstVariant(f));
+      else if (!this.model) r.start(this.firstVariant(null));
       this.recovered('shaders');
       this.invalidate();
     }, () => {
@@ -180,7 +249,8 @@ export class BtfSession {
   // btf-context.js: the shared context was lost / restored.
   contextLost() {
     this.lost = true;
-    this.dropGpu();
+    for (const f of this.feeds) f.dropGpu();
+    this.model?.dropGpu();
     this.renderer = null;
     this.host.message('WebGL context lost; waiting for the browser to restore it');
   }
@@ -188,127 +258,74 @@ export class BtfSession {
   contextRestored() {
     this.lost = false;
     this.host.message('');
-    this.ctx.renderer(this.shaderBase, this.shaderFiles).then((r) => {
+    this.rendererWithPrograms().then((r) => {
       if (this.closed) return;
       this.renderer = r;
       this.rebuildGpu();
     }).catch((e) => !this.closed && this.fail(e));
   }
 
-  // Re-uploads every chunk held by the subscription (after a context restore).
+  // Re-uploads every chunk held by the subscriptions (after a context restore).
   rebuildGpu() {
-    if (!this.pkg || !this.sub) return;
-    this.newGpu();
+    for (const f of this.feeds) if (f.pkg && f.sub) f.newGpu(this.gl);
     this.invalidate();
   }
 
   // ------------------------------------------------------------ budget
 
-  // This session's own budget {chunks, bytes, error, pixels, threshold}; -1 = no limit
-  // (btf-stream.js merges the budgets of a subscription's listeners). Without a
-  // budget-chunks attribute: the scene budget, sent as the footprint (`pixels`, device
-  // pixels one repeat of the material spans) so the server applies it from the first
-  // subscribe on, before the manifest is here; once it is, also as the chunk count of
-  // lodSelect (client/btf-lod.js), capped for packages without levels by the host's
-  // policy (BtfViewer.budgetPolicy). 0 pixels while the viewer is off screen or the tab
-  // hidden (streaming pauses).
-  budget(drawing = false) {
-    const a = this.host.asked();
-    if (a.chunks !== null && a.chunks !== '')
-      return {chunks: Math.max(0, parseInt(a.chunks, 10) || 0), bytes: a.bytes, error: -1, pixels: -1, threshold: -1};
-    const pixels = !this.host.seen() && !drawing ? 0 : this.host.pixelsPerRepeat();
-    let chunks = -1;
-    if (this.pkg) {
-      const policy = this.host.policy();
-      chunks = this.sceneBudget(drawing).limit;
-      if (policy >= 0) chunks = Math.min(chunks, policy);
-    }
-    return {chunks, bytes: a.bytes, error: -1, pixels, threshold: a.threshold};
-  }
-
-  // Texels per device pixel of the material at the object's centre (btf_lod_footprint).
-  footprint() {
-    if (!this.pkg) return 0;
-    const px = this.host.pixelsPerRepeat();
-    return px > 0 && this.pkg.width > 0 ? this.pkg.width / px : 0;
-  }
-
-  // lodSelect of the current view (client/btf-lod.js); nothing while paused unless drawing.
-  sceneBudget(drawing = false) {
-    const tpp = !this.host.seen() && !drawing ? 0 : this.footprint();
-    return lodSelect(this.pkg, {texelsPerPixel: tpp, threshold: this.host.asked().threshold});
-  }
-
-  // Chunks this session draws: its own budget within the manifest.
-  ownLimit() {
-    if (!this.pkg) return 0;
-    const b = this.budget(true);
-    let n = this.pkg.chunks.length;
-    if (b.chunks >= 0) n = Math.min(n, b.chunks);
-    if (b.bytes >= 0) n = Math.min(n, chunksWithinBytes(this.pkg, b.bytes));
-    return n;
-  }
-
   // The view changed (zoom, size, on/off screen, tab shown/hidden): a scene budget may too.
   sceneChanged() {
-    if (this.sub && this.host.asked().chunks === null) this.budgetChanged();
+    if (this.feeds.some((f) => f.sub) && this.host.asked().chunks === null) this.budgetChanged();
   }
 
   // An input of the budget changed (also the budget attributes).
   budgetChanged() {
-    if (this.sub) this.sub.stream.updateBudget(this.sub);
-    if (this.gpu) this.gpu.reserve(this.ownLimit());
-    this.pump();
+    for (const f of this.feeds) f.budgetChanged();
     this.updateLabel();
   }
 
-  // ------------------------------------------------------------ stream events (btf-stream.js)
-
-  onSubscribe(sub) {
-    this.sub = sub;
+  // Chunks every feed draws, summed (the scene budget of a model).
+  ownLimit() {
+    return this.feeds.reduce((a, f) => a + f.ownLimit(), 0);
   }
 
-  onManifest(sub) {
-    if (sub !== this.sub) return;
-    try {
-      this.pkg = parseManifest(sub.manifest);
-    } catch (e) {
-      return this.fail(e);
-    }
+  // ------------------------------------------------------------ feed events (btf-feed.js)
+
+  feedManifest(feed) {
     this.times.manifest ??= performance.now();
     this.recovered('stream');
     if (!this.ctx && !this.ensureGl()) return;
-    this.newGpu();
-    if (this.renderer && this.gpu) this.renderer.start(this.firstVariant());
+    feed.newGpu(this.lost ? null : this.gl);
+    if (this.renderer && feed.gpu) this.renderer.start(this.firstVariant(feed));
     this.updateLabel();
     this.invalidate(); // starts the program's compile
   }
 
-  onChunk(sub, j) {
-    if (sub !== this.sub || !this.pkg) return;
-    if (j === 0) this.times.chunk ??= sub.arrivedAt[0] ?? performance.now();
+  feedChunk(feed, j) {
+    if (j === 0) this.times.chunk ??= feed.sub.arrivedAt[0] ?? performance.now();
     this.recovered('stream');
-    this.host.emit('progress', this.progress(j + 1)); // chunks arrive in order: j + 1 are here
-    this.pump();
+    this.host.emit('progress', this.progress(feed, j + 1)); // chunks arrive in order: j + 1 are here
   }
 
-  onComplete(sub) {
-    if (sub !== this.sub) return;
+  feedComplete() {
     this.recovered('stream');
-    this.complete = true;
     this.updateLabel();
     this.invalidate();
   }
 
-  onError(sub, msg) {
-    if (sub === this.sub) this.fail(new Error(`${msg.message} (${msg.code})`));
+  feedError(feed, msg) {
+    this.fail(new Error(`${this.model ? `${feed.material}: ` : ''}${msg.message} (${msg.code})`));
+  }
+
+  decoded() {
+    this.times.decoded ??= performance.now();
+    this.invalidate();
   }
 
   // The connection failed or was lost; the stream tries again (info.retrying) while
   // anything is missing. One `error` event per outage (not for a server that drains:
   // another one takes over at once).
-  onStreamError(sub, text, info = {}) {
-    if (sub !== this.sub) return;
+  streamError(text, info = {}) {
     if (!info.retrying) { // a refused request: a note in the label, the stream goes on
       if (!this.complete) this.host.label(text);
       return;
@@ -317,56 +334,24 @@ export class BtfSession {
     this.trouble('stream', `${text}; trying again in ${(info.delayMs / 1000).toFixed(1)} s`);
   }
 
-  onStreamOpen(sub) {
-    if (sub !== this.sub) return;
+  streamOpen() {
     this.times.open ??= performance.now();
     if (this.outages.stream) this.host.message(this.loaded ? '' : 'Connected, loading…', true);
     if (!this.ctx) setTimeout(() => this.ensureGl(), 0);
   }
 
-  // Received against wanted (this session's budget), and the error the received prefix promises.
-  progress(received = this.sub ? this.sub.received : 0) {
-    const p = this.pkg, limit = this.ownLimit();
-    const got = Math.min(received, limit);
-    const bytes = (n) => p.chunks.slice(0, n).reduce((a, c) => a + c.bytes, 0);
-    const e = promisedError(p, got);
-    return {chunks: got, chunksWanted: limit, bytes: bytes(got), bytesWanted: bytes(limit),
-            error: e ? (Number.isFinite(e.lab) ? e.lab : e.rmse ?? null) : null,
-            metric: e && Number.isFinite(e.lab) ? 'lab' : 'rmse'};
-  }
-
-  // ------------------------------------------------------------ decode and upload
-
-  // A fresh GPU package for the manifest (also after a context restore); uploads what is held.
-  newGpu() {
-    this.dropGpu();
-    if (!this.gl || this.lost || !this.sub) return;
-    this.uploads = new ChunkUploads(this.gl, this.pkg, this.sub, Math.max(1, this.ownLimit()), {
-      decoded: () => {
-        this.times.decoded ??= performance.now();
-        this.invalidate();
-      },
-      fail: (e) => !this.closed && this.fail(e),
-    });
-    this.pump();
-  }
-
-  dropGpu() {
-    this.uploads?.free();
-    this.uploads = null;
-  }
-
-  // Queues the decode of the held chunks inside this session's budget.
-  pump() {
-    if (this.uploads) this.uploads.pump(this.ownLimit());
-  }
-
-  // Every decoded chunk into the GPU, in order; before the first frame only the first
-  // one (the first picture comes from the first chunk, whatever else has arrived).
-  uploadReady() {
-    if (!this.uploads) return;
-    if (this.uploads.upload(this.loaded ? Infinity : 1)) this.updateLabel();
-    if (this.uploads.ready.length) this.invalidate();
+  // Received against wanted (every feed's budget, summed), and the error the received
+  // prefix promises (a model: the largest of its materials'). feed/received: a chunk of
+  // that feed has just arrived, `received` of it are here.
+  progress(feed = null, received = undefined) {
+    const parts = this.feeds.map((f) => f.progress(f === feed ? received : undefined));
+    if (parts.length === 1) return parts[0];
+    const sum = (k) => parts.reduce((a, p) => a + p[k], 0);
+    const errs = parts.filter((p) => p.error !== null);
+    return {chunks: sum('chunks'), chunksWanted: sum('chunksWanted'), bytes: sum('bytes'), bytesWanted: sum('bytesWanted'),
+      error: errs.length ? Math.max(...errs.map((p) => p.error)) : null,
+      metric: errs.length && errs.every((p) => p.metric === 'lab') ? 'lab' : 'rmse',
+      materials: this.feeds.map((f, i) => ({material: f.material, ...parts[i]}))};
   }
 
   // ------------------------------------------------------------ frames
@@ -377,37 +362,47 @@ export class BtfSession {
 
   // The scene of this frame: the host's, with the chunks and the program variant.
   view() {
-    const seconds = (performance.now() - this.t0) / 1000;
-    return {...this.host.scene(seconds), chunks: this.drawableChunks(), quads: this.quads || 0};
+    const seconds = (performance.now() - this.t0) / 1000, f = this.feeds[0];
+    return {...this.host.scene(seconds), chunks: f ? f.drawableChunks() : 0, quads: f ? f.quads : 0};
   }
 
   drawableChunks() {
-    return this.gpu ? Math.min(this.gpu.uploaded, this.ownLimit()) : 0;
+    return this.feeds.reduce((a, f) => a + f.drawableChunks(), 0);
   }
 
   // Draws into the shared context and copies the frame into the viewer's canvas.
   draw() {
     if (!this.renderer || this.lost || !this.ctx || this.ctx.lost) return false;
+    if (this.modelUrl && !this.model) return false;
     const v = this.view(), w = this.host.canvas.width, h = this.host.canvas.height;
     this.ctx.fit(w, h);
-    this.renderer.draw(this.gpu, v, w, h);
+    if (this.model) {
+      const feeds = new Map(this.feeds.map((f) => [f.material, {gpu: f.gpu, chunks: f.drawableChunks(), quads: f.quads}]));
+      this.renderer.drawScene(this.model.layers(this.gl, feeds, v), v, w, h);
+    } else {
+      this.renderer.draw(this.gpu, v, w, h);
+    }
     this.ctx.present(this.ctx2d, w, h);
-    if (this.gpu && v.chunks > 0) this.drawn(v.chunks);
+    const chunks = this.drawableChunks();
+    if (chunks > 0 || (this.model && !this.feeds.length)) this.drawn();
     return true;
   }
 
-  // Bookkeeping and events of a frame that showed chunks.
-  drawn(chunks) {
+  // Bookkeeping and events of a frame that showed chunks (or a model without materials).
+  drawn() {
     this.frames++;
-    if (chunks > this.drawnChunks) this.times.drawn = [...(this.times.drawn || []), [chunks, Math.round(performance.now())]];
-    this.drawnChunks = chunks;
+    const chunks = this.drawableChunks();
+    if (chunks > (this.drawnTotal || 0)) this.times.drawn = [...(this.times.drawn || []), [chunks, Math.round(performance.now())]];
+    this.drawnTotal = chunks;
+    for (const f of this.feeds) f.drawnChunks = f.drawableChunks();
     if (!this.loaded) this.firstFrame(chunks);
-    const limit = this.ownLimit();
-    if (chunks >= limit && this.complete && this.completeFor !== limit) {
-      this.completeFor = limit;
+    const limit = this.ownLimit(), key = this.feeds.map((f) => f.ownLimit()).join(',');
+    if (this.feeds.every((f) => f.done()) && this.completeFor !== key) {
+      this.completeFor = key;
       this.completeAt = performance.now(); // since navigation start
       this.host.emit('complete', this.progress());
     }
+    return limit;
   }
 
   firstFrame(chunks) {
@@ -419,6 +414,18 @@ export class BtfSession {
     this.firstFrameBytes = this.stream ? this.stream.bytes : null;
     this.host.shown();
     this.host.emit('load', {chunks});
+  }
+
+  // Every decoded chunk into the GPU, in order; before the first frame only the first
+  // one of each feed (the first picture comes from the first chunk, whatever else has arrived).
+  uploadReady() {
+    let up = false, waiting = false;
+    for (const f of this.feeds) {
+      up = f.upload(this.loaded ? Infinity : 1) || up;
+      waiting = waiting || f.waiting;
+    }
+    if (up) this.updateLabel();
+    if (waiting) this.invalidate();
   }
 
   // One frame: every decoded chunk uploaded, then the draw of all of them, once the
@@ -435,17 +442,22 @@ export class BtfSession {
       return;
     }
     this.adapt();
+    let variants;
     try {
       this.uploadReady();
-      if (this.renderer && this.gpu && !this.lost && (this.quads = this.variant()) === null) return this.invalidate();
+      if (this.renderer && !this.lost) {
+        variants = this.feeds.filter((f) => f.gpu).map((f) => (f.quads = this.variant(f)));
+        if (variants.includes(null)) return this.invalidate();
+      }
     } catch (e) {
       return this.fail(e);
     }
-    this.times.program ??= this.renderer && this.gpu ? performance.now() : undefined;
+    this.times.program ??= this.renderer && this.feeds.some((f) => f.gpu) ? performance.now() : undefined;
     if (this.draw()) {
       this.ctx.drewIn(tick);
-      this.measured = {frame: this.ctx.frameNo || 0, fresh: !this.usedVariants.has(this.quads)};
-      this.usedVariants.add(this.quads);
+      const key = (variants || []).join(',');
+      this.measured = {frame: this.ctx.frameNo || 0, fresh: !this.usedVariants.has(key)};
+      this.usedVariants.add(key);
     }
     clearTimeout(this.timer);
     if (!this.animating()) return;
@@ -471,7 +483,7 @@ export class BtfSession {
     this.host.resize();
   }
 
-  // The program variant to draw with (MeshRenderer.defines' quads: 0 every slot the
+  // The program variant feed f draws with (MeshRenderer.defines' quads: 0 every slot the
   // package has room for, 1 the first four), or null while it compiles. Until the first
   // frame, a package with more room draws its first chunks with the one-layer variant
   // (compiled while they travelled); the full one is compiled after the first frame.
@@ -479,8 +491,8 @@ export class BtfSession {
   // slots in use (-1): one program for any number of chunks, whose first draw (the
   // rasteriser compiles the shader to machine code then, the longer the more layers are
   // written out) is short.
-  variant() {
-    const r = this.renderer, g = this.gpu, software = this.ctx.software;
+  variant(f) {
+    const r = this.renderer, g = f.gpu, software = this.ctx.software;
     const full = MeshRenderer.defines(g, 1, software ? -1 : 0);
     if (software) return r.ready(full) ? -1 : null;
     if (g.capacity > 4 && g.slots <= 4 && !r.progs.has(MeshRenderer.key(full))) {
@@ -492,16 +504,17 @@ export class BtfSession {
 
   // The variant a first frame draws with (started early so the driver compiles it while
   // the first chunk travels): one 4-slot layer, or on a software rasteriser the loop.
-  firstVariant() {
+  firstVariant(f) {
     const quads = this.ctx.software ? -1 : 1;
-    return this.gpu ? MeshRenderer.defines(this.gpu, 1, quads)
+    return f && f.gpu ? MeshRenderer.defines(f.gpu, 1, quads)
       : decodeDefines({version: 1}, 1, 4).filter(([name]) => quads > 0 || name !== 'BTF_QUADS');
   }
 
   // The orbiting light moves (not while a slow GPU still has chunks to show: each
   // frame would hold the next chunk back).
   animating() {
-    return this.host.moving() && this.drawableChunks() > 0 && !(this.host.resolution.slow && !this.complete);
+    return this.host.moving() && (this.drawableChunks() > 0 || (!!this.model && !this.feeds.length)) &&
+      !(this.host.resolution.slow && !this.complete);
   }
 
   // Test hook: draws now and returns the canvas pixels, rows top-down, RGBA, base64.
@@ -514,22 +527,41 @@ export class BtfSession {
     for (let y = 0; y < h; y++) out.set(px.subarray(4 * w * (h - 1 - y), 4 * w * (h - y)), 4 * w * y);
     let s = '';
     for (let i = 0; i < out.length; i += 0x8000) s += String.fromCharCode.apply(null, out.subarray(i, i + 0x8000));
-    return {width: w, height: h, chunks: this.drawnChunks, rgba: btoa(s)};
+    return {width: w, height: h, chunks: this.drawnTotal || 0, rgba: btoa(s)};
+  }
+
+  // Test hook: ms per frame of n frames drawn now, each waited for (a one-pixel read).
+  bench(n) {
+    if (!this.draw()) return null;
+    const gl = this.gl, px = new Uint8Array(4);
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    const t0 = performance.now();
+    for (let i = 0; i < n; i++) {
+      this.draw();
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    }
+    return (performance.now() - t0) / n;
   }
 
   // ------------------------------------------------------------ status
 
   updateLabel() {
-    const p = this.pkg, s = this.sub;
-    if (!p || !s) return this.host.label(null);
-    const pr = this.progress();
+    if (!this.feeds.some((f) => f.pkg && f.sub))
+      return this.host.label(this.model ? this.modelName() : this.modelUrl ? 'loading the model…' : null);
+    const pr = this.progress(), drawn = this.drawableChunks(), limit = pr.chunksWanted;
     const want = pr.bytesWanted || 1;
-    const drawn = this.drawableChunks(), limit = pr.chunksWanted;
-    let t = `${p.name} · ${drawn}/${limit} chunks · ${(pr.bytes / 1024).toFixed(0)} KB`;
-    const e = promisedError(p, drawn);
+    const name = this.model ? this.modelName() : this.pkg.name;
+    let t = `${name} · ${drawn}/${limit} chunks · ${(pr.bytes / 1024).toFixed(0)} KB`;
+    const e = this.feeds.length === 1 ? promisedError(this.pkg, drawn) : null;
     if (drawn >= limit && limit > 0 && e && Number.isFinite(e.lab)) t += ` · Lab error ${e.lab.toFixed(2)}`;
     else if (drawn >= limit && limit > 0 && e && Number.isFinite(e.rmse)) t += ` · RMSE ${e.rmse.toFixed(2)}`;
+    else if (drawn >= limit && limit > 0 && pr.error !== null && this.feeds.length > 1)
+      t += ` · ${pr.metric === 'lab' ? 'Lab error' : 'RMSE'} ≤ ${pr.error.toFixed(2)}`;
     this.host.label(t, {percent: Math.min(100, (100 * pr.bytes) / want), done: pr.bytes >= want});
+  }
+
+  modelName() {
+    return this.model.model.name;
   }
 
   // A recoverable failure of `source` ('stream' or 'shaders'): a note at the viewer's
@@ -550,7 +582,10 @@ export class BtfSession {
     this.host.message(other || '', !!other);
   }
 
+  // A final failure: the message over the viewer and one `error` event (the first
+  // failure of a session; what follows from it says nothing new).
   fail(e, noWebgl = false) {
+    if (this.error) return;
     this.error = String(e && e.message ? e.message : e);
     this.host.message(this.error);
     this.host.noWebgl(noWebgl);
@@ -558,22 +593,36 @@ export class BtfSession {
     this.host.emit('error', {reason: this.error});
   }
 
-  // Test hook (window.__btf.viewers()): the session's part of the viewer's state.
+  // Test hook (window.__btf.viewers()): the session's part of the viewer's state. A
+  // one-material session: its feed's numbers; a model: the sums over its feeds, each
+  // feed's own in `feeds`, the model in `model`.
   state() {
-    const g = this.gpu, scene = this.pkg && this.pkg.version >= 2 ? this.sceneBudget() : null;
+    const one = this.feeds.length === 1 && !this.model;
+    const fs = this.feeds.map((f) => f.state()), sum = (k) => fs.reduce((a, s) => a + s[k], 0);
+    const base = one ? fs[0] : {
+      budget: fs.length ? fs.map((s) => s.budget) : null, ownLimit: sum('ownLimit'), manifestChunks: sum('manifestChunks'),
+      received: sum('received'), uploaded: sum('uploaded'), uploads: sum('uploads'), capacity: sum('capacity'),
+      streamBytes: sum('streamBytes'), version: fs.length ? Math.min(...fs.map((s) => s.version)) : 0,
+      footprint: fs.length ? Math.max(...fs.map((s) => s.footprint)) : 0, slots: sum('slots'),
+      scene: fs.length && fs.every((s) => s.scene) ? {limit: sum('ownLimit'), bytes: fs.reduce((a, s) => a + s.scene.bytes, 0),
+        needed: fs.reduce((a, s) => a + s.scene.needed, 0)} : null,
+    };
+    const cover = this.model ? this.coverage() : null;
     return {
-      budget: this.budget(), ownLimit: this.ownLimit(), manifestChunks: this.pkg ? this.pkg.chunks.length : 0,
-      received: this.sub ? this.sub.received : 0, uploaded: g ? g.uploaded : 0, uploads: g ? g.uploads : 0,
-      capacity: g ? g.capacity : 0, drawnChunks: this.drawnChunks, frames: this.frames, complete: this.complete,
-      error: this.error || null, firstFrameMs: this.firstFrameMs, firstFrameAt: this.firstFrameAt ?? null,
-      completeAt: this.completeAt ?? null, firstFrameBytes: this.firstFrameBytes,
-      streamBytes: this.sub ? this.sub.bytes : 0, lost: this.lost, version: this.pkg ? this.pkg.version : 0,
-      footprint: this.footprint(),
-      scene: scene && {level: scene.level, components: scene.components, needed: scene.needed, limit: scene.limit,
-        bytes: scene.bytes},
-      slots: g ? g.slots : 0, firstFrameChunks: this.firstFrameChunks ?? null, times: {...this.times},
+      ...base, drawnChunks: one ? fs[0].drawnChunks : (this.drawnTotal || 0), frames: this.frames,
+      complete: this.complete, error: this.error || null, firstFrameMs: this.firstFrameMs,
+      firstFrameAt: this.firstFrameAt ?? null, completeAt: this.completeAt ?? null,
+      firstFrameBytes: this.firstFrameBytes, lost: this.lost,
+      firstFrameChunks: this.firstFrameChunks ?? null, times: {...this.times},
       decoder: decoderKind(), outage: Object.values(this.outages).filter(Boolean).join('; ') || null,
       gpuMs: this.ctx ? this.ctx.gpuMs ?? null : null,
+      ...(this.modelUrl ? {
+        feeds: fs.map((s) => ({...s, cover: cover && cover.get(s.material) ? {...cover.get(s.material)} : null})),
+        model: this.model ? {url: this.modelUrl, name: this.model.model.name, parts: this.model.model.parts.length,
+          triangles: this.model.model.triangles, vertices: this.model.model.vertices, min: this.model.model.min,
+          max: this.model.model.max, bindings: this.model.bindings.map((b) => ({...b})), partBind: [...this.model.partBind]}
+          : null,
+      } : {}),
     };
   }
 }

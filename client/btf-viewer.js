@@ -8,7 +8,13 @@
 // Attributes (each also a JS property, camelCase; every one reacts when changed; the
 // table with defaults and the events is in doc/client.md):
 //   src            WebSocket URL of btfd (default: ws(s) of this script's origin + /stream)
-//   material       material name in the server's library
+//   material       material name in the server's library (with a model: bound to every part
+//                  `materials` does not name)
+//   model          URL of a glTF 2.0 model (.glb, or .gltf with its buffers) drawn instead of
+//                  the geometry, framed by the camera (btf-model.js)
+//   materials      with model: bindings NAME:MATERIAL[:REPEAT], comma separated (glTF material
+//                  name, '*' = every part no other binding names; library material; package
+//                  repeats per unit of TEXCOORD_0, default 1); unbound parts in their base colour
 //   geometry       plane | sphere | cylinder (cloth-like tube)        default plane
 //   light          orbit (circles) | fixed | pointer (follows the pointer)  default orbit
 //   light-theta, light-phi  light direction in degrees (fixed; start of the orbit)
@@ -58,13 +64,13 @@ const LAZY_MARGIN = '300px'; // loading="lazy": start this far before the viewpo
 
 // Attribute -> property type; the property is the camelCase name.
 const ATTRS = {
-  material: 'string', src: 'string', geometry: 'string', light: 'string', 'light-theta': 'number',
+  material: 'string', model: 'string', materials: 'string', src: 'string', geometry: 'string', light: 'string', 'light-theta': 'number',
   'light-phi': 'number', 'camera-theta': 'number', 'camera-phi': 'number', 'camera-dist': 'number', fov: 'number',
   repeat: 'number', 'budget-chunks': 'number', 'budget-bytes': 'number', 'lod-threshold': 'number',
   'max-dpr': 'number', shaders: 'string', poster: 'string', loading: 'string', 'camera-controls': 'boolean',
   alt: 'string',
 };
-const RESTART = new Set(['material', 'src', 'shaders']);
+const RESTART = new Set(['material', 'model', 'materials', 'src', 'shaders']);
 const SCENE = new Set(['repeat', 'lod-threshold', 'fov', 'geometry']);
 const CAMERA = new Set(['camera-theta', 'camera-phi', 'camera-dist']);
 
@@ -83,6 +89,7 @@ function hook() {
       viewers: () => [...registry].map((v) => v.state()),
       streams: () => BtfStream.all().map((s) => s.stats()),
       capture: (i) => [...registry][i].capture(),
+      bench: (i, n) => [...registry][i].session.bench(n), // ms per frame of n frames drawn now
       element: (i) => [...registry][i],
       gl: () => ({...sharedStats(), packages: GpuPackage.live}),
     };
@@ -150,8 +157,10 @@ export class BtfViewer extends HTMLElement {
       scene: (seconds) => this.scene(seconds),
       asked: () => ({chunks: this.getAttribute('budget-chunks'), bytes: num(this, 'budget-bytes', -1),
         threshold: num(this, 'lod-threshold', LOD_THRESHOLD)}),
-      policy: () => BtfViewer.budgetPolicy(this),
+      policy: (pkg) => BtfViewer.budgetPolicy(this, pkg),
       pixelsPerRepeat: () => this.pixelsPerRepeat(),
+      display: () => this.display || [this.canvas.width, this.canvas.height],
+      framed: (frame) => this.framed(frame),
       seen: () => this.onScreen && !document.hidden,
       moving: () => (this.getAttribute('light') || 'orbit') === 'orbit' && this.onScreen && !reducedMotion() &&
         !document.hidden,
@@ -177,8 +186,8 @@ export class BtfViewer extends HTMLElement {
     registry.add(this);
     this.geometry = GEOMETRIES.includes(this.getAttribute('geometry')) ? this.getAttribute('geometry') : 'plane';
     this.makeOrbit();
-    this.lightTheta = num(this, 'light-theta', sceneDefaults(this.geometry).lightTheta);
-    this.lightPhi = num(this, 'light-phi', sceneDefaults(this.geometry).lightPhi);
+    this.lightTheta = num(this, 'light-theta', this.defaults().lightTheta);
+    this.lightPhi = num(this, 'light-phi', this.defaults().lightPhi);
     this.resizer = new ResizeObserver(() => this.resize());
     this.resizer.observe(this);
     this.onScreen = true;
@@ -228,10 +237,11 @@ export class BtfViewer extends HTMLElement {
   // files of the `shaders` attribute, else those inside the script (the bundle), else
   // those next to it; the poster from the material list meanwhile.
   start() {
-    const s = this.session;
+    const s = this.session, model = this.getAttribute('model');
     s.start(this.getAttribute('material'), this.getAttribute('src') || scriptWs(),
-      this.getAttribute('shaders') || (SHADER_PACK ? 'inside:' : SHADERS_URL));
-    if (s.src) this.defaultPoster(s);
+      this.getAttribute('shaders') || (SHADER_PACK ? 'inside:' : SHADERS_URL),
+      model ? {url: new URL(model, document.baseURI).href, materials: this.getAttribute('materials')} : null);
+    if (s.src && !model) this.defaultPoster(s);
   }
 
   // Ends the session (everything in flight is cancelled); the next one waits for start().
@@ -239,14 +249,22 @@ export class BtfViewer extends HTMLElement {
     this.session.stop();
     this.session = new BtfSession(this.host);
     this.waitEl.hidden = false;
+    if (this.frame) { // the next model frames itself again (the same one: the camera stays)
+      this.lastFrame = this.frame;
+      this.frame = null;
+      if (this.orbit && !this.getAttribute('model')) { // back to a built-in surface
+        this.zoomRange();
+        this.orbit.dist = num(this, 'camera-dist', this.defaults().cameraDist);
+      }
+    }
   }
 
   attributeChangedCallback(name, oldV, newV) {
     if (!this.orbit || oldV === newV) return; // before connectedCallback (an upgrade): it reads them all
     if (RESTART.has(name)) return this.restart();
     if (name === 'geometry') this.geometry = GEOMETRIES.includes(newV) ? newV : 'plane';
-    if (name === 'light-theta') this.lightTheta = num(this, name, sceneDefaults(this.geometry).lightTheta);
-    if (name === 'light-phi') this.lightPhi = num(this, name, sceneDefaults(this.geometry).lightPhi);
+    if (name === 'light-theta') this.lightTheta = num(this, name, this.defaults().lightTheta);
+    if (name === 'light-phi') this.lightPhi = num(this, name, this.defaults().lightPhi);
     if (CAMERA.has(name)) this.setCamera();
     if (name.startsWith('budget')) this.budgetChanged();
     if (SCENE.has(name) || CAMERA.has(name)) this.sceneChanged();
@@ -268,8 +286,32 @@ export class BtfViewer extends HTMLElement {
 
   // ------------------------------------------------------------ page citizenship
 
+  // The scene's defaults (scene.js sceneDefaults): the geometry's; a model takes the
+  // sphere's angles, its distance from the framing once it has arrived.
+  defaults() {
+    const def = sceneDefaults(this.getAttribute('model') ? 'sphere' : this.geometry);
+    return this.frame ? {...def, cameraDist: this.frame.cameraDist} : def;
+  }
+
+  // A model arrived (the session's framing, scene.js frameModel): the camera looks at its
+  // centre from the framing distance (unless camera-dist says otherwise); zoom spans the same
+  // share of it as on the built-in objects.
+  framed(frame) {
+    const same = JSON.stringify(frame) === JSON.stringify(this.lastFrame);
+    this.frame = frame;
+    this.zoomRange();
+    if (!same) this.orbit.dist = num(this, 'camera-dist', frame.cameraDist);
+    this.sceneChanged();
+    this.invalidate();
+  }
+
+  zoomRange() {
+    const d = this.frame ? this.frame.cameraDist : 0;
+    [this.orbit.minDist, this.orbit.maxDist] = d > 0 ? [d * 1.6 / 3.6, d * 8 / 3.6] : [1.6, 8];
+  }
+
   makeOrbit() {
-    const def = sceneDefaults(this.geometry);
+    const def = this.defaults();
     this.orbit = new Orbit(this.canvas, {
       az: num(this, 'camera-phi', def.cameraPhi), el: 90 - num(this, 'camera-theta', def.cameraTheta),
       dist: num(this, 'camera-dist', def.cameraDist),
@@ -282,14 +324,16 @@ export class BtfViewer extends HTMLElement {
       },
       canWheel: () => this.engaged,
     });
+    this.zoomRange();
   }
 
-  setCamera() {
-    const def = sceneDefaults(this.geometry);
+  setCamera(emit = true) {
+    const def = this.defaults();
+    this.zoomRange();
     this.orbit.az = num(this, 'camera-phi', def.cameraPhi);
     this.orbit.el = 90 - num(this, 'camera-theta', def.cameraTheta);
     this.orbit.dist = num(this, 'camera-dist', def.cameraDist);
-    this.emit('camera-change', this.cameraState());
+    if (emit) this.emit('camera-change', this.cameraState());
   }
 
   cameraMoved() {
@@ -403,10 +447,11 @@ export class BtfViewer extends HTMLElement {
     // side stays the side the camera sees (scene.js orbitLight)
     const lit = light === 'orbit' && !reducedMotion() ? orbitLight(cam, seconds * 30) : cam;
     return {
-      geometry: this.geometry, ...cam, cameraDist: this.orbit.dist, lightTheta: lit.lightTheta,
-      lightPhi: lit.lightPhi, fov: num(this, 'fov', 40),
+      geometry: this.getAttribute('model') ? 'model' : this.geometry, ...cam, cameraDist: this.orbit.dist,
+      lightTheta: lit.lightTheta, lightPhi: lit.lightPhi, fov: num(this, 'fov', 40),
       repeat: num(this, 'repeat', 1) > 0 ? num(this, 'repeat', 1) : 1,
-      background: sceneDefaults(this.geometry).background,
+      background: this.defaults().background,
+      ...(this.frame ? {target: this.frame.target, extent: this.frame.extent} : {}),
     };
   }
 
@@ -427,7 +472,7 @@ export class BtfViewer extends HTMLElement {
 
   // text null: the material's name; bar {percent, done} of the bytes wanted.
   setLabel(text, bar) {
-    this.label.textContent = text ?? (this.getAttribute('material') || '');
+    this.label.textContent = text ?? (this.getAttribute('material') || this.getAttribute('model') || '');
     if (!bar) return;
     this.bar.style.width = `${bar.percent.toFixed(1)}%`;
     this.bar.classList.toggle('done', bar.done);
@@ -447,7 +492,8 @@ export class BtfViewer extends HTMLElement {
 
   state() {
     return {
-      material: this.getAttribute('material'), geometry: this.geometry, cssWidth: this.cssWidth,
+      material: this.getAttribute('material'), geometry: this.getAttribute('model') ? 'model' : this.geometry,
+      cssWidth: this.cssWidth,
       canvas: [this.canvas.width, this.canvas.height], ...this.session.state(), label: this.label.textContent,
       started: this.started, drags: this.orbit ? this.orbit.drags : 0,
       camera: this.orbit ? [this.orbit.az, this.orbit.el, this.orbit.dist] : null,
@@ -476,9 +522,10 @@ for (const [attr, type] of Object.entries(ATTRS)) {
   });
 }
 
-// Most chunks a viewer asks for without a budget-chunks attribute, -1 for no cap beyond
-// the scene budget. Replaceable (doc/client.md, "Budgets"); by default packages without
+// Most chunks a viewer asks for a package (pkg: the parsed manifest; a model's viewer asks
+// for each of its materials) without a budget-chunks attribute, -1 for no cap beyond the
+// scene budget. Replaceable (doc/client.md, "Budgets"); by default packages without
 // levels get autoBudget of the CSS width. A viewer calls budgetChanged() when its inputs change.
-BtfViewer.budgetPolicy = (viewer) => (viewer.pkg && viewer.pkg.version < 2 ? autoBudget(viewer.cssWidth || 300) : -1);
+BtfViewer.budgetPolicy = (viewer, pkg = viewer.pkg) => (pkg && pkg.version < 2 ? autoBudget(viewer.cssWidth || 300) : -1);
 
 if (!customElements.get('btf-viewer')) customElements.define('btf-viewer', BtfViewer);

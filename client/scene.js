@@ -3,10 +3,11 @@
 // browser and the headless C harness draw the same picture from the same numbers.
 //
 // World: right-handed, +z up, angles in degrees; a direction (theta, phi) is
-// (sin t cos p, sin t sin p, cos t). Camera at dist * dir(theta, phi) looking at
-// the origin, up = -d(dir)/d(theta); the field of view `fov` spans the narrower side
-// of the view (vertical when width >= height, horizontal when taller than wide, so the
-// object stays framed in portrait); near 0.05 * dist, far dist + 4.
+// (sin t cos p, sin t sin p, cos t). Camera at target + dist * dir(theta, phi) looking
+// at the target (the origin, or a model's centre), up = -d(dir)/d(theta); the field of
+// view `fov` spans the narrower side of the view (vertical when width >= height,
+// horizontal when taller than wide, so the object stays framed in portrait); near
+// 0.05 * dist, far dist + 2 * extent (the built-in objects: extent 2, far dist + 4).
 //   plane    [-1,1]^2 at z = 0, normal +z, uv = ((x+1)/2, (1-y)/2)
 //   sphere   radius 1, longitude from +x towards +y, u = (lon - 90)/360, v = colatitude/180
 //   cylinder along x (length 2), radius 2/pi, u = (x+1)/2, v = 0.5 + angle/360 from the top line
@@ -48,19 +49,20 @@ const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 
 // Port of btf_render_camera_make: {viewProj (column-major Float32Array), eye, light,
 // uvScale, wrap} for {geometry, cameraTheta, cameraPhi, cameraDist, lightTheta,
-// lightPhi, fov, repeat} and the aspect width / height.
+// lightPhi, fov, repeat, target (default the origin), extent (default 2)} and the
+// aspect width / height.
 export function cameraMake(s, aspect) {
   const t = s.cameraTheta * Math.PI / 180, ph = s.cameraPhi * Math.PI / 180, d = s.cameraDist;
-  const dv = dir(s.cameraTheta, s.cameraPhi);
+  const dv = dir(s.cameraTheta, s.cameraPhi), target = s.target || [0, 0, 0];
   const up0 = [-Math.cos(t) * Math.cos(ph), -Math.cos(t) * Math.sin(ph), Math.sin(t)];
-  const eye = dv.map((c) => d * c), fwd = dv.map((c) => -c);
+  const eye = dv.map((c, i) => target[i] + d * c), fwd = dv.map((c) => -c);
   let right = cross(fwd, up0);
   const n = Math.hypot(...right);
   right = right.map((c) => c / n);
   const up = cross(right, fwd);
   const view = [right[0], up[0], -fwd[0], 0, right[1], up[1], -fwd[1], 0, right[2], up[2], -fwd[2], 0,
     -dot(right, eye), -dot(up, eye), dot(fwd, eye), 1];
-  const th = tanHalfFovY(s.fov, aspect), zn = 0.05 * d, zf = d + 4;
+  const th = tanHalfFovY(s.fov, aspect), zn = 0.05 * d, zf = d + 2 * (s.extent > 0 ? s.extent : 2);
   const proj = [1 / (th * aspect), 0, 0, 0, 0, 1 / th, 0, 0, 0, 0, -(zf + zn) / (zf - zn), -1, 0, 0,
     (-2 * zf * zn) / (zf - zn), 0];
   const vp = new Float32Array(16);
@@ -73,6 +75,22 @@ export function cameraMake(s, aspect) {
   const base = BASE_REPEAT[s.geometry] || BASE_REPEAT.plane;
   return {viewProj: vp, eye: new Float32Array(eye), light: new Float32Array(dir(s.lightTheta, s.lightPhi)),
     uvScale: [base[0] * s.repeat, base[1] * s.repeat], wrap: s.geometry !== 'plane' || s.repeat !== 1 ? 1 : 0};
+}
+
+// Port of btf_scene_frame (shaders/host/btf_scene.c): a model's bounds framed at
+// `fov` degrees: {target: the bounds' centre, extent: half their diagonal (the radius
+// of their bounding sphere), cameraDist: that sphere across the narrower side of the
+// view with a 5% margin}; float32 where the C host keeps floats.
+export function frameModel(min, max, fov) {
+  const f = Math.fround, target = [0, 0, 0];
+  let r2 = 0;
+  for (let c = 0; c < 3; c++) {
+    target[c] = f(0.5 * f(min[c] + max[c]));
+    const h = 0.5 * (max[c] - min[c]);
+    r2 += h * h;
+  }
+  const r = Math.sqrt(r2) > 1e-6 ? Math.sqrt(r2) : 1e-6;
+  return {target, extent: f(r), cameraDist: f(1.05 * r / Math.sin(f(fov) * Math.PI / 360))};
 }
 
 // An orbiting light that keeps its angle to the camera: the light of s turned by

@@ -1,6 +1,7 @@
 // tools/bundle.mjs - the viewer as one file: esbuild bundles client/btf-viewer.js and its
-// modules (and the decode worker) into OUT/, minified, with the "render" program's
-// shader files inside (client/btf-shader-pack.js is replaced by them), so a page gets
+// modules (and the decode worker) into OUT/, minified, with the shader files of the
+// programs "render" and "flat" (a model's unbound parts) inside (client/btf-shader-pack.js
+// is replaced by them), so a page gets
 // the element and its shaders in one request. The demo pages (client/pages/) are copied
 // beside it, to the root btfd serves (their `import '../btf-viewer.js'` resolves to
 // /btf-viewer.js there, the bundle). Run by `make build`:
@@ -12,17 +13,20 @@ import * as esbuild from 'esbuild';
 
 const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const OUT = path.resolve(process.argv[2] || path.join(ROOT, 'build/client'));
-const PROGRAM = 'render';
+const PROGRAMS = ['render', 'flat'];
 
-// {manifest: {prefix, programs: {render}}, files} of shaders/, as btf-gl.js loadShaders reads them.
+// {manifest: {prefix, programs: {render, flat}}, files} of shaders/, as btf-gl.js loadShaders reads them.
 function shaderPack() {
   const dir = path.join(ROOT, 'shaders');
   const manifest = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
-  const prog = manifest.programs[PROGRAM];
-  if (!prog) throw new Error(`shaders/manifest.json has no program '${PROGRAM}'`);
-  const files = {};
-  for (const f of [...prog.vertex, ...prog.fragment]) files[f] = fs.readFileSync(path.join(dir, f), 'utf8');
-  return {manifest: {prefix: manifest.prefix, programs: {[PROGRAM]: prog}}, files};
+  const programs = {}, files = {};
+  for (const name of PROGRAMS) {
+    const prog = manifest.programs[name];
+    if (!prog) throw new Error(`shaders/manifest.json has no program '${name}'`);
+    programs[name] = prog;
+    for (const f of [...prog.vertex, ...prog.fragment]) files[f] = fs.readFileSync(path.join(dir, f), 'utf8');
+  }
+  return {manifest: {prefix: manifest.prefix, programs}, files};
 }
 
 const packPlugin = {
