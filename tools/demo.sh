@@ -37,10 +37,15 @@ for m in wool corduroy; do
     fi
 done
 
+# the product page's model (client/pages/product.html): a stool of three glTF materials
+# beside the pages at the client root (make build rewrites $BUILD/client, so every run)
+"$BTF" gen-model "$BUILD/client/stool.glb"
+
 echo
 echo "demo: library $(ls "$LIBRARY" | wc -l) materials in $LIBRARY/"
 echo "demo: gallery  http://$BIND:$PORT/"
 echo "demo: embed    http://$BIND:$PORT/embed.html"
+echo "demo: product  http://$BIND:$PORT/product.html (a glTF stool, two materials)"
 echo "demo: stop with Ctrl-C"
 # the client as one file (make build: $BUILD/client, tools/bundle.mjs), shaders inside
 exec "$BUILD/btfd" --library "$LIBRARY" --port "$PORT" --bind "$BIND" --client "$BUILD/client"

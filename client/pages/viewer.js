@@ -1,9 +1,10 @@
 // viewer.js - one full-page viewer configured by the query string, e.g.
 //   viewer.html?material=wool&geometry=sphere&light=fixed&budget-chunks=2
+//   viewer.html?model=stool.glb&materials=Seat:wool,Frame:impalla:2
 // Every <btf-viewer> attribute may be given; width/height (CSS pixels) fix the size.
 import '../btf-viewer.js'; // one folder up here; at the served root (the bundle, an install) '..' is the root
 
-const ATTRS = ['material', 'src', 'geometry', 'light', 'light-theta', 'light-phi', 'camera-theta', 'camera-phi',
+const ATTRS = ['material', 'model', 'materials', 'src', 'geometry', 'light', 'light-theta', 'light-phi', 'camera-theta', 'camera-phi',
                'camera-dist', 'fov', 'repeat', 'budget-chunks', 'budget-bytes', 'max-dpr', 'shaders', 'lod-threshold', 'loading',
                'poster', 'alt'];
 const q = new URLSearchParams(location.search);
