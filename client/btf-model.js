@@ -5,8 +5,13 @@
 // (its scene budget), and the parts as GPU meshes, drawn by btf-render.js
 // (MeshRenderer.drawScene): one draw per part with the `render` program of its binding's
 // package, or in its base colour with the `flat` program (shaders/btf_flat.frag).
+//
+// Loaded on demand (a dynamic import by btf-session.js) with btf-gltf.js: a page without
+// models does not fetch them (the bundle makes them one chunk beside btf-viewer.js; they
+// import nothing else, so the main file stays whole).
 import {bindParts, loadModel} from './btf-gltf.js';
-import {cameraMake, frameModel} from './scene.js';
+
+export {parseBindings} from './btf-gltf.js';
 
 const F = 12;               // floats per vertex
 const COVER_TRIANGLES = 60000; // at most this many triangles are projected per view (evenly spread)
@@ -24,6 +29,22 @@ export function modelAt(url) {
     models.set(key, p);
   }
   return models.get(key);
+}
+
+// Port of btf_scene_frame (shaders/host/btf_scene.c): a model's bounds framed at
+// `fov` degrees: {target: the bounds' centre, extent: half their diagonal (the radius
+// of their bounding sphere), cameraDist: that sphere across the narrower side of the
+// view with a 5% margin}; float32 where the C host keeps floats.
+export function frameModel(min, max, fov) {
+  const f = Math.fround, target = [0, 0, 0];
+  let r2 = 0;
+  for (let c = 0; c < 3; c++) {
+    target[c] = f(0.5 * f(min[c] + max[c]));
+    const h = 0.5 * (max[c] - min[c]);
+    r2 += h * h;
+  }
+  const r = Math.sqrt(r2) > 1e-6 ? Math.sqrt(r2) : 1e-6;
+  return {target, extent: f(r), cameraDist: f(1.05 * r / Math.sin(f(fov) * Math.PI / 360))};
 }
 
 // Twice the signed area of the polygon pts ([x0, y0, x1, y1, ...]).
@@ -69,7 +90,7 @@ export class ModelScene {
     return [...new Set(this.bindings.map((b) => b.id))];
   }
 
-  // The camera framing (scene.js frameModel, btf_scene_frame) at fov degrees.
+  // The camera framing (frameModel, btf_scene_frame) at fov degrees.
   frame(fov) {
     return frameModel(this.model.min, this.model.max, fov);
   }
@@ -82,12 +103,13 @@ export class ModelScene {
   // Per library material id: {pixels: the device pixels its parts cover (projected
   // triangles clipped to the view; occlusion not counted), ppr: device pixels one
   // repeat spans, the value COVER_QUANTILE of those pixels reach or exceed (0 when
-  // none)}, for the scene `view` in a width x height view. Cached per camera.
-  coverage(view, width, height) {
+  // none)}, for the scene `view` in a width x height view whose camera matrix is
+  // viewProj(); cached per camera.
+  coverage(view, width, height, viewProj) {
     const key = JSON.stringify([view.cameraTheta, view.cameraPhi, view.cameraDist, view.fov, view.repeat, view.target,
       width, height]);
     if (this.cover.key === key) return this.cover.byId;
-    const vp = cameraMake(view, width / height).viewProj, parts = this.model.parts;
+    const vp = viewProj(), parts = this.model.parts;
     const total = parts.reduce((a, p, i) => a + (this.partBind[i] >= 0 ? p.indices.length / 3 : 0), 0);
     const stride = Math.max(1, Math.ceil(total / COVER_TRIANGLES));
     const samples = new Map(); // id -> [[ppr, pixels]]

@@ -19,7 +19,7 @@
 //     policy(pkg)             chunks for a package without budget-chunks, -1 no cap (budgetPolicy)
 //     pixelsPerRepeat()       device pixels one repeat of the material spans (the scene budget)
 //     display()               [width, height] of the view in device pixels (a model's budgets)
-//     framed(frame)           a model arrived: {target, extent, cameraDist} frame it (scene.js frameModel)
+//     framed(frame)           a model arrived: {target, extent, cameraDist} frame it (btf-model.js frameModel)
 //     seen()                  on screen and the tab shown (else streaming pauses)
 //     moving()                the light orbits (attribute, and motion allowed, and seen)
 //     emit(type, detail)      an event of the element: load, progress, complete, error
@@ -37,8 +37,11 @@ import {decoderKind} from './btf-decode.js';
 import {promisedError} from './btf-package.js';
 import {SHADER_PACK} from './btf-shader-pack.js';
 import {MaterialFeed} from './btf-feed.js';
-import {ModelScene, modelAt} from './btf-model.js';
-import {parseBindings} from './btf-gltf.js';
+import {cameraMake} from './scene.js';
+
+// btf-model.js and btf-gltf.js, loaded with the first model of the page.
+let modelModule = null;
+const modelCode = () => (modelModule ??= import('./btf-model.js'));
 
 const SCRIPT_AT = performance.now(); // when the element's modules ran (ms from navigation start)
 const GL_AFTER_MS = 1000; // the WebGL context is made once the subscribe is out, or this long after start
@@ -129,15 +132,13 @@ export class BtfSession {
   // per library material, its footprint from the pixels its parts cover.
   startModel(material, {url, materials}) {
     this.modelUrl = url;
+    this.host.label('loading the model…');
     let bindings;
-    try {
+    modelCode().then(({ModelScene, modelAt, parseBindings}) => {
       bindings = parseBindings(materials);
       if (material && !bindings.some((b) => b.name === '*')) bindings.push({name: '*', id: material, repeat: null});
-    } catch (e) {
-      return this.fail(e);
-    }
-    this.host.label('loading the model…');
-    modelAt(url).then((m) => {
+      return modelAt(url).then((m) => [ModelScene, m]);
+    }).then(([ModelScene, m]) => {
       if (this.closed) return;
       this.times.model = performance.now();
       this.model = new ModelScene(m, bindings);
@@ -156,8 +157,8 @@ export class BtfSession {
   // Per library material of the model: {pixels covered, ppr} in the current view (btf-model.js).
   coverage() {
     if (!this.model) return new Map();
-    const [w, h] = this.host.display();
-    return this.model.coverage(this.host.scene(0), w, h);
+    const [w, h] = this.host.display(), view = this.host.scene(0);
+    return this.model.coverage(view, w, h, () => cameraMake(view, w / h).viewProj);
   }
 
   // Cancels everything in flight: subscriptions, uploads, GPU packages, frames. Final.

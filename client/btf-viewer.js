@@ -293,7 +293,7 @@ export class BtfViewer extends HTMLElement {
     return this.frame ? {...def, cameraDist: this.frame.cameraDist} : def;
   }
 
-  // A model arrived (the session's framing, scene.js frameModel): the camera looks at its
+  // A model arrived (the session's framing, btf-model.js frameModel): the camera looks at its
   // centre from the framing distance (unless camera-dist says otherwise); zoom spans the same
   // share of it as on the built-in objects.
   framed(frame) {

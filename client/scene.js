@@ -77,22 +77,6 @@ export function cameraMake(s, aspect) {
     uvScale: [base[0] * s.repeat, base[1] * s.repeat], wrap: s.geometry !== 'plane' || s.repeat !== 1 ? 1 : 0};
 }
 
-// Port of btf_scene_frame (shaders/host/btf_scene.c): a model's bounds framed at
-// `fov` degrees: {target: the bounds' centre, extent: half their diagonal (the radius
-// of their bounding sphere), cameraDist: that sphere across the narrower side of the
-// view with a 5% margin}; float32 where the C host keeps floats.
-export function frameModel(min, max, fov) {
-  const f = Math.fround, target = [0, 0, 0];
-  let r2 = 0;
-  for (let c = 0; c < 3; c++) {
-    target[c] = f(0.5 * f(min[c] + max[c]));
-    const h = 0.5 * (max[c] - min[c]);
-    r2 += h * h;
-  }
-  const r = Math.sqrt(r2) > 1e-6 ? Math.sqrt(r2) : 1e-6;
-  return {target, extent: f(r), cameraDist: f(1.05 * r / Math.sin(f(fov) * Math.PI / 360))};
-}
-
 // An orbiting light that keeps its angle to the camera: the light of s turned by
 // angleDeg about the camera direction (counter-clockwise as the camera sees it).
 // Returns {lightTheta, lightPhi}. An orbit about +z instead swings the default light

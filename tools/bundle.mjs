@@ -1,5 +1,6 @@
 // tools/bundle.mjs - the viewer as one file: esbuild bundles client/btf-viewer.js and its
-// modules (and the decode worker) into OUT/, minified, with the shader files of the
+// modules (and the decode worker; the model code as one chunk it loads on demand) into
+// OUT/, minified, with the shader files of the
 // programs "render" and "flat" (a model's unbound parts) inside (client/btf-shader-pack.js
 // is replaced by them), so a page gets
 // the element and its shaders in one request. The demo pages (client/pages/) are copied
@@ -39,11 +40,17 @@ const packPlugin = {
 
 const tmp = `${OUT}.tmp-${process.pid}`;
 fs.rmSync(tmp, {recursive: true, force: true});
-await esbuild.build({
-  entryPoints: ['btf-viewer.js', 'btf-decode-worker.js'].map((f) => path.join(ROOT, 'client', f)),
-  bundle: true, format: 'esm', minify: true, target: 'es2020', outdir: tmp, plugins: [packPlugin],
-  legalComments: 'none', logLevel: 'warning',
-});
+const common = {bundle: true, format: 'esm', minify: true, target: 'es2020', outdir: tmp, legalComments: 'none',
+  logLevel: 'warning'};
+// the element: one file, except the model code (btf-model.js, btf-gltf.js), which it
+// imports on demand and which imports nothing of it: one chunk beside it, fetched by
+// pages with a model only
+await esbuild.build({...common, entryPoints: [path.join(ROOT, 'client/btf-viewer.js')], splitting: true,
+  chunkNames: '[name]-[hash]', plugins: [packPlugin]});
+const chunks = fs.readdirSync(tmp).filter((f) => f !== 'btf-viewer.js');
+if (chunks.length !== 1 || /\bimport\s*[{"'*]|\bfrom\s*["']/.test(fs.readFileSync(path.join(tmp, chunks[0]), 'utf8')))
+  throw new Error(`bundle: expected btf-viewer.js and one model chunk importing nothing, got ${chunks.join(', ')}`);
+await esbuild.build({...common, entryPoints: [path.join(ROOT, 'client/btf-decode-worker.js')]});
 for (const f of fs.readdirSync(path.join(ROOT, 'client/pages')))
   fs.copyFileSync(path.join(ROOT, 'client/pages', f), path.join(tmp, f));
 // replace OUT whole (a directory rename; the old one removed after)
@@ -53,4 +60,4 @@ fs.renameSync(tmp, OUT);
 fs.rmSync(old, {recursive: true, force: true});
 const size = (f) => fs.statSync(path.join(OUT, f)).size;
 console.log(`bundle: ${path.relative(ROOT, OUT)}/btf-viewer.js ${size('btf-viewer.js')} bytes (shaders inside), ` +
-  `btf-decode-worker.js ${size('btf-decode-worker.js')} bytes`);
+  `btf-decode-worker.js ${size('btf-decode-worker.js')} bytes, ${chunks[0]} ${size(chunks[0])} bytes (models)`);

@@ -17,7 +17,7 @@ import {BTF, assertClean, capture, launch, makeLibrary, newPage, readPng, requir
 import {hostileModels, varietyModel} from './gltf-fixtures.mjs';
 
 const gltf = await import('../../client/btf-gltf.js');
-const scene = await import('../../client/scene.js');
+const {frameModel} = await import('../../client/btf-model.js');
 
 // 32x32 texels: version 2 (3 spatial levels: the scene budget) and version 1 packages.
 const MATERIALS = {'knit-lod': ['knit', 6, 3], 'tiles-lod': ['tiles', 6, 3], 'stone-lod': ['stone', 4, 3],
@@ -123,7 +123,7 @@ describe('btf-gltf.js (node)', () => {
         }
     }
     // the framing of btf_scene_frame: the bounds' centre and half diagonal
-    const f = scene.frameModel(m.min, m.max, 40);
+    const f = frameModel(m.min, m.max, 40);
     const r = Math.hypot(...[0, 1, 2].map((c) => (m.max[c] - m.min[c]) / 2));
     assert.ok(Math.abs(f.extent - r) < 1e-6 && Math.abs(f.cameraDist - 1.05 * r / Math.sin(20 * Math.PI / 180)) < 1e-5);
   });
@@ -295,7 +295,7 @@ describe('<btf-viewer model> in the page', () => {
     await open(page, `model=models/stool.glb&materials=Seat:knit,Frame:tiles&width=300&height=300`);
     await waitFor(page, drawnAll, null, 'the stool drawn');
     const m = await gltf.parseModel(stool, {name: 'stool.glb'});
-    const f = scene.frameModel(m.min, m.max, 40);
+    const f = frameModel(m.min, m.max, 40);
     let v = (await viewers(page))[0];
     assert.deepEqual(v.camera, [-90, 30, f.cameraDist], 'the sphere\'s angles, the framing distance');
     const events = [];
