@@ -209,7 +209,7 @@ function crossCheck(img, ref, what) {
 }
 
 function btfRender(pkg, out, args) {
-  const r = spawnSync(BTF, ['render', path.join(lib.lib, pkg), out, '--model', path.join(dir, 'stool.glb'),
+  const r = spawnSync(BTF, ['render', pkg === '-' ? pkg : path.join(lib.lib, pkg), out, '--model', path.join(dir, 'stool.glb'),
     '--backend', 'egl', ...args], {encoding: 'utf8'});
   assert.equal(r.status, 0, `btf render ${pkg} ${args.join(' ')} failed (${r.status} ${r.signal || ''}): ${r.stderr}`);
   return readPng(out);
@@ -279,6 +279,12 @@ describe('<btf-viewer model> against btf render --model', () => {
     assert.ok(lit > 0.5 * trim, 'the lit side of the trim is brighter than the ambient share');
     assert.ok(same >= 0.99 * other, `${same} of ${other} other pixels equal btf render's within 2/255`);
     console.log(`# unbound trim: ${trim} pixels in its base colour (${lit} lit), ${same}/${other} others as btf render`);
+    // and the whole picture against btf render with no package on the trim (PACKAGE -)
+    if (/PACKAGE - for none/.test(spawnSync(BTF, ['render', '--help'], {encoding: 'utf8'}).stdout)) {
+      const none = btfRender('-', path.join(dir, 'stool-unbound.png'), [...camArgs, '--bind',
+        `Seat=${path.join(lib.lib, 'knit-lod')},3`, '--bind', `Frame=${path.join(lib.lib, 'tiles-lod')},8`]);
+      crossCheck(flat, none, 'stool, trim unbound (flat program)');
+    }
     assertClean(desktop);
   });
 });
@@ -315,6 +321,24 @@ describe('<btf-viewer model> in the page', () => {
     await page.evaluate(() => window.__btf.element(0).setAttribute('camera-dist', '4'));
     await waitFor(page, () => window.__btf.viewers()[0].camera[2] === 4, null, 'camera-dist');
     assert.ok(events.length >= 3, `camera-change events: ${events.length}`);
+    assertClean(desktop);
+  });
+
+  it('draws a .gltf with its buffer beside it as the same .glb', async () => {
+    const d = varietyModel(), bin = d.bin(), doc = structuredClone(d.doc);
+    doc.buffers[0].uri = 'variety%20data.bin';
+    MODELS.set('variety.gltf', Buffer.from(JSON.stringify(doc)));
+    MODELS.set('variety data.bin', Buffer.from(bin));
+    const page = await modelPage();
+    const shots = [];
+    for (const file of ['variety.glb', 'variety.gltf']) {
+      await open(page, `model=models/${file}&materials=Skin:knit:2,Cap:tiles&budget-chunks=999&width=200&height=200`);
+      await waitFor(page, drawnAll, null, file);
+      const v = (await viewers(page))[0];
+      assert.deepEqual(v.model.partBind, [0, -1, 0, -1, -1, 1], `${file}: Skin and Cap bound, the rest flat`);
+      shots.push(await capture(page, 0));
+    }
+    assert.deepEqual(shots[1].data, shots[0].data, 'the same picture');
     assertClean(desktop);
   });
 
