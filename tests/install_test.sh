@@ -82,14 +82,14 @@ pc_version() {
     [ "$v" = "$VERSION" ] || { echo "btfcodec.pc says $v, codec/include/btf_version.h says $VERSION"; return 1; }
 }
 
-# A program outside the tree: direction sets, the JSON parser (cJSON), an image
-# written and read back (OpenImageIO, the C++ part) and a loader's error path.
+# A program outside the tree, through the installed public headers only: direction
+# sets, the JSON parser (cJSON), a material written as images and read back
+# (OpenImageIO, the C++ part) and a loader's error path.
 write_program() {
     cat >"$TMP/hello.c" <<'EOF'
 #include <stdio.h>
 #include <string.h>
 #include <btf.h>
-#include <btf_image.h>
 #include <btf_io.h>
 #include <btf_version.h>
 
@@ -99,17 +99,21 @@ int main(int argc, char **argv)
     btf_dirset d = btf_dirset_ubo2003(), j;
     const char *json = "{\"rings\":[{\"theta\":0,\"count\":1,\"phi_offset\":0},"
                        "{\"theta\":15,\"count\":6,\"phi_offset\":0}]}";
-    unsigned char px[2 * 2 * 3] = {10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 110, 120};
-    char png[4096];
-    int w = 0, h = 0, ch = 0;
-    btf *b = NULL;
-    if (argc != 2 || snprintf(png, sizeof png, "%s/px.png", argv[1]) >= (int)sizeof png)
+    btf *b = NULL, *c = NULL;
+    if (argc != 2)
         return 2;
     if (d.n_dirs != 81 || btf_dirset_find(&d, 15, 0, 0.1f) != 1) return 3;
     if (btf_dirset_parse_json(json, strlen(json), "inline", &j, &err) != BTF_OK || j.n_dirs != 7) return 4;
-    if (btf_image_write(png, 2, 2, 3, 8, px, &err) != BTF_OK) { puts(err.msg); return 5; }
-    if (btf_image_info(png, &w, &h, &ch, &err) != BTF_OK || w != 2 || h != 2 || ch != 3) return 6;
-    if (btf_load_any(argv[1], NULL, &b, &err) == BTF_OK || !err.msg[0]) return 7;
+    /* images out and back through OpenImageIO: one PNG per (light, view) pair */
+    if (btf_create(2, 2, &j, &j, BTF_U8, &b, &err) != BTF_OK) return 5;
+    btf_set(b, 3, 4, 1, 0, 2, 128.0f / 255.0f);
+    if (btf_save_ubo2003_dir(b, argv[1], "m", ".png", &err) != BTF_OK) { puts(err.msg); return 6; }
+    btf_load_options o = {0};
+    o.sampling = &j;
+    if (btf_load_any(argv[1], &o, &c, &err) != BTF_OK) { puts(err.msg); return 7; }
+    if (c->views.n_dirs != 7 || btf_to_u8(btf_get(c, 3, 4, 1, 0, 2)) != 128) return 8;
+    btf_free(b), btf_free(c);
+    if (btf_load_any("/nonexistent", NULL, &c, &err) == BTF_OK || !err.msg[0]) return 9;
     printf("btfcodec %s: %d directions, %s\n", BTF_VERSION, d.n_dirs, btf_result_string(BTF_OK));
     return 0;
 }
