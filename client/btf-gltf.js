@@ -76,7 +76,10 @@ function container(bytes, name) {
   }
   let doc;
   try {
-    doc = JSON.parse(new TextDecoder('utf-8', {fatal: true}).decode(text));
+    doc = JSON.parse(new TextDecoder('utf-8', {fatal: true}).decode(text), (k, v) => {
+      if (typeof v === 'number' && !Number.isFinite(v)) throw new Error(`number overflow at "${k}"`); // as tinygltf's JSON
+      return v;
+    });
   } catch (e) {
     throw new ModelError(`${name}: not a valid glTF: ${e.message}`);
   }

@@ -174,6 +174,25 @@ describe('btf-gltf.js (node)', () => {
       /only use data URIs|a file/);
   });
 
+  it('survives random damage: a model or one clean error, never another exception (fuzz loop)', async () => {
+    let seed = 32, ok = 0;
+    const rnd = () => (seed = (seed * 1103515245 + 12345) & 0x7fffffff) / 0x7fffffff;
+    const jlen = stool.readUInt32LE(12);
+    for (let n = 0; n < 300; n++) {
+      const b = Buffer.from(stool);
+      for (let k = 1 + Math.floor(rnd() * 4); k > 0; k--) // mostly the JSON, sometimes the binary chunk
+        b[Math.floor(rnd() * (rnd() < 0.7 ? 20 + jlen : b.length))] = Math.floor(rnd() * 256);
+      try {
+        const m = await gltf.parseModel(b, {name: 'fuzz'});
+        assert.ok(m.parts.length > 0 && m.parts.every((p) => p.vertices.every(Number.isFinite)));
+        ok++;
+      } catch (e) {
+        assert.ok(e instanceof Error && e.message.startsWith('fuzz: '), `${n}: ${e && e.stack}`);
+      }
+    }
+    assert.ok(ok > 0 && ok < 300, `${ok} of 300 damaged files still load`);
+  });
+
   it('parses bindings NAME:MATERIAL[:REPEAT] and binds parts as btf_scene_bind', async () => {
     assert.deepEqual(gltf.parseBindings('Seat:wool, Frame:impalla:2,*:knit:0.5'),
       [{name: 'Seat', id: 'wool', repeat: 1}, {name: 'Frame', id: 'impalla', repeat: 2}, {name: '*', id: 'knit', repeat: 0.5}]);
