@@ -361,6 +361,24 @@ describe('<btf-viewer model> in the page', () => {
     assertClean(desktop);
   });
 
+  it('survives a lost WebGL context: packages and meshes rebuilt, the same picture', async () => {
+    const page = await modelPage();
+    await open(page, 'model=models/stool.glb&materials=Seat:knit:2,Frame:tiles:4&width=200&height=200');
+    await waitFor(page, drawnAll, null, 'the stool drawn');
+    const before = await capture(page, 0), n = (await viewers(page))[0].uploaded;
+    await page.evaluate(() => {
+      window.__lose = window.__btf.element(0).gl.getExtension('WEBGL_lose_context');
+      window.__lose.loseContext();
+    });
+    await waitFor(page, () => window.__btf.viewers()[0].lost, null, 'context lost');
+    await page.evaluate(() => window.__lose.restoreContext());
+    await waitFor(page, (k) => !window.__btf.viewers()[0].lost && window.__btf.viewers()[0].uploaded === k, n,
+      'context restored');
+    const after = await capture(page, 0);
+    assert.deepEqual(after.data, before.data, 'the same picture after the restore');
+    assertClean(desktop);
+  });
+
   it('gives one error event with a reason per bad model or binding, and recovers with a good one', async () => {
     const page = await modelPage();
     await open(page, 'model=models/stool.glb&materials=Seat:knit,Frame:tiles&width=200&height=200');
