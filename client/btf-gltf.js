@@ -379,8 +379,8 @@ function xform3(m3, v, o, stride4, tr) {
 }
 
 function unit(v, dst, o, fallback) {
-  const l = Math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  for (let c = 0; c < 3; c++) dst[o + c] = l > 0 ? v[c] / l : fallback[c];
+  const l = Math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), ok = l > 0 && Number.isFinite(l);
+  for (let c = 0; c < 3; c++) dst[o + c] = ok ? v[c] / l : fallback[c];
 }
 
 const UP = [0, 0, 1], UX = [1, 0, 0];
@@ -404,6 +404,8 @@ function addPart(L, geo, p, m) {
     vertices[o + 9] = (s[o + 9] < 0 ? -1 : 1) * (det < 0 ? -1 : 1);
     vertices[o + 10] = s[o + 10];
     vertices[o + 11] = s[o + 11];
+    for (let c = 0; c < F; c++)
+      if (!Number.isFinite(vertices[o + c])) L.fail(`a vertex is not finite under its node's transform (${i})`);
   }
   for (let t = 0; t < ni; t += 3) { // a mirroring transform turns the triangles over
     indices[t] = geo.idx[t];

@@ -200,6 +200,10 @@ export function hostileModels(stoolBytes) {
   }, /vertices \(1\.\.4000000\)/);
   edit('no-triangles.glb', (d) => { d.scenes[0].nodes = []; }, /draws no triangles/);
   edit('bad-node.glb', (d) => { d.nodes[0].children.push(99); }, /node 99 does not exist/);
+  edit('beyond-float.glb', (d) => {
+    d.nodes[0].scale = [1e38, 1e38, 1e38];
+    d.nodes[2].scale = [1e3, 1e3, 1e3];
+  }, /a vertex is not finite under its node's transform/);
   edit('infinite-transform.glb', (d) => { d.nodes[2].translation = [0, 'INF', 0]; }, /number overflow/,
     (text) => text.replace('"INF"', '1e999'));
   return out;
