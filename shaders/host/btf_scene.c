@@ -15,6 +15,7 @@ struct btf_scene {
     btf_gl *gl;
     const btf_gltf *model;
     int n_bind;
+    btf_package **pkg;    /* n_bind: each binding's package as read (its renderer reads it on every bind) */
     btf_renderer **rend;  /* n_bind: each binding's package and `render` program */
     float *repeat;        /* n_bind */
     int *part_bind;       /* n_parts: binding index, or -1 (base colour) */
@@ -72,13 +73,11 @@ btf_result btf_scene_bind(const btf_gltf *m, const btf_scene_binding *b, int n, 
 static btf_result btf__scene_renderers(btf_scene *s, const btf_scene_binding *b, btf_error *err)
 {
     for (int j = 0; j < s->n_bind; j++) {
-        btf_package *pkg = NULL;
-        btf_result r = btf_package_read(b[j].dir, -1, &pkg, err);
-        if (r == BTF_OK && pkg->n_loaded < 1)
+        btf_result r = btf_package_read(b[j].dir, -1, &s->pkg[j], err);
+        if (r == BTF_OK && s->pkg[j]->n_loaded < 1)
             r = btf_fail(err, BTF_ERR_MISSING, "scene: %s: no chunk present", b[j].dir);
         if (r == BTF_OK)
-            r = btf_renderer_create(s->gl, pkg, b[j].dir, 0, &s->rend[j], err);
-        btf_package_free(pkg);
+            r = btf_renderer_create(s->gl, s->pkg[j], b[j].dir, 0, &s->rend[j], err);
         if (r != BTF_OK)
             return r;
         s->repeat[j] = b[j].repeat > 0.0f ? b[j].repeat : 1.0f;
@@ -120,11 +119,12 @@ btf_result btf_scene_create(btf_gl *gl, const btf_gltf *m, const btf_scene_bindi
         return btf_fail(err, BTF_ERR_NOMEM, "scene: out of memory");
     s->gl = gl, s->model = m, s->n_bind = n;
     s->rend = calloc((size_t)n + 1, sizeof *s->rend);
+    s->pkg = calloc((size_t)n + 1, sizeof *s->pkg);
     s->repeat = calloc((size_t)n + 1, sizeof *s->repeat);
     s->part_bind = calloc(np, sizeof *s->part_bind);
     s->vao = calloc(np, sizeof(GLuint)), s->vbo = calloc(np, sizeof(GLuint)), s->ibo = calloc(np, sizeof(GLuint));
     btf_result r = BTF_OK;
-    if (!s->rend || !s->repeat || !s->part_bind || !s->vao || !s->vbo || !s->ibo)
+    if (!s->rend || !s->pkg || !s->repeat || !s->part_bind || !s->vao || !s->vbo || !s->ibo)
         r = btf_fail(err, BTF_ERR_NOMEM, "scene: out of memory (%d parts)", m->n_parts);
     if (r == BTF_OK)
         r = btf_scene_bind(m, b, n, s->part_bind, err);
@@ -155,8 +155,10 @@ void btf_scene_free(btf_scene *s)
     }
     for (int j = 0; s->rend && j < s->n_bind; j++)
         btf_renderer_free(s->rend[j]);
+    for (int j = 0; s->pkg && j < s->n_bind; j++)
+        btf_package_free(s->pkg[j]);
     btf_shader_program_free(s->gl, s->flat);
-    free(s->rend), free(s->repeat), free(s->part_bind), free(s->vao), free(s->vbo), free(s->ibo);
+    free(s->rend), free(s->pkg), free(s->repeat), free(s->part_bind), free(s->vao), free(s->vbo), free(s->ibo);
     free(s);
 }
 

@@ -493,3 +493,35 @@ Test(model, render_matches_ray_cast_both_backends, .timeout = 120)
     btf_gltf_free(m);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
+
+/* A binding's package stays readable while its scene lives: a levelled package
+ * (repacked on every bind) drawn through btf_scene_png, both backends. */
+Test(model, levelled_packages_draw_in_a_scene)
+{
+    char tmp[256], path[300], pkg[400], out[400];
+    btf_gltf *m = NULL;
+    stool(tmp, path, &m, NULL);
+    btf_dirset d = fx_dirs19();
+    btf *src = fx_gen(BTF_GEN_STONE, 16, &d, BTF_U8);
+    btf_pca_options po = {.k = 3, .components = 4};
+    btf_lod_options lo = {.levels = 3};
+    snprintf(pkg, sizeof pkg, "%s/stone", tmp);
+    btf_error err = {{0}};
+    cr_assert_eq(btf_lod_compress(src, &po, NULL, &lo, pkg, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_free(src);
+    btf_scene_binding b[1] = {{"*", pkg, 2.0f}};
+    btf_render_params p = btf_render_defaults(BTF_RENDER_SPHERE);
+    p.width = 48, p.height = 40;
+    btf_scene_frame(m, &p);
+    static const btf_gl_backend be[2] = {BTF_GL_EGL, BTF_GL_OSMESA};
+    for (int i = 0; i < 2; i++) {
+        snprintf(out, sizeof out, "%s/%d.png", tmp, i);
+        cr_assert_eq(btf_scene_png(m, b, 1, &p, be[i], out, &err), BTF_OK, "%s", err.msg);
+        size_t n = 0;
+        char *png = fx_read(out, &n);
+        cr_assert(png && n > 100, "%s: no PNG written", btf_gl_backend_name(be[i]));
+        free(png);
+    }
+    btf_gltf_free(m);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
