@@ -329,16 +329,6 @@ static int http_write(btfd_server *srv, struct lws *wsi, btfd_http *h)
     return lws_http_transaction_completed(wsi) ? -1 : 0;
 }
 
-/* While draining a WebSocket handshake is answered 503, so a proxy tries another server. */
-static int confirm_upgrade(btfd_server *srv, struct lws *wsi)
-{
-    if (!srv->draining)
-        return 0;
-    srv->stats.refused++;
-    lws_return_http_status(wsi, HTTP_STATUS_SERVICE_UNAVAILABLE, "draining");
-    return 1;
-}
-
 /* CORS on a file mount's reply (--allow-origin, btfd_origin.c); 0 ok. */
 static int add_file_cors(struct lws *wsi, void *in)
 {
@@ -351,14 +341,23 @@ static int add_file_cors(struct lws *wsi, void *in)
     return 0;
 }
 
+/* Marks a wsi counted in btfd_stats.sockets (its opaque user data). */
+static char accepted_mark;
+
 int btfd_callback_http(struct lws *wsi, enum lws_callback_reasons reason, void *user, void *in, size_t len)
 {
     btfd_http *h = user;
     switch (reason) {
     case LWS_CALLBACK_HTTP:
         return http_start(server_of(wsi), wsi, h);
-    case LWS_CALLBACK_HTTP_CONFIRM_UPGRADE:
-        return confirm_upgrade(server_of(wsi), wsi);
+    case LWS_CALLBACK_SERVER_NEW_CLIENT_INSTANTIATED: /* every accepted connection, HTTP or stream */
+        lws_set_opaque_user_data(wsi, &accepted_mark);
+        server_of(wsi)->stats.sockets++;
+        return 0;
+    case LWS_CALLBACK_WSI_DESTROY: /* of any wsi: only the accepted ones were counted */
+        if (lws_get_opaque_user_data(wsi) == &accepted_mark)
+            server_of(wsi)->stats.sockets--;
+        return 0;
     case LWS_CALLBACK_ADD_HEADERS: /* file mounts: the client files and the shaders */
         return add_file_cors(wsi, in);
     case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:

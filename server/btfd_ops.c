@@ -1,9 +1,11 @@
 /* btfd_ops.c - signals, draining, library rescans, /metrics and the log of btfd; see btfd_ops.h. */
+#include <dirent.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <time.h>
 
 #include "btfd.h"
@@ -103,13 +105,36 @@ static void drain_timer(lws_sorted_usec_list_t *sul)
     lws_sul_schedule(srv->ctx, 0, &srv->sul_drain, drain_timer, DRAIN_GRACE_US);
 }
 
+/* Stops accepting: every listening socket of the process (btfd has one, lws's)
+ * is shut down, so the kernel refuses new connections at once while the ones
+ * accepted stay. Found through /proc/self/fd and SO_ACCEPTCONN: lws 4.1 has no
+ * call that closes a vhost's listener and keeps the context (its
+ * lws_context_deprecate reads the listener after freeing it). */
+static int stop_listening(void)
+{
+    DIR *d = opendir("/proc/self/fd");
+    int n = 0;
+    for (struct dirent *e; d && (e = readdir(d));) {
+        int fd = atoi(e->d_name), on = 0;
+        socklen_t len = sizeof on;
+        if (e->d_name[0] != '.' && getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &on, &len) == 0 && on)
+            n += shutdown(fd, SHUT_RDWR) == 0;
+    }
+    if (d)
+        closedir(d);
+    return n;
+}
+
 void btfd_ops_drain(btfd_server *srv)
 {
     if (srv->draining)
         return;
     srv->draining = 1;
-    btfd_log(srv, BTFD_LOG_INFO, "draining: %d connections, up to %d s", srv->stats.connections,
-             srv->opt.drain_s);
+    /* the listening socket closes: a new connection is refused, the failure every
+     * proxy retries on another server by default; what is already accepted is served */
+    int closed = stop_listening();
+    btfd_log(srv, BTFD_LOG_INFO, "draining: %s; %d connections, up to %d s",
+             closed ? "stopped listening" : "could not stop listening", srv->stats.connections, srv->opt.drain_s);
     lws_sul_schedule(srv->ctx, 0, &srv->sul_drain, drain_timer, (lws_usec_t)srv->opt.drain_s * 1000000);
     wake_streams(srv); /* idle ones go now */
 }
@@ -134,8 +159,8 @@ int btfd_ops_tick(btfd_server *srv)
     }
     if (sig_int)
         srv->stop = 1;
-    if (srv->draining && srv->stats.connections == 0)
-        srv->stop = 1;
+    if (srv->draining && srv->stats.connections == 0 && srv->stats.sockets == 0)
+        srv->stop = 1; /* nothing accepted is left: every request answered, every stream ended */
     return !srv->stop;
 }
 
@@ -173,7 +198,6 @@ char *btfd_ops_metrics(const btfd_server *srv)
         {"btfd_draining", "gauge", "1 while the server drains (SIGTERM), else 0.", srv->draining},
         {"btfd_connections", "gauge", "Stream connections open now.", s->connections},
         {"btfd_connections_total", "counter", "Stream connections accepted.", (double)s->connections_total},
-        {"btfd_refused_total", "counter", "Stream handshakes refused while draining.", (double)s->refused},
         {"btfd_subscriptions", "gauge", "Subscriptions open now.", s->subscriptions},
         {"btfd_subscriptions_total", "counter", "Subscriptions accepted.", (double)s->subscriptions_total},
         {"btfd_sent_bytes_total", "counter", "Payload bytes of binary pieces sent.", (double)s->bytes_sent},

@@ -7,10 +7,12 @@
  *
  * The signal handlers only set flags and wake the event loop with
  * lws_cancel_service; btfd_ops_tick, on the service thread, does the work.
- * Draining: /healthz answers 503, new WebSocket handshakes are refused with
- * 503, connections that have nothing left to send are closed with 1001
- * (going away) and, after --drain-seconds, so is every other one; the loop
- * ends when no stream connection is left (or 2 s after the deadline).
+ * Draining: the listening socket closes (a new connection is refused, which
+ * every proxy retries elsewhere by default); every connection already accepted
+ * is served, a handshake or a subscribe that arrives on one during the drain
+ * included (/healthz on one answers 503); a stream whose subscriptions are all
+ * sent is closed with 1001 (going away), and after --drain-seconds so is every
+ * other one; the loop ends when no connection is left (or 2 s after the deadline).
  */
 #ifndef BTFD_OPS_H
 #define BTFD_OPS_H
@@ -29,13 +31,13 @@ typedef struct btfd_stats {
     lws_usec_t started_us;
     uint64_t connections_total;   /* stream connections accepted */
     int connections;              /* stream connections open now */
+    int sockets;                  /* accepted connections open now, HTTP ones and streams */
     uint64_t subscriptions_total; /* subscriptions accepted */
     int subscriptions;            /* subscriptions open now */
     uint64_t bytes_sent;          /* payload bytes of binary pieces */
     uint64_t chunks_sent;         /* whole chunks sent */
     uint64_t stalls;              /* connections dropped by --stall-timeout */
     uint64_t scan_errors;         /* packages skipped by library scans */
-    uint64_t refused;             /* handshakes refused while draining */
     uint64_t http_requests;       /* HTTP requests on the callback routes */
     uint64_t http_not_modified;   /* of those, answered 304 */
 } btfd_stats;
@@ -54,7 +56,8 @@ int btfd_ops_tick(struct btfd_server *srv);
 void btfd_ops_drain(struct btfd_server *srv);
 
 /* 1 when a stream connection should be closed with 1001 now: draining and
- * either idle (nothing left to send) or past the drain deadline. */
+ * either done (it subscribed and has nothing left to send) or past the drain
+ * deadline. A stream that has not subscribed yet is waited for. */
 int btfd_ops_going_away(const struct btfd_server *srv, int idle);
 
 /* Body of /metrics (Prometheus text format 0.0.4), malloc'd; NULL if out of memory. */

@@ -398,7 +398,7 @@ static int on_writeable(btfd_server *srv, btfd_conn *c)
         return 0; /* the client's next ack reopens it (the stall timeout stays armed) */
     else if (c->cur_mid || pick_chunk(c))
         r = send_piece(srv, c);
-    else if (btfd_ops_going_away(srv, 1))
+    else if (btfd_ops_going_away(srv, c->n_subs > 0)) /* done; one not subscribed yet is waited for */
         return close_now(c, LWS_CLOSE_STATUS_GOINGAWAY, "server draining");
     else {
         lws_set_timeout(c->wsi, NO_PENDING_TIMEOUT, 0); /* idle: nothing to stall on */

@@ -42,6 +42,7 @@ finish() {
         # shellcheck disable=SC1091
         (source "$d/cluster.env"; kill -KILL "${BTFD_PIDS[@]}" "$NGINX_PID" 2>/dev/null) || true
     done
+    [[ -n ${hpid:-} ]] && kill -KILL "$hpid" 2>/dev/null
     wait 2>/dev/null
     rm -rf "$work"
 }
@@ -140,6 +141,59 @@ check "cluster: a fresh nginx + 2 btfd (version 4)" up c "$lib4"
 check "200 clients of a WebP package, one btfd SIGKILLed mid-way: all complete, none twice, resumed" \
     failover KILL lap "$lib4"
 check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-c"
+
+# Raw clients (no retry, no resume: what an operator's own clients are) against a
+# btfd that gets SIGTERM 0.2 s after they start connecting: behind an nginx with
+# its default proxy_next_upstream (error timeout), and behind a plain HAProxy.
+raw_drain() { # raw_drain PORT PID NAME: 400 raw clients connecting over 1 s, SIGTERM to PID 0.2 s in
+    local out=$work/raw-$3.txt
+    timeout 100 "$clients" "$1" knit "$lib" 400 "$2" 0.2 1000 RAW >"$out" || { cat "$out"; return 1; }
+    cat "$out"
+}
+up_plain() { NGINX_PLAIN_RETRY=1 up "$@" && ! grep -q proxy_next_upstream "$work/cluster-$1/nginx.conf"; }
+raw_nginx() { raw_drain "$port" "${pids[0]}" nginx; }
+haproxy_up() { # HAProxy (server/deploy/haproxy.cfg.in) in front of cluster e's two btfd
+    local d=$work/cluster-e servers="" i=0 p
+    for p in "${BTFD_PORTS[@]}"; do servers+="    server b$i 127.0.0.1:$p"$'\n'; i=$((i + 1)); done
+    for _ in $(seq 5); do
+        hport=$((20000 + RANDOM % 30000))
+        awk -v listen="127.0.0.1:$hport" -v servers="$servers" '
+            /^#/ { print; next }
+            { gsub(/@LISTEN@/, listen) }
+            /^@SERVERS@$/ { printf "%s", servers; next }
+            { print }' server/deploy/haproxy.cfg.in >"$d/haproxy.cfg"
+        haproxy -f "$d/haproxy.cfg" -db >"$d/haproxy.log" 2>&1 &
+        hpid=$!
+        for _ in $(seq 60); do
+            if (exec 3<>"/dev/tcp/127.0.0.1/$hport") 2>/dev/null; then return 0; fi
+            kill -0 "$hpid" 2>/dev/null || break
+            sleep 0.05
+        done
+        kill "$hpid" 2>/dev/null; wait "$hpid" 2>/dev/null
+    done
+    return 1
+}
+raw_haproxy() { raw_drain "$hport" "${pids[0]}" haproxy; }
+drained_exit_of() { # drained_exit_of NAME: cluster NAME's first btfd ends by itself
+    for _ in $(seq 150); do kill -0 "${pids[0]}" 2>/dev/null || break; sleep 0.1; done
+    ! kill -0 "${pids[0]}" 2>/dev/null && grep -q 'draining: stopped listening' "$work/cluster-$1/btfd-0.log"
+}
+
+check "cluster: nginx with its default proxy_next_upstream + 2 btfd" up_plain d
+check "400 raw clients through that nginx, one btfd drained 0.2 s in: all complete" raw_nginx
+check "the drained btfd exits by itself (nginx)" drained_exit_of d
+check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-d"
+if command -v haproxy >/dev/null; then
+    check "cluster: 2 btfd" up e
+    check "HAProxy (server/deploy/haproxy.cfg.in) in front of them" haproxy_up
+    check "400 raw clients through HAProxy, one btfd drained 0.2 s in: all complete" raw_haproxy
+    check "the drained btfd exits by itself (HAProxy)" drained_exit_of e
+    kill "$hpid" 2>/dev/null; wait "$hpid" 2>/dev/null
+    check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-e"
+else
+    fail=$((fail + 1))
+    echo "deploy: FAIL HAProxy is not installed (make setup installs it)"
+fi
 
 echo "deploy: $pass passed, $fail failed"
 ((fail == 0))

@@ -13,7 +13,9 @@
 # stop: SIGTERM to every process of DIR/cluster.env (btfd drains), SIGKILL
 # after 15 s for what is still there.
 # Environment: BTFD (default build/btfd), NGINX (default: nginx on PATH, else
-# /usr/sbin/nginx), BTFD_ARGS (more btfd options, e.g. "--drain-seconds 5").
+# /usr/sbin/nginx), BTFD_ARGS (more btfd options, e.g. "--drain-seconds 5"),
+# NGINX_PLAIN_RETRY (non-empty: no proxy_next_upstream lines, nginx's default
+# "error timeout", as an operator's own configuration may have it).
 # Exit status: 0 ok, 1 something did not start (what did is stopped again), 2 usage.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -43,8 +45,9 @@ start_btfd() {
 render() {
     local user=""
     ((EUID == 0)) && user="user root root;  # as root the workers would be nobody, who cannot read DIR"
-    awk -v prefix="$1" -v listen="127.0.0.1:$2" -v ups="$ups" -v user="$user" '
+    awk -v prefix="$1" -v listen="127.0.0.1:$2" -v ups="$ups" -v user="$user" -v plain="${NGINX_PLAIN_RETRY:-}" '
         /^#/ { print; next }
+        plain != "" && /proxy_next_upstream/ { next }
         { gsub(/@PREFIX@/, prefix); gsub(/@LISTEN@/, listen); gsub(/@USER@/, user) }
         /^[ \t]*@UPSTREAMS@[ \t]*$/ { printf "%s", ups; next }
         { print }' "$here/nginx.conf.in" >"$1/nginx.conf"

@@ -1,7 +1,7 @@
 /* resume_clients.c - many btf-stream.v1 clients that survive a server going away
  * (run by tests/deploy_test.sh; built by server/build.mk as $(BUILD)/resume_clients).
  *
- *   resume_clients PORT MATERIAL LIBDIR CLIENTS [KILL_PID KILL_AT [STEP_MS [KILL|TERM]]]
+ *   resume_clients PORT MATERIAL LIBDIR CLIENTS [KILL_PID KILL_AT [STEP_MS [KILL|TERM|RAW]]]
  *
  * One libwebsockets client context multiplexes CLIENTS connections to
  * ws://127.0.0.1:PORT/stream (nginx in front of several btfd). Each client
@@ -21,6 +21,12 @@
  * only when every client holds every chunk, nothing came twice, no byte
  * differed and (with KILL_PID) the kill happened and some client resumed.
  * Every run ends within RUN_LIMIT_S.
+ *
+ * RAW: clients as an operator's own would be, with no retry: each connects once,
+ * subscribes to every chunk at once and counts as complete only if it receives
+ * them all on that one connection; the connects are spread evenly over STEP_MS
+ * milliseconds and KILL_PID gets SIGTERM KILL_AT seconds after the first one.
+ * Exits 0 only when every client completed.
  */
 #include <cJSON.h>
 #include <libwebsockets.h>
@@ -68,11 +74,11 @@ typedef struct client {
 
 static pkg g_pkg;
 static client *g_cl;
-static int g_n, g_port, g_step_ms = 20, g_kill_pid, g_kill_sig = SIGKILL;
+static int g_n, g_port, g_step_ms = 20, g_kill_pid, g_kill_sig = SIGKILL, g_raw;
 static double g_kill_at = -1;
 static const char *g_mat;
 static struct lws_context *g_ctx;
-static long long g_delivered, g_dups, g_bad_bytes, g_not_resumed, g_goaway, g_killed;
+static long long g_delivered, g_dups, g_bad_bytes, g_not_resumed, g_goaway, g_killed, g_lost;
 static unsigned g_seed = 12345;
 
 static uint32_t le32(const uint8_t *p)
@@ -123,8 +129,9 @@ static void send_text(client *c, const char *s)
 static void subscribe(client *c)
 {
     char msg[8192];
-    int n = snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"%s\",\"budget\":{\"chunks\":%d}", g_mat,
-                     c->held + 1);
+    int n = g_raw ? snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"%s\",\"budget\":{}", g_mat)
+                  : snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"%s\",\"budget\":{\"chunks\":%d}",
+                             g_mat, c->held + 1);
     if (c->held) {
         n += snprintf(msg + n, sizeof msg - (size_t)n, ",\"etag\":\"%s\",\"have\":[", c->etag);
         for (int i = 0, k = 0; i < g_pkg.n_chunks; i++)
@@ -161,6 +168,11 @@ static void lost(client *c)
     c->text_len = 0;
     if (c->done)
         return;
+    if (g_raw) { /* no retry: this client failed */
+        c->done = 1;
+        g_lost++;
+        return;
+    }
     int base = 50 << (c->attempts < 5 ? c->attempts : 5);
     if (base > 1000)
         base = 1000;
@@ -173,6 +185,8 @@ static void lost(client *c)
 /* Kills the server under test once KILL_AT of all chunks have arrived. */
 static void maybe_kill(void)
 {
+    if (g_raw)
+        return; /* by time, in run_clients */
     if (g_kill_pid > 0 && !g_killed && g_delivered >= g_kill_at * g_n * g_pkg.n_chunks) {
         kill(g_kill_pid, g_kill_sig);
         g_killed = g_delivered;
@@ -379,7 +393,7 @@ static int report(double secs)
     printf("duplicate_chunks %lld\nbad_bytes %lld\nnot_resumed %lld\n", g_dups, g_bad_bytes, g_not_resumed);
     printf("clients_reconnected %d\nclients_resumed %d\nreconnects %lld\ngoaway_1001 %lld\n", moved, resumed,
            reconnects, g_goaway);
-    printf("killed_at_chunks %lld\nseconds %.2f\n", g_killed, secs);
+    printf("killed_at_chunks %lld\nclients_lost %lld\nseconds %.2f\n", g_killed, g_lost, secs);
     for (int i = 0, shown = 0; i < g_n && shown < 5; i++)
         if (g_cl[i].held < g_pkg.n_chunks && ++shown)
             fprintf(stderr, "resume_clients: client %d holds %d of %d chunks, %s, %d reconnects\n", i, g_cl[i].held,
@@ -397,7 +411,7 @@ static int parse_args(int argc, char **argv)
 {
     if (argc != 5 && (argc < 7 || argc > 9)) {
         fprintf(stderr, "usage: resume_clients PORT MATERIAL LIBDIR CLIENTS\n"
-                        "                      [KILL_PID KILL_AT [STEP_MS [KILL|TERM]]]\n");
+                        "                      [KILL_PID KILL_AT [STEP_MS [KILL|TERM|RAW]]]\n");
         return 2;
     }
     g_port = atoi(argv[1]);
@@ -410,7 +424,8 @@ static int parse_args(int argc, char **argv)
     if (argc >= 8)
         g_step_ms = atoi(argv[7]);
     if (argc == 9)
-        g_kill_sig = strcmp(argv[8], "TERM") ? SIGKILL : SIGTERM;
+        g_kill_sig = strcmp(argv[8], "TERM") && strcmp(argv[8], "RAW") ? SIGKILL : SIGTERM;
+    g_raw = argc == 9 && !strcmp(argv[8], "RAW");
     if (g_n < 1 || g_n >= 1000000 || load_pkg(argv[3], g_mat)) {
         fprintf(stderr, "resume_clients: cannot read %s/%s or bad CLIENTS\n", argv[3], g_mat);
         return 2;
@@ -426,11 +441,19 @@ static double run_clients(void)
         g_cl[i].idx = i;
         g_cl[i].cur_chunk = -1;
         g_cl[i].t_start = btf_seconds();
-        connect_client(&g_cl[i]);
+        if (g_raw && g_step_ms > 0) /* spread: client i connects i / n of STEP_MS in */
+            lws_sul_schedule(g_ctx, 0, &g_cl[i].sul, reconnect_timer,
+                             (lws_usec_t)((double)g_step_ms * 1000.0 * i / g_n));
+        else
+            connect_client(&g_cl[i]);
     }
     int done = 0;
-    while (done < g_n && btf_seconds() - t0 < RUN_LIMIT_S) {
+    while (done + g_lost < g_n && btf_seconds() - t0 < RUN_LIMIT_S) {
         lws_service(g_ctx, 0);
+        if (g_raw && g_kill_pid > 0 && !g_killed && btf_seconds() - t0 >= g_kill_at) {
+            kill(g_kill_pid, g_kill_sig);
+            g_killed = g_delivered > 0 ? g_delivered : 1;
+        }
         done = 0;
         for (int i = 0; i < g_n; i++)
             done += g_cl[i].held == g_pkg.n_chunks;
@@ -456,7 +479,7 @@ int main(int argc, char **argv)
         moved += g_cl[i].resumes > 0;
     lws_context_destroy(g_ctx);
     int ok = complete == g_n && g_delivered == (long long)g_n * g_pkg.n_chunks && !g_dups && !g_bad_bytes &&
-             !g_not_resumed && (g_kill_pid <= 0 || (g_killed && moved > 0));
+             !g_not_resumed && (g_kill_pid <= 0 || (g_killed && (g_raw || moved > 0)));
     for (int i = 0; i < g_n; i++)
         free(g_cl[i].text);
     free(g_cl);
