@@ -605,6 +605,13 @@ btf_result load_bytes(const uint8_t *data, size_t size, const char *name, const 
         return btf_fail(err, BTF_ERR_RANGE, "%s: larger than %lld bytes", name, (long long)BTF_GLTF_MAX_FILE_BYTES);
     if (size < 4)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: not a glTF file (%zu bytes)", name, size);
+    if (memcmp(data, "glTF", 4) == 0) { /* a .glb: version 2 and a length within the bytes (tinygltf checks neither) */
+        uint32_t version = size >= 12 ? (uint32_t)data[4] | (uint32_t)data[5] << 8 | (uint32_t)data[6] << 16 |
+                                            (uint32_t)data[7] << 24
+                                      : 0;
+        if (version != 2)
+            return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: binary glTF version %u (only 2)", name, version);
+    }
     tinygltf::Model g;
     std::string msg;
     bool ok = false;

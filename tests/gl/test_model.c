@@ -277,6 +277,11 @@ Test(model, hostile_glb_refused)
     size_t n = 0;
     uint8_t *b = (uint8_t *)fx_read(path, &n);
     size_t cuts[] = {0, 3, 12, 20, 100, n / 2, n - 1};
+    b[4] = 1; /* the header's version */
+    btf_gltf *m1 = NULL;
+    cr_expect_neq(btf_gltf_load_memory(b, n, "v1.glb", &m1, &err), BTF_OK, "a version-1 .glb loaded");
+    cr_expect(strstr(err.msg, "version 1"), "%s", err.msg);
+    b[4] = 2;
     for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
         btf_gltf *m = NULL;
         cr_expect_neq(btf_gltf_load_memory(b, cuts[i], "cut.glb", &m, &err), BTF_OK, "cut at %zu loaded", cuts[i]);

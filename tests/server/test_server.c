@@ -758,6 +758,18 @@ Test(server, http_mounts_serve_client_and_shaders)
     free(body);
     cr_expect_eq(http_get(s.port, "/shaders/../../etc/passwd", &body, &n) != 200, 1);
     free(body);
+    /* glTF models beside the pages: a .glb, a .gltf and its buffer, with their types */
+    static const char *model[3][2] = {{"m.glb", "model/gltf-binary"}, {"m.gltf", "model/gltf+json"},
+                                      {"m.bin", "application/octet-stream"}};
+    for (int i = 0; i < 3; i++) {
+        char head[2048], path[64], want[96];
+        fx_put_text(client, model[i][0], "glTF");
+        snprintf(path, sizeof path, "/%s", model[i][0]);
+        snprintf(want, sizeof want, "content-type: %s", model[i][1]);
+        cr_expect_eq(http_req(s.port, path, NULL, head, sizeof head, &body, &n), 200, "%s", path);
+        cr_expect(find_nocase(head, want), "%s: %s", path, head);
+        free(body);
+    }
     srv_stop(&s);
 }
 
