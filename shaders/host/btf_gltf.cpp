@@ -5,6 +5,8 @@
 
 #include <tiny_gltf.h>
 
+#include <cjson/cJSON.h>
+
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -598,6 +600,29 @@ bool parse(tinygltf::Model &g, const uint8_t *data, size_t size, const std::stri
     return loader.LoadASCIIFromString(&g, &msg, &warn, (const char *)data, (unsigned int)size, dir);
 }
 
+// tinygltf drops a primitive without "attributes" silently; the browser's loader
+// refuses it, and so does this one: true when the JSON (a .glb's first chunk, or
+// the whole .gltf) has such a primitive. JSON that does not parse is tinygltf's to refuse.
+bool primitive_without_attributes(const uint8_t *data, size_t size)
+{
+    const char *text = (const char *)data;
+    size_t n = size;
+    if (size >= 20 && memcmp(data, "glTF", 4) == 0) {
+        uint32_t jn = (uint32_t)data[12] | (uint32_t)data[13] << 8 | (uint32_t)data[14] << 16 | (uint32_t)data[15] << 24;
+        if (jn > size - 20)
+            return false;
+        text = (const char *)data + 20, n = jn;
+    }
+    cJSON *doc = cJSON_ParseWithLength(text, n);
+    bool bad = false;
+    const cJSON *mesh, *prim;
+    cJSON_ArrayForEach(mesh, cJSON_GetObjectItemCaseSensitive(doc, "meshes"))
+        cJSON_ArrayForEach(prim, cJSON_GetObjectItemCaseSensitive(mesh, "primitives"))
+            bad |= !cJSON_IsObject(cJSON_GetObjectItemCaseSensitive(prim, "attributes"));
+    cJSON_Delete(doc);
+    return bad;
+}
+
 btf_result load_bytes(const uint8_t *data, size_t size, const char *name, const std::string &dir, btf_gltf **out,
                       btf_error *err)
 {
@@ -612,6 +637,8 @@ btf_result load_bytes(const uint8_t *data, size_t size, const char *name, const 
         if (version != 2)
             return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: binary glTF version %u (only 2)", name, version);
     }
+    if (primitive_without_attributes(data, size))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: a mesh primitive has no \"attributes\"", name);
     tinygltf::Model g;
     std::string msg;
     bool ok = false;

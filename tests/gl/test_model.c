@@ -242,6 +242,11 @@ static void e_nan(glb *g)
     float nan = NAN;
     memcpy(g->bin + acc_offset(g, 0) + 4, &nan, 4);
 }
+static void e_attributes(glb *g)
+{
+    cJSON *p = cJSON_GetArrayItem(cJSON_GetObjectItem(at(g->json, "meshes", 0), "primitives"), 1);
+    cJSON_DeleteItemFromObject(p, "attributes");
+}
 static void e_accessor(glb *g)
 {
     cJSON *p = cJSON_GetArrayItem(cJSON_GetObjectItem(at(g->json, "meshes", 0), "primitives"), 1);
@@ -270,7 +275,8 @@ Test(model, hostile_glb_refused)
                  {e_view, "buffer", "buffer view beyond its buffer"},
                  {e_float_index, "not unsigned integer", "float indices"},
                  {e_nan, "not finite", "NaN position"},
-                 {e_accessor, "does not exist", "missing accessor"}};
+                 {e_accessor, "does not exist", "missing accessor"},
+                 {e_attributes, "no \"attributes\"", "primitive without attributes"}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
         expect_refused(path, cases[i].edit, cases[i].needle, cases[i].what);
     /* truncations: every cut refused, none read past the bytes (ASan) */
