@@ -783,15 +783,15 @@ static int has_bytes(const char *h, size_t n, const char *k)
     return 0;
 }
 
-/* Sends req verbatim and collects what arrives for up to ms (or until the
- * server closes, or until `until` appears); returns the bytes (malloc'd, NUL-terminated). */
-static char *raw_exchange(int port, const char *req, int ms, const char *until, size_t *len)
+/* Sends req on the connected socket fd and collects what arrives for up to ms (or
+ * until the server closes, or until `until` appears); returns the bytes (malloc'd,
+ * NUL-terminated), their count in *len. fd stays open. */
+static char *fd_exchange(int fd, const char *req, int ms, const char *until, size_t *len)
 {
-    int fd = tcp_connect(port);
-    cr_assert_geq(fd, 0);
     cr_assert_eq(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
     size_t n = 0, cap = 1 << 16;
     char *buf = malloc(cap + 1);
+    buf[0] = 0;
     long long deadline = fx_now_ms() + ms;
     for (;;) {
         struct pollfd p = {fd, POLLIN, 0};
@@ -806,9 +806,17 @@ static char *raw_exchange(int port, const char *req, int ms, const char *until, 
         if (until && has_bytes(buf, n, until))
             break;
     }
-    close(fd);
-    buf[n] = 0;
     *len = n;
+    return buf;
+}
+
+/* fd_exchange on a new connection to port, closed afterwards. */
+static char *raw_exchange(int port, const char *req, int ms, const char *until, size_t *len)
+{
+    int fd = tcp_connect(port);
+    cr_assert_geq(fd, 0);
+    char *buf = fd_exchange(fd, req, ms, until, len);
+    close(fd);
     return buf;
 }
 
@@ -1735,31 +1743,6 @@ Test(server, healthz_and_metrics_follow_streams_and_scans)
     srv_stop(&s);
 }
 
-/* Sends req on the connected socket fd and collects what arrives for up to ms (or
- * until `until` appears); returns the bytes (malloc'd, NUL-terminated). */
-static char *fd_exchange(int fd, const char *req, int ms, const char *until)
-{
-    cr_assert_eq(send(fd, req, strlen(req), MSG_NOSIGNAL), (ssize_t)strlen(req));
-    size_t n = 0, cap = 1 << 16;
-    char *buf = malloc(cap + 1);
-    buf[0] = 0;
-    long long deadline = fx_now_ms() + ms;
-    for (;;) {
-        struct pollfd p = {fd, POLLIN, 0};
-        long long left = deadline - fx_now_ms();
-        if (left <= 0 || poll(&p, 1, (int)left) <= 0)
-            break;
-        ssize_t k = recv(fd, buf + n, cap - n, 0);
-        if (k <= 0)
-            break;
-        n += (size_t)k;
-        buf[n] = 0;
-        if (until && strstr(buf, until))
-            break;
-    }
-    return buf;
-}
-
 /* SIGTERM: the listening socket closes at once (a new connection is refused, the
  * failure every proxy retries elsewhere); what was accepted before is served to the
  * end: a finished stream goes away with 1001, a busy one completes first, one that
@@ -1800,15 +1783,16 @@ Test(server, sigterm_stops_listening_and_serves_what_was_accepted)
     }
     cr_expect_lt(late, 0, "btfd still accepts connections while draining");
     /* requests on connections accepted before the drain are answered */
+    size_t rn;
     char *r = fd_exchange(http, "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n", TMO,
-                          "draining\n");
+                          "draining\n", &rn);
     cr_expect(strstr(r, " 503 ") && strstr(r, "draining"), "healthz during the drain: %s", r);
     free(r), close(http);
     r = fd_exchange(upgrade,
                     "GET /stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                     "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
                     "Sec-WebSocket-Protocol: btf-stream.v1\r\n\r\n",
-                    TMO, "\r\n\r\n");
+                    TMO, "\r\n\r\n", &rn);
     cr_expect(!strncmp(r, "HTTP/1.1 101", 12), "a handshake on an accepted connection: %s", r);
     free(r), close(upgrade);
     /* a stream that subscribes during the drain is served to its end */
