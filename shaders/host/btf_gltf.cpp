@@ -306,6 +306,31 @@ int attribute(const tinygltf::Primitive &p, const char *key)
     return it == p.attributes.end() ? -1 : it->second;
 }
 
+// Tangents of geo by btf_gltf_tangents, which may grow the arrays (a malloc'd
+// copy, then taken back).
+bool generate_tangents(Loader &L, Geometry &geo)
+{
+    const int F = BTF_RENDER_VERTEX_FLOATS;
+    btf_render_mesh m = {(float *)malloc(geo.v.size() * sizeof(float)), (int)(geo.v.size() / F),
+                         (unsigned *)malloc(geo.idx.size() * sizeof(unsigned)), (int)geo.idx.size()};
+    btf_result r = BTF_OK;
+    if (!m.vertices || !m.indices) {
+        r = btf_fail(L.err, BTF_ERR_NOMEM, "%s: out of memory (tangents)", L.name);
+    } else {
+        memcpy(m.vertices, geo.v.data(), geo.v.size() * sizeof(float));
+        memcpy(m.indices, geo.idx.data(), geo.idx.size() * sizeof(unsigned));
+        r = btf_gltf_tangents(&m, L.err);
+    }
+    if (r == BTF_OK) {
+        geo.v.assign(m.vertices, m.vertices + (size_t)m.n_vertices * F);
+        geo.idx.assign(m.indices, m.indices + m.n_indices);
+    }
+    free(m.vertices), free(m.indices);
+    if (r != BTF_OK)
+        L.r = r;
+    return r == BTF_OK;
+}
+
 // Primitive p of mesh mi in object space, checked; tangents generated when absent.
 bool load_geometry(Loader &L, const tinygltf::Primitive &p, int mi, Geometry &geo)
 {
@@ -345,7 +370,7 @@ bool load_geometry(Loader &L, const tinygltf::Primitive &p, int mi, Geometry &ge
         for (int c = 0; c < 3; c++)
             q[c] = l > 0 ? (float)(q[c] / l) : (c == 2 ? 1.0f : 0.0f);
     }
-    return true;
+    return geo.has_tangent || geo.idx.empty() || generate_tangents(L, geo);
 }
 
 // ---------------------------------------------------------------- transforms
@@ -499,26 +524,6 @@ bool visit(Loader &L, int ni, const double pm[16], int depth, std::vector<std::v
             for (size_t k = 0; k < mesh.primitives.size(); k++) {
                 if (!load_geometry(L, mesh.primitives[k], nd.mesh, gs[k]))
                     return false;
-                if (!gs[k].has_tangent && !gs[k].idx.empty()) {
-                    btf_render_mesh tm = {gs[k].v.data(), (int)(gs[k].v.size() / BTF_RENDER_VERTEX_FLOATS),
-                                          gs[k].idx.data(), (int)gs[k].idx.size()};
-                    btf_render_mesh copy = tm;
-                    if (!(copy.vertices = (float *)malloc(gs[k].v.size() * sizeof(float))) ||
-                        !(copy.indices = (unsigned *)malloc(gs[k].idx.size() * sizeof(unsigned)))) {
-                        free(copy.vertices);
-                        return L.fail(BTF_ERR_NOMEM, "out of memory (tangents)");
-                    }
-                    memcpy(copy.vertices, tm.vertices, gs[k].v.size() * sizeof(float));
-                    memcpy(copy.indices, tm.indices, gs[k].idx.size() * sizeof(unsigned));
-                    btf_result r = btf_gltf_tangents(&copy, L.err);
-                    if (r == BTF_OK) {
-                        gs[k].v.assign(copy.vertices, copy.vertices + (size_t)copy.n_vertices * BTF_RENDER_VERTEX_FLOATS);
-                        gs[k].idx.assign(copy.indices, copy.indices + copy.n_indices);
-                    }
-                    free(copy.vertices), free(copy.indices);
-                    if (r != BTF_OK)
-                        return L.r = r, false;
-                }
             }
         }
         for (size_t k = 0; k < mesh.primitives.size(); k++)
