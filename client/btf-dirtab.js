@@ -32,6 +32,16 @@ function dirVector(d, r, m) {
   return [f32(Math.sin(t) * Math.cos(p)), f32(Math.sin(t) * Math.sin(p)), f32(Math.cos(t))];
 }
 
+// Unit vectors (local frame, float32 as btf_dirset_vector) of every direction of a parsed
+// set, in the set's order: [[x, y, z], ...].
+export function dirVectors(d) {
+  if (d.list) return Array.from({length: d.dirs}, (_, i) => listVector(d, i));
+  const out = [];
+  for (let r = 0; r < d.n; r++)
+    for (let m = 0; m < d.rings[4 * r + 1]; m++) out.push(dirVector(d, r, m));
+  return out;
+}
+
 // Builds the table of a parsed direction set (btf-package.js parseDirset):
 // {nDirs, nVerts, verts: [[x, y, z, real]], dir: [direction of each vertex, -1 virtual],
 //  tris: [[a, b, c]], adj: [[n0, n1, n2]], cells: Int32Array}. Throws on bad list triangles.
