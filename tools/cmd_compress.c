@@ -42,8 +42,8 @@ static void compress_usage(FILE *f)
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
             "                           [--max-bytes N | --max-error E] [--full-search] [--rd]\n"
-            "                           [--png] [--tex-noise X] [--in-memory] [--no-thumbnail]\n"
-            "                           [--quiet] [--json]\n"
+            "                           [--png] [--tex-noise X] [--linear] [--in-memory]\n"
+            "                           [--no-thumbnail] [--quiet] [--json]\n"
             "\n"
             "Compresses a BTF (UBO2003 image directory, thesis package, .btf file, or gen:KIND[:SIZE[:SEED]]\n"
             "for a generated material) by PCA over\n"
@@ -91,6 +91,12 @@ static void compress_usage(FILE *f)
             "                   lossless WebP; --residual each the smaller of a PNG and a WebP)\n"
             "  --tex-noise X    RMS quantisation noise per component of the 8-bit textures\n"
             "                   (0..255 scale, default 0.5); with --rd the total it amounts to\n"
+            "  --linear         a linear-light package (manifest \"encoding\": \"linear\"): the\n"
+            "                   source's sRGB values are decoded to linear light (exact sRGB\n"
+            "                   EOTF) before the PCA, so sums over light directions add radiance;\n"
+            "                   lab is measured after encoding back to sRGB (--max-error means the\n"
+            "                   same), rmse and rmse_float are on the linear 0..255 scale (btf eval\n"
+            "                   gives the sRGB rmse); works with every other option\n"
             "  --quiet          print nothing on success\n"
             "  --json           print one JSON object on stdout instead of the text:\n"
             "                   path (OUT), bytes (all chunk files), chunks, seconds_load,\n"
@@ -101,7 +107,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R png!P tex-noise:X in-memory!M no-thumbnail!T quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -128,6 +134,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'M': o->in_memory = 1; break;
     case 'T': o->pkg.thumbnail = 0; break;
     case 'R': o->pkg.rd = 1; break;
+    case 'L': o->pkg.linear = 1; break;
     case 'S': o->budget.full_search = 1; break;
     case 'P': o->pkg.png_only = o->lod.png_only = 1; break;
     case 'X': {
@@ -170,6 +177,8 @@ static void compress_report(const char *out)
         return;
     }
     long long total = 0;
+    if (p->linear)
+        printf("linear light: rmse and rmse_float on the linear 0..255 scale, lab after encoding to sRGB\n");
     printf("chunk component      bytes   cumulative    rmse  rmse_float    lab\n");
     for (int i = 0; i < p->n_chunks; i++) {
         const btf_chunk_info *c = &p->chunk[i];

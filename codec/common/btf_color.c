@@ -13,6 +13,28 @@ double btf_color_srgb_encode(double v)
     return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
 }
 
+/* Above this many values btf_color_srgb_decode_n tabulates the 256 byte values first. */
+#define BTF__DECODE_TABLE_MIN 4096
+
+void btf_color_srgb_decode_n(float *v, size_t n)
+{
+    float tab[256]; /* the byte values as the 8-bit sources write them (q * (1/255.0f)), decoded */
+    int use_tab = n >= BTF__DECODE_TABLE_MIN;
+    for (int q = 0; use_tab && q < 256; q++)
+        tab[q] = (float)btf_color_srgb_decode((float)q * (1.0f / 255.0f));
+    for (size_t i = 0; i < n; i++) {
+        float x = v[i] * 255.0f;
+        int q = x >= 0.0f && x <= 255.0f ? (int)lrintf(x) : -1;
+        v[i] = q >= 0 && use_tab && v[i] == (float)q * (1.0f / 255.0f) ? tab[q] : (float)btf_color_srgb_decode(v[i]);
+    }
+}
+
+void btf_color_srgb_encode_n(float *v, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        v[i] = isnan(v[i]) ? 0.0f : (float)btf_color_srgb_encode(v[i]);
+}
+
 void btf_color_srgb_to_lab(const float rgb[3], float lab[3])
 {
     double lin[3];

@@ -113,7 +113,9 @@ btf_result btf_package_thumbnail_rgb(const btf_package *p, int max_side, int *w,
     if (r == BTF_OK)
         btf__decode_swatch(p, full);
     if (r == BTF_OK && small != full)
-        r = btf__shrink(full, W, H, small, *w, *h, err);
+        r = btf__shrink(full, W, H, small, *w, *h, err); /* a linear package's mean is of radiance */
+    if (r == BTF_OK)
+        btf_package_to_source(p, small, n);
     for (size_t i = 0; r == BTF_OK && i < n; i++)
         out[i] = btf_to_u8(small[i]);
     if (small != full)

@@ -18,6 +18,7 @@
 #include "btf_metrics.h"
 #include "btf_rd.h"
 #include "btf_wtz.h"
+#include "btf_color.h"
 #include "btf_common.h"
 #include "btf_blocks.h"
 
@@ -25,8 +26,29 @@
 
 /* ---------------------------------------------------------------- small helpers */
 
+/* The linear-light source (btf_package_options.linear): each view of the caller's
+ * source, whose impl is, put through the exact sRGB EOTF as it is read. The one
+ * place a linear package's samples are converted; every path (PCA, the --rd pass,
+ * the budget's candidates, levels) reads its blocks through it. */
+static btf_result btf__fill_linear(btf_views *s, int view, float *cols, btf_error *err)
+{
+    btf_result r = btf_views_fill(s->impl, view, cols, err);
+    if (r == BTF_OK)
+        btf_color_srgb_decode_n(cols, btf_views_floats(s));
+    return r;
+}
 
-
+/* out: src seen as linear light (btf__fill_linear); lives no longer than src, which
+ * keeps its own counts (n_filled, report) and is closed by its owner. */
+static void btf__views_linear(btf_views *src, btf_views *out)
+{
+    memset(out, 0, sizeof *out);
+    out->width = src->width, out->height = src->height;
+    out->lights = src->lights, out->views = src->views;
+    out->name = src->name;
+    out->fill = btf__fill_linear;
+    out->impl = src;
+}
 
 /* ---------------------------------------------------------------- writer state */
 
@@ -38,6 +60,7 @@ typedef struct btf__writer {
     float *tnoise;        /* C: RMS noise (0..255 scale) of component j's texture steps; <= 0 = full range */
     float *wnoise;        /* C: the same for its weights; <= 0 = the full 16-bit range */
     int version;          /* 1, or 3: wt-JJ.z weights (doc/package-format.md section 9.3) */
+    int linear;           /* 1: samples are linear light; the Lab curve encodes them to sRGB first */
     char *rd_json;        /* version 3: the manifest's "rd" record (malloc'd), NULL otherwise */
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
@@ -324,6 +347,8 @@ static btf_result btf__lab_curve(const btf__writer *w, const int *order, int str
                         }
                     }
             }
+            if (w->linear) /* Lab on the source's scale, as for an sRGB package */
+                btf_color_srgb_encode_n(ref, np * 3), btf_color_srgb_encode_n(test, (size_t)C * np * 3);
             btf_metrics_lab(ref, np, ref_lab); /* once for the C prefixes */
             /* one prefix per thread: each sum keeps one writer and its texel order */
 #pragma omp parallel for schedule(static) if (threaded)
@@ -397,7 +422,7 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
     p.blocks = (btf_blocks *)w->blocks; /* borrowed: not freed here */
     p.k = po->k, p.n_comp = w->C, p.bits = w->bits, p.center = po->center, p.grouping = po->grouping;
     p.atlas_cols = w->acols, p.atlas_rows = w->arows, p.lab_stride = stride;
-    p.version = w->version, p.n_levels = 1, p.n_chunks = w->C;
+    p.version = w->version, p.n_levels = 1, p.n_chunks = w->C, p.linear = w->linear;
     p.rd = w->rd_json; /* borrowed */
     p.chunk = calloc((size_t)w->C, sizeof *p.chunk);
     if (!p.chunk) {
@@ -662,10 +687,15 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
 {
     btf_package_options o = {0};
     btf_package_channel c = {0};
+    btf_views lin;
     if (opt)
         o = *opt;
     if (ch)
         c = *ch;
+    if (o.linear && src) {
+        btf__views_linear(src, &lin);
+        src = &lin;
+    }
     if (o.bits == 0)
         o.bits = 8;
     if (o.bits != 8 && o.bits != 16)
@@ -691,6 +721,7 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
     int stride = btf__lab_stride(src->width, src->height, o.lab_max_texels > 0 ? o.lab_max_texels : 256);
     r = btf__writer_init(&w, src, bl, po.components, o.bits, stride, err);
     w.chan = &c;
+    w.linear = o.linear != 0;
     float noise = o.bits != 8 || o.tex_noise < 0.0f ? 0.0f : (o.tex_noise > 0.0f ? o.tex_noise : BTF_PACKAGE_TEX_NOISE);
     for (int j = 0; r == BTF_OK && j < w.C; j++)
         w.tnoise[j] = noise; /* equal noise; --rd replaces it after the PCA */

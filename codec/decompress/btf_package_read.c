@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "btf_color.h"
 #include "btf_fs.h"
 #include "btf_image.h"
 #include "btf_lod.h"
@@ -404,6 +405,12 @@ float btf_package_texel(const btf_package *p, int i, int b, int x, int y)
 
 /* ---------------------------------------------------------------- reconstruction */
 
+void btf_package_to_source(const btf_package *p, float *v, size_t n)
+{
+    if (p->linear)
+        btf_color_srgb_encode_n(v, n);
+}
+
 void btf_package_value(const btf_package *p, int view, int light, int x, int y, int n, float rgb[3])
 {
     if (n <= 0 || n > p->n_loaded)
@@ -420,6 +427,7 @@ void btf_package_value(const btf_package *p, int view, int light, int x, int y, 
         rgb[1] += t * p->wt[j][wi + 1];
         rgb[2] += t * p->wt[j][wi + 2];
     }
+    btf_package_to_source(p, rgb, 3);
 }
 
 

@@ -370,6 +370,20 @@ static btf_result btf__residual_order(const btf_package *p, const char *path, bt
     return BTF_OK;
 }
 
+/* "encoding": absent or "srgb" 0, "linear" 1 (section 3.7); anything else refused. */
+static btf_result btf__parse_encoding(const cJSON *m, btf_package *p, const char *path, btf_error *err)
+{
+    const cJSON *e = cJSON_GetObjectItemCaseSensitive(m, "encoding");
+    p->linear = 0;
+    if (!e || (cJSON_IsString(e) && !strcmp(e->valuestring, "srgb")))
+        return BTF_OK;
+    if (cJSON_IsString(e) && !strcmp(e->valuestring, "linear")) {
+        p->linear = 1;
+        return BTF_OK;
+    }
+    return btf_fail(err, BTF_ERR_FORMAT, "%s: \"encoding\" must be \"srgb\" or \"linear\"", path);
+}
+
 static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *path, btf_error *err)
 {
     const cJSON *fmt = cJSON_GetObjectItemCaseSensitive(m, "format");
@@ -380,11 +394,14 @@ static btf_result btf__parse_header(const cJSON *m, btf_package *p, const char *
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: unsupported \"version\" (this reader knows 1, 2, 3 and 4)", path);
     p->version = version;
     p->n_levels = 1;
+    btf_result r = btf__parse_encoding(m, p, path, err);
+    if (r != BTF_OK)
+        return r;
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(m, "name");
     snprintf(p->name, sizeof p->name, "%s", cJSON_IsString(name) ? name->valuestring : "");
     if (!btf__get_int(m, "width", 1, BTF_MAX_SIDE, &p->width) || !btf__get_int(m, "height", 1, BTF_MAX_SIDE, &p->height))
         return btf_fail(err, BTF_ERR_RANGE, "%s: \"width\"/\"height\" missing or outside 1..%d", path, BTF_MAX_SIDE);
-    btf_result r = btf__parse_dirs(m, "lights", path, &p->lights, &p->dirtab[0], err);
+    r = btf__parse_dirs(m, "lights", path, &p->lights, &p->dirtab[0], err);
     if (r == BTF_OK)
         r = btf__parse_dirs(m, "views", path, &p->views, &p->dirtab[1], err);
     if (r != BTF_OK)
@@ -553,6 +570,8 @@ static void btf__print_header(const btf_package *p, cJSON *m)
     cJSON_AddStringToObject(m, "center", btf_blocks_center_name(p->center));
     cJSON_AddStringToObject(m, "grouping", btf_blocks_grouping_name(p->grouping));
     cJSON_AddNumberToObject(m, "bits", p->bits);
+    if (p->linear) /* absent = "srgb": sRGB packages keep their bytes */
+        cJSON_AddStringToObject(m, "encoding", "linear");
     cJSON *blocks = cJSON_AddArrayToObject(m, "blocks");
     for (int b = 0; b < bl->n_blocks; b++) {
         cJSON *a = cJSON_CreateArray();

@@ -26,7 +26,11 @@ typedef struct btf_decode_options {
 
 /* CPU reference decoder (doc/package-format.md section 6): texture coordinate (u, v)
  * in [0,1], light and view directions in the local frame (z = normal, need not be
- * unit). rgb is on the byte/255 scale, not clamped. Never NaN for finite input. */
+ * unit). rgb is on the byte/255 scale, not clamped. Never NaN for finite input.
+ * rgb is the package's own value: linear light for a linear package (p->linear,
+ * manifest "encoding": "linear"), where sums over light directions are sums of
+ * radiance; sRGB-encoded otherwise. btf_package_to_source (btf_package.h) puts it
+ * on the source's scale for comparisons and images. */
 void btf_decode(const btf_package *p, float u, float v, const float light[3], const float view[3],
                 const btf_decode_options *opt, float rgb[3]);
 

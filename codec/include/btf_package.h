@@ -59,6 +59,14 @@ typedef struct btf_package_options {
      * pixels a side, written into the package before it is renamed into place; 0 =
      * none. Never with estimate. */
     int thumbnail;
+    /* 1: the package holds linear light (manifest "encoding": "linear",
+     * doc/package-format.md section 3.7): every source value (byte/255 scale,
+     * sRGB-encoded) goes through the exact sRGB EOTF (btf_color_srgb_decode) as it is
+     * read, before the PCA. The chunks' "lab" and "delta_e76" are measured after
+     * encoding back to sRGB (the source's scale, as for an sRGB package); "rmse",
+     * "psnr" and "rmse_float" are on the package's own (linear) 0..255 scale.
+     * 0: the source's values as they are ("srgb"). */
+    int linear;
 } btf_package_options;
 
 #define BTF_LAP_PRED_N 6      /* weights per texel class */
@@ -117,6 +125,7 @@ typedef struct btf_package {
     char *rd;               /* version 3 "rd": the steps btf_rd_allocate chose, as JSON text (malloc'd); NULL if none */
     uint8_t **q8;           /* version 4: per loaded chunk its level's reconstructed atlas bytes (malloc'd); NULL otherwise */
     uint8_t **w8q;          /* version 4: per loaded chunk that carried wt-JJ-8.png its bytes (malloc'd); NULL otherwise */
+    int linear; /* "encoding": 1 linear light, 0 sRGB-encoded (default) */
 } btf_package;
 
 /* 1 when the package has spatial levels: version 2 (independent mips) or version 4
@@ -154,7 +163,9 @@ btf_result btf_package_thumbnail(const char *dir, int max_side, btf_error *err);
  * chunk (nearest texel, level 0) at the light and the view nearest the normal (the
  * smallest theta of each set), then, when a side exceeds max_side, box-filtered
  * (btf_area_weights) to max_side on the longer side and the other in proportion
- * (at least 1), and rounded by btf_to_u8. */
+ * (at least 1), put on the source's scale (btf_package_to_source: a linear
+ * package's pixels, averaged as radiance, are encoded to sRGB) and rounded by
+ * btf_to_u8. */
 btf_result btf_package_thumbnail_rgb(const btf_package *p, int max_side, int *w, int *h, uint8_t **rgb,
                                      btf_error *err);
 
@@ -164,10 +175,18 @@ btf_result btf_package_thumbnail_rgb(const btf_package *p, int max_side, int *w,
 btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error *err);
 void btf_package_free(btf_package *p);
 
-/* Direct reconstruction at a measured (view, light) pair and texel from the first n
- * loaded chunks (n <= 0 or n > n_loaded means all loaded). */
+/* Decoded values (n floats in place) on the scale of the package's source: encoded
+ * with the exact sRGB OETF (btf_color_srgb_encode) when p->linear, unchanged
+ * otherwise. What every comparison with the source and every image goes through;
+ * btf_decode returns the package's own values. */
+void btf_package_to_source(const btf_package *p, float *v, size_t n);
+
+/* Direct reconstruction of the source at a measured (view, light) pair and texel
+ * from the first n loaded chunks (n <= 0 or n > n_loaded means all loaded), on the
+ * source's scale (btf_package_to_source: sRGB-encoded for a linear package). */
 void btf_package_value(const btf_package *p, int view, int light, int x, int y, int n, float rgb[3]);
-/* Whole-BTF reconstruction (BTF_F32) from the first n loaded chunks. */
+/* Whole-BTF reconstruction (BTF_F32) of the source from the first n loaded chunks,
+ * as btf_package_value. */
 btf_result btf_package_reconstruct(const btf_package *p, int n, btf **out, btf_error *err);
 
 /* Index of the loaded chunk (among the first n; n <= 0: all loaded) of component c

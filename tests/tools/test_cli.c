@@ -92,6 +92,33 @@ Test(cli, k_with_equals_or_space_gives_the_same_package)
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
+/* --linear: a linear-light package, the same read view by view or loaded whole
+ * (--in-memory), and with levels. */
+Test(cli, compress_linear_marks_the_package)
+{
+    char dir[256], a[400], b[400], c[400];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(a, sizeof a, "%s/a", dir);
+    snprintf(b, sizeof b, "%s/b", dir);
+    snprintf(c, sizeof c, "%s/c", dir);
+    char *views[] = {"compress", "gen:knit:16", a, "--components=4", "--name=p", "--linear", "--quiet", NULL};
+    char *whole[] = {"compress", "gen:knit:16", b, "--components=4", "--name=p", "--linear", "--in-memory", "--quiet", NULL};
+    char *levels[] = {"compress", "gen:knit:16", c, "--components=4", "--linear", "--levels=2", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(7, views), 0);
+    cr_assert_eq(cmd_compress(8, whole), 0);
+    cr_assert_eq(cmd_compress(7, levels), 0);
+    cr_assert(fx_same_file(a, b, "manifest.json"), "view by view and in memory differ");
+    const char *pkg[] = {a, c};
+    for (int i = 0; i < 2; i++) {
+        btf_package *p = NULL;
+        btf_error err = {{0}};
+        cr_assert_eq(btf_package_read(pkg[i], 1, &p, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(p->linear, 1, "%s", pkg[i]);
+        btf_package_free(p);
+    }
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
 /* `btf --version` and `btfd --version`: the programs themselves (main is not in this binary). */
 Test(cli, version_of_btf_and_btfd)
 {
