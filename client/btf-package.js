@@ -240,6 +240,9 @@ export function parseManifest(m) {
   const layout = m.version === 2 || m.version === 4 ? 2 : 1;
   if (!isInt(m.width, 1, MAX_SIZE) || !isInt(m.height, 1, MAX_SIZE)) fail(name, 'width/height out of range');
   if (m.bits !== 8 && m.bits !== 16) fail(name, '"bits" must be 8 or 16');
+  // "encoding" (section 3.7): absent or "srgb" = sRGB-encoded values, "linear" = linear light
+  if (m.encoding !== undefined && m.encoding !== 'srgb' && m.encoding !== 'linear')
+    fail(name, '"encoding" must be "srgb" or "linear"');
   const lights = parseDirset(name, 'lights', m.lights);
   const views = parseDirset(name, 'views', m.views);
   const blocks = m.blocks;
@@ -267,7 +270,7 @@ export function parseManifest(m) {
   const comps = [...new Set(chunks.map((c) => c.component))];
   return {
     name, version: layout, manifestVersion: m.version, levels: lv.levels, components: comps, width: m.width, height: m.height, bits: m.bits,
-    lights, views, viewBlock, nBlocks: nb,
+    linear: m.encoding === 'linear', lights, views, viewBlock, nBlocks: nb,
     atlas: {cols: a.cols, rows: a.rows, width: a.width, height: a.height}, chunks,
     totalBytes: chunks.reduce((s, c) => s + c.bytes, 0),
   };

@@ -62,6 +62,16 @@ describe('btf-package.js', () => {
     });
   });
 
+  it('reads "encoding" as the C reader does: absent or "srgb" sRGB, "linear" linear, anything else refused', () => {
+    const withEncoding = (e) => Object.assign(manifest(), e === undefined ? {} : {encoding: e});
+    assert.equal(pkgMod.parseManifest(withEncoding(undefined)).linear, false);
+    assert.equal(pkgMod.parseManifest(withEncoding('srgb')).linear, false);
+    assert.equal(pkgMod.parseManifest(withEncoding('linear')).linear, true);
+    for (const e of ['Linear', 'rgb', '', 1, true, null, ['linear'], {linear: 1}])
+      assert.throws(() => pkgMod.parseManifest(withEncoding(e)), /package m: "encoding" must be "srgb" or "linear"/,
+        JSON.stringify(e));
+  });
+
   it('dequantises weights as lo + step * q in float32 and checks the size', () => {
     const p = pkgMod.parseManifest(manifest());
     const n = 81 * 81 * 3, q = new Uint16Array(n);
