@@ -12,6 +12,8 @@
 #include <cstring>
 #include <memory>
 #include <string>
+#include <vector>
+#include <algorithm>
 #include <strings.h>
 #include <unistd.h>
 
@@ -121,6 +123,71 @@ extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *c
     *h = s.height;
     *channels = s.nchannels;
     *pixels = buf;
+    return BTF_OK;
+}
+
+// Adds row y of a w-pixel image (ch channels, float) into the reduced rows of acc
+// (ow pixels, RGB, plus a count per pixel) at box factor f; 0, or -1 with the first
+// bad sample's column in *bad.
+static int add_row(const float *row, int w, int ch, int f, double *acc, int *bad)
+{
+    for (int x = 0; x < w; x++) {
+        const float *p = row + (size_t)x * ch;
+        double *o = acc + (size_t)(x / f) * 4;
+        for (int c = 0; c < 3; c++) {
+            float v = p[ch >= 3 ? c : 0];
+            if (!(v >= 0.0f) || v > 3.0e38f) {
+                *bad = x;
+                return -1;
+            }
+            o[c] += v;
+        }
+        o[3] += 1.0;
+    }
+    return 0;
+}
+
+extern "C" btf_result btf_image_read_rgb_f32(const char *path, int max_w, int max_h, int *w, int *h, float **rgb,
+                                             btf_error *err)
+{
+    *rgb = nullptr;
+    btf_result r = BTF_OK;
+    auto in = open_input(path, 0, &r, err);
+    if (!in)
+        return r;
+    const ImageSpec &s = in->spec();
+    if (s.width < 1 || s.height < 1 || s.width > BTF_IMAGE_MAX_F32_SIDE || s.height > BTF_IMAGE_MAX_F32_SIDE ||
+        s.nchannels < 1 || s.nchannels > 4 || s.depth != 1 || max_w < 1 || max_h < 1)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d; at most %d per side)", path,
+                        s.width, s.height, s.nchannels, s.depth, BTF_IMAGE_MAX_F32_SIDE);
+    int f = 1;
+    while ((s.width + f - 1) / f > max_w || (s.height + f - 1) / f > max_h)
+        f++;
+    int ow = (s.width + f - 1) / f, oh = (s.height + f - 1) / f;
+    std::vector<float> row((size_t)s.width * s.nchannels);
+    std::vector<double> acc((size_t)ow * 4);
+    float *out = (float *)malloc((size_t)ow * oh * 3 * sizeof(float));
+    if (!out)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    for (int y = 0; y < s.height && r == BTF_OK; y++) {
+        int bad = 0;
+        if (!in->read_scanline(y, 0, TypeDesc::FLOAT, row.data()))
+            r = btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode row %d (%s)", path, y, one_line(in->geterror()).c_str());
+        else if (add_row(row.data(), s.width, s.nchannels, f, acc.data(), &bad))
+            r = btf_fail(err, BTF_ERR_FORMAT, "%s: pixel (%d, %d) is negative or not finite", path, bad, y);
+        if (r != BTF_OK || ((y + 1) % f && y + 1 < s.height))
+            continue;
+        for (int x = 0; x < ow; x++) /* a reduced row is complete */
+            for (int c = 0; c < 3; c++)
+                out[((size_t)(y / f) * ow + x) * 3 + c] = (float)(acc[(size_t)x * 4 + c] / acc[(size_t)x * 4 + 3]);
+        std::fill(acc.begin(), acc.end(), 0.0);
+    }
+    in->close();
+    if (r != BTF_OK) {
+        free(out);
+        return r;
+    }
+    *w = ow, *h = oh, *rgb = out;
     return BTF_OK;
 }
 

@@ -66,6 +66,17 @@ btf_result btf_image_write_smallest(const char *stem, int w, int h, const uint8_
  * any other image is BTF_ERR_FORMAT. */
 btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err);
 
+/* The largest side btf_image_read_rgb_f32 accepts. */
+#define BTF_IMAGE_MAX_F32_SIDE 65536
+/* Reads an image as linear float RGB (a grey image: R = G = B; alpha dropped), box-
+ * averaged by the smallest integer factor that makes it at most max_w x max_h while
+ * it is read, one row at a time (memory: the result plus two rows). For HDR images
+ * (Radiance .hdr, OpenEXR); 8-bit formats read as OpenImageIO converts them. A
+ * negative or non-finite sample is BTF_ERR_FORMAT naming its pixel. *rgb is malloc'd
+ * (*w * *h * 3 floats), caller frees. */
+btf_result btf_image_read_rgb_f32(const char *path, int max_w, int max_h, int *w, int *h, float **rgb,
+                                  btf_error *err);
+
 #ifdef __cplusplus
 }
 #endif
