@@ -102,7 +102,7 @@ ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread
 TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 
-.PHONY: all setup build test e2e check asan bench chart demo clean lib install uninstall
+.PHONY: all setup build test e2e check asan bench chart figure demo clean lib install uninstall
 all: build
 build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN) $(BUNDLE)
 lib: $(CODEC_LIB)
@@ -186,6 +186,11 @@ chart: setup
 	    $(wildcard $(SHARED)/data/thesis-ubo2003/wool $(SHARED)/data/thesis-ubo2003/corduroy) \
 	    --size 32 --stream-size 64 --out doc/figures
 	$(TEST_BIN) --jobs 2 --filter 'stability/*'
+
+# The README's product under the built-in studio environment (doc/figures/product-studio.png).
+figure: setup
+	$(MAKE) build
+	bash tools/figure.sh
 
 demo: setup build
 	bash tools/demo.sh

@@ -6,7 +6,10 @@
  *   thesis   the 2015 thesis's approach (shaders/bench/thesis.frag, benchmark only):
  *            precomputed 512x512 direction/weight lookup maps, 8-bit textures with
  *            4 components per texel, 8-bit weights, WebGL1-style texture() fetches;
- *   textured a plain textured surface, one texture() fetch (shaders/bench/textured.frag).
+ *   textured a plain textured surface, one texture() fetch (shaders/bench/textured.frag);
+ *   env      the product program lit by the built-in studio environment alone
+ *            (doc/lighting.md; BTF_ENV=1, BTF_POINT=0) at the same C, timed in the
+ *            same interleaved run as the point-lit product and the thesis.
  *
  * All three draw the same plane mesh (btf_render.vert, btf_render.h conventions),
  * camera (30, -90, 1.1), fov 40, the material repeated 8 x 8 so it covers the whole
@@ -32,6 +35,7 @@
 #include "btf_fs.h"
 #include "btf_gen.h"
 #include "btf_gl.h"
+#include "btf_env.h"
 #include "btf_gl_package.h"
 #include "btf_lod.h"
 #include "btf_package.h"
@@ -574,16 +578,19 @@ typedef struct product_ctx {
     const btf_gl_package *g;
     int C;
     btf_shader_program *prog;
+    const btf_env_quad *env; /* NULL: the point light; else the environment alone (doc/lighting.md) */
 } product_ctx;
 
 /* Builds pc->prog from the shaders in dir (NULL: the usual place, btf_shader_desc). */
 static int product_build(btf_gl *gl, product_ctx *pc, const char *dir)
 {
     btf_error err = {{0}};
-    btf_shader_define defs[BTF_GL_PACKAGE_DEFINES];
+    btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 2];
     char vals[BTF_GL_PACKAGE_DEFINES][16];
     btf_shader_desc sd = {.dir = dir, .program = "render", .defines = defs};
     sd.n_defines = btf_gl_package_defines(pc->g, 0, pc->C, defs, vals);
+    defs[sd.n_defines++] = (btf_shader_define){"BTF_POINT", pc->env ? "0" : "1"};
+    defs[sd.n_defines++] = (btf_shader_define){"BTF_ENV", pc->env ? "1" : "0"};
     btf_shader_program_free(gl, pc->prog);
     pc->prog = NULL;
     if (btf_shader_build(gl, &sd, &pc->prog, NULL, &err) != BTF_OK)
@@ -601,6 +608,9 @@ static int product_setup(btf_gl *gl, void *ctx)
     btf_gl_decode_settings ds = {0, 1, pc->C};
     btf_gl_package_settings(gl, pc->g, pc->prog, &ds);
     scene_uniforms(gl, pc->prog->id, pc->s);
+    btf_render_params lp = btf_render_defaults(BTF_RENDER_PLANE);
+    lp.no_point_light = pc->env != NULL;
+    btf_render_light_uniforms(gl, pc->prog->id, &lp, pc->env);
     return 0;
 }
 
@@ -633,7 +643,7 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     if (btf_lod_build(dir1, dir2, &lo, NULL, &err) != BTF_OK || btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
         btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err))
         return die("levels package", &err);
-    product_ctx pc[2] = {{s, g1, 0, NULL}, {s, g2, 0, NULL}};
+    product_ctx pc[2] = {{s, g1, 0, NULL, NULL}, {s, g2, 0, NULL, NULL}};
     bench_case c[2] = {{.setup = product_setup, .ctx = &pc[0]}, {.setup = product_setup, .ctx = &pc[1]}};
     int rc = product_build(gl, &pc[0], NULL) || product_build(gl, &pc[1], NULL) || time_frames(gl, s, t, c, 2);
     if (!rc) {
@@ -756,18 +766,20 @@ static int run_fetch(btf_gl *gl, const scene *s, const btf_gl_target *t)
 /* One C of the comparison, for the summary table. */
 typedef struct bench_row {
     int C;
-    double shader_ms, thesis_ms, e_s, m_s, e_t, m_t;
+    double shader_ms, thesis_ms, env_ms, e_s, m_s, e_t, m_t;
 } bench_row;
 
 /* The results as a markdown table, as comment lines of the results file. */
 static void print_table(const bench_row *r, int n)
 {
-    printf("# | C | product ms | thesis ms | thesis / product | fetches (product / thesis) | ALU est. | "
+    printf("# | C | product ms | thesis ms | thesis / product | environment ms | environment / point | "
+           "fetches (product / thesis) | ALU est. | "
            "RMSE vs btf_decode (product / thesis) | max error (product / thesis) |\n");
-    printf("# |---|---|---|---|---|---|---|---|\n");
+    printf("# |---|---|---|---|---|---|---|---|---|---|\n");
     for (int i = 0; i < n; i++)
-        printf("# | %d | %.1f | %.1f | %.2f | %d / %d | %d / %d | %.3f / %.3f | %.1f / %.1f |\n", r[i].C, r[i].shader_ms,
-               r[i].thesis_ms, r[i].thesis_ms / r[i].shader_ms, shader_fetches(r[i].C), thesis_fetches(r[i].C),
+        printf("# | %d | %.1f | %.1f | %.2f | %.1f | %.2f | %d / %d | %d / %d | %.3f / %.3f | %.1f / %.1f |\n", r[i].C,
+               r[i].shader_ms, r[i].thesis_ms, r[i].thesis_ms / r[i].shader_ms, r[i].env_ms,
+               r[i].env_ms / r[i].shader_ms, shader_fetches(r[i].C), thesis_fetches(r[i].C),
                shader_alu(r[i].C), thesis_alu(r[i].C), r[i].e_s, r[i].e_t, r[i].m_s, r[i].m_t);
 }
 
@@ -790,6 +802,12 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     btf_gl_package *g = NULL;
     if (btf_gl_package_upload(gl, p, dir, &g, &err))
         return die("product package", &err);
+    btf_env *env = NULL; /* the built-in studio: the environment case */
+    btf_env_quad studio;
+    if (btf_env_studio(&env, &err) != BTF_OK)
+        return die("studio", &err);
+    btf_env_quadratic(env, 0, &studio);
+    btf_env_free(env);
     GLuint thesis = build_bench_program(gl, "thesis.frag", ""), textured = build_bench_program(gl, "textured.frag", "");
     if (!thesis || !textured)
         return 1;
@@ -838,22 +856,24 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         ref_decode(p, &ref, C);
         /* product: the program specialised for the package (no levels), the filter
          * (nearest) and C, as btf render builds it (btf_gl_package_defines) */
-        product_ctx pc = {&s, g, C, prog}, pa = {&s, g, C, NULL};
+        product_ctx pc = {&s, g, C, prog, NULL}, pe = {&s, g, C, NULL, &studio}, pa = {&s, g, C, NULL, NULL};
         thesis_ctx tc = {.s = &s, .p = p, .prog = thesis};
-        bench_case c[3] = {{.setup = product_setup, .ctx = &pc}, {.setup = thesis_setup, .ctx = &tc},
-                           {.setup = product_setup, .ctx = &pa}};
-        int n_cases = alt ? 3 : 2;
-        if (product_build(gl, &pc, NULL) || (alt && product_build(gl, &pa, alt)) || thesis_create(gl, p, C, &tc.td))
+        bench_case c[4] = {{.setup = product_setup, .ctx = &pc}, {.setup = thesis_setup, .ctx = &tc},
+                           {.setup = product_setup, .ctx = &pe}, {.setup = product_setup, .ctx = &pa}};
+        int n_cases = alt ? 4 : 3;
+        if (product_build(gl, &pc, NULL) || product_build(gl, &pe, NULL) || (alt && product_build(gl, &pa, alt)) ||
+            thesis_create(gl, p, C, &tc.td))
             return 1;
         prog = pc.prog;
-        double e[3], m[3];
+        double e[4], m[4];
         if (time_frames(gl, &s, t, c, n_cases))
             return 1;
-        for (int i = 0; i < n_cases; i++)
-            if (draw_once(gl, &s, t, &c[i]) || render_error(gl, t, &ref, &e[i], &m[i]))
+        for (int i = 0; i < n_cases; i++) /* the environment's picture is not btf_decode's */
+            if (i != 2 && (draw_once(gl, &s, t, &c[i]) || render_error(gl, t, &ref, &e[i], &m[i])))
                 return 1;
         thesis_free(gl, &tc.td);
         btf_shader_program_free(gl, pa.prog);
+        btf_shader_program_free(gl, pe.prog);
         frame_cost ms_s = c[0].cost, ms_t = c[1].cost;
         printf("shader_C%d_ms %.2f ms\nthesis_C%d_ms %.2f ms\n", C, ms_s.wall_ms, C, ms_t.wall_ms);
         printf("shader_C%d_cpu_ms %.2f ms\nthesis_C%d_cpu_ms %.2f ms\n", C, ms_s.cpu_ms, C, ms_t.cpu_ms);
@@ -861,17 +881,20 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
                ms_t.cpu_ms / ms_s.cpu_ms, C, ms_s.cpu_ms / ms_tex.cpu_ms);
         printf("shader_C%d_rmse %.3f 0..255\nshader_C%d_max_err %.1f 0..255\n", C, e[0], C, m[0]);
         printf("thesis_C%d_rmse %.3f 0..255\nthesis_C%d_max_err %.1f 0..255\n", C, e[1], C, m[1]);
+        frame_cost ms_e = c[2].cost;
+        printf("env_C%d_cpu_ms %.2f ms\nenv_over_point_C%d_cpu_ratio %.3f x\nthesis_over_env_C%d_cpu_ratio %.3f x\n", C,
+               ms_e.cpu_ms, C, ms_e.cpu_ms / ms_s.cpu_ms, C, ms_t.cpu_ms / ms_e.cpu_ms);
         if (alt)
             printf("alt_C%d_cpu_ms %.2f ms\nthesis_over_alt_C%d_cpu_ratio %.3f x\nalt_over_shader_C%d_cpu_ratio %.3f x\n"
                    "alt_C%d_rmse %.3f 0..255\nalt_C%d_max_err %.1f 0..255\n",
-                   C, c[2].cost.cpu_ms, C, ms_t.cpu_ms / c[2].cost.cpu_ms, C, c[2].cost.cpu_ms / ms_s.cpu_ms, C, e[2], C,
-                   m[2]);
+                   C, c[3].cost.cpu_ms, C, ms_t.cpu_ms / c[3].cost.cpu_ms, C, c[3].cost.cpu_ms / ms_s.cpu_ms, C, e[3], C,
+                   m[3]);
         printf("shader_C%d_fetches %d per_fragment\nthesis_C%d_fetches %d per_fragment\n", C, shader_fetches(C), C,
                thesis_fetches(C));
         printf("shader_C%d_alu %d per_fragment_est\nthesis_C%d_alu %d per_fragment_est\n", C, shader_alu(C), C,
                thesis_alu(C));
         fflush(stdout);
-        rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, e[0], m[0], e[1], m[1]};
+        rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, ms_e.cpu_ms, e[0], m[0], e[1], m[1]};
     }
     print_table(rows, n_rows);
     if (!getenv("BENCH_MAX_C") && (run_levels(gl, p, dir, &s, t) || run_fetch(gl, &s, t)))

@@ -10,9 +10,10 @@
 # manifest), package (package files: textures, weights, 8-bit weights, manifest),
 # thesis (thesis packages), ubo2003_name (image file names), roundtrip (random
 # small BTFs through compress + read + decode), gltf (glTF models of the GL host,
-# shaders/host/btf_gltf.cpp), request (btfd's request parser, server/build.mk).
+# shaders/host/btf_gltf.cpp), hdr (environment images, shaders/host/btf_env.c),
+# request (btfd's request parser, server/build.mk).
 
-FUZZ_CODEC        := dirset dfmf manifest package thesis ubo2003_name roundtrip gltf
+FUZZ_CODEC        := dirset dfmf manifest package thesis ubo2003_name roundtrip gltf hdr
 FUZZ_CODEC_OBJ    := $(FUZZ_CODEC:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 FUZZ_CODEC_REPLAY := $(FUZZ_CODEC:%=$(BUILD)/fuzz/replay_%)
 FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS)) -lstdc++ -lm

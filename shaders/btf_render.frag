@@ -1,8 +1,10 @@
-// btf_render.frag - shades a surface with the package decoder (btf_dirs.glsl and
-// btf_decode.glsl come before this file). Light and eye are turned into the
-// surface's local frame (x = tangent, y = cross(normal, tangent) * w, z = normal)
-// and passed to btf_decode; the result is the BTF's own value (sRGB-encoded,
-// cos(theta_light) included, as measured), clamped to 0..1 for display.
+// btf_render.frag - shades a surface with the package decoder (btf_dirs.glsl,
+// btf_decode.glsl and btf_light.glsl come before this file). Light and eye are turned
+// into the surface's local frame (x = tangent, y = cross(normal, tangent) * w,
+// z = normal). The point light's value is the BTF's own (cos(theta_light) included, as
+// measured); the environment's is its light sum (doc/lighting.md). Both are made
+// linear, scaled by u_exposure, tone mapped and encoded as sRGB. A point light alone
+// with exposure 1 and no tone mapping shows the BTF's own values, clamped to 0..1.
 // With u_horizon_fade = 1 a light beyond the outermost measured light ring (where
 // the decoder holds that ring's values) fades linearly in cos(theta_light) to 0 at
 // the horizon and stays 0 below it: no lit back side on curved objects.
@@ -57,10 +59,20 @@ void main()
     float lod = btf_render_lod(uv); // outside any branch: derivatives need uniform control flow
     if (u_btf_lod_auto == 0)
         lod = u_btf_lod;
-    vec3 rgb = btf_decode_lod(uv, l, v, lod);
+    vec3 pt, env;
+    btf_light_decode(uv, l, v, mat3(t, b, n), lod, pt, env);
     if (u_horizon_fade != 0)
-        rgb *= btf_render_horizon(l);
-    o_color = vec4(clamp(rgb, 0.0, 1.0), 1.0);
+        pt *= btf_render_horizon(l);
+    vec3 rgb;
+    if (!BTF__ENV && u_btf_linear == 0 && u_tone == 0 && u_exposure == 1.0)
+        rgb = clamp(pt, 0.0, 1.0); // the measured values as they are
+    else {
+        vec3 lin = BTF__POINT ? btf_light_linear(pt) : vec3(0.0);
+        if (BTF__ENV)
+            lin += btf_light_linear(env);
+        rgb = btf_light_srgb(btf_light_tonemap(u_exposure * lin, u_tone));
+    }
+    o_color = vec4(rgb, 1.0);
 #ifdef BTF_RENDER_DEBUG
     o_uv = vec4(uv, lod, 0.0);
     o_light = vec4(l, 0.0);

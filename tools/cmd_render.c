@@ -32,6 +32,7 @@ typedef struct render_opts {
     int n_bind;         /* --bind NAME=DIR[,REPEAT], into bind[1..]; bind[0] is PACKAGE's "*" */
     btf_scene_binding bind[BTF_SCENE_MAX_BINDINGS];
     char bind_text[BTF_SCENE_MAX_BINDINGS][512];
+    const char *environment; /* --environment FILE|studio (loaded by render_main) */
 } render_opts;
 
 static void render_usage(FILE *f)
@@ -41,6 +42,8 @@ static void render_usage(FILE *f)
                "                  [--fov DEG] [--repeat R] [--filter nearest|bilinear]\n"
                "                  [--no-horizon-fade] [--backend egl|osmesa] [--background R,G,B]\n"
                "                  [--model FILE.glb|FILE.gltf [--bind MATERIAL=DIR[,REPEAT]]...]\n"
+               "                  [--environment FILE.hdr|studio [--environment-rotation DEG]]\n"
+               "                  [--no-light] [--exposure E] [--tone-mapping auto|none|neutral|aces]\n"
                "\n"
                "Renders the package directory PACKAGE (its first N chunks; default: every chunk\n"
                "present) headless with the shaders the browser runs, and writes OUT (PNG).\n"
@@ -66,7 +69,15 @@ static void render_usage(FILE *f)
                "                       the model (+y up in the file is +z here; --camera T,P,D\n"
                "                       sets the distance)\n"
                "  --bind M=DIR[,R]     with --model: the package DIR on the parts of material M\n"
-               "                       (R repeats per uv unit, default 1); repeatable\n");
+               "                       (R repeats per uv unit, default 1); repeatable\n"
+               "  --environment FILE   environment light: an equirectangular HDR image (Radiance\n"
+               "                       .hdr, OpenEXR; row 0 up) or studio, the built-in one\n"
+               "                       (doc/lighting.md); the point light stays unless --no-light\n"
+               "  --environment-rotation DEG  turns the environment about +z (default 0)\n"
+               "  --no-light           no point light (needs --environment)\n"
+               "  --exposure E         linear scale of the light before tone mapping (default 1)\n"
+               "  --tone-mapping T     auto (default: neutral with an environment, else none),\n"
+               "                       none, neutral (Khronos PBR Neutral) or aces\n");
     btf_args_exit_codes(f);
 }
 
@@ -168,6 +179,14 @@ static int render_option(void *ctx, const btf_args *a, int c, const char *val)
         want = "egl|osmesa";
         break;
     case 'H': p->horizon_fade = 0; break;
+    case 'e': o->environment = val; break;
+    case 'R': ok = render_floats(val, &p->env_rotation, 1, 1), want = "degrees"; break;
+    case 'x': ok = render_floats(val, &p->exposure, 1, 1) && p->exposure >= 0.0f, want = "a number >= 0"; break;
+    case 't':
+        p->tone_mapping = btf_render_tone_from_name(val);
+        ok = p->tone_mapping >= 0, want = "auto|none|neutral|aces";
+        break;
+    case 'L': p->no_point_light = 1; break;
     }
     return ok ? 0 : btf_args_bad(a, val, "%s", want);
 }
@@ -195,7 +214,8 @@ static int render_parse(int argc, char **argv, render_opts *o)
     static const btf_args_spec spec = {"render",
                                        "chunks:n geometry:g size:s camera:c light:l "
                                        "fov:F repeat:r filter:f backend:b background:B no-horizon-fade!H "
-                                       "model:m bind:M",
+                                       "model:m bind:M environment:e environment-rotation:R exposure:x "
+                                       "tone-mapping:t no-light!L",
                                        render_usage, 2};
     memset(o, 0, sizeof *o);
     btf_render_geometry g = BTF_RENDER_PLANE;
@@ -207,7 +227,13 @@ static int render_parse(int argc, char **argv, render_opts *o)
     if (rc)
         return rc;
     btf_error err = {{0}};
-    if (btf_render_check_params(&o->p, &err) != BTF_OK) {
+    if (o->p.no_point_light && !o->environment) {
+        fprintf(stderr, "btf render: --no-light needs --environment\n");
+        return 2;
+    }
+    btf_render_params checked = o->p;
+    checked.no_point_light = 0; /* the environment is loaded later */
+    if (btf_render_check_params(&checked, &err) != BTF_OK) {
         fprintf(stderr, "btf render: %s\n", err.msg);
         return 2;
     }
@@ -271,7 +297,12 @@ static int render_main(void *opts)
     render_opts *o = opts;
     render_find_shaders();
     btf_error err = {{0}};
-    btf_result r = o->model ? render_model(o, &err) : btf_render_png(o->pkg, &o->p, o->backend, o->out, &err);
+    btf_env *env = NULL;
+    btf_result r = o->environment ? btf_env_load(o->environment, &env, &err) : BTF_OK;
+    o->p.env = env;
+    if (r == BTF_OK)
+        r = o->model ? render_model(o, &err) : btf_render_png(o->pkg, &o->p, o->backend, o->out, &err);
+    btf_env_free(env);
     if (r != BTF_OK) {
         fprintf(stderr, "btf render: %s\n", err.msg);
         return 1;

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "btf_env.h"
 #include "btf_lod.h"
 #include "btf_common.h"
 
@@ -213,6 +214,73 @@ static btf_result btf__upload_weights(btf_gl *gl, btf_gl_package *g, const btf_p
     return btf_gl_check(gl, "uploading the weights", err);
 }
 
+/* G_j of doc/lighting.md section 3 for one slot from its weights w (layout
+ * (v*L + l)*3 + ch) into g (layout (v*9 + j)*3 + ch); m: the light cells
+ * (btf_env_cells). Returns the largest |G|. */
+static double btf__env_g(int L, int V, const float *w, const double *m, float *g)
+{
+    double big = 0.0;
+    for (int v = 0; v < V; v++)
+        for (int j = 0; j < BTF_ENV_FUNCS; j++)
+            for (int ch = 0; ch < 3; ch++) {
+                double sum = 0.0;
+                for (int l = 0; l < L; l++)
+                    sum += w[((size_t)v * L + l) * 3 + ch] * m[(size_t)l * BTF_ENV_FUNCS + j];
+                sum /= 3.14159265358979323846;
+                g[((size_t)v * BTF_ENV_FUNCS + j) * 3 + ch] = (float)sum;
+                big = fmax(big, fabs(sum));
+            }
+    return big;
+}
+
+/* One slot's G at scale s into its channel (slot % 4) of buf, the layer of its 4:
+ * texel (j, v) = R | G << 11 | B << 22, codes m + round(G / s * (m - 1)) with m =
+ * 1024, 1024, 512 (shaders/btf_light.glsl). */
+static void btf__env_pack(int V, const float *g, double s, int slot, uint32_t *buf)
+{
+    static const int mid[3] = {1024, 1024, 512}, shift[3] = {0, 11, 22};
+    for (int v = 0; v < V; v++)
+        for (int j = 0; j < BTF_ENV_FUNCS; j++) {
+            uint32_t u = 0;
+            for (int ch = 0; ch < 3; ch++) {
+                long q = mid[ch] + lrint(g[((size_t)v * BTF_ENV_FUNCS + j) * 3 + ch] / s * (mid[ch] - 1));
+                u |= (uint32_t)q << shift[ch];
+            }
+            buf[((size_t)v * BTF_ENV_FUNCS + j) * 4 + slot % 4] = u;
+        }
+}
+
+/* u_btf_env_w: RGBA32UI array, 9 x V, layer h = slots 4h..4h+3; u_btf_env_s their scales. */
+static btf_result btf__upload_env_weights(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    int L = p->lights.n_dirs, V = p->views.n_dirs, quads = btf__quads(g->n_chunks);
+    size_t layer = (size_t)V * BTF_ENV_FUNCS * 4;
+    double *m = malloc((size_t)L * BTF_ENV_FUNCS * sizeof *m);
+    float *gv = malloc((size_t)V * BTF_ENV_FUNCS * 3 * sizeof(float));
+    uint32_t *buf = calloc(layer * quads, sizeof(uint32_t));
+    g->env_s = calloc((size_t)quads * 4, sizeof(float));
+    btf_result r = m && gv && buf && g->env_s ? btf_env_cells(&p->lights, m, err)
+                                              : btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
+    for (int j = 0, next = 0; r == BTF_OK && j < p->n_loaded; j++)
+        if (g->chunk_slot[j] == next) {
+            double big = btf__env_g(L, V, p->wt[j], m, gv);
+            g->env_s[next] = big > 0.0 ? (float)big : 1.0f;
+            btf__env_pack(V, gv, g->env_s[next], next, buf + layer * (next / 4));
+            next++;
+        }
+    if (r == BTF_OK) {
+        f->GenTextures(1, &g->env_w);
+        f->BindTexture(GL_TEXTURE_2D_ARRAY, g->env_w);
+        f->TexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_RGBA32UI, BTF_ENV_FUNCS, V, quads, 0, GL_RGBA_INTEGER, GL_UNSIGNED_INT,
+                      buf);
+        btf__nearest_params(f, GL_TEXTURE_2D_ARRAY);
+        r = btf_gl_check(gl, "uploading the environment weights", err);
+    }
+    free(m), free(gv), free(buf);
+    return r;
+}
+
 /* The direction tables (the same btf_dirtab the CPU decoder reads) and the horizon. */
 static btf_result btf__upload_dirs(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
 {
@@ -268,12 +336,14 @@ void btf_gl_package_free(btf_gl *gl, btf_gl_package *g)
         return;
     btf_gl_texture_free(gl, g->tex);
     btf_gl_texture_free(gl, g->wt);
+    btf_gl_texture_free(gl, g->env_w);
     btf_gl_dirs_free(gl, &g->dirs);
     free(g->chunk_slot);
     free(g->chunk_level);
     free(g->tq);
     free(g->wq);
     free(g->ms);
+    free(g->env_s);
     free(g);
 }
 
@@ -309,6 +379,8 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
     if (r == BTF_OK)
         r = btf__upload_weights(gl, g, p, err);
     if (r == BTF_OK)
+        r = btf__upload_env_weights(gl, g, p, err);
+    if (r == BTF_OK)
         r = btf__upload_dirs(gl, g, p, err);
     if (r != BTF_OK)
         btf_gl_package_free(gl, g), g = NULL;
@@ -331,8 +403,11 @@ btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_sh
     const btf_gl_api *f = btf_gl_fn(gl);
     static const char *names[2] = {"u_btf_tex", "u_btf_wt"};
     const GLuint tex[2] = {g->tex, g->wt};
+    int env = f->GetUniformLocation(prog->id, "u_btf_env_w") >= 0;
     for (int i = 0; i < 2; i++) {
         GLint loc = f->GetUniformLocation(prog->id, names[i]);
+        if (loc < 0 && i == 1 && env)
+            continue; /* environment light alone: no light weights */
         if (loc < 0)
             return btf_fail(err, BTF_ERR_MISSING, "shader '%s': no sampler %s", prog->name, names[i]);
         f->ActiveTexture((GLenum)(GL_TEXTURE0 + first_unit + i));
@@ -348,6 +423,16 @@ btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_sh
     GLint tq = f->GetUniformLocation(prog->id, "u_btf_tq");
     if (tq >= 0)
         f->Uniform4fv(tq, 2 * btf__quads(g->n_chunks), g->tq);
+    GLint ew = f->GetUniformLocation(prog->id, "u_btf_env_w");
+    if (ew >= 0) { /* programs lit by an environment */
+        f->ActiveTexture((GLenum)(GL_TEXTURE0 + first_unit + 4));
+        f->BindTexture(GL_TEXTURE_2D_ARRAY, g->env_w);
+        f->Uniform1i(ew, first_unit + 4);
+        GLint es = f->GetUniformLocation(prog->id, "u_btf_env_s");
+        if (es >= 0)
+            f->Uniform4fv(es, btf__quads(g->n_chunks), g->env_s);
+    }
+    btf__set_int(f, prog, "u_btf_linear", g->src->linear);
     btf_gl_decode_settings s = {0};
     btf_gl_package_settings(gl, g, prog, &s);
     btf_gl_package_lod(gl, prog, 0, 0.0f);

@@ -41,6 +41,8 @@ typedef struct btf_gl_package {
     int n_chunks;      /* slots uploaded (version 1: the package's loaded chunks) */
     btf_dirset lights, views;
     GLuint tex, wt;    /* u_btf_tex, u_btf_wt */
+    GLuint env_w;      /* u_btf_env_w: the environment's G_j (doc/lighting.md 3), 11/11/10-bit codes */
+    float *env_s;      /* 4 per 4 slots: u_btf_env_s, the scale of each slot's G (malloc'd) */
     btf_gl_dirs dirs;  /* direction tables */
     int n_levels;      /* spatial levels N (1 in version 1) */
     int n_loaded;      /* chunks of the package that were uploaded */
@@ -61,7 +63,8 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
                                  btf_error *err);
 void btf_gl_package_free(btf_gl *gl, btf_gl_package *g);
 
-/* Binds the 4 textures to units first_unit..first_unit+3 and sets every u_btf_*
+/* Binds the 4 textures to units first_unit..first_unit+3 (u_btf_env_w, where the
+ * program has it, to first_unit+4) and sets every u_btf_*
  * uniform of prog (in use): chunks used = all uploaded. */
 btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_shader_program *prog, int first_unit,
                                btf_error *err);

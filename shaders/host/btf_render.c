@@ -1,5 +1,6 @@
 /* btf_render.c - scene setup and drawing for `btf render` (see btf_render.h). */
 #include "btf_render.h"
+#include "btf_env.h"
 
 #include "btf_image.h"
 #include "btf_shader.h"
@@ -46,7 +47,17 @@ btf_render_params btf_render_defaults(btf_render_geometry g)
     p.repeat = 1.0f;
     p.filter = 1;
     p.horizon_fade = 1;
+    p.exposure = 1.0f;
     return p;
+}
+
+int btf_render_tone_from_name(const char *name)
+{
+    static const char *const names[BTF_TONE_COUNT] = {"auto", "none", "neutral", "aces"};
+    for (int i = 0; name && i < BTF_TONE_COUNT; i++)
+        if (!strcmp(name, names[i]))
+            return i;
+    return -1;
 }
 
 static int btf__finite(float x) { return x == x && fabsf(x) <= 1e30f; }
@@ -85,6 +96,14 @@ btf_result btf_render_check_params(const btf_render_params *p, btf_error *err)
             return btf_fail(err, BTF_ERR_RANGE, "render: camera target component %d is not finite or beyond 1e6", c);
     if (!btf__finite(p->extent) || p->extent < 0.0f || p->extent > 1e6f)
         return btf_fail(err, BTF_ERR_RANGE, "render: extent %g outside [0, 1e6]", (double)p->extent);
+    if (!btf__finite(p->exposure) || p->exposure < 0.0f || p->exposure > 1e6f)
+        return btf_fail(err, BTF_ERR_RANGE, "render: exposure %g outside [0, 1e6]", (double)p->exposure);
+    if (!btf__finite(p->env_rotation) || fabsf(p->env_rotation) > 1e6f)
+        return btf_fail(err, BTF_ERR_RANGE, "render: environment rotation is not finite or beyond 1e6");
+    if ((unsigned)p->tone_mapping >= BTF_TONE_COUNT)
+        return btf_fail(err, BTF_ERR_ARG, "render: unknown tone mapping %d", p->tone_mapping);
+    if (p->no_point_light && !p->env)
+        return btf_fail(err, BTF_ERR_ARG, "render: no light (the point light is off and no environment is given)");
     return BTF_OK;
 }
 
@@ -268,12 +287,38 @@ void btf_render_mesh_free(btf_render_mesh *m)
 /* Everything one renderer owns on the GPU; see btf_renderer_create. */
 struct btf_renderer {
     btf_gl *gl;
-    btf_shader_program *prog;
+    btf_shader_program *prog;     /* the one in use: one of progs */
+    btf_shader_program *progs[4]; /* by lights: 1 point, 2 environment, 3 both; built when first used */
+    int debug;
+    btf_env_quad quad;            /* the environment's quadratic, for quad_env turned quad_rot */
+    const btf_env *quad_env;
+    float quad_rot;
     btf_gl_package *pkg;
     btf_render_geometry mesh_geometry; /* geometry in vbo/ibo; -1 none yet */
     GLuint vao, vbo, ibo;
     int n_indices;
 };
+
+/* Makes progs[lights] (1 point, 2 environment, 3 both) current, building it first:
+ * specialised for the package (levels, layers in use) and the lights; the filter stays
+ * a uniform. */
+static btf_result btf__renderer_program(btf_renderer *r, int lights, btf_error *err)
+{
+    if (!r->progs[lights]) {
+        btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 2];
+        char vals[BTF_GL_PACKAGE_DEFINES][16];
+        int n = btf_gl_package_defines(r->pkg, 0, 0, defs, vals);
+        defs[0] = (btf_shader_define){"BTF_RENDER_DEBUG", "1"}; /* in place of BTF_FILTER: a uniform here */
+        defs[n] = (btf_shader_define){"BTF_POINT", lights & 1 ? "1" : "0"};
+        defs[n + 1] = (btf_shader_define){"BTF_ENV", lights & 2 ? "1" : "0"};
+        btf_shader_desc sd = {.program = "render", .defines = r->debug ? defs : defs + 1, .n_defines = n + 1 + !!r->debug};
+        btf_result res = btf_shader_build(r->gl, &sd, &r->progs[lights], NULL, err);
+        if (res != BTF_OK)
+            return res;
+    }
+    r->prog = r->progs[lights];
+    return BTF_OK;
+}
 
 btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir, int debug, btf_renderer **out,
                                btf_error *err)
@@ -286,16 +331,10 @@ btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir
         return btf_fail(err, BTF_ERR_NOMEM, "renderer: out of memory");
     r->gl = gl;
     r->mesh_geometry = (btf_render_geometry)-1;
+    r->debug = debug;
     btf_result res = btf_gl_package_upload(gl, p, dir, &r->pkg, err);
-    if (res == BTF_OK) { /* specialised for the package (levels, layers in use); the filter stays a uniform */
-        btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 1];
-        char vals[BTF_GL_PACKAGE_DEFINES][16];
-        btf_gl_package_defines(r->pkg, 0, 0, defs, vals);
-        defs[0] = (btf_shader_define){"BTF_RENDER_DEBUG", "1"};
-        btf_shader_desc sd = {.program = "render", .defines = debug ? defs : defs + 1,
-                              .n_defines = BTF_GL_PACKAGE_DEFINES - !debug};
-        res = btf_shader_build(gl, &sd, &r->prog, NULL, err);
-    }
+    if (res == BTF_OK)
+        res = btf__renderer_program(r, 1, err);
     if (res != BTF_OK) {
         btf_renderer_free(r);
         return res;
@@ -322,7 +361,8 @@ void btf_renderer_free(btf_renderer *r)
     if (r->vao)
         f->DeleteVertexArrays(1, &r->vao);
     btf_gl_package_free(r->gl, r->pkg);
-    btf_shader_program_free(r->gl, r->prog);
+    for (int i = 0; i < 4; i++)
+        btf_shader_program_free(r->gl, r->progs[i]);
     free(r);
 }
 
@@ -370,12 +410,35 @@ static void btf__renderer_uniforms(btf_renderer *r, const btf_render_params *p, 
     f->Uniform4f(f->GetUniformLocation(id, "u_light"), c->light[0], c->light[1], c->light[2], 0.0f);
     f->Uniform2f(f->GetUniformLocation(id, "u_uv_scale"), c->uv_scale[0], c->uv_scale[1]);
     f->Uniform1i(f->GetUniformLocation(id, "u_horizon_fade"), p->horizon_fade ? 1 : 0);
+    if (p->env && (p->env != r->quad_env || p->env_rotation != r->quad_rot)) {
+        btf_env_quadratic(p->env, p->env_rotation, &r->quad);
+        r->quad_env = p->env, r->quad_rot = p->env_rotation;
+    }
+    btf_render_light_uniforms(r->gl, id, p, p->env ? &r->quad : NULL);
     btf_gl_decode_settings s = {p->filter, c->wrap, p->n_chunks};
     btf_gl_package_settings(r->gl, r->pkg, r->prog, &s);
 }
 
+void btf_render_light_uniforms(btf_gl *gl, GLuint prog, const btf_render_params *p, const btf_env_quad *q)
+{
+    const btf_gl_api *f = btf_gl_fn(gl);
+    f->Uniform1i(f->GetUniformLocation(prog, "u_point_off"), p->no_point_light ? 1 : 0);
+    f->Uniform1i(f->GetUniformLocation(prog, "u_env_on"), q ? 1 : 0);
+    f->Uniform1f(f->GetUniformLocation(prog, "u_exposure"), p->exposure);
+    int tone = p->tone_mapping == BTF_TONE_AUTO ? (q ? BTF_TONE_NEUTRAL : BTF_TONE_NONE) : p->tone_mapping;
+    f->Uniform1i(f->GetUniformLocation(prog, "u_tone"), tone - BTF_TONE_NONE);
+    if (!q)
+        return;
+    f->Uniform3fv(f->GetUniformLocation(prog, "u_env_c0"), 1, q->c0);
+    f->UniformMatrix3fv(f->GetUniformLocation(prog, "u_env_a"), 1, GL_FALSE, q->a);
+    f->UniformMatrix3fv(f->GetUniformLocation(prog, "u_env_q"), 3, GL_FALSE, q->q);
+}
+
 btf_result btf_renderer_use(btf_renderer *r, const btf_render_params *p, const btf_render_camera *c, btf_error *err)
 {
+    btf_result pr = btf__renderer_program(r, (p->no_point_light ? 0 : 1) | (p->env ? 2 : 0), err);
+    if (pr != BTF_OK)
+        return pr;
     btf_gl_fn(r->gl)->UseProgram(r->prog->id);
     btf_result res = btf_gl_package_bind(r->gl, r->pkg, r->prog, 0, err);
     if (res == BTF_OK)

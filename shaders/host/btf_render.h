@@ -30,8 +30,10 @@
  *   field of view fov_deg across the narrower side (vertical when width >= height;
  *   taller than wide: horizontal, tan(fovy/2) = tan(fov/2) / aspect), aspect =
  *   width/height, near 0.05*dist, far dist + 2*extent (extent 0: 2).
- * - Light: distant, towards dir(light_theta, light_phi) (u_light.w = 0).
- * Output values are the BTF's own (sRGB-encoded, byte/255 scale), clamped to 0..1.
+ * - Light: distant, towards dir(light_theta, light_phi) (u_light.w = 0), unless
+ *   no_point_light; an environment (env) lights too when given.
+ * Output: with the point light alone, exposure 1 and no tone mapping, the BTF's own
+ * values (byte/255 scale), clamped to 0..1; else doc/lighting.md section 4.
  *
  * Limitations: one material per draw; convex objects only (depth-tested, no
  * shadows between objects); the whole loaded package is uploaded.
@@ -40,6 +42,7 @@
 #define BTF_RENDER_H
 
 #include "btf_gl.h"
+#include "btf_env.h"
 #include "btf_gl_package.h"
 #include "btf_package.h"
 
@@ -76,7 +79,24 @@ typedef struct btf_render_params {
     float target[3];                /* the point the camera looks at (0 = the origin) */
     float extent;                   /* radius around target of what is drawn (the far plane);
                                        0 = 2, the built-in geometries' */
+    int no_point_light;             /* 1: the distant light is off (doc/lighting.md) */
+    const btf_env *env;             /* environment light (btf_env.h; NULL none), not owned */
+    float env_rotation;             /* degrees about +z */
+    float exposure;                 /* linear scale before tone mapping, 0..1e6 (default 1) */
+    int tone_mapping;               /* btf_render_tone */
 } btf_render_params;
+
+/* Tone mappings (doc/lighting.md 4); auto: neutral under an environment, else none. */
+typedef enum btf_render_tone {
+    BTF_TONE_AUTO = 0,
+    BTF_TONE_NONE = 1,
+    BTF_TONE_NEUTRAL = 2,
+    BTF_TONE_ACES = 3,
+    BTF_TONE_COUNT
+} btf_render_tone;
+
+/* "auto" / "none" / "neutral" / "aces"; -1 if unknown. */
+int btf_render_tone_from_name(const char *name);
 
 /* Defaults for a geometry: 320 x 240, a camera that frames the object in any aspect,
  * a light 28 to 35 degrees off the camera (plane (30, -90, 3.5), sphere (60, -90, 3.6),
@@ -135,6 +155,10 @@ btf_result btf_renderer_create(btf_gl *gl, const btf_package *p, const char *dir
 void btf_renderer_free(btf_renderer *r);
 /* The package on the GPU that r draws (owned by r). */
 const btf_gl_package *btf_renderer_package(const btf_renderer *r);
+/* Sets the light uniforms of shaders/btf_light.glsl on prog (in use) for p: point
+ * light on/off, environment quadratic (q: from btf_env_quadratic, NULL when p->env is
+ * NULL), exposure, tone mapping. */
+void btf_render_light_uniforms(btf_gl *gl, GLuint prog, const btf_render_params *p, const btf_env_quad *q);
 /* Clears t to the background (depth too), draws the scene, waits for the GPU. */
 btf_result btf_renderer_draw(btf_renderer *r, const btf_render_params *p, btf_gl_target *t, btf_error *err);
 

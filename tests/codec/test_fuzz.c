@@ -65,7 +65,8 @@ static int corpus_size(const char *name)
 
 Test(fuzz, every_corpus_replays)
 {
-    static const char *targets[] = {"dirset", "dfmf", "manifest", "package", "thesis", "ubo2003_name", "roundtrip", "gltf"};
+    static const char *targets[] = {"dirset", "dfmf",      "manifest", "package", "thesis",
+                                    "ubo2003_name", "roundtrip", "gltf", "hdr"};
     for (size_t i = 0; i < sizeof targets / sizeof targets[0]; i++) {
         int want = corpus_size(targets[i]);
         cr_expect_gt(want, 0, "fuzz/corpus/%s is empty", targets[i]);

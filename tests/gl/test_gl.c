@@ -713,6 +713,7 @@ Test(gl, interp_direction_list_both_backends)
 
 #include "btf_gen.h"
 #include "btf_gl_package.h"
+#include "btf_render.h"
 #include "btf_package.h"
 #include "btf_decode.h"
 
@@ -1077,6 +1078,8 @@ static void check_render_plane(btf_gl_backend b, int filter, float uv_scale)
     f->Uniform3f(f->GetUniformLocation(prog->id, "u_camera"), (float)eye.x, (float)eye.y, (float)eye.z);
     f->Uniform4f(f->GetUniformLocation(prog->id, "u_light"), (float)light.x, (float)light.y, (float)light.z, 0.0f);
     f->Uniform2f(f->GetUniformLocation(prog->id, "u_uv_scale"), uv_scale, uv_scale);
+    btf_render_params lp = btf_render_defaults(BTF_RENDER_PLANE); /* the point light alone, exposure 1 */
+    btf_render_light_uniforms(gl, prog->id, &lp, NULL);
     f->DrawArrays(GL_TRIANGLES, 0, 6);
     cr_assert_eq(btf_gl_check(gl, "drawing the plane", &err), BTF_OK, "%s", err.msg);
     static float out[4][RW * RW * 4];
