@@ -3,8 +3,8 @@
 // harmonics of order <= 2 and written as the quadratic c0 + a.d + d^T Q d per channel
 // (section 3), turned by a rotation (a -> R a, Q -> R Q R^T), the light cells of a
 // package's light directions (section 1.1) and the material side G of the shader
-// (section 3, the texture u_btf_env_w). Double precision throughout; what goes to the GPU
-// is rounded to float32 there. No DOM, no GL: usable in node.
+// (section 3; btf-gl.js packs it into u_btf_env_w). Double precision throughout; what goes
+// to the GPU is rounded to float32 there. No DOM, no GL: usable in node.
 import {dir} from './scene.js';
 
 export const STUDIO_WIDTH = 128;
@@ -166,10 +166,11 @@ export function lightCells(lights) {
 }
 
 // G_j(v, ch) = (1/pi) sum_i W(l_i, v, ch) M_ij of one slot (section 3): weights w as
-// dequantised (index (v L + l) 3 + ch), M of lightCells. Float32Array(27 V), index
-// 27 v + 3 j + ch: texel (3 j + ch, v) of u_btf_env_w.
+// dequantised (index (v L + l) 3 + ch), M of lightCells. Returns {g: Float32Array(27 V),
+// index 27 v + 3 j + ch, big: the largest |G| (before rounding to float32)}.
 export function envWeights(M, w, L, V) {
   const G = new Float32Array(27 * V), acc = new Float64Array(27);
+  let big = 0;
   for (let v = 0; v < V; v++) {
     acc.fill(0);
     for (let i = 0; i < L; i++) {
@@ -181,7 +182,11 @@ export function envWeights(M, w, L, V) {
         acc[3 * j + 2] += w[o + 2] * m;
       }
     }
-    for (let k = 0; k < 27; k++) G[27 * v + k] = acc[k] / Math.PI;
+    for (let k = 0; k < 27; k++) {
+      const g = acc[k] / Math.PI;
+      G[27 * v + k] = g;
+      big = Math.max(big, Math.abs(g));
+    }
   }
-  return G;
+  return {g: G, big};
 }

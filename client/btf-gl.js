@@ -4,8 +4,9 @@
 // shaders/host/btf_gl_package.c, shaders/README.md "GPU layout"), uploaded one chunk
 // at a time; version-2 packages as mip levels of per-component slots.
 
-import {buildDirtab, dirtabGpu, CELLS} from './btf-dirtab.js';
+import {buildDirtab, dirtabGpu, dirVectors, CELLS} from './btf-dirtab.js';
 import {reconstructLevel} from './btf-package.js';
+import {envWeights, lightCells} from './btf-env.js';
 
 const manifests = new Map(); // shaders base URL -> Promise of {manifest, files: Map}
 
@@ -195,19 +196,38 @@ function nearest(gl, target) {
 
 const f32 = Math.fround;
 const WQMAX = [2047, 2047, 1023], WSHIFT = [0, 11, 22];
+const ENV_MID = [1024, 1024, 512]; // the zero of u_btf_env_w's signed codes
+// Rounding to nearest, ties to even (C's lrint).
+const rint = (x) => {
+  const r = Math.round(x);
+  return r - x === 0.5 && r % 2 !== 0 ? r - 1 : r;
+};
 
 // Decoder program variants (shaders/btf_decode.glsl, "Host specialisation"): the
 // defines for a package drawn with `filter` and `slots` slots in use, as
-// btf_gl_package_defines does.
-export function decodeDefines(pkg, filter, slots) {
-  return [['BTF_FILTER', filter === 1 ? 1 : 0], ['BTF_LEVELS', pkg.version >= 2 && pkg.levels > 1 ? 1 : 0],
-          ['BTF_QUADS', Math.max(1, Math.ceil(slots / 4))]];
+// btf_gl_package_defines does; `lights` ({point, env}, shaders/btf_light.glsl) adds
+// BTF_POINT and BTF_ENV, so a frame compiles only the light terms it uses.
+export function decodeDefines(pkg, filter, slots, lights = null) {
+  const d = [['BTF_FILTER', filter === 1 ? 1 : 0], ['BTF_LEVELS', pkg.version >= 2 && pkg.levels > 1 ? 1 : 0],
+             ['BTF_QUADS', Math.max(1, Math.ceil(slots / 4))]];
+  if (lights) d.push(['BTF_POINT', lights.point ? 1 : 0], ['BTF_ENV', lights.env ? 1 : 0]);
+  return d;
+}
+
+// The light cells (btf-env.js lightCells) of a parsed light set, made once per set.
+const cellsOf = new WeakMap();
+function envCells(lights) {
+  if (!cellsOf.has(lights)) cellsOf.set(lights, lightCells(dirVectors(lights)));
+  return cellsOf.get(lights);
 }
 
 // A package's GPU layout (shaders/README.md, "GPU layout"; the C host's
 // shaders/host/btf_gl_package.c): u_btf_tex RGBA16UI layers of 4 slots at 16 bits on
 // one grid per component, N mip levels; u_btf_wt RGBA32UI layers of 4 slots as
-// 11/11/10-bit RGB; the direction tables (btf-dirtab.js). Slot s: version 1 chunk s;
+// 11/11/10-bit RGB; u_btf_env_w RGBA32UI layers of 4 slots, the environment light's G_j
+// (doc/lighting.md section 3) made from the same dequantised weights, 9 x views as signed
+// 11/11/10-bit RGB codes on one scale per slot (u_btf_env_s; shaders/btf_light.glsl); the
+// direction tables (btf-dirtab.js). Slot s: version 1 chunk s;
 // version 2 the s-th component to arrive, whose chunks are its levels. Keeps a CPU
 // copy of every layer it uploaded, so a new chunk rewrites only its slot's channel
 // (and, in version 2, the levels it fills) and growing the layer count re-uploads
@@ -228,8 +248,10 @@ export class GpuPackage {
     this.w8q = new Map();    // version 4: component -> its 8-bit weights (wt-JJ-r.z is a residual over them)
     this.texCopy = [];       // per layer, per level: Uint16Array RGBA
     this.wtCopy = [];        // per layer: Uint32Array RGBA
+    this.envCopy = [];       // per layer: Uint32Array RGBA, 9 x views
     this.tq = new Float32Array(0);
     this.wq = new Float32Array(0);
+    this.envS = new Float32Array(0); // u_btf_env_s: per slot the scale of its G codes
     const tabs = [buildDirtab(pkg.lights), buildDirtab(pkg.views)];
     const d = dirtabGpu(tabs[0], tabs[1], pkg.viewBlock);
     this.outerCos = Math.cos(pkg.lights.maxTheta * Math.PI / 180);
@@ -239,7 +261,7 @@ export class GpuPackage {
     gl.bindBuffer(gl.UNIFORM_BUFFER, null);
     this.cells = this.intTexture(CELLS, 2 * CELLS, d.cells);
     this.tris = this.intTexture(d.triWidth, d.rows, d.tris);
-    this.tex = this.wt = null;
+    this.tex = this.wt = this.envW = null;
     this.reserve(pkg.version >= 2 ? pkg.components.length : capacity);
   }
 
@@ -265,7 +287,7 @@ export class GpuPackage {
     n = pkg.version >= 2 ? pkg.components.length : Math.max(1, Math.min(n, pkg.chunks.length));
     if (n <= this.capacity) return;
     const layers = Math.ceil(n / 4), L = pkg.lights.dirs, V = pkg.views.dirs;
-    const tex = gl.createTexture(), wt = gl.createTexture();
+    const tex = gl.createTexture(), wt = gl.createTexture(), envW = gl.createTexture();
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
     if (this.levels > 1) {
@@ -276,17 +298,25 @@ export class GpuPackage {
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, wt);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
     gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, L, V, layers);
-    for (const t of [this.tex, this.wt]) if (t) gl.deleteTexture(t);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, envW);
+    nearest(gl, gl.TEXTURE_2D_ARRAY);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, 9, V, layers);
+    for (const t of [this.tex, this.wt, this.envW]) if (t) gl.deleteTexture(t);
     this.tex = tex;
     this.wt = wt;
+    this.envW = envW;
     const tq = new Float32Array(8 * layers), wq = new Float32Array(24 * layers);
+    const envS = new Float32Array(4 * layers);
     tq.set(this.tq);
     wq.set(this.wq);
+    envS.set(this.envS);
     this.tq = tq;
     this.wq = wq;
+    this.envS = envS;
     for (let h = 0; h < this.texCopy.length; h++) {
       for (let l = 0; l < this.levels; l++) this.putTex(h, l);
       this.putWt(h);
+      this.putEnv(h);
     }
     this.capacity = layers * 4;
   }
@@ -307,6 +337,14 @@ export class GpuPackage {
                      gl.UNSIGNED_INT, this.wtCopy[h]);
   }
 
+  putEnv(h) {
+    const gl = this.gl;
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.envW);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, h, 9, this.pkg.views.dirs, 1, gl.RGBA_INTEGER, gl.UNSIGNED_INT,
+                     this.envCopy[h]);
+  }
+
   // The layer copies of layer h (created empty on first use).
   layer(h) {
     const pkg = this.pkg;
@@ -315,6 +353,7 @@ export class GpuPackage {
       for (let l = 0; l < this.levels; l++) lv.push(new Uint16Array(4 * (pkg.atlas.width >> l) * (pkg.atlas.height >> l)));
       this.texCopy.push(lv);
       this.wtCopy.push(new Uint32Array(4 * pkg.lights.dirs * pkg.views.dirs));
+      this.envCopy.push(new Uint32Array(4 * 9 * pkg.views.dirs));
     }
   }
 
@@ -425,6 +464,22 @@ export class GpuPackage {
       }
     }
     this.putWt(s >> 2);
+    this.envSlot(s, w);
+  }
+
+  // G_j of slot s from its dequantised weights w (btf-env.js envWeights) into channel s % 4
+  // of its layer of u_btf_env_w: texel (j, v) = R | G << 11 | B << 22, the codes
+  // m + round(G / s (m - 1)), m = 1024, 1024, 512, s the slot's largest |G| (btf__env_pack).
+  envSlot(s, w) {
+    const pkg = this.pkg, V = pkg.views.dirs, dst = this.envCopy[s >> 2], c4 = s & 3;
+    const {g, big} = envWeights(envCells(pkg.lights), w, pkg.lights.dirs, V), scale = big > 0 ? big : 1;
+    for (let i = 0; i < 9 * V; i++) {
+      let u = 0;
+      for (let ch = 0; ch < 3; ch++) u += (ENV_MID[ch] + rint(g[3 * i + ch] / scale * (ENV_MID[ch] - 1))) * 2 ** WSHIFT[ch];
+      dst[4 * i + c4] = u;
+    }
+    this.envS[s] = scale;
+    this.putEnv(s >> 2);
   }
 
   // Uploads chunk j (must be the next one): its atlas (decoded pixels of btf-decode.js, or
@@ -472,13 +527,14 @@ export class GpuPackage {
     this.uploads++;
   }
 
-  // Binds the textures to units first..first+3 and the direction block to uniform
+  // Binds the textures to units first..first+4 and the direction block to uniform
   // buffer binding 0, and sets the u_btf_* uniforms of prog (in use), as
   // btf_gl_package_bind + btf_gl_package_settings do.
   bind(prog, first, {chunks = this.uploaded, filter = 1, wrap = 0} = {}) {
     const gl = this.gl, pkg = this.pkg;
     const units = [[gl.TEXTURE_2D_ARRAY, this.tex, 'u_btf_tex'], [gl.TEXTURE_2D_ARRAY, this.wt, 'u_btf_wt'],
-                   [gl.TEXTURE_2D, this.cells, 'u_btf_dir_cells'], [gl.TEXTURE_2D, this.tris, 'u_btf_dir_tris']];
+                   [gl.TEXTURE_2D, this.cells, 'u_btf_dir_cells'], [gl.TEXTURE_2D, this.tris, 'u_btf_dir_tris'],
+                   [gl.TEXTURE_2D_ARRAY, this.envW, 'u_btf_env_w']];
     units.forEach(([target, t, name], i) => {
       gl.activeTexture(gl.TEXTURE0 + first + i);
       gl.bindTexture(target, t);
@@ -503,6 +559,8 @@ export class GpuPackage {
     gl.uniform1i(prog.loc('u_btf_lod_auto'), 1);
     gl.uniform1i(prog.loc('u_btf_filter'), filter);
     gl.uniform1i(prog.loc('u_btf_wrap'), wrap);
+    gl.uniform1i(prog.loc('u_btf_linear'), pkg.linear ? 1 : 0);
+    gl.uniform4fv(prog.loc('u_btf_env_s'), this.envS);
   }
 
   // Pixels of a grey image decoded by the browser (a PNG such as wt-JJ-8.png, or a
@@ -516,10 +574,10 @@ export class GpuPackage {
   free() {
     const gl = this.gl;
     if (this.ubo) GpuPackage.live--;
-    for (const t of [this.tex, this.wt, this.cells, this.tris]) if (t) gl.deleteTexture(t);
+    for (const t of [this.tex, this.wt, this.envW, this.cells, this.tris]) if (t) gl.deleteTexture(t);
     if (this.ubo) gl.deleteBuffer(this.ubo);
-    this.tex = this.wt = this.cells = this.tris = this.ubo = null;
-    this.texCopy = this.wtCopy = this.q16 = this.q8 = [];
+    this.tex = this.wt = this.envW = this.cells = this.tris = this.ubo = null;
+    this.texCopy = this.wtCopy = this.envCopy = this.q16 = this.q8 = [];
   }
 }
 

@@ -1,6 +1,6 @@
 // btf-render.js - draws a package on a surface with the program "render" of
 // shaders/manifest.json (btf_render.vert, btf_dirs.glsl, btf_decode.glsl,
-// btf_render.frag): the very program `btf render` draws with in the headless C
+// btf_light.glsl, btf_render.frag): the very program `btf render` draws with in the headless C
 // harness, with the same mesh, camera and uniforms (scene.js ports shaders/host/btf_render.c);
 // and a model's parts (btf-model.js) with their packages, the unbound ones with the
 // program "flat" (btf_flat.frag), as btf_scene_draw (shaders/host/btf_scene.c) does.
@@ -9,14 +9,29 @@ import {buildProgram, decodeDefines, finishProgram, programReady, startProgram} 
 import {buildMesh, cameraMake} from './scene.js';
 
 // MeshRenderer uses the program "render" (btf_render.vert, btf_dirs.glsl,
-// btf_decode.glsl, btf_render.frag), the one `btf render` draws with: a triangle
+// btf_decode.glsl, btf_light.glsl, btf_render.frag), the one `btf render` draws with: a triangle
 // mesh of the surface (scene.js buildMesh) and the decoder per fragment, compiled
-// once per specialisation (decodeDefines: filter, levels, 4-slot layers in use), and
+// once per specialisation (decodeDefines: filter, levels, 4-slot layers in use, lights), and
 // only the ones drawn: start() sends a variant to the driver as soon as it is known
 // (the page goes on meanwhile), ready() says whether using it would wait, draw()
 // waits for it where it must.
 const FLAT_AMBIENT = 0.25; // BTF_SCENE_FLAT_AMBIENT: u_flat_ambient, the share of full light an unlit side keeps
 const IDENTITY = new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
+// The lights of a view without `lighting`: the point light alone, as measured.
+export const POINT_LIGHT = {point: true, env: null, exposure: 1, tone: 0};
+
+// Sets the uniforms of shaders/btf_light.glsl on p (in use) for lights {point, env
+// (btf-env.js envUniforms) | null, exposure, tone}, as btf_render_light_uniforms does.
+function setLights(gl, p, lights) {
+  gl.uniform1i(p.loc('u_point_off'), lights.point ? 0 : 1);
+  gl.uniform1i(p.loc('u_env_on'), lights.env ? 1 : 0);
+  gl.uniform1f(p.loc('u_exposure'), lights.exposure);
+  gl.uniform1i(p.loc('u_tone'), lights.tone);
+  if (!lights.env) return;
+  gl.uniform3fv(p.loc('u_env_c0'), lights.env.c0);
+  gl.uniformMatrix3fv(p.loc('u_env_a'), false, lights.env.a);
+  gl.uniformMatrix3fv(p.loc('u_env_q'), false, lights.env.q);
+}
 
 export class MeshRenderer {
   constructor(gl, shaders) {
@@ -70,10 +85,12 @@ export class MeshRenderer {
 
   // The variant pkg (a GpuPackage) is drawn with: `quads` 4-slot layers (default: every
   // slot the package has room for; unused slots have zero weights, so one compile per
-  // package, not one per 4 slots as chunks stream in).
-  static defines(pkg, filter, quads = 0) {
-    if (quads < 0) return decodeDefines(pkg.pkg, filter, 4).filter(([name]) => name !== 'BTF_QUADS');
-    return decodeDefines(pkg.pkg, filter, quads > 0 ? 4 * quads : Math.max(pkg.capacity, 1));
+  // package, not one per 4 slots as chunks stream in; -1: a loop over the slots in use),
+  // the light terms of `lights` ({point, env}) only.
+  static defines(pkg, filter, quads = 0, lights = POINT_LIGHT) {
+    const l = {point: !!lights.point, env: !!lights.env};
+    if (quads < 0) return decodeDefines(pkg.pkg, filter, 4, l).filter(([name]) => name !== 'BTF_QUADS');
+    return decodeDefines(pkg.pkg, filter, quads > 0 ? 4 * quads : Math.max(pkg.capacity, 1), l);
   }
 
   mesh(geometry) {
@@ -108,12 +125,13 @@ export class MeshRenderer {
     gl.clearColor(...view.background, 1);
     gl.clearDepth(1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-    const cam = cameraMake(view, w / h);
+    const cam = cameraMake(view, w / h), lights = view.lighting || POINT_LIGHT;
     gl.enable(gl.DEPTH_TEST);
     for (const l of layers) {
-      const p = this.program(MeshRenderer.defines(l.gpu, 1, l.quads));
+      const p = this.program(MeshRenderer.defines(l.gpu, 1, l.quads, lights));
       gl.useProgram(p.program);
       l.gpu.bind(p, 0, {chunks: l.chunks, filter: 1, wrap: 1});
+      setLights(gl, p, lights);
       gl.uniformMatrix4fv(p.loc('u_model'), false, IDENTITY);
       gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
       gl.uniform3fv(p.loc('u_camera'), cam.eye);
@@ -147,8 +165,8 @@ export class MeshRenderer {
 
   // Clears to the background and draws pkg (a GpuPackage) for the scene `view`
   // ({geometry, camera/light angles, fov, repeat, background, chunks, horizonFade,
-  // filter: 0 nearest, else bilinear, quads: the variant's layers, see defines}), as
-  // btf_renderer_draw does.
+  // filter: 0 nearest, else bilinear, quads: the variant's layers, see defines;
+  // lighting: {point, env, exposure, tone}, default POINT_LIGHT}), as btf_renderer_draw does.
   draw(pkg, view, w, h) {
     const gl = this.gl;
     gl.viewport(0, 0, w, h);
@@ -156,11 +174,12 @@ export class MeshRenderer {
     gl.clearDepth(1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     if (!pkg || !pkg.uploaded || !view.chunks) return;
-    const cam = cameraMake(view, w / h);
+    const cam = cameraMake(view, w / h), lights = view.lighting || POINT_LIGHT;
     const filter = view.filter === 0 ? 0 : 1;
-    const p = this.program(MeshRenderer.defines(pkg, filter, view.quads));
+    const p = this.program(MeshRenderer.defines(pkg, filter, view.quads, lights));
     gl.useProgram(p.program);
     pkg.bind(p, 0, {chunks: view.chunks, filter, wrap: cam.wrap});
+    setLights(gl, p, lights);
     gl.uniformMatrix4fv(p.loc('u_model'), false, new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
     gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
     gl.uniform3fv(p.loc('u_camera'), cam.eye);

@@ -14,7 +14,9 @@
 //     resize()                lay the canvas out again (after resolution.scale changed; at start)
 //     scene(seconds)          the scene in btf render's terms (scene.js), the orbiting light at
 //                             `seconds` after the session began: {geometry, camera and light angles,
-//                             cameraDist, fov, repeat, background; a model: target, extent}
+//                             cameraDist, fov, repeat, background, lighting (btf-lighting.js frame():
+//                             {point, env, exposure, tone, pending}); a model: target, extent}
+//     lights()                {point, env}: the light terms in use (the program variant)
 //     asked()                 {chunks: the budget-chunks attribute (null: none), bytes, threshold}
 //     policy(pkg)             chunks for a package without budget-chunks, -1 no cap (budgetPolicy)
 //     pixelsPerRepeat()       device pixels one repeat of the material spans (the scene budget)
@@ -376,6 +378,7 @@ export class BtfSession {
     if (!this.renderer || this.lost || !this.ctx || this.ctx.lost) return false;
     if (this.modelUrl && !this.model) return false;
     const v = this.view(), w = this.host.canvas.width, h = this.host.canvas.height;
+    if (v.lighting && v.lighting.pending) return false; // the environment image is on its way
     this.ctx.fit(w, h);
     if (this.model) {
       const feeds = new Map(this.feeds.map((f) => [f.material, {gpu: f.gpu, chunks: f.drawableChunks(), quads: f.quads}]));
@@ -456,7 +459,7 @@ export class BtfSession {
     this.times.program ??= this.renderer && this.feeds.some((f) => f.gpu) ? performance.now() : undefined;
     if (this.draw()) {
       this.ctx.drewIn(tick);
-      const key = (variants || []).join(',');
+      const l = this.host.lights(), key = `${(variants || []).join(',')}|${l.point ? 'p' : ''}${l.env ? 'e' : ''}`;
       this.measured = {frame: this.ctx.frameNo || 0, fresh: !this.usedVariants.has(key)};
       this.usedVariants.add(key);
     }
@@ -493,12 +496,12 @@ export class BtfSession {
   // rasteriser compiles the shader to machine code then, the longer the more layers are
   // written out) is short.
   variant(f) {
-    const r = this.renderer, g = f.gpu, software = this.ctx.software;
-    const full = MeshRenderer.defines(g, 1, software ? -1 : 0);
+    const r = this.renderer, g = f.gpu, software = this.ctx.software, lights = this.host.lights();
+    const full = MeshRenderer.defines(g, 1, software ? -1 : 0, lights);
     if (software) return r.ready(full) ? -1 : null;
     if (g.capacity > 4 && g.slots <= 4 && !r.progs.has(MeshRenderer.key(full))) {
       if (this.loaded) r.start(full);
-      return r.ready(MeshRenderer.defines(g, 1, 1)) ? 1 : null;
+      return r.ready(MeshRenderer.defines(g, 1, 1, lights)) ? 1 : null;
     }
     return r.ready(full) ? 0 : null;
   }
@@ -506,9 +509,9 @@ export class BtfSession {
   // The variant a first frame draws with (started early so the driver compiles it while
   // the first chunk travels): one 4-slot layer, or on a software rasteriser the loop.
   firstVariant(f) {
-    const quads = this.ctx.software ? -1 : 1;
-    return f && f.gpu ? MeshRenderer.defines(f.gpu, 1, quads)
-      : decodeDefines({version: 1}, 1, 4).filter(([name]) => quads > 0 || name !== 'BTF_QUADS');
+    const quads = this.ctx.software ? -1 : 1, lights = this.host.lights();
+    return f && f.gpu ? MeshRenderer.defines(f.gpu, 1, quads, lights)
+      : decodeDefines({version: 1}, 1, 4, lights).filter(([name]) => quads > 0 || name !== 'BTF_QUADS');
   }
 
   // The orbiting light moves (not while a slow GPU still has chunks to show: each

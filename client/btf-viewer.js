@@ -16,8 +16,13 @@
 //                  name, '*' = every part no other binding names; library material; package
 //                  repeats per unit of TEXCOORD_0, default 1); unbound parts in their base colour
 //   geometry       plane | sphere | cylinder (cloth-like tube)        default plane
-//   light          orbit (circles) | fixed | pointer (follows the pointer)  default orbit
+//   light          the point light: orbit (circles) | fixed | pointer (follows the pointer) |
+//                  tilt (the phone's orientation turns the lighting) | none; absent: none,
+//                  and the built-in studio lights the scene (doc/lighting.md)
 //   light-theta, light-phi  light direction in degrees (fixed; start of the orbit)
+//   environment-image  URL of a Radiance .hdr | studio | none; absent: studio without `light`
+//   environment-rotation  degrees about +z; exposure (default 1); tone-mapping auto | none |
+//                  neutral | aces (btf-lighting.js; the `lighting` property says what is drawn)
 //   camera-theta, camera-phi, camera-dist, fov   camera (then mouse/touch/keys with camera-controls)
 //   repeat         material repeats times the geometry's default (default 1)
 // Angles, distances and surfaces follow `btf render` (doc/client.md, scene.js).
@@ -55,6 +60,7 @@ import {GpuPackage} from './btf-gl.js';
 import {sharedStats} from './btf-context.js';
 import {LOD_THRESHOLD} from './btf-lod.js';
 import {Orbit} from './orbit.js';
+import {ViewerLighting} from './btf-lighting.js';
 import {GEOMETRIES, orbitLight, pixelsPerUnit, sceneDefaults} from './scene.js';
 import {VIEWER_CSS, viewerSheet} from './btf-viewer-style.js';
 import {SHADER_PACK} from './btf-shader-pack.js';
@@ -68,11 +74,13 @@ const ATTRS = {
   'light-phi': 'number', 'camera-theta': 'number', 'camera-phi': 'number', 'camera-dist': 'number', fov: 'number',
   repeat: 'number', 'budget-chunks': 'number', 'budget-bytes': 'number', 'lod-threshold': 'number',
   'max-dpr': 'number', shaders: 'string', poster: 'string', loading: 'string', 'camera-controls': 'boolean',
-  alt: 'string',
+  alt: 'string', 'environment-image': 'string', 'environment-rotation': 'number', exposure: 'number',
+  'tone-mapping': 'string',
 };
 const RESTART = new Set(['material', 'model', 'materials', 'src', 'shaders']);
 const SCENE = new Set(['repeat', 'lod-threshold', 'fov', 'geometry']);
 const CAMERA = new Set(['camera-theta', 'camera-phi', 'camera-dist']);
+const LIGHTING = new Set(['light', 'environment-image', 'environment-rotation', 'exposure', 'tone-mapping']);
 
 // Chunks a viewer of this CSS width asks for a package without levels when no
 // budget-chunks is set: a small viewer cannot show what the later components add
@@ -145,6 +153,21 @@ export class BtfViewer extends HTMLElement {
     this.resolution = {scale: 0, slow: false, get fixed() { return el.hasAttribute('max-dpr'); }};
     this.host = this.sessionHost();
     this.session = new BtfSession(this.host);
+    this.lights = new ViewerLighting(this, {
+      changed: () => this.invalidate(),
+      // the point light (or the studio in its place) still draws: a note at the foot
+      failed: (reason) => {
+        this.showMessage(reason, true);
+        this.emit('error', {reason});
+      },
+    });
+  }
+
+  // What the last frame was lit by (doc/client.md, "Lighting"): {light, point: {on, theta,
+  // phi}, environment: {image, state, error, on, rotation, tilt}, exposure, toneMapping,
+  // tilt: {beta, gamma, source, permission} | null}. Read-only.
+  get lighting() {
+    return this.lights.state();
   }
 
   // What this viewer's sessions read of the page and where their status goes (the
@@ -162,8 +185,8 @@ export class BtfViewer extends HTMLElement {
       display: () => this.display || [this.canvas.width, this.canvas.height],
       framed: (frame) => this.framed(frame),
       seen: () => this.onScreen && !document.hidden,
-      moving: () => (this.getAttribute('light') || 'orbit') === 'orbit' && this.onScreen && !reducedMotion() &&
-        !document.hidden,
+      moving: () => this.getAttribute('light') === 'orbit' && this.onScreen && !reducedMotion() && !document.hidden,
+      lights: () => this.lights.on(),
       emit: (type, detail) => this.emit(type, detail),
       message: (text, soft) => this.showMessage(text, soft),
       label: (text, bar) => this.setLabel(text, bar),
@@ -210,6 +233,7 @@ export class BtfViewer extends HTMLElement {
     registry.delete(this);
     this.resizer?.disconnect();
     this.visibility?.disconnect();
+    this.lights.dispose();
     this.near?.disconnect();
     this.near = null;
     document.removeEventListener('visibilitychange', this.onVisibility);
@@ -242,6 +266,7 @@ export class BtfViewer extends HTMLElement {
       this.getAttribute('shaders') || (SHADER_PACK ? 'inside:' : SHADERS_URL),
       model ? {url: new URL(model, document.baseURI).href, materials: this.getAttribute('materials')} : null);
     if (s.src && !model) this.defaultPoster(s);
+    this.lights.update();
   }
 
   // Ends the session (everything in flight is cancelled); the next one waits for start().
@@ -273,6 +298,7 @@ export class BtfViewer extends HTMLElement {
     if (name === 'loading' && newV === 'eager' && !this.started) this.start();
     if (name === 'camera-controls') this.setControls();
     if (name === 'alt') this.setAria();
+    if (LIGHTING.has(name)) this.lights.update(this.started);
     this.invalidate();
   }
 
@@ -317,6 +343,7 @@ export class BtfViewer extends HTMLElement {
       dist: num(this, 'camera-dist', def.cameraDist),
       onChange: () => this.cameraMoved(),
       onPointer: (x, y) => {
+        this.lights.pointer(x, y); // light="tilt" without orientation events
         if (this.getAttribute('light') !== 'pointer') return;
         this.lightPhi = (x - 0.5) * 360 - 90;
         this.lightTheta = Math.max(0, Math.min(85, y * 85));
@@ -438,17 +465,18 @@ export class BtfViewer extends HTMLElement {
   }
 
   // The scene in btf render's terms (scene.js sceneDefaults / cameraMake), the orbiting
-  // light `seconds` into the session.
+  // light `seconds` into the session, the lights of the frame (btf-lighting.js frame()).
   scene(seconds) {
-    const light = this.getAttribute('light') || 'orbit';
+    const light = this.getAttribute('light');
     const cam = {cameraTheta: 90 - this.orbit.el, cameraPhi: this.orbit.az, lightTheta: this.lightTheta,
       lightPhi: this.lightPhi};
     // the orbiting light circles the camera's direction, keeping its angle to it: the lit
     // side stays the side the camera sees (scene.js orbitLight)
     const lit = light === 'orbit' && !reducedMotion() ? orbitLight(cam, seconds * 30) : cam;
+    const lighting = this.lights.frame({lightTheta: lit.lightTheta, lightPhi: lit.lightPhi, cameraPhi: cam.cameraPhi});
     return {
       geometry: this.getAttribute('model') ? 'model' : this.geometry, ...cam, cameraDist: this.orbit.dist,
-      lightTheta: lit.lightTheta, lightPhi: lit.lightPhi, fov: num(this, 'fov', 40),
+      lightTheta: lighting.lightTheta, lightPhi: lighting.lightPhi, lighting, fov: num(this, 'fov', 40),
       repeat: num(this, 'repeat', 1) > 0 ? num(this, 'repeat', 1) : 1,
       background: this.defaults().background,
       ...(this.frame ? {target: this.frame.target, extent: this.frame.extent} : {}),

@@ -6,7 +6,7 @@ import '../btf-viewer.js'; // one folder up here; at the served root (the bundle
 
 const ATTRS = ['material', 'model', 'materials', 'src', 'geometry', 'light', 'light-theta', 'light-phi', 'camera-theta', 'camera-phi',
                'camera-dist', 'fov', 'repeat', 'budget-chunks', 'budget-bytes', 'max-dpr', 'shaders', 'lod-threshold', 'loading',
-               'poster', 'alt'];
+               'poster', 'alt', 'environment-image', 'environment-rotation', 'exposure', 'tone-mapping'];
 const q = new URLSearchParams(location.search);
 const v = document.createElement('btf-viewer');
 v.setAttribute('src', `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`);

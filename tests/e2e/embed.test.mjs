@@ -231,11 +231,11 @@ describe('streams and motion', () => {
     };
     await page.emulateMedia({reducedMotion: 'reduce'});
     await page.goto(`${pages.url}one.html`);
-    await page.evaluate(() => document.querySelector('btf-viewer').removeAttribute('light'));
+    await page.evaluate(() => document.querySelector('btf-viewer').setAttribute('light', 'orbit'));
     const still = await count();
     await page.emulateMedia({reducedMotion: 'no-preference'});
     await page.goto(`${pages.url}one.html`);
-    await page.evaluate(() => document.querySelector('btf-viewer').removeAttribute('light'));
+    await page.evaluate(() => document.querySelector('btf-viewer').setAttribute('light', 'orbit'));
     const moving = await count();
     assert.ok(still === 0 && moving > 0, `frames in 2 s: reduced ${still}, animated ${moving}: ` +
       JSON.stringify(await page.evaluate(() => window.__btf.viewers()[0])));

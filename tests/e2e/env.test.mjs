@@ -87,7 +87,8 @@ describe('btf-env.js', () => {
     const L = uboLights(), M = lightCells(L), V = 2;
     const w = new Float32Array(V * 81 * 3);
     for (let v = 0; v < V; v++) for (let i = 0; i < 81; i++) for (let c = 0; c < 3; c++) w[3 * (v * 81 + i) + c] = [0.8, 0.5, 0.2][c] * L[i][2];
-    const G = envWeights(M, w, 81, V);
+    const {g: G, big} = envWeights(M, w, 81, V);
+    assert.ok(big >= Math.max(...G.map(Math.abs)) * (1 - 1e-6));
     // E = (c0 + Q'zz, ...) of L = 1: E_0 = 1, the rest 0: the pixel is G_0, the albedo up to
     // the cells' own error (each cell takes cos(theta) of its light: 75 degrees for the
     // cells down to the horizon, where the mean is lower): 5.6% here
