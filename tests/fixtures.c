@@ -2,6 +2,9 @@
 #include "fixtures.h"
 
 #include "btf_render.h"
+#include "btf_env.h"
+#include "btf_decode.h"
+#include "btf_color.h"
 
 #include <criterion/criterion.h>
 #include <dirent.h>
@@ -290,4 +293,83 @@ void fx_cam_ray(const fx_cam *c, int px, int py, int w, int h, double d[3])
     double nx = 2.0 * (px + 0.5) / w - 1, ny = 2.0 * (py + 0.5) / h - 1;
     for (int i = 0; i < 3; i++)
         d[i] = c->fwd[i] + c->right[i] * nx * c->th * c->aspect + c->up[i] * ny * c->th;
+}
+
+/* ------------------------------------------------------------ environment light sums */
+
+fx_env_sum fx_env_sum_make(const btf_package *p)
+{
+    fx_env_sum s = {p->lights.n_dirs, malloc(BTF_ENV_SAMPLES * sizeof(int))};
+    float(*dirs)[3] = malloc((size_t)s.n_lights * sizeof *dirs);
+    cr_assert(s.cell && dirs);
+    for (int i = 0; i < s.n_lights; i++)
+        btf_dirset_vector(&p->lights, i, dirs[i]);
+    for (int k = 0; k < BTF_ENV_SAMPLES; k++) {
+        double v[3];
+        btf_env_sample(k, v);
+        s.cell[k] = btf_env_nearest((const float(*)[3])dirs, s.n_lights, v);
+    }
+    free(dirs);
+    return s;
+}
+
+void fx_env_sum_free(fx_env_sum *s) { free(s->cell), s->cell = NULL; }
+
+double fx_quad_eval(const btf_env_quad *q, int c, const double d[3])
+{
+    double v = q->c0[c];
+    for (int i = 0; i < 3; i++) {
+        v += q->a[3 * c + i] * d[i];
+        for (int k = 0; k < 3; k++)
+            v += q->q[9 * c + 3 * k + i] * d[i] * d[k];
+    }
+    return v;
+}
+
+void fx_env_sums(const fx_env_sum *s, const btf_package *p, const btf_env *e, double rot, const btf_env_quad *q,
+                 int wrap, const fx_surface *at, fx_light_sums *out)
+{
+    int L = s->n_lights;
+    double *mean = calloc((size_t)L * 7, sizeof(double)); /* per light: exact RGB, quadratic RGB, count */
+    cr_assert(mean);
+    for (int k = 0; k < BTF_ENV_SAMPLES; k++) {
+        double v[3], d[3];
+        btf_env_sample(k, v);
+        for (int i = 0; i < 3; i++)
+            d[i] = v[0] * at->t[i] + v[1] * at->b[i] + v[2] * at->n[i];
+        float rgb[3];
+        btf_env_radiance(e, rot, d, rgb);
+        double *m = mean + (size_t)s->cell[k] * 7;
+        for (int c = 0; c < 3; c++)
+            m[c] += rgb[c], m[3 + c] += fx_quad_eval(q, c, d);
+        m[6] += 1;
+    }
+    btf_decode_options o = {0};
+    o.filter = BTF_FILTER_BILINEAR;
+    o.wrap = wrap;
+    float view[3] = {0, 0, 0};
+    for (int i = 0; i < 3; i++) {
+        view[0] += (float)(at->v[i] * at->t[i]);
+        view[1] += (float)(at->v[i] * at->b[i]);
+        view[2] += (float)(at->v[i] * at->n[i]);
+    }
+    memset(out, 0, sizeof *out);
+    for (int i = 0; i < L; i++) {
+        const double *m = mean + (size_t)i * 7, dw = m[6] * 2 * M_PI / BTF_ENV_SAMPLES;
+        if (m[6] == 0)
+            continue;
+        float l[3], rgb[3];
+        btf_dirset_vector(&p->lights, i, l);
+        btf_decode(p, (float)at->uv[0], (float)at->uv[1], l, view, &o, rgb);
+        for (int c = 0; c < 3; c++) {
+            out->exact[c] += rgb[c] * m[c] / m[6] * dw / M_PI;
+            out->l2[c] += rgb[c] * m[3 + c] / m[6] * dw / M_PI;
+            out->true_srgb[c] += btf_color_srgb_decode(fmax(rgb[c], 0)) * m[c] / m[6] * dw / M_PI;
+        }
+    }
+    for (int c = 0; c < 3 && !p->linear; c++) { /* as the shader: the sum of encoded values, decoded */
+        out->exact[c] = btf_color_srgb_decode(fmax(out->exact[c], 0));
+        out->l2[c] = btf_color_srgb_decode(fmax(out->l2[c], 0));
+    }
+    free(mean);
 }

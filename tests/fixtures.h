@@ -162,4 +162,38 @@ fx_cam fx_cam_make(const struct btf_render_params *p);
  * image, py = 0 the bottom row (GL order). */
 void fx_cam_ray(const fx_cam *c, int px, int py, int w, int h, double d[3]);
 
+/* ------------------------------------------------------------ environment light sums */
+
+/* doc/lighting.md restated apart from the shader: the light sum at one surface point
+ * over the measured light cells, in its frame. Made by fx_env_sum_make for a package's
+ * light set, freed by fx_env_sum_free. */
+typedef struct fx_env_sum {
+    int n_lights;
+    int *cell; /* BTF_ENV_SAMPLES: the light each hemisphere sample belongs to (nearest) */
+} fx_env_sum;
+
+/* A surface point: uv (as the decoder takes it), frame columns t, b, n (world, unit)
+ * and the unit direction to the eye (world). Plain value. */
+typedef struct fx_surface {
+    double uv[2], t[3], b[3], n[3], v[3];
+} fx_surface;
+
+/* The sums at a point (doc/lighting.md 1): exact (the environment's mean radiance
+ * over each cell), and with the environment replaced by its quadratic q (what the
+ * shader computes), each as the shader combines a package's values (sRGB-encoded
+ * package: the sum of encoded values, then decoded); true_srgb: each decoded value
+ * made linear before it is weighted (the true sum of an sRGB package). Plain value. */
+typedef struct fx_light_sums {
+    double exact[3], l2[3], true_srgb[3];
+} fx_light_sums;
+
+struct btf_env;
+struct btf_env_quad;
+fx_env_sum fx_env_sum_make(const btf_package *p);
+void fx_env_sum_free(fx_env_sum *s);
+/* The quadratic of q at unit world direction d, channel c. */
+double fx_quad_eval(const struct btf_env_quad *q, int c, const double d[3]);
+void fx_env_sums(const fx_env_sum *s, const btf_package *p, const struct btf_env *e, double rot,
+                 const struct btf_env_quad *q, int wrap, const fx_surface *at, fx_light_sums *out);
+
 #endif

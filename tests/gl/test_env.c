@@ -90,17 +90,6 @@ static void write_sky(const char *path, int w, int h)
 
 /* ---------------------------------------------------------------- the quadratic */
 
-static double quad_eval(const btf_env_quad *q, int c, const double d[3])
-{
-    double v = q->c0[c];
-    for (int i = 0; i < 3; i++) {
-        v += q->a[3 * c + i] * d[i];
-        for (int k = 0; k < 3; k++)
-            v += q->q[9 * c + 3 * k + i] * d[i] * d[k];
-    }
-    return v;
-}
-
 /* Fibonacci point i of n on the sphere. */
 static void fib(int i, int n, double d[3])
 {
@@ -141,7 +130,7 @@ Test(env, quadratic_is_the_order_2_projection)
         fib(i, n, d);
         float L[3];
         btf_env_radiance(e, 0, d, L);
-        double r = L[0] - quad_eval(&q, 0, d);
+        double r = L[0] - fx_quad_eval(&q, 0, d);
         const double f[9] = {1, d[0], d[1], d[2], d[0] * d[1], d[1] * d[2], 3 * d[2] * d[2] - 1, d[0] * d[2],
                              d[0] * d[0] - d[1] * d[1]};
         for (int k = 0; k < 9; k++)
@@ -174,7 +163,7 @@ Test(env, rotation_turns_the_quadratic_and_the_lookup)
         fib(i, 50, d);
         back[0] = cr * d[0] + sr * d[1], back[1] = -sr * d[0] + cr * d[1], back[2] = d[2]; /* Rz(-r) d */
         for (int c = 0; c < 3; c++) {
-            double a = quad_eval(&q1, c, d), b = quad_eval(&q0, c, back);
+            double a = fx_quad_eval(&q1, c, d), b = fx_quad_eval(&q0, c, back);
             cr_assert(fabs(a - b) < 1e-4 * (1 + fabs(b)), "channel %d: turned %g, expected %g", c, a, b);
         }
         float la[3], lb[3];
@@ -304,11 +293,7 @@ Test(env, tone_curves_match_their_published_formulas)
 /* The surface at pixel (px, py): uv (after the geometry's repeats), frame columns
  * t, b, n and the unit direction to the eye; 0 where the ray misses or grazes an
  * edge or the sphere's seam and poles. */
-typedef struct hit {
-    double uv[2], t[3], b[3], n[3], v[3];
-} hit;
-
-static int cast(const fx_cam *c, btf_render_geometry g, const btf_render_camera *rc, int px, int py, hit *h)
+static int cast(const fx_cam *c, btf_render_geometry g, const btf_render_camera *rc, int px, int py, fx_surface *h)
 {
     double d[3], p[3];
     fx_cam_ray(c, px, py, RW, RH, d);
@@ -359,58 +344,6 @@ static int cast(const fx_cam *c, btf_render_geometry g, const btf_render_camera 
     return 1;
 }
 
-/* Light sums at one pixel (doc/lighting.md 1): exact (the environment's mean over each
- * cell), and that of the quadratic L2 (what the shader computes), each as the shader
- * combines the decoded values of a package of its encoding (sRGB: the sum of
- * encoded values, decoded), plus the true sum of an sRGB package (each decoded value
- * made linear before it is weighted). cell: the sample -> light map. */
-typedef struct sums {
-    double exact[3], l2[3], true_srgb[3];
-} sums;
-
-static void light_sums(const btf_package *p, const btf_env *e, double rot, const btf_env_quad *q, const int *cell,
-                       int wrap, const hit *h, sums *out)
-{
-    int L = p->lights.n_dirs;
-    double *mean = calloc((size_t)L * 7, sizeof(double)); /* per light: exact RGB, L2 RGB, count */
-    for (int s = 0; s < BTF_ENV_SAMPLES; s++) {
-        double v[3], d[3];
-        btf_env_sample(s, v);
-        for (int k = 0; k < 3; k++)
-            d[k] = v[0] * h->t[k] + v[1] * h->b[k] + v[2] * h->n[k];
-        float rgb[3];
-        btf_env_radiance(e, rot, d, rgb);
-        double *m = mean + (size_t)cell[s] * 7;
-        for (int c = 0; c < 3; c++)
-            m[c] += rgb[c], m[3 + c] += quad_eval(q, c, d);
-        m[6] += 1;
-    }
-    btf_decode_options o = {0};
-    o.filter = BTF_FILTER_BILINEAR;
-    o.wrap = wrap;
-    float view[3] = {0};
-    for (int k = 0; k < 3; k++)
-        view[0] += (float)(h->v[k] * h->t[k]), view[1] += (float)(h->v[k] * h->b[k]),
-            view[2] += (float)(h->v[k] * h->n[k]);
-    memset(out, 0, sizeof *out);
-    for (int i = 0; i < L; i++) {
-        const double *m = mean + (size_t)i * 7, dw = m[6] * 2 * M_PI / BTF_ENV_SAMPLES;
-        float l[3], rgb[3];
-        btf_dirset_vector(&p->lights, i, l);
-        btf_decode(p, (float)h->uv[0], (float)h->uv[1], l, view, &o, rgb);
-        for (int c = 0; c < 3; c++) {
-            out->exact[c] += rgb[c] * m[c] / m[6] * dw / M_PI;
-            out->l2[c] += rgb[c] * m[3 + c] / m[6] * dw / M_PI;
-            out->true_srgb[c] += btf_color_srgb_decode(fmax(rgb[c], 0)) * m[c] / m[6] * dw / M_PI;
-        }
-    }
-    for (int c = 0; c < 3 && !p->linear; c++) { /* as the shader: the sum of encoded values, decoded */
-        out->exact[c] = btf_color_srgb_decode(fmax(out->exact[c], 0));
-        out->l2[c] = btf_color_srgb_decode(fmax(out->l2[c], 0));
-    }
-    free(mean);
-}
-
 /* Tone mapping none with exposure 1: the screen value is the encoded, clamped sum. */
 static double screen(double lin) { return btf_color_srgb_encode(fmin(fmax(lin, 0), 1)); }
 
@@ -434,15 +367,7 @@ static void check_setting(const btf_package *p, const char *pkg, btf_render_geom
     fx_cam c = fx_cam_make(&rp);
     btf_env_quad q;
     btf_env_quadratic(e, rot, &q);
-    int L = p->lights.n_dirs, *cell = malloc(BTF_ENV_SAMPLES * sizeof(int));
-    float(*dirs)[3] = malloc((size_t)L * sizeof *dirs);
-    for (int i = 0; i < L; i++)
-        btf_dirset_vector(&p->lights, i, dirs[i]);
-    for (int s = 0; s < BTF_ENV_SAMPLES; s++) {
-        double v[3];
-        btf_env_sample(s, v);
-        cell[s] = btf_env_nearest((const float(*)[3])dirs, L, v);
-    }
+    fx_env_sum es = fx_env_sum_make(p);
     static float out[2][RW * RH * 4];
     for (int b = 0; b < 2; b++) {
         btf_gl *gl = fx_gl_open(backends[b]);
@@ -459,11 +384,11 @@ static void check_setting(const btf_package *p, const char *pkg, btf_render_geom
     }
     for (int py = 0; py < RH; py++)
         for (int px = 0; px < RW; px++) {
-            hit h;
+            fx_surface h;
             if (!cast(&c, g, &rc, px, py, &h))
                 continue;
-            sums s;
-            light_sums(p, e, rot, &q, cell, rc.wrap, &h, &s);
+            fx_light_sums s;
+            fx_env_sums(&es, p, e, rot, &q, rc.wrap, &h, &s);
             st->n++;
             for (int ch = 0; ch < 3; ch++) {
                 double l2 = screen(0.5 * s.l2[ch]), ex = screen(0.5 * s.exact[ch]), tr = screen(0.5 * s.true_srgb[ch]);
@@ -479,7 +404,7 @@ static void check_setting(const btf_package *p, const char *pkg, btf_render_geom
                 }
             }
         }
-    free(cell), free(dirs);
+    fx_env_sum_free(&es);
 }
 
 /* Plane and sphere, the studio and the coloured sky, two rotations, a linear and an
