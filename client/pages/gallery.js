@@ -75,7 +75,7 @@ function route() {
   v.setAttribute('src', wsUrl);
   v.setAttribute('material', name);
   v.setAttribute('geometry', $('detail-geometry').value);
-  v.setAttribute('light', $('detail-light').value);
+  if ($('detail-light').value) v.setAttribute('light', $('detail-light').value); // none: the studio
   v.className = 'large';
   v.setAttribute('camera-controls', '');
   host.replaceChildren(v);
@@ -85,7 +85,8 @@ function route() {
 for (const [id, attr] of [['detail-geometry', 'geometry'], ['detail-light', 'light']]) {
   $(id).addEventListener('change', (e) => {
     const v = $('detail-host').querySelector('btf-viewer');
-    if (v) v.setAttribute(attr, e.target.value);
+    if (v && e.target.value) v.setAttribute(attr, e.target.value);
+    else if (v) v.removeAttribute(attr);
   });
 }
 $('detail-close').addEventListener('click', (e) => {

@@ -1,7 +1,8 @@
 // product.js - the product demo page: a glTF model (the stool `btf gen-model` writes,
 // stool.glb next to this page; ?model=URL for another) with two library materials
 // bound to its glTF materials "Seat" and "Frame" (?seat=NAME&frame=NAME, else the
-// library's first two; two selects change them), the trim in its base colour.
+// library's first two; two selects change them), the trim in its base colour; lit by the
+// built-in studio unless ?light=, ?environment-image= (and -rotation, exposure, tone-mapping) say otherwise.
 import '../btf-viewer.js'; // one folder up here; at the served root (the bundle, an install) '..' is the root
 
 const $ = (id) => document.getElementById(id);
@@ -21,7 +22,8 @@ async function main() {
   viewer.setAttribute('model', q.get('model') || 'stool.glb');
   viewer.setAttribute('camera-controls', '');
   viewer.setAttribute('alt', 'A stool');
-  if (q.has('light')) viewer.setAttribute('light', q.get('light'));
+  for (const a of ['light', 'environment-image', 'environment-rotation', 'exposure', 'tone-mapping'])
+    if (q.has(a)) viewer.setAttribute(a, q.get(a));
   let names = [];
   try {
     const r = await fetch('/materials');
