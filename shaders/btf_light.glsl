@@ -1,7 +1,7 @@
 // btf_light.glsl - the light of btf_render.frag (doc/lighting.md): the point light and
-// the environment light of one fragment in one pass over the texture values, then
-// exposure, tone mapping and sRGB encoding. Needs btf_dirs.glsl and btf_decode.glsl
-// before it (it reuses the decoder's taps, texture reads and weight sums).
+// the environment light of one fragment in one pass over the texture values. Needs
+// btf_dirs.glsl, btf_decode.glsl (it reuses the decoder's taps, texture reads and
+// weight sums) and btf_tone.glsl (the lights' uniforms) before it.
 //
 // Public:  void btf_light_decode(vec2 uv, vec3 light, vec3 view, mat3 frame, float lod,
 //                                out vec3 point, out vec3 env)
@@ -9,35 +9,11 @@
 //            S2 of the environment's order-2 quadratic (doc/lighting.md section 3) in
 //            the local frame `frame` = [t b n] (world columns)
 //          vec3 btf_light_linear(vec3 v)   package encoding -> linear light
-//          vec3 btf_light_tonemap(vec3 lin, int op)   0 none, 1 neutral, 2 aces
-//          vec3 btf_light_srgb(vec3 lin)   linear -> sRGB-encoded
-//
-// Host specialisation: BTF_POINT and BTF_ENV (0 or 1) compile only the light terms in
-// use (a SIMD software rasteriser runs every branch); without them the uniforms
-// u_point_off and u_env_on choose at run time. The host must set u_exposure (1: none).
 
 uniform highp usampler2DArray u_btf_env_w; // RGBA32UI, texel (j, view), layer h: channel c = slot 4h+c's G_j as
                                            // R (bits 0..10) | G (11..21) | B (22..31), signed around 1024, 1024, 512
 uniform vec4 u_btf_env_s[BTF_MAX_CHUNKS / 4]; // per 4 slots: the scale s of G = s (q - m) / (m - 1), m that middle
-uniform vec3 u_env_c0;    // the quadratic c0 + a.d + d^T Q d per channel (world), rotated by the host
-uniform mat3 u_env_a;     // column ch: a of channel ch
-uniform mat3 u_env_q[3];  // Q of channel ch
-uniform int u_env_on;     // 1: environment light
-uniform int u_point_off;  // 1: no point light (0, the default: u_light lights)
-uniform float u_exposure; // linear scale before tone mapping
-uniform int u_tone;       // 0 none, 1 neutral, 2 aces
 uniform int u_btf_linear; // 1: the package holds linear light; 0: sRGB-encoded values
-
-#ifdef BTF_POINT
-#define BTF__POINT (BTF_POINT == 1)
-#else
-#define BTF__POINT (u_point_off == 0)
-#endif
-#ifdef BTF_ENV
-#define BTF__ENV (BTF_ENV == 1)
-#else
-#define BTF__ENV (u_env_on != 0)
-#endif
 
 // The nine local coefficients E_j (one value per channel) of doc/lighting.md section 3,
 // divided by the quantisation's m - 1 (1023, 1023, 511), and in off the sum of E_j m
@@ -177,54 +153,7 @@ void btf_light_decode(vec2 uv, vec3 light, vec3 view, mat3 frame, float lod, out
     env += iv.w.z * q;
 }
 
-vec3 btf_light_srgb_decode(vec3 v)
-{
-    v = max(v, 0.0);
-    return mix(v / 12.92, pow((v + 0.055) / 1.055, vec3(2.4)), vec3(greaterThan(v, vec3(0.04045))));
-}
-
-vec3 btf_light_srgb(vec3 lin)
-{
-    lin = clamp(lin, 0.0, 1.0);
-    return mix(lin * 12.92, 1.055 * pow(lin, vec3(1.0 / 2.4)) - 0.055, vec3(greaterThan(lin, vec3(0.0031308))));
-}
-
 vec3 btf_light_linear(vec3 v)
 {
-    return u_btf_linear != 0 ? max(v, 0.0) : btf_light_srgb_decode(v);
-}
-
-// Khronos PBR Neutral.
-vec3 btf_light_neutral(vec3 c)
-{
-    const float start = 0.8 - 0.04, desat = 0.15;
-    float x = min(c.r, min(c.g, c.b));
-    float offset = x < 0.08 ? x - 6.25 * x * x : 0.04;
-    c -= offset;
-    float peak = max(c.r, max(c.g, c.b));
-    if (peak < start)
-        return c;
-    float d = 1.0 - start;
-    float np = 1.0 - d * d / (peak + d - start);
-    c *= np / peak;
-    float g = 1.0 - 1.0 / (desat * (peak - np) + 1.0);
-    return mix(c, vec3(np), g);
-}
-
-// The ACES fit as three.js applies it (columns of the matrices as written there).
-vec3 btf_light_aces(vec3 c)
-{
-    const mat3 to_ap1 = mat3(vec3(0.59719, 0.07600, 0.02840), vec3(0.35458, 0.90834, 0.13383),
-                             vec3(0.04823, 0.01566, 0.83777));
-    const mat3 from_ap1 = mat3(vec3(1.60475, -0.10208, -0.00327), vec3(-0.53108, 1.10813, -0.07276),
-                               vec3(-0.07367, -0.00605, 1.07602));
-    c = to_ap1 * (c / 0.6);
-    vec3 a = c * (c + 0.0245786) - 0.000090537;
-    vec3 b = c * (0.983729 * c + 0.4329510) + 0.238081;
-    return clamp(from_ap1 * (a / b), 0.0, 1.0);
-}
-
-vec3 btf_light_tonemap(vec3 lin, int op)
-{
-    return op == 1 ? btf_light_neutral(lin) : op == 2 ? btf_light_aces(lin) : lin;
+    return u_btf_linear != 0 ? max(v, 0.0) : btf_tone_srgb_decode(v);
 }

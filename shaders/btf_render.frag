@@ -1,5 +1,5 @@
 // btf_render.frag - shades a surface with the package decoder (btf_dirs.glsl,
-// btf_decode.glsl and btf_light.glsl come before this file). Light and eye are turned
+// btf_decode.glsl, btf_tone.glsl and btf_light.glsl come before this file). Light and eye are turned
 // into the surface's local frame (x = tangent, y = cross(normal, tangent) * w,
 // z = normal). The point light's value is the BTF's own (cos(theta_light) included, as
 // measured); the environment's is its light sum (doc/lighting.md). Both are made
@@ -70,7 +70,7 @@ void main()
         vec3 lin = BTF__POINT ? btf_light_linear(pt) : vec3(0.0);
         if (BTF__ENV)
             lin += btf_light_linear(env);
-        rgb = btf_light_srgb(btf_light_tonemap(u_exposure * lin, u_tone));
+        rgb = btf_tone_srgb(btf_tone_map(u_exposure * lin, u_tone));
     }
     o_color = vec4(rgb, 1.0);
 #ifdef BTF_RENDER_DEBUG

@@ -175,11 +175,15 @@ static void btf__scene_parts(btf_scene *s, int j)
 }
 
 /* The unbound parts with the flat program, one draw each in its base colour. */
-static void btf__scene_flat(btf_scene *s, const btf_render_camera *c)
+static void btf__scene_flat(btf_scene *s, const btf_render_params *p, const btf_render_camera *c)
 {
     const btf_gl_api *f = btf_gl_fn(s->gl);
     GLuint id = s->flat->id;
     f->UseProgram(id);
+    btf_env_quad q;
+    if (p->env)
+        btf_env_quadratic(p->env, p->env_rotation, &q);
+    btf_render_light_uniforms(s->gl, id, p, p->env ? &q : NULL);
     f->UniformMatrix4fv(f->GetUniformLocation(id, "u_model"), 1, GL_FALSE, c->model);
     f->UniformMatrix4fv(f->GetUniformLocation(id, "u_view_proj"), 1, GL_FALSE, c->view_proj);
     f->Uniform4f(f->GetUniformLocation(id, "u_light"), c->light[0], c->light[1], c->light[2], 0.0f);
@@ -215,7 +219,7 @@ btf_result btf_scene_draw(btf_scene *s, const btf_render_params *p, btf_gl_targe
             btf__scene_parts(s, j);
     }
     if (r == BTF_OK && s->flat)
-        btf__scene_flat(s, &cam);
+        btf__scene_flat(s, p, &cam);
     if (r == BTF_OK) {
         btf_gl_fn(s->gl)->Finish();
         r = btf_gl_check(s->gl, "drawing the model", err);
