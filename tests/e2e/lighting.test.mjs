@@ -16,7 +16,8 @@ import {writeHdr} from './hdr-writer.mjs';
 import {equirectDir} from '../../client/btf-env.js';
 import {dir} from '../../client/scene.js';
 
-const MATERIALS = {knit: ['knit', 4], tiles: ['tiles', 3], 'knit-linear': ['knit', 4, 0, ['--linear']]};
+const MATERIALS = {knit: ['knit', 4], tiles: ['tiles', 3], 'knit-linear': ['knit', 4, 0, ['--linear']],
+  'tiles-lod': ['tiles', 6, 3]};
 let lib, server, desktop, envDir;
 
 // The coloured environment: a warm sun, a blue sky brighter towards the zenith, a green
@@ -265,6 +266,9 @@ const CASES = [
   {g: 'sphere', env: 'studio', rot: 0, exposure: 2, tone: 'aces'},
   {g: 'plane', env: 'colour.hdr', rot: 200, light: [40, -60]},
   {g: 'sphere', env: 'colour.hdr', rot: 30, material: 'knit-linear', chunks: 4},
+  // version 2: levels, the 8-bit weights of a coarse prefix, then the 16-bit ones
+  {g: 'plane', env: 'colour.hdr', rot: 45, material: 'tiles-lod', chunks: 5, repeat: 4},
+  {g: 'plane', env: 'colour.hdr', rot: 45, material: 'tiles-lod', chunks: 18, repeat: 4},
 ];
 
 describe('<btf-viewer> against btf render --environment', () => {
@@ -277,14 +281,16 @@ describe('<btf-viewer> against btf render --environment', () => {
     const out = [];
     for (const c of CASES) {
       const s = {...GEOMETRY[c.g], ...(c.material ? {material: c.material, chunks: c.chunks} : {})};
-      const name = `${s.material} ${c.g} ${c.env} rot ${c.rot}${c.light ? ' + point light' : ''}` +
+      const name = `${s.material}${c.material ? ` (${s.chunks} chunks)` : ''} ${c.g} ${c.env} rot ${c.rot}` +
+        `${c.light ? ' + point light' : ''}` +
         `${c.exposure ? ` exposure ${c.exposure}` : ''}${c.tone ? ` ${c.tone}` : ''}`;
       const png = path.join(lib.dir, `ref-${out.length}.png`);
       const args = ['render', path.join(lib.lib, s.material), png, '--size', `${s.w}x${s.h}`, '--geometry', c.g,
         '--camera', s.camera.join(','), '--fov', '40', '--chunks', String(s.chunks), '--backend', 'egl',
         '--environment', c.env === 'studio' ? 'studio' : path.join(envDir, c.env), '--environment-rotation', String(c.rot),
         ...(c.light ? ['--light', c.light.join(',')] : ['--no-light']),
-        ...(c.exposure ? ['--exposure', String(c.exposure)] : []), ...(c.tone ? ['--tone-mapping', c.tone] : [])];
+        ...(c.exposure ? ['--exposure', String(c.exposure)] : []), ...(c.tone ? ['--tone-mapping', c.tone] : []),
+        ...(c.repeat ? ['--repeat', String(c.repeat)] : [])];
       const r = spawnSync(BTF, args, {encoding: 'utf8'});
       assert.equal(r.status, 0, `btf ${args.join(' ')} failed: ${r.stderr}`);
       const ref = readPng(png);
@@ -292,7 +298,8 @@ describe('<btf-viewer> against btf render --environment', () => {
         `&camera-dist=${s.camera[2]}&fov=40&budget-chunks=${s.chunks}&width=${s.w}&height=${s.h}` +
         `&environment-image=${c.env === 'studio' ? 'studio' : `env/${c.env}`}&environment-rotation=${c.rot}` +
         (c.light ? `&light=fixed&light-theta=${c.light[0]}&light-phi=${c.light[1]}` : '') +
-        (c.exposure ? `&exposure=${c.exposure}` : '') + (c.tone ? `&tone-mapping=${c.tone}` : '')));
+        (c.exposure ? `&exposure=${c.exposure}` : '') + (c.tone ? `&tone-mapping=${c.tone}` : '') +
+        (c.repeat ? `&repeat=${c.repeat}` : '')));
       await waitFor(page, settled, s.chunks, `the browser frame (${name})`);
       const l = await lighting(page);
       assert.deepEqual([l.environment.on, l.point.on], [true, !!c.light], name);
