@@ -67,7 +67,7 @@ static void library_usage(FILE *f)
     fprintf(f,
             "usage: btf library build SRC... --out LIB [-j N] [--k K] [--components C] [--bits 8|16]\n"
             "                         [--method M] [--downsample F] [--levels N] [--sampling S]\n"
-            "                         [--force] [--quiet]\n"
+            "                         [--linear] [--force] [--quiet]\n"
             "\n"
             "Builds one package per SRC into the library directory LIB (what btfd serves), one job\n"
             "per material, at most N at once (default 1). SRC is anything `btf compress` reads\n"
@@ -83,13 +83,15 @@ static void library_usage(FILE *f)
             "  -j, --jobs N     jobs at once, 1..256 (default 1)\n"
             "  --k, --components, --bits, --method, --downsample, --levels, --sampling\n"
             "                   as for `btf compress` (the sampling of every directory SRC)\n"
+            "  --linear         packages of linear light, as `btf compress --linear` (for\n"
+            "                   environment light: doc/lighting.md)\n"
             "  --force          rebuild even when up to date\n"
             "  --quiet          print only failures\n");
     btf_args_exit_codes(f);
 }
 
 static const btf_args_spec library_spec = {
-    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l sampling:S force!f quiet!q",
+    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l sampling:S linear!L force!f quiet!q",
     library_usage, -1};
 
 /* One option or positional of `btf library build` (btf_args_fn). */
@@ -104,6 +106,7 @@ static int library_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'b': return btf_arg_int(v, 8, 16, &o->pkg.bits) && o->pkg.bits % 8 == 0 ? 0 : btf_args_bad(a, v, "8 or 16");
     case 'l': return btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels);
     case 'S': o->sampling = v; return 0;
+    case 'L': o->pkg.linear = 1; return 0;
     case 'f': o->force = 1; return 0;
     case 'q': o->quiet = 1; return 0;
     default: return btf_args_pca(a, c, v, &pca);
@@ -177,11 +180,11 @@ static int stamp_text(const library_opts *o, const library_job *j, char *buf, si
     source_identity(j->spec, id, sizeof id);
     snprintf(buf, n,
              "{\"source\": \"%s\", \"source_mtime_size\": \"%s\", \"btf\": \"%s\",\n"
-             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d sampling=%s\",\n"
+             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d sampling=%s%s\",\n"
              " \"thumbnail\": %d,\n"
              " \"manifest_mtime_size\": \"%lld %lld\"}\n",
              j->spec, id, BTF_VERSION, o->pca.k, o->pca.components, o->pkg.bits, (int)o->pca.method, o->downsample,
-             o->levels, o->sampling ? o->sampling : "-", o->pkg.thumbnail,
+             o->levels, o->sampling ? o->sampling : "-", o->pkg.linear ? " linear" : "", o->pkg.thumbnail,
              (long long)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec, (long long)st.st_size);
     return 0;
 }
