@@ -15,6 +15,7 @@
 #include "btfd_library.h"
 #include "btfd_ops.h"
 #include "btfd_request.h"
+#include "btfd_token.h"
 
 #define BTFD_SUBPROTOCOL "btf-stream.v1"
 #define BTFD_VHOST "default"        /* the one vhost lws makes from the context's creation info */
@@ -37,12 +38,16 @@ typedef struct btfd_options {
     const char *allow_origin; /* --allow-origin: comma-separated origins, NULL or "*" = any */
     int drain_s;             /* SIGTERM: streams may finish this long before 1001 */
     int verbose;             /* -v count: 1 debug lines, 2 also lws notices */
+    const char *token_secret_file; /* --token-secret-file: a private library (btfd_token.h); NULL public */
+    const char *make_token;  /* --make-token SCOPE: print a token and exit */
+    int ttl_s;               /* --ttl: the made token's lifetime */
 } btfd_options;
 
 /* The server: one per process, owned by main, lives for the whole event loop. */
 typedef struct btfd_server {
     btfd_options opt;
     btfd_library *lib;
+    btfd_token_key key;        /* len 0: a public library */
     struct lws_context *ctx;
     uint8_t *scratch;          /* LWS_PRE + header + fragment: shared send buffer (malloc'd) */
     size_t scratch_len;
@@ -62,6 +67,9 @@ extern const size_t btfd_http_user_size;
 
 /* http, btf-stream.v1, terminator; main sets the stream's tx_packet_size before use. */
 extern struct lws_protocols btfd_protocols[];
+
+/* btfd_publish.c (--publish OUT): the scanned library as files for a static host; 0 ok, 1 failure. */
+int btfd_publish(const btfd_options *o, btfd_library *lib, const char *out);
 
 /* btfd_origin.c (--allow-origin). Whether origin (n bytes) is in list (NULL or "*": any). */
 int btfd_origin_allowed(const char *list, const char *origin, size_t n);

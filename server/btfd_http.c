@@ -2,9 +2,12 @@
  *
  *   /healthz                        200 "ok" while serving, 503 "draining" after SIGTERM
  *   /metrics                        Prometheus text format (btfd_ops_metrics)
- *   /materials                      the library list (ETag, short max-age)
+ *   /materials, /materials.json     the library list (ETag, short max-age); the second is the
+ *                                   name of the file `btfd --publish` writes, so a client asks
+ *                                   a btfd and a static host for the same path
  *   /materials/NAME/thumbnail.png   (ETag, short max-age)
- *   /materials/NAME/ETAG/FILE       a package file, immutable while ETAG is current
+ *   /materials/NAME/ETAG/FILE       a package file, immutable while ETAG is current; in a
+ *                                   private library with ?token= or ?md5=&expires= (403 else)
  *
  * Names are looked up in the library index and FILE among the package's own
  * file names; no path is ever built from the request. Validators: strong
@@ -14,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "btfd.h"
 
@@ -75,11 +79,7 @@ static void set_mapped(btfd_http *h, btfd_material *m, const void *data, size_t 
 static void route_list(btfd_server *srv, btfd_http *h)
 {
     btfd_ops_rescan(srv, 0);
-    size_t n = strlen(srv->lib->list_json) + 64;
-    char *b = malloc(n);
-    if (b)
-        snprintf(b, n, "{\"generation\":%llu,\"materials\":%s}\n", (unsigned long long)srv->lib->generation,
-                 srv->lib->list_json);
+    char *b = btfd_library_list_body(srv->lib);
     set_body(h, b, "application/json");
     if (b)
         snprintf(h->etag, sizeof h->etag, "\"l%016llx\"", (unsigned long long)btfd_hash64(b, strlen(b)));
@@ -120,8 +120,26 @@ static int route_file(btfd_http *h, btfd_material *m, const char *file)
     return HTTP_STATUS_OK;
 }
 
-/* Path after /materials: the list, a thumbnail, or /NAME/ETAG/FILE. */
-static int route_materials(btfd_server *srv, btfd_http *h, const char *path)
+/* A private library's verdict on a package file request of material m: a token,
+ * or the nginx secure_link arguments md5 and expires (btfd_token.h). */
+static btfd_token_verdict file_access(btfd_server *srv, struct lws *wsi, const btfd_material *m)
+{
+    if (!srv->key.len)
+        return BTFD_TOKEN_OK;
+    char tb[BTFD_TOKEN_MAX + 8], mb[64], eb[48];
+    const char *t = lws_get_urlarg_by_name(wsi, "token=", tb, sizeof tb);
+    const char *md5 = lws_get_urlarg_by_name(wsi, "md5=", mb, sizeof mb);
+    const char *ex = lws_get_urlarg_by_name(wsi, "expires=", eb, sizeof eb);
+    int64_t now = (int64_t)time(NULL);
+    btfd_token_verdict v = btfd_token_check(&srv->key, t, m->name, now);
+    if (v != BTFD_TOKEN_OK && md5)
+        v = btfd_token_check_md5(&srv->key, md5, ex, m->name, now);
+    return v;
+}
+
+/* Path after /materials: the list, a thumbnail, or /NAME/ETAG/FILE (a private
+ * library's files need a token: 403 with the reason otherwise). */
+static int route_materials(btfd_server *srv, struct lws *wsi, btfd_http *h, const char *path)
 {
     if (!path[0] || !strcmp(path, "/")) {
         route_list(srv, h);
@@ -143,11 +161,20 @@ static int route_materials(btfd_server *srv, btfd_http *h, const char *path)
     size_t el = strlen(m->etag);
     if (strncmp(rest, m->etag, el) || rest[el] != '/' || !btfd_name_valid(rest + el + 1, strlen(rest + el + 1)))
         return HTTP_STATUS_NOT_FOUND; /* another (older) etag: that package is gone */
+    btfd_token_verdict v = file_access(srv, wsi, m);
+    if (v != BTFD_TOKEN_OK) {
+        srv->stats.forbidden++;
+        char msg[160];
+        snprintf(msg, sizeof msg, "%s: %s\n", btfd_token_code(v), btfd_token_text(v));
+        set_body(h, strdup(msg), "text/plain; charset=utf-8");
+        h->cors = 1;
+        return h->body ? HTTP_STATUS_FORBIDDEN : HTTP_STATUS_INTERNAL_SERVER_ERROR;
+    }
     return route_file(h, m, rest + el + 1);
 }
 
 /* Fills h for uri; returns the status. */
-static int route(btfd_server *srv, btfd_http *h, const char *uri)
+static int route(btfd_server *srv, struct lws *wsi, btfd_http *h, const char *uri)
 {
     h->cache = CACHE_NONE;
     if (!strcmp(uri, "/healthz")) {
@@ -158,8 +185,10 @@ static int route(btfd_server *srv, btfd_http *h, const char *uri)
         set_body(h, btfd_ops_metrics(srv), "text/plain; version=0.0.4; charset=utf-8");
         return h->status;
     }
+    if (!strcmp(uri, "/materials.json"))
+        return route_materials(srv, wsi, h, "");
     if (!strncmp(uri, "/materials", 10) && (uri[10] == 0 || uri[10] == '/'))
-        return route_materials(srv, h, uri + 10);
+        return route_materials(srv, wsi, h, uri + 10);
     return HTTP_STATUS_NOT_FOUND;
 }
 
@@ -294,7 +323,7 @@ static int http_start(btfd_server *srv, struct lws *wsi, btfd_http *h)
     memcpy(path, uri, (size_t)ulen);
     path[ulen] = 0;
     srv->stats.http_requests++;
-    int status = route(srv, h, path);
+    int status = route(srv, wsi, h, path);
     if (status == HTTP_STATUS_NOT_FOUND || status == HTTP_STATUS_INTERNAL_SERVER_ERROR) {
         http_clear(h);
         return reply_status(wsi, status);

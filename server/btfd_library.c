@@ -428,6 +428,16 @@ static btf_result build_list(btfd_library *lib)
     return BTF_OK;
 }
 
+char *btfd_library_list_body(const btfd_library *lib)
+{
+    size_t n = strlen(lib->list_json) + 64;
+    char *b = malloc(n);
+    if (b)
+        snprintf(b, n, "{\"generation\":%llu,\"materials\":%s}\n", (unsigned long long)lib->generation,
+                 lib->list_json);
+    return b;
+}
+
 btf_result btfd_library_scan(btfd_library *lib, btfd_log_fn log, void *ud)
 {
     DIR *d = opendir(lib->dir);

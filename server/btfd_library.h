@@ -102,6 +102,9 @@ btf_result btfd_library_open(const char *dir, btfd_library **out, btf_error *err
  * changed ones are reloaded, unchanged ones are kept as they are. */
 btf_result btfd_library_scan(btfd_library *lib, btfd_log_fn log, void *ud);
 void btfd_library_free(btfd_library *lib);
+/* The list as GET /materials answers it and `btfd --publish` writes it to materials.json:
+ * {"generation":G,"materials":[SUMMARY,...]} and a newline (malloc'd; NULL: out of memory). */
+char *btfd_library_list_body(const btfd_library *lib);
 /* Looks a name up in the index (exact match); NULL when absent. No reference taken. */
 btfd_material *btfd_library_find(const btfd_library *lib, const char *name);
 

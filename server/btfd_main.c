@@ -1,6 +1,7 @@
 /* btfd_main.c - command line and event loop of the btfd streaming server.
  *
  *     btfd --library DIR [--port N] [--bind ADDR] [--client DIR] [--shaders DIR]
+ *     btfd --library DIR --publish OUT [--client DIR]     (the library as static files, then exit)
  *
  * Serves the client page (HTTP file mount on /, shaders on /shaders/; an
  * installed btfd defaults to the installed copies, see default_dirs), the
@@ -8,6 +9,7 @@
  * logic lives in btfd_protocol.c; see server/README.md and doc/protocol.md.
  */
 #include <getopt.h>
+#include <time.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -39,11 +41,21 @@ static void usage(FILE *f)
             "                       CORS on the client, shaders and /materials, and the WebSocket\n"
             "                       handshake's Origin check (default *: any origin)\n"
             "  --no-csp             do not add the security headers (CSP) to HTTP replies\n"
+            "  --publish OUT        serve nothing: write what the HTTP routes answer into the folder OUT\n"
+            "                       for a static host (OUT/materials.json, OUT/materials/NAME/..., the\n"
+            "                       --client folder's scripts), then exit (`btf library publish`)\n"
             "  -v, --verbose        debug log lines (subscriptions, skipped packages on rescans);\n"
             "                       -vv also libwebsockets' warnings and notices\n"
+            "  --token-secret-file F  a private library: package files and streams need a token\n"
+            "                       signed with the secret in F (16..256 bytes; doc/deploy.md)\n"
+            "  --make-token SCOPE   print a token for SCOPE (a material, or a name prefix and *)\n"
+            "                       signed with --token-secret-file, valid --ttl S seconds\n"
+            "                       (default 3600), and for a material the nginx secure_link\n"
+            "                       arguments of its files; then exit\n"
             "  --version            print \"btfd VERSION\" and exit\n"
             "Signals: SIGTERM drains (see --drain-seconds), SIGHUP rescans the library, SIGINT stops.\n"
-            "Routes: / (client), /shaders/, /materials, /materials/NAME/ETAG/FILE, /healthz, /metrics,\n"
+            "Routes: / (client), /shaders/, /materials (also /materials.json), /materials/NAME/ETAG/FILE,\n"
+            "/healthz, /metrics, "
             "and the btf-stream.v1 WebSocket (doc/protocol.md).\n"
             "Exit status: 0 ok, 1 failure, 2 usage error.\n");
 }
@@ -60,14 +72,15 @@ static long int_arg(const char *opt, const char *s, long lo, long hi)
     return v;
 }
 
-static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
+static void parse_args(int argc, char **argv, btfd_options *o, int *csp, const char **publish)
 {
     static const struct option longs[] = {
         {"library", 1, 0, 'l'},  {"port", 1, 0, 'p'},      {"bind", 1, 0, 'b'},
         {"client", 1, 0, 'c'},   {"shaders", 1, 0, 's'},   {"fragment", 1, 0, 'f'},
         {"stall-timeout", 1, 0, 't'}, {"rescan-ms", 1, 0, 'r'}, {"no-csp", 0, 0, 'n'},
         {"drain-seconds", 1, 0, 'd'}, {"allow-origin", 1, 0, 'a'}, {"verbose", 0, 0, 'v'},
-        {"help", 0, 0, 'h'},          {"version", 0, 0, 'V'},
+        {"help", 0, 0, 'h'},          {"version", 0, 0, 'V'},         {"publish", 1, 0, 'P'},  {"token-secret-file", 1, 0, 'k'},
+        {"make-token", 1, 0, 'm'},    {"ttl", 1, 0, 'T'},
         {0, 0, 0, 0},
     };
     int ch;
@@ -84,13 +97,21 @@ static void parse_args(int argc, char **argv, btfd_options *o, int *csp)
         case 'n': *csp = 0; break;
         case 'd': o->drain_s = (int)int_arg("--drain-seconds", optarg, 0, 3600); break;
         case 'a': o->allow_origin = optarg; break;
+        case 'k': o->token_secret_file = optarg; break;
+        case 'm': o->make_token = optarg; break;
+        case 'T': o->ttl_s = (int)int_arg("--ttl", optarg, 1, 400 * 86400); break;
         case 'v': o->verbose++; break;
+        case 'P': *publish = optarg; break;
         case 'h': usage(stdout); exit(0);
         case 'V': printf("btfd %s\n", BTF_VERSION); exit(0);
         default: usage(stderr); exit(2);
         }
     }
-    if (optind < argc || !o->library_dir) {
+    if (o->make_token && !o->token_secret_file) {
+        fprintf(stderr, "btfd: --make-token needs --token-secret-file\n");
+        exit(2);
+    }
+    if (optind < argc || (!o->library_dir && !o->make_token)) {
         fprintf(stderr, optind < argc ? "btfd: unexpected argument \"%s\"\n" : "btfd: --library is required%s\n",
                 optind < argc ? argv[optind] : "");
         usage(stderr);
@@ -156,7 +177,7 @@ static const struct lws_protocol_vhost_options mime_extra[] = {
     {NULL, NULL, ".wasm", "application/wasm"},
 };
 
-#define N_MOUNTS 5
+#define N_MOUNTS 6
 
 /* A callback mount of the "http" protocol (btfd_http.c routes by the full URI). */
 static void callback_mount(struct lws_http_mount *m, const char *point)
@@ -181,16 +202,17 @@ static void file_mount(struct lws_http_mount *m, const char *point, const char *
     m->cache_revalidate = 1;
 }
 
-/* Mounts: /materials, /healthz, /metrics (callbacks), /shaders/ and / (files). */
+/* Mounts: /materials, /healthz, /metrics, /materials.json (callbacks), /shaders/ and / (files). */
 static void make_mounts(const btfd_options *o, struct lws_http_mount m[N_MOUNTS])
 {
     memset(m, 0, N_MOUNTS * sizeof *m);
     callback_mount(&m[0], "/materials");
     callback_mount(&m[1], "/healthz");
     callback_mount(&m[2], "/metrics");
-    file_mount(&m[3], "/shaders", o->shaders_dir);
-    file_mount(&m[4], "/", o->client_dir);
-    m[4].def = "index.html";
+    callback_mount(&m[3], "/materials.json");
+    file_mount(&m[4], "/shaders", o->shaders_dir);
+    file_mount(&m[5], "/", o->client_dir);
+    m[5].def = "index.html";
     for (int i = 0; i + 1 < N_MOUNTS; i++)
         m[i].mount_next = &m[i + 1];
 }
@@ -223,6 +245,42 @@ static void default_options(btfd_options *o)
     o->drain_s = 10;
 }
 
+/* --make-token: the token, and for one material the nginx form; the exit code. */
+static int print_token(const btfd_token_key *k, const char *scope, int ttl)
+{
+    char t[BTFD_TOKEN_MAX], md5[32];
+    int64_t expires = (int64_t)time(NULL) + ttl;
+    if (btfd_token_make(k, scope, expires, t, sizeof t) != 0) {
+        fprintf(stderr, "btfd: \"%s\" is no scope (a material name, or a name prefix and *)\n", scope);
+        return 2;
+    }
+    printf("%s\n", t);
+    if (btfd_token_make_md5(k, scope, expires, md5, sizeof md5) == 0)
+        printf("md5=%s&expires=%lld\n", md5, (long long)expires);
+    return 0;
+}
+
+/* Log sink of the publishing scan: a skipped package is named on stderr. */
+static void publish_skipped(void *ud, const char *msg)
+{
+    (void)ud;
+    fprintf(stderr, "btfd: skipped package: %s\n", msg);
+}
+
+/* --publish OUT: one scan of the library, its files into OUT (btfd_publish.c), exit status. */
+static int publish_main(const btfd_options *o, const char *out)
+{
+    btf_error err = {0};
+    btfd_library *lib = NULL;
+    if (btfd_library_open(o->library_dir, &lib, &err) != BTF_OK) {
+        fprintf(stderr, "btfd: %s\n", err.msg);
+        return 1;
+    }
+    int rc = btfd_library_scan(lib, publish_skipped, NULL) == BTF_OK ? btfd_publish(o, lib, out) : 1;
+    btfd_library_free(lib);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     btfd_server srv;
@@ -230,12 +288,21 @@ int main(int argc, char **argv)
     btfd_options *o = &srv.opt;
     default_options(o);
     int csp = 1;
-    parse_args(argc, argv, o, &csp);
+    const char *publish = NULL;
+    parse_args(argc, argv, o, &csp, &publish);
+    if (publish)
+        return publish_main(o, publish);
     lws_set_log_level(o->verbose >= 2 ? LLL_ERR | LLL_WARN | LLL_NOTICE : LLL_ERR, NULL);
     srv.stats.started_us = lws_now_usecs();
     raise_fd_limit();
 
     btf_error err = {0};
+    if (o->token_secret_file && btfd_token_load(o->token_secret_file, &srv.key, &err) != BTF_OK) {
+        fprintf(stderr, "btfd: %s\n", err.msg);
+        return 1;
+    }
+    if (o->make_token)
+        return print_token(&srv.key, o->make_token, o->ttl_s > 0 ? o->ttl_s : 3600);
     if (btfd_library_open(o->library_dir, &srv.lib, &err) != BTF_OK) {
         fprintf(stderr, "btfd: %s\n", err.msg);
         return 1;

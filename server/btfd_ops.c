@@ -211,6 +211,8 @@ char *btfd_ops_metrics(const btfd_server *srv)
          (double)s->http_requests},
         {"btfd_http_not_modified_total", "counter", "Of those, answered 304 Not Modified.",
          (double)s->http_not_modified},
+        {"btfd_forbidden_total", "counter", "Subscriptions and package file requests refused for their token.",
+         (double)s->forbidden},
     };
     return format_rows(rows, sizeof rows / sizeof rows[0]);
 }

@@ -40,6 +40,7 @@ typedef struct btfd_stats {
     uint64_t scan_errors;         /* packages skipped by library scans */
     uint64_t http_requests;       /* HTTP requests on the callback routes */
     uint64_t http_not_modified;   /* of those, answered 304 */
+    uint64_t forbidden;           /* subscriptions and file requests refused for their token */
 } btfd_stats;
 
 /* One log line on stderr: "2026-01-31T12:00:00.123Z LEVEL btfd: message". */

@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "btf_version.h"
 #include "btfd.h"
@@ -473,6 +474,12 @@ static void do_subscribe(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
     }
     if (c->n_subs >= BTFD_MAX_SUBS)
         return send_error(srv, c, rq, "too_many_subscriptions", "at most 32 subscriptions per connection");
+    btfd_token_verdict v = srv->key.len ? btfd_token_check(&srv->key, rq->token, rq->material, (int64_t)time(NULL))
+                                        : BTFD_TOKEN_OK;
+    if (v != BTFD_TOKEN_OK) {
+        srv->stats.forbidden++;
+        return send_error(srv, c, rq, btfd_token_code(v), btfd_token_text(v));
+    }
     btfd_material *m = btfd_library_find(srv->lib, rq->material);
     if (!m) {
         btfd_ops_rescan(srv, 0);

@@ -217,6 +217,13 @@ static btfd_req_status parse_fields(const cJSON *root, btfd_request *out, char *
                         BTFD_ETAG_MAX);
         strcpy(out->etag, e->valuestring);
     }
+    const cJSON *t = cJSON_GetObjectItemCaseSensitive(root, "token");
+    if (t && !cJSON_IsNull(t)) {
+        if (!cJSON_IsString(t) || strlen(t->valuestring) > BTFD_REQ_TOKEN_MAX)
+            return fail(why, n, BTFD_REQ_BAD_FIELD, "\"token\" must be a string of at most %d bytes",
+                        BTFD_REQ_TOKEN_MAX);
+        strcpy(out->token, t->valuestring);
+    }
     return BTFD_REQ_OK;
 }
 

@@ -23,12 +23,13 @@
 #define BTFD_HAVE_MAX 1024   /* most chunk indices in one "have" list */
 #define BTFD_CHUNK_MAX 65536 /* chunk indices are below this */
 #define BTFD_ETAG_MAX 64     /* longest etag string */
+#define BTFD_REQ_TOKEN_MAX 255 /* longest "token" string (btfd_token.h) */
 #define BTFD_WINDOW_MIN 16384        /* smallest flow-control window a client may set, bytes */
 #define BTFD_WINDOW_MAX (1 << 30)    /* largest */
 
 typedef enum btfd_req_type {
     BTFD_REQ_LIST = 1,    /* {"type":"list"}: rescan (rate limited) and list the library */
-    BTFD_REQ_SUBSCRIBE,   /* {"type":"subscribe","material":..,"budget":{..},"have":[..],"etag":..} */
+    BTFD_REQ_SUBSCRIBE,   /* {"type":"subscribe","material":..,"budget":{..},"have":[..],"etag":..,"token":..} */
     BTFD_REQ_BUDGET,      /* {"type":"budget","material":..,"budget":{..}} */
     BTFD_REQ_UNSUBSCRIBE, /* {"type":"unsubscribe","material":..} */
     BTFD_REQ_PING,        /* {"type":"ping"}: answered with {"type":"pong"} */
@@ -67,6 +68,7 @@ typedef struct btfd_request {
     int n_have;
     uint32_t have[BTFD_HAVE_MAX];     /* chunk indices the client already holds */
     char etag[BTFD_ETAG_MAX + 1];     /* etag of the manifest the "have" refers to */
+    char token[BTFD_REQ_TOKEN_MAX + 1]; /* subscribe: the access token of a private library, "" none */
     int64_t received;                 /* ack: binary message bytes received on the connection */
     int64_t window;                   /* ack: 0 no window, else the most unacknowledged bytes; -1 unchanged */
 } btfd_request;

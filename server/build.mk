@@ -15,8 +15,8 @@
 SERVER_C     := $(wildcard server/*.c)
 SERVER_OBJ   := $(SERVER_C:%.c=$(BUILD)/%.o)
 BTFD_BIN     := $(BUILD)/btfd
-SERVER_CFLAGS = $(call pkg,--cflags,libwebsockets libcjson)
-SERVER_LIBS   = $(call pkg,--libs,libwebsockets libcjson)
+SERVER_CFLAGS = $(call pkg,--cflags,libwebsockets libcjson libcrypto)
+SERVER_LIBS   = $(call pkg,--libs,libwebsockets libcjson libcrypto)
 FUZZ_LIBS     = $(call pkg,--libs,libcjson)
 
 FUZZ_REPLAY  := $(BUILD)/fuzz_request_replay

@@ -28,6 +28,7 @@
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "btf_version.h"
@@ -2067,4 +2068,144 @@ Test(server, list_thumbnails_and_client_files_revalidate_by_etag)
     cr_expect_str_neq(e1, resp_header(head, "etag:", e2, sizeof e2));
     cr_expect_gt(metric(&s, "btfd_http_not_modified_total"), 0);
     srv_stop(&s);
+}
+
+/* ---------------------------------------------------------------- private libraries */
+
+/* A token or the nginx md5 argument computed by Python's hmac and hashlib (apart from
+ * btfd's OpenSSL code): kind "token" -> v1:SCOPE:EXPIRES:SIG, "md5" -> the md5 argument
+ * of material SCOPE; secret from the file. */
+static void py_sign(const char *kind, const char *secret_file, const char *scope, long long expires, char *out,
+                    size_t n)
+{
+    char cmd[1200];
+    snprintf(cmd, sizeof cmd,
+             "python3 -c 'import base64,hashlib,hmac,sys\n"
+             "k=open(sys.argv[1],\"rb\").read().rstrip(b\"\\n\")\n"
+             "b=lambda d: base64.urlsafe_b64encode(d).rstrip(b\"=\").decode()\n"
+             "s,e=sys.argv[3],sys.argv[4]\n"
+             "if sys.argv[2]==\"token\": print(\"v1:%%s:%%s:%%s\"%%(s,e,b(hmac.new(k,(\"btf-token-v1:%%s:%%s\"%%(s,e)).encode(),hashlib.sha256).digest())))\n"
+             "else: print(b(hashlib.md5(e.encode()+b\"/materials/\"+s.encode()+b\" \"+k).digest()))' %s %s '%s' %lld",
+             secret_file, kind, scope, expires);
+    FILE *p = popen(cmd, "r");
+    cr_assert(p);
+    cr_assert(fgets(out, (int)n, p), "python3 printed nothing");
+    pclose(p);
+    out[strcspn(out, "\n")] = 0;
+}
+
+/* Subscribes to name with token (NULL: none) on a fresh connection; the reply's type
+ * and, for an error, its code into code. */
+static void subscribe_with(const srv *s, const char *name, const char *token, char *type, char *code)
+{
+    wsc c;
+    open_ws(&c, s);
+    char msg[600];
+    if (token)
+        snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"%s\",\"token\":\"%s\"}", name, token);
+    else
+        snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"%s\"}", name);
+    cr_assert_eq(wsc_send_text(&c, msg), 0);
+    cJSON *j = recv_json(&c);
+    while (!strcmp(jstr(j, "type"), "hello")) {
+        cJSON_Delete(j);
+        j = recv_json(&c);
+    }
+    strcpy(type, jstr(j, "type"));
+    strcpy(code, jstr(j, "code"));
+    cJSON_Delete(j);
+    wsc_close(&c);
+}
+
+/* A private library (--token-secret-file): the list and thumbnails stay public; a
+ * subscription and every package file need a token signed with the secret for that
+ * material (or a prefix scope), unexpired; tokens made by Python here (not by btfd),
+ * and the nginx secure_link form of the files. Missing, expired, tampered, foreign
+ * and other-scope tokens get clear refusals (error frames, 403 with the reason), the
+ * connection stays usable, and btfd_forbidden_total counts them. --make-token makes
+ * the same token as Python. The secret never appears on a command line. */
+Test(server, private_library_needs_signed_unexpired_tokens)
+{
+    const size_t sizes[] = {5000, 3000, 0};
+    const double lab[] = {5, 3, 0};
+    make_pkg(g_lib, "shoe-red", 2, 1, sizes, lab);
+    make_pkg(g_lib, "bag", 2, 1, sizes, lab);
+    char secret[400], foreign[400];
+    snprintf(secret, sizeof secret, "%s/secret", g_root);
+    snprintf(foreign, sizeof foreign, "%s/foreign", g_root);
+    fx_write(secret, "correct horse battery staple 42\n", 32);
+    fx_write(foreign, "another secret of thirty bytes!", 31);
+    const char *extra[] = {"--token-secret-file", secret, NULL};
+    srv s;
+    srv_start(&s, g_lib, extra);
+    long long now = (long long)time(NULL);
+    char good[300], prefix[300], expired[300], other[300], alien[300], tampered[300], type[64], code[64];
+    py_sign("token", secret, "shoe-red", now + 600, good, sizeof good);
+    py_sign("token", secret, "shoe-*", now + 600, prefix, sizeof prefix);
+    py_sign("token", secret, "shoe-red", now - 5, expired, sizeof expired);
+    py_sign("token", secret, "bag", now + 600, other, sizeof other);
+    py_sign("token", foreign, "shoe-red", now + 600, alien, sizeof alien);
+    strcpy(tampered, good);
+    tampered[strlen(tampered) - 3] ^= 1; /* one bit of the signature */
+
+    subscribe_with(&s, "shoe-red", good, type, code);
+    cr_expect_str_eq(type, "manifest", "a good token: %s %s", type, code);
+    subscribe_with(&s, "shoe-red", prefix, type, code);
+    cr_expect_str_eq(type, "manifest", "a prefix token: %s %s", type, code);
+    const char *bad[5] = {NULL, expired, other, alien, tampered};
+    const char *want[5] = {"forbidden", "token_expired", "forbidden", "forbidden", "forbidden"};
+    for (int i = 0; i < 5; i++) {
+        subscribe_with(&s, "shoe-red", bad[i], type, code);
+        cr_expect_str_eq(type, "error", "case %d: %s", i, type);
+        cr_expect_str_eq(code, want[i], "case %d", i);
+    }
+
+    /* HTTP: the list is public, a file needs ?token= or the nginx form */
+    char base[300], url[900], md5[64], md5_old[64];
+    files_base(s.port, "shoe-red", base, sizeof base);
+    uint8_t *body;
+    size_t n;
+    snprintf(url, sizeof url, "%smanifest.json", base);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 403, "a private file without a token");
+    cr_expect(strstr((char *)body, "token"), "the 403 says why: %s", body);
+    free(body);
+    snprintf(url, sizeof url, "%smanifest.json?token=%s", base, good);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 200, "with the token");
+    free(body);
+    snprintf(url, sizeof url, "%smanifest.json?token=%s", base, other);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 403, "another material's token");
+    free(body);
+    py_sign("md5", secret, "shoe-red", now + 600, md5, sizeof md5);
+    py_sign("md5", secret, "shoe-red", now - 5, md5_old, sizeof md5_old);
+    snprintf(url, sizeof url, "%smanifest.json?md5=%s&expires=%lld", base, md5, now + 600);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 200, "the nginx form");
+    free(body);
+    snprintf(url, sizeof url, "%smanifest.json?md5=%s&expires=%lld", base, md5, now + 601);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 403, "the nginx form with another expiry");
+    free(body);
+    snprintf(url, sizeof url, "%smanifest.json?md5=%s&expires=%lld", base, md5_old, now - 5);
+    cr_expect_eq(http_get(s.port, url, &body, &n), 403, "an expired nginx form");
+    cr_expect(strstr((char *)body, "expired"), "%s", body);
+    free(body);
+    cr_expect_geq(metric(&s, "btfd_forbidden_total"), 9);
+    srv_stop(&s);
+
+    /* --make-token: the same token Python makes for the same second */
+    char out[600];
+    const char *args[] = {"--token-secret-file", secret, "--make-token", "shoe-red", "--ttl", "100", NULL};
+    long long t0 = (long long)time(NULL);
+    cr_assert_eq(run_prog("btfd", args, out, sizeof out), 0, "%s", out);
+    char want_tok[300], want_md5[64];
+    py_sign("token", secret, "shoe-red", t0 + 100, want_tok, sizeof want_tok);
+    py_sign("md5", secret, "shoe-red", t0 + 100, want_md5, sizeof want_md5);
+    if (time(NULL) == t0) { /* the same second: the same expiry */
+        cr_expect(strstr(out, want_tok), "btfd made %s, Python %s", out, want_tok);
+        cr_expect(strstr(out, want_md5), "btfd made %s, Python %s", out, want_md5);
+    }
+    const char *short_secret[] = {"--token-secret-file", foreign, "--make-token", "no/such", NULL};
+    cr_expect_eq(run_prog("btfd", short_secret, out, sizeof out), 2, "a bad scope: %s", out);
+    fx_write(foreign, "short", 5);
+    const char *tiny[] = {"--token-secret-file", foreign, "--make-token", "bag", NULL};
+    cr_expect_eq(run_prog("btfd", tiny, out, sizeof out), 1, "a 5-byte secret: %s", out);
+    cr_expect(strstr(out, "16"), "%s", out);
 }
