@@ -43,6 +43,7 @@ finish() {
         (source "$d/cluster.env"; kill -KILL "${BTFD_PIDS[@]}" "$NGINX_PID" 2>/dev/null) || true
     done
     [[ -n ${hpid:-} ]] && kill -KILL "$hpid" 2>/dev/null
+    [[ -n ${ppid_nginx:-} ]] && kill -KILL "$ppid_nginx" "$ppid_btfd" 2>/dev/null
     wait 2>/dev/null
     rm -rf "$work"
 }
@@ -194,6 +195,57 @@ else
     fail=$((fail + 1))
     echo "deploy: FAIL HAProxy is not installed (make setup installs it)"
 fi
+
+# A private library behind nginx's secure_link (server/deploy/nginx-private.conf.in):
+# links signed here with Python pass nginx and btfd; a tampered one is refused by
+# nginx (403) and an expired one too (410); without nginx, btfd refuses both itself.
+secret=$work/secret
+printf 'deploy-test secret of 32 bytes!!' >"$secret"
+chmod 600 "$secret"
+sign_md5() { # sign_md5 NAME EXPIRES: the md5 argument
+    python3 -c 'import base64,hashlib,sys
+k=open(sys.argv[1],"rb").read()
+print(base64.urlsafe_b64encode(hashlib.md5(sys.argv[3].encode()+b"/materials/"+sys.argv[2].encode()+b" "+k).digest()).rstrip(b"=").decode())' "$secret" "$1" "$2"
+}
+free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
+private_up() {
+    local d=$work/private
+    mkdir -p "$d/logs" "$d/tmp"
+    "$BTFD" --library "$lib" --port 0 --rescan-ms 0 --token-secret-file "$secret" >"$d/btfd.out" 2>"$d/btfd.log" &
+    ppid_btfd=$!
+    for _ in $(seq 50); do grep -q listening "$d/btfd.out" 2>/dev/null && break; sleep 0.1; done
+    pport=$(sed -n 's/.*127.0.0.1:\([0-9]*\)\/.*/\1/p' "$d/btfd.out")
+    nport=$(free_port)
+    local user=
+    [[ $(id -u) == 0 ]] && user="user $(id -un);"
+    sed -e "s|@PREFIX@|$d|g" -e "s|@LISTEN@|127.0.0.1:$nport|" -e "s|@UPSTREAM@|127.0.0.1:$pport|" \
+        -e "s|@SECRET@|$(cat "$secret")|" -e "s|@USER@|$user|" server/deploy/nginx-private.conf.in >"$d/nginx.conf"
+    nginx -p "$d" -c "$d/nginx.conf" 2>>"$d/logs/error.log" &
+    ppid_nginx=$!
+    for _ in $(seq 50); do [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$nport/materials") == 200 ]] && return 0; sleep 0.1; done
+    return 1
+}
+code_of() { get -o "$work/got" -w '%{http_code}' "$1"; }
+private_links() {
+    local now exp md5 url
+    now=$(date +%s)
+    exp=$((now + 600))
+    md5=$(sign_md5 knit "$exp")
+    base=$(get "http://127.0.0.1:$nport/materials" | sed -n 's/.*"files":"\([^"]*\)".*/\1/p')
+    url="$base"wt-01.bin
+    [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$exp") == 200 ]] && cmp "$work/got" "$lib/knit/wt-01.bin" &&
+        [[ $(code_of "http://127.0.0.1:$nport$url?md5=${md5:0:21}A&expires=$exp") == 403 ]] &&
+        [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$((exp + 1))") == 403 ]] &&
+        [[ $(code_of "http://127.0.0.1:$nport$url?md5=$(sign_md5 knit $((now - 5)))&expires=$((now - 5))") == 410 ]] &&
+        [[ $(code_of "http://127.0.0.1:$nport$url") == 403 ]] &&
+        [[ $(code_of "http://127.0.0.1:$pport$url?md5=$md5&expires=$exp") == 200 ]] &&
+        [[ $(code_of "http://127.0.0.1:$pport$url?md5=${md5:0:21}A&expires=$exp") == 403 ]] &&
+        [[ $(code_of "http://127.0.0.1:$pport$url") == 403 ]]
+}
+check "private library: btfd --token-secret-file behind nginx secure_link" private_up
+check "signed links pass nginx and btfd; tampered, re-dated, expired, unsigned ones are refused" private_links
+kill "${ppid_nginx:-0}" "${ppid_btfd:-0}" 2>/dev/null
+wait "${ppid_nginx:-0}" "${ppid_btfd:-0}" 2>/dev/null
 
 echo "deploy: $pass passed, $fail failed"
 ((fail == 0))
