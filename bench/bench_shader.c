@@ -899,7 +899,7 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     print_table(rows, n_rows);
     if (!getenv("BENCH_MAX_C") && (run_levels(gl, p, dir, &s, t) || run_fetch(gl, &s, t)))
         return 1;
-    printf("renderer %s\n", btf_gl_renderer(gl));
+    printf("renderer %s\nplatform %s\n", btf_gl_renderer(gl), btf_gl_platform(gl));
     btf_gl_texture_free(gl, tex);
     f->DeleteProgram(thesis);
     f->DeleteProgram(textured);

@@ -33,6 +33,7 @@ typedef struct render_opts {
     btf_scene_binding bind[BTF_SCENE_MAX_BINDINGS];
     char bind_text[BTF_SCENE_MAX_BINDINGS][512];
     const char *environment; /* --environment FILE|studio (loaded by render_main) */
+    int verbose;             /* -v: print the GL platform and renderer first */
 } render_opts;
 
 static void render_usage(FILE *f)
@@ -43,7 +44,7 @@ static void render_usage(FILE *f)
                "                  [--no-horizon-fade] [--backend egl|osmesa] [--background R,G,B]\n"
                "                  [--model FILE.glb|FILE.gltf [--bind MATERIAL=DIR[,REPEAT]]...]\n"
                "                  [--environment FILE.hdr|studio [--environment-rotation DEG]]\n"
-               "                  [--no-light] [--exposure E] [--tone-mapping auto|none|neutral|aces]\n"
+               "                  [--no-light] [--exposure E] [--tone-mapping auto|none|neutral|aces] [-v]\n"
                "\n"
                "Renders the package directory PACKAGE (its first N chunks; default: every chunk\n"
                "present) headless with the shaders the browser runs, and writes OUT (PNG).\n"
@@ -77,7 +78,9 @@ static void render_usage(FILE *f)
                "  --no-light           no point light (needs --environment)\n"
                "  --exposure E         linear scale of the light before tone mapping (default 1)\n"
                "  --tone-mapping T     auto (default: neutral with an environment, else none),\n"
-               "                       none, neutral (Khronos PBR Neutral) or aces\n");
+               "                       none, neutral (Khronos PBR Neutral) or aces\n"
+               "  -v, --verbose        print the GL platform (EGL surfaceless Mesa, EGL device N,\n"
+               "                       OSMesa) and renderer on stderr first\n");
     btf_args_exit_codes(f);
 }
 
@@ -187,6 +190,7 @@ static int render_option(void *ctx, const btf_args *a, int c, const char *val)
         ok = p->tone_mapping >= 0, want = "auto|none|neutral|aces";
         break;
     case 'L': p->no_point_light = 1; break;
+    case 'v': o->verbose = 1; break;
     }
     return ok ? 0 : btf_args_bad(a, val, "%s", want);
 }
@@ -215,7 +219,7 @@ static int render_parse(int argc, char **argv, render_opts *o)
                                        "chunks:n geometry:g size:s camera:c light:l "
                                        "fov:F repeat:r filter:f backend:b background:B no-horizon-fade!H "
                                        "model:m bind:M environment:e environment-rotation:R exposure:x "
-                                       "tone-mapping:t no-light!L",
+                                       "tone-mapping:t no-light!L verbose!v v!v",
                                        render_usage, 2};
     memset(o, 0, sizeof *o);
     btf_render_geometry g = BTF_RENDER_PLANE;
@@ -297,6 +301,14 @@ static int render_main(void *opts)
     render_opts *o = opts;
     render_find_shaders();
     btf_error err = {{0}};
+    if (o->verbose) { /* a context of its own, only to say which one a render gets */
+        btf_gl_desc gd = {.backend = o->backend};
+        btf_gl *gl = NULL;
+        if (btf_gl_create(&gd, &gl, &err) == BTF_OK)
+            fprintf(stderr, "btf render: %s, %s, renderer %s\n", btf_gl_backend_name(btf_gl_backend_of(gl)),
+                    btf_gl_platform(gl), btf_gl_renderer(gl));
+        btf_gl_free(gl);
+    }
     btf_env *env = NULL;
     btf_result r = o->environment ? btf_env_load(o->environment, &env, &err) : BTF_OK;
     o->p.env = env;

@@ -160,6 +160,8 @@ btf_result btf_gl_make_current(btf_gl *gl, btf_error *err)
 const btf_gl_api *btf_gl_fn(const btf_gl *gl) { return &gl->fn; }
 btf_gl_backend btf_gl_backend_of(const btf_gl *gl) { return gl->backend; }
 const char *btf_gl_renderer(const btf_gl *gl) { return (const char *)gl->fn.GetString(GL_RENDERER); }
+
+const char *btf_gl_platform(const btf_gl *gl) { return gl->vt->describe(gl->native); }
 const char *btf_gl_version(const btf_gl *gl) { return (const char *)gl->fn.GetString(GL_VERSION); }
 
 btf_result btf_gl_check(btf_gl *gl, const char *what, btf_error *err)

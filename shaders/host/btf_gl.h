@@ -162,6 +162,9 @@ const btf_gl_api *btf_gl_fn(const btf_gl *gl);
 btf_gl_backend btf_gl_backend_of(const btf_gl *gl);
 /* GL_RENDERER and GL_VERSION strings (owned by GL, valid while gl lives). */
 const char *btf_gl_renderer(const btf_gl *gl);
+/* How the backend found its context: "EGL surfaceless Mesa", "EGL device 0 of 2",
+ * "OSMesa" (static or owned by gl). */
+const char *btf_gl_platform(const btf_gl *gl);
 const char *btf_gl_version(const btf_gl *gl);
 /* BTF_ERR_UNSUPPORTED naming the first pending glGetError code and `what`, else BTF_OK. */
 btf_result btf_gl_check(btf_gl *gl, const char *what, btf_error *err);
@@ -222,6 +225,8 @@ typedef struct btf__gl_backend_vt {
     btf_result (*make_current)(void *native, btf_error *err);
     btf__gl_proc (*getproc)(void *native, const char *name);
     void (*close)(void *native);
+    /* How the context was found (display platform, device), for btf_gl_platform. */
+    const char *(*describe)(void *native);
 } btf__gl_backend_vt;
 
 extern const btf__gl_backend_vt btf__gl_egl_vt;    /* btf_gl_egl.c */

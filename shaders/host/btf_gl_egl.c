@@ -1,5 +1,10 @@
-/* btf_gl_egl.c - EGL backend of btf_gl: surfaceless Mesa display, GLES 3.x context.
+/* btf_gl_egl.c - EGL backend of btf_gl: a headless display, GLES 3.x context.
  *
+ * The display: the surfaceless Mesa platform first (llvmpipe or a Mesa GPU driver),
+ * then EGL_EXT_platform_device, the first device that gives a GLES 3 context (what
+ * an NVIDIA or AMD driver offers without a window system). BTF_EGL_PLATFORM=device
+ * skips the Mesa platform (a machine with both Mesa and a GPU driver), =surfaceless
+ * skips the devices.
  * No window and no pbuffer: the context is made current with EGL_NO_SURFACE
  * (EGL_KHR_surfaceless_context) and every pass renders into framebuffer objects.
  * GL entry points come from eglGetProcAddress (EGL_KHR_get_all_proc_addresses),
@@ -10,19 +15,23 @@
 
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* One EGL context; malloc'd by btf__egl_open, freed by btf__egl_close. */
 typedef struct btf__egl {
     EGLDisplay dpy;
     EGLContext ctx;
+    char platform[96]; /* how the display was found, for btf_gl_platform */
 } btf__egl;
 
 /* The surfaceless display is a per-process singleton inside EGL: count our users so
  * the last close terminates it and an earlier one does not pull it from under another. */
 static int btf__egl_display_users;
 
-static EGLDisplay btf__egl_display(btf_error *err)
+/* An initialised display of platform for native; EGL_NO_DISPLAY with err set if none. */
+static EGLDisplay btf__egl_display(EGLenum platform, void *native, const char *what, btf_error *err)
 {
     PFNEGLGETPLATFORMDISPLAYEXTPROC get_display =
         (PFNEGLGETPLATFORMDISPLAYEXTPROC)eglGetProcAddress("eglGetPlatformDisplayEXT");
@@ -30,14 +39,15 @@ static EGLDisplay btf__egl_display(btf_error *err)
         btf_fail(err, BTF_ERR_UNSUPPORTED, "gl egl: eglGetPlatformDisplayEXT missing (no EGL_EXT_platform_base)");
         return EGL_NO_DISPLAY;
     }
-    EGLDisplay dpy = get_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL);
+    EGLDisplay dpy = get_display(platform, native, NULL);
     if (dpy == EGL_NO_DISPLAY) {
-        btf_fail(err, BTF_ERR_UNSUPPORTED, "gl egl: no surfaceless Mesa display (error 0x%x)", (unsigned)eglGetError());
+        btf_fail(err, BTF_ERR_UNSUPPORTED, "gl egl: no %s display (error 0x%x)", what, (unsigned)eglGetError());
         return EGL_NO_DISPLAY;
     }
     EGLint major = 0, minor = 0;
     if (!eglInitialize(dpy, &major, &minor)) {
-        btf_fail(err, BTF_ERR_UNSUPPORTED, "gl egl: eglInitialize failed (error 0x%x)", (unsigned)eglGetError());
+        btf_fail(err, BTF_ERR_UNSUPPORTED, "gl egl: eglInitialize of the %s display failed (error 0x%x)", what,
+                 (unsigned)eglGetError());
         return EGL_NO_DISPLAY;
     }
     btf__egl_display_users++;
@@ -97,6 +107,44 @@ static btf_result btf__egl_make_current(void *native, btf_error *err)
     return BTF_OK;
 }
 
+/* A current GLES 3 context on display dpy (NULL, EGL_NO_DISPLAY: failed already); 0, or
+ * -1 with the display released and err set. */
+static int btf__egl_try(btf__egl *e, EGLDisplay dpy, btf_error *err)
+{
+    if (dpy == EGL_NO_DISPLAY)
+        return -1;
+    e->dpy = dpy;
+    if (btf__egl_context(e, err) == BTF_OK && btf__egl_make_current(e, err) == BTF_OK)
+        return 0;
+    if (e->ctx != EGL_NO_CONTEXT)
+        eglDestroyContext(dpy, e->ctx);
+    e->ctx = EGL_NO_CONTEXT;
+    btf__egl_display_release(dpy);
+    e->dpy = EGL_NO_DISPLAY;
+    return -1;
+}
+
+/* EGL_EXT_platform_device: the first device with a GLES 3 context; 0 or -1. */
+static int btf__egl_devices(btf__egl *e, btf_error *err)
+{
+    PFNEGLQUERYDEVICESEXTPROC query = (PFNEGLQUERYDEVICESEXTPROC)eglGetProcAddress("eglQueryDevicesEXT");
+    EGLDeviceEXT devs[16];
+    EGLint n = 0;
+    if (!query || !query(16, devs, &n) || n < 1) {
+        btf_fail(err, BTF_ERR_UNSUPPORTED, "gl egl: no EGL device (EGL_EXT_device_enumeration)");
+        return -1;
+    }
+    for (EGLint i = 0; i < n; i++) {
+        char what[48];
+        snprintf(what, sizeof what, "device %d of %d", (int)i, (int)n);
+        if (btf__egl_try(e, btf__egl_display(EGL_PLATFORM_DEVICE_EXT, devs[i], what, err), err) == 0) {
+            snprintf(e->platform, sizeof e->platform, "EGL %s", what);
+            return 0;
+        }
+    }
+    return -1;
+}
+
 static btf_result btf__egl_open(void **native, btf_error *err)
 {
     btf__egl *e = calloc(1, sizeof *e);
@@ -104,21 +152,25 @@ static btf_result btf__egl_open(void **native, btf_error *err)
         return btf_fail(err, BTF_ERR_NOMEM, "gl egl: out of memory");
     e->dpy = EGL_NO_DISPLAY;
     e->ctx = EGL_NO_CONTEXT;
-    btf_result r = BTF_OK;
-    e->dpy = btf__egl_display(err);
-    if (e->dpy == EGL_NO_DISPLAY)
-        r = BTF_ERR_UNSUPPORTED;
-    if (r == BTF_OK)
-        r = btf__egl_context(e, err);
-    if (r == BTF_OK)
-        r = btf__egl_make_current(e, err);
-    if (r != BTF_OK) {
+    const char *only = getenv("BTF_EGL_PLATFORM");
+    int ok = -1;
+    if (!only || strcmp(only, "device") != 0) {
+        ok = btf__egl_try(e, btf__egl_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, "surfaceless Mesa", err),
+                          err);
+        if (ok == 0)
+            snprintf(e->platform, sizeof e->platform, "EGL surfaceless Mesa");
+    }
+    if (ok != 0 && (!only || strcmp(only, "surfaceless") != 0))
+        ok = btf__egl_devices(e, err);
+    if (ok != 0) {
         btf__egl_close(e);
-        return r;
+        return BTF_ERR_UNSUPPORTED;
     }
     *native = e;
     return BTF_OK;
 }
+
+static const char *btf__egl_describe(void *native) { return ((btf__egl *)native)->platform; }
 
 static btf__gl_proc btf__egl_getproc(void *native, const char *name)
 {
@@ -127,5 +179,5 @@ static btf__gl_proc btf__egl_getproc(void *native, const char *name)
 }
 
 const btf__gl_backend_vt btf__gl_egl_vt = {
-    "egl", btf__egl_open, btf__egl_make_current, btf__egl_getproc, btf__egl_close,
+    "egl", btf__egl_open, btf__egl_make_current, btf__egl_getproc, btf__egl_close, btf__egl_describe,
 };

@@ -78,6 +78,12 @@ static btf__gl_proc btf__osmesa_getproc(void *native, const char *name)
     return (btf__gl_proc)OSMesaGetProcAddress(name);
 }
 
+static const char *btf__osmesa_describe(void *native)
+{
+    (void)native;
+    return "OSMesa";
+}
+
 const btf__gl_backend_vt btf__gl_osmesa_vt = {
-    "osmesa", btf__osmesa_open, btf__osmesa_make_current, btf__osmesa_getproc, btf__osmesa_close,
+    "osmesa", btf__osmesa_open, btf__osmesa_make_current, btf__osmesa_getproc, btf__osmesa_close, btf__osmesa_describe,
 };

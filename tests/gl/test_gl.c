@@ -1142,3 +1142,25 @@ Test(gl, render_plane_matches_decoder_both_backends)
     check_render_plane(BTF_GL_EGL, 0, 1.0f);
     check_render_plane(BTF_GL_OSMESA, 1, 2.0f); /* bilinear, tiled twice */
 }
+
+/* The EGL backend finds its display on the surfaceless Mesa platform, or through
+ * EGL_EXT_platform_device (how an NVIDIA or AMD driver offers a headless GPU; Mesa
+ * lists its software device there too): BTF_EGL_PLATFORM picks one, and either
+ * draws the same gradient; btf_gl_platform says which was used. */
+Test(gl, egl_finds_a_display_on_either_platform)
+{
+    static const char *const want[2][2] = {{"surfaceless", "EGL surfaceless Mesa"}, {"device", "EGL device 0 of "}};
+    for (int i = 0; i < 2; i++) {
+        setenv("BTF_EGL_PLATFORM", want[i][0], 1);
+        btf_gl *gl = fx_gl_open(BTF_GL_EGL);
+        cr_expect(!strncmp(btf_gl_platform(gl), want[i][1], strlen(want[i][1])), "%s: platform %s", want[i][0],
+                  btf_gl_platform(gl));
+        cr_expect_gt(strlen(btf_gl_renderer(gl)), 0);
+        btf_gl_free(gl);
+        check_gradient(BTF_GL_EGL, BTF_GL_RGBA32F);
+    }
+    unsetenv("BTF_EGL_PLATFORM");
+    btf_gl *gl = fx_gl_open(BTF_GL_OSMESA);
+    cr_expect_str_eq(btf_gl_platform(gl), "OSMesa");
+    btf_gl_free(gl);
+}
