@@ -16,6 +16,9 @@ struct btf_gl {
     void *native;
     btf_gl_api fn;
     GLuint vao; /* empty vertex array: core profiles draw nothing without one */
+    GLuint timer; /* the query of btf_gl_timer_begin, made on first use */
+    int timer_state;           /* 0 not looked up, 1 timer queries, -1 none */
+    btf__gl_proc timer_get;    /* glGetQueryObjectui64v(EXT) */
 };
 
 /* ---------------------------------------------------------------- backend choice */
@@ -109,6 +112,8 @@ void btf_gl_free(btf_gl *gl)
     if (gl->native) {
         if (gl->vt->make_current(gl->native, NULL) == BTF_OK && gl->vao)
             gl->fn.DeleteVertexArrays(1, &gl->vao);
+        if (gl->timer)
+            gl->fn.DeleteQueries(1, &gl->timer);
         gl->vt->close(gl->native);
     }
     free(gl);
@@ -326,4 +331,58 @@ void btf_gl_draw_fullscreen(btf_gl *gl)
 {
     gl->fn.BindVertexArray(gl->vao);
     gl->fn.DrawArrays(GL_TRIANGLES, 0, 3);
+}
+
+/* ---------------------------------------------------------------- timer queries */
+
+#define BTF__TIME_ELAPSED 0x88BF     /* GL_TIME_ELAPSED(_EXT) */
+#define BTF__GPU_DISJOINT 0x8FBB     /* GL_GPU_DISJOINT_EXT */
+#define BTF__QUERY_RESULT 0x8866     /* GL_QUERY_RESULT */
+typedef void (*btf__get_query_u64)(GLuint id, GLenum pname, unsigned long long *params);
+
+/* The ui64 result getter when the context can time (looked up once): desktop GL
+ * 3.3 has it in core, GLES needs GL_EXT_disjoint_timer_query. Not on a software
+ * rasteriser: its queries time the command submission, not the rasterising threads
+ * (llvmpipe reports 0.2 ms for a 75 ms frame). */
+static btf__get_query_u64 btf__timer_getter(btf_gl *gl)
+{
+    if (gl->timer_state == 0) {
+        int es = gl->backend == BTF_GL_EGL;
+        const char *ext = es ? (const char *)gl->fn.GetString(GL_EXTENSIONS) : NULL;
+        const char *r = btf_gl_renderer(gl);
+        int software = r && (strstr(r, "llvmpipe") || strstr(r, "softpipe") || strstr(r, "swrast"));
+        if (!software && (!es || (ext && strstr(ext, "GL_EXT_disjoint_timer_query"))))
+            gl->timer_get = gl->vt->getproc(gl->native, es ? "glGetQueryObjectui64vEXT" : "glGetQueryObjectui64v");
+        gl->timer_state = gl->timer_get ? 1 : -1;
+        while (gl->fn.GetError() != GL_NO_ERROR)
+            ;
+    }
+    return (btf__get_query_u64)gl->timer_get;
+}
+
+int btf_gl_timer_begin(btf_gl *gl)
+{
+    if (!btf__timer_getter(gl))
+        return 0;
+    while (gl->fn.GetError() != GL_NO_ERROR)
+        ;
+    if (!gl->timer)
+        gl->fn.GenQueries(1, &gl->timer);
+    gl->fn.BeginQuery(BTF__TIME_ELAPSED, gl->timer);
+    return gl->fn.GetError() == GL_NO_ERROR;
+}
+
+long long btf_gl_timer_end(btf_gl *gl)
+{
+    btf__get_query_u64 get = btf__timer_getter(gl);
+    if (!get)
+        return -1;
+    gl->fn.EndQuery(BTF__TIME_ELAPSED);
+    unsigned long long ns = 0;
+    get(gl->timer, BTF__QUERY_RESULT, &ns); /* waits for the result */
+    GLenum e = gl->fn.GetError();
+    GLint disjoint = 0;
+    if (gl->backend == BTF_GL_EGL)
+        gl->fn.GetIntegerv(BTF__GPU_DISJOINT, &disjoint);
+    return e == GL_NO_ERROR && !disjoint ? (long long)ns : -1;
 }

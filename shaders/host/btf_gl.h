@@ -135,6 +135,9 @@ btf_result btf_gl_backend_parse(const char *s, btf_gl_backend *out, btf_error *e
     X(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer)                                                     \
     X(PFNGLENABLEVERTEXATTRIBARRAYPROC, EnableVertexAttribArray)                                             \
     X(PFNGLGENQUERIESPROC, GenQueries)                                                                       \
+    X(PFNGLDELETEQUERIESPROC, DeleteQueries)                                                                 \
+    X(PFNGLBEGINQUERYPROC, BeginQuery)                                                                       \
+    X(PFNGLENDQUERYPROC, EndQuery)                                                                           \
     X(PFNGLGETUNIFORMBLOCKINDEXPROC, GetUniformBlockIndex)                                                   \
     X(PFNGLUNIFORMBLOCKBINDINGPROC, UniformBlockBinding)                                                     \
     X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)
@@ -165,6 +168,13 @@ const char *btf_gl_renderer(const btf_gl *gl);
 /* How the backend found its context: "EGL surfaceless Mesa", "EGL device 0 of 2",
  * "OSMesa" (static or owned by gl). */
 const char *btf_gl_platform(const btf_gl *gl);
+/* Elapsed GPU time of what is drawn between btf_gl_timer_begin and _end, through
+ * the context's timer queries (GL_EXT_disjoint_timer_query on GLES, core
+ * GL_TIME_ELAPSED on desktop GL); btf_gl_timer_begin returns 0 when the context
+ * has none or is a software rasteriser (whose queries do not time its threads). _end waits for the result: nanoseconds, or -1 when the query failed or
+ * the GPU reported a disjoint period (the measurement is void). */
+int btf_gl_timer_begin(btf_gl *gl);
+long long btf_gl_timer_end(btf_gl *gl);
 const char *btf_gl_version(const btf_gl *gl);
 /* BTF_ERR_UNSUPPORTED naming the first pending glGetError code and `what`, else BTF_OK. */
 btf_result btf_gl_check(btf_gl *gl, const char *what, btf_error *err);
