@@ -63,6 +63,21 @@ after(async () => {
 });
 
 const viewerUrl = (q) => `${server.pagesUrl}viewer.html?max-dpr=1&camera-controls=0&${q}`;
+
+// Opens url; fails with what the page had loaded when the element's modules have not run
+// within 20 s (seen once in a full run of the folder: the page without window.__btf).
+async function openViewer(page, url) {
+  await page.goto(url);
+  const t0 = Date.now();
+  while (!(await page.evaluate(() => !!window.__btf))) {
+    if (Date.now() - t0 > 20000) {
+      const st = await page.evaluate(() => ({url: location.href, ready: document.readyState,
+        resources: performance.getEntriesByType('resource').map((e) => `${e.name.replace(/^.*\//, '')} ${Math.round(e.responseEnd)}`)}));
+      throw new Error(`the viewer's modules did not run: ${JSON.stringify(st)}`);
+    }
+    await new Promise((r) => setTimeout(r, 100));
+  }
+}
 const lighting = (page) => page.evaluate(() => window.__btf.element(0).lighting);
 // every chunk in the budget drawn, and the environment (if any) arrived or failed
 const settled = (n) => {
@@ -116,7 +131,7 @@ describe('lights of <btf-viewer>', () => {
     ];
     const shots = [];
     for (const [q, want] of cases) {
-      await page.goto(viewerUrl(base + q));
+      await openViewer(page, viewerUrl(base + q));
       await waitFor(page, settled, 4, `the frame (${q || 'defaults'})`);
       const l = await lighting(page);
       assert.deepEqual([l.light, l.point.on, l.environment.image, l.environment.on, l.toneMapping],
@@ -141,7 +156,7 @@ describe('lights of <btf-viewer>', () => {
   it('an environment image that fails: one error event, a note, the point light still drawn', async () => {
     const page = await desktop.newPage(); // its own: the init script stays with it
     const q = 'material=knit&geometry=sphere&width=160&height=160&budget-chunks=4&light=fixed';
-    await page.goto(viewerUrl(q));
+    await openViewer(page, viewerUrl(q));
     await waitFor(page, settled, 4, 'the point light alone');
     const alone = await capture(page, 0);
     await page.addInitScript(() => {
@@ -150,7 +165,7 @@ describe('lights of <btf-viewer>', () => {
     });
     for (const [env, want] of [['env/nosuch.hdr', /nosuch\.hdr: cannot be fetched \(HTTP 404\)/],
       ['env/broken.hdr', /broken\.hdr: not a Radiance \.hdr file/]]) {
-      await page.goto(viewerUrl(`${q}&environment-image=${env}`));
+      await openViewer(page, viewerUrl(`${q}&environment-image=${env}`));
       await waitFor(page, settled, 4, `the frame with ${env}`);
       await waitFor(page, () => window.__errors.length > 0, null, 'the error event');
       const errs = await page.evaluate(() => window.__errors), l = await lighting(page), v = (await viewers(page))[0];
@@ -163,7 +178,7 @@ describe('lights of <btf-viewer>', () => {
       assert.deepEqual(img.data, alone.data, 'the point light draws as without the environment');
     }
     // without a point light the studio lights the scene in its place
-    await page.goto(viewerUrl('material=knit&geometry=sphere&width=160&height=160&budget-chunks=4&environment-image=env/nosuch.hdr'));
+    await openViewer(page, viewerUrl('material=knit&geometry=sphere&width=160&height=160&budget-chunks=4&environment-image=env/nosuch.hdr'));
     await waitFor(page, settled, 4, 'the frame');
     const l = await lighting(page);
     assert.deepEqual([l.point.on, l.environment.on, l.environment.state], [false, true, 'failed']);
@@ -191,7 +206,7 @@ describe('light="tilt"', () => {
     const orient = (beta, gamma) => page.evaluate(([b, g]) =>
       window.dispatchEvent(new DeviceOrientationEvent('deviceorientation', {beta: b, gamma: g, alpha: 0})), [beta, gamma]);
     for (const [q, what] of [['&environment-image=studio&environment-rotation=20', 'environment'], ['', 'point light']]) {
-      await page.goto(viewerUrl(`material=knit&geometry=sphere&width=160&height=160&budget-chunks=4&light=tilt${q}`));
+      await openViewer(page, viewerUrl(`material=knit&geometry=sphere&width=160&height=160&budget-chunks=4&light=tilt${q}`));
       await waitFor(page, settled, 4, 'the frame');
       let l = await lighting(page);
       assert.equal(l.tilt.permission, 'prompt', 'not asked before a tap');
@@ -227,7 +242,7 @@ describe('light="tilt"', () => {
 
   it('without orientation events the pointer tilts', async () => {
     const page = await newPage(desktop);
-    await page.goto(viewerUrl('material=knit&geometry=sphere&width=200&height=200&budget-chunks=4&light=tilt&' +
+    await openViewer(page, viewerUrl('material=knit&geometry=sphere&width=200&height=200&budget-chunks=4&light=tilt&' +
       'environment-image=studio'));
     await waitFor(page, settled, 4, 'the frame');
     // Chromium has the permission API, granted on a tap; no tap here, so no orientation events
@@ -294,7 +309,7 @@ describe('<btf-viewer> against btf render --environment', () => {
       const r = spawnSync(BTF, args, {encoding: 'utf8'});
       assert.equal(r.status, 0, `btf ${args.join(' ')} failed: ${r.stderr}`);
       const ref = readPng(png);
-      await page.goto(viewerUrl(`material=${s.material}&geometry=${c.g}&camera-theta=${s.camera[0]}&camera-phi=${s.camera[1]}` +
+      await openViewer(page, viewerUrl(`material=${s.material}&geometry=${c.g}&camera-theta=${s.camera[0]}&camera-phi=${s.camera[1]}` +
         `&camera-dist=${s.camera[2]}&fov=40&budget-chunks=${s.chunks}&width=${s.w}&height=${s.h}` +
         `&environment-image=${c.env === 'studio' ? 'studio' : `env/${c.env}`}&environment-rotation=${c.rot}` +
         (c.light ? `&light=fixed&light-theta=${c.light[0]}&light-phi=${c.light[1]}` : '') +
@@ -323,7 +338,7 @@ describe('<btf-viewer> against btf render --environment', () => {
         '--environment', env === 'studio' ? 'studio' : path.join(envDir, env), '--environment-rotation', String(rot), '--no-light'];
       const r = spawnSync(BTF, args, {encoding: 'utf8'});
       assert.equal(r.status, 0, `btf ${args.join(' ')} failed: ${r.stderr}`);
-      await page.goto(viewerUrl(`model=env/stool.glb&materials=Seat:knit:3,Frame:tiles:8&budget-chunks=999&camera-theta=55` +
+      await openViewer(page, viewerUrl(`model=env/stool.glb&materials=Seat:knit:3,Frame:tiles:8&budget-chunks=999&camera-theta=55` +
         `&camera-phi=-70&width=240&height=240&environment-image=${env === 'studio' ? 'studio' : `env/${env}`}` +
         `&environment-rotation=${rot}`));
       await waitFor(page, () => {
