@@ -102,7 +102,7 @@ ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread
 TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 
-.PHONY: all setup build test e2e check asan bench chart figure demo clean lib install uninstall
+.PHONY: all setup build test e2e check asan bench bench-gpu chart figure demo clean lib install uninstall
 all: build
 build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN) $(BUNDLE)
 lib: $(CODEC_LIB)
@@ -178,6 +178,12 @@ bench: setup
 	@mkdir -p bench/results
 	bash bench/run.sh
 	bash bench/plot_lod.sh
+
+# The shader bench as a self-contained folder for a machine with only a GPU driver
+# (build/bench-gpu/: bench/gpu/build.sh; run there with build/bench-gpu/run.sh).
+bench-gpu: setup
+	$(MAKE) build $(BUILD)/bench/bench_shader
+	BUILD=$(BUILD) bash bench/gpu/build.sh
 
 # The speed/accuracy charts (doc/figures/chart-*) and the stability table (doc/figures/stability.md).
 chart: setup

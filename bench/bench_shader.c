@@ -85,6 +85,7 @@ static void remove_dir(const char *dir)
     rmdir(dir);
 }
 
+#ifndef BENCH_READ_ONLY
 static btf_result make_package(const char *dir, btf_error *err)
 {
     btf_dirset d = btf_dirset_ubo2003();
@@ -101,6 +102,20 @@ static btf_result make_package(const char *dir, btf_error *err)
     btf_free(m);
     return r;
 }
+
+/* DIR/knit (version 1) and DIR/knit-v2 (3 spatial levels) of the same material. */
+static btf_result make_packages(const char *dir, btf_error *err)
+{
+    char v1[300], v2[300];
+    snprintf(v1, sizeof v1, "%s/knit", dir);
+    snprintf(v2, sizeof v2, "%s/knit-v2", dir);
+    fprintf(stderr, "bench_shader: compressing a 64x64 knit, 81 x 81 directions, 16 components\n");
+    btf_lod_options lo = {0};
+    lo.levels = 3;
+    btf_result r = make_package(v1, err);
+    return r == BTF_OK ? btf_lod_build(v1, v2, &lo, NULL, err) : r;
+}
+#endif
 
 /* ---------------------------------------------------------------- programs */
 
@@ -651,11 +666,9 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     char dir2[1100];
     snprintf(dir2, sizeof dir2, "%s-v2", dir1);
     btf_error err = {{0}};
-    btf_lod_options lo = {0};
-    lo.levels = 3;
     btf_package *p2 = NULL;
     btf_gl_package *g1 = NULL, *g2 = NULL;
-    if (btf_lod_build(dir1, dir2, &lo, NULL, &err) != BTF_OK || btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
+    if (btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
         btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err))
         return die("levels package", &err);
     product_ctx pc[2] = {{s, g1, 0, NULL, NULL}, {s, g2, 0, NULL, NULL}};
@@ -665,13 +678,14 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
         double v1 = c[0].cost.cpu_ms, v2 = c[1].cost.cpu_ms;
         printf("levels_v1_C%d_cpu_ms %.2f ms\nlevels_v2_C%d_cpu_ms %.2f ms\n", p1->n_loaded, v1, p1->n_loaded, v2);
         printf("levels_v2_over_v1_cpu_ratio %.3f x\n", v2 / v1);
+        if (c[0].cost.gpu_ms > 0 && c[1].cost.gpu_ms > 0)
+            printf("levels_v2_over_v1_gpu_ratio %.3f x\n", c[1].cost.gpu_ms / c[0].cost.gpu_ms);
     }
     btf_shader_program_free(gl, pc[0].prog);
     btf_shader_program_free(gl, pc[1].prog);
     btf_gl_package_free(gl, g1);
     btf_gl_package_free(gl, g2);
     btf_package_free(p2);
-    remove_dir(dir2);
     return rc;
 }
 
@@ -902,6 +916,8 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         frame_cost ms_e = c[2].cost;
         printf("env_C%d_cpu_ms %.2f ms\nenv_over_point_C%d_cpu_ratio %.3f x\nthesis_over_env_C%d_cpu_ratio %.3f x\n", C,
                ms_e.cpu_ms, C, ms_e.cpu_ms / ms_s.cpu_ms, C, ms_t.cpu_ms / ms_e.cpu_ms);
+        if (ms_e.gpu_ms > 0 && ms_s.gpu_ms > 0)
+            printf("env_over_point_C%d_gpu_ratio %.3f x\n", C, ms_e.gpu_ms / ms_s.gpu_ms);
         if (alt)
             printf("alt_C%d_cpu_ms %.2f ms\nthesis_over_alt_C%d_cpu_ratio %.3f x\nalt_over_shader_C%d_cpu_ratio %.3f x\n"
                    "alt_C%d_rmse %.3f 0..255\nalt_C%d_max_err %.1f 0..255\n",
@@ -928,16 +944,27 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     return 0;
 }
 
-int main(void)
+/* bench_shader                     makes its packages in a temp dir, runs, removes them
+ * bench_shader --write-packages D  makes D/knit and D/knit-v2 and exits
+ * BENCH_PACKAGES=D bench_shader    runs on packages made before (the GPU folder) */
+int main(int argc, char **argv)
 {
     char dir[256] = "/tmp/bench-shader-XXXXXX", pkg[300];
-    if (!mkdtemp(dir))
-        return die("mkdtemp", NULL);
-    snprintf(pkg, sizeof pkg, "%s/knit", dir);
     btf_error err = {{0}};
-    fprintf(stderr, "bench_shader: compressing a 64x64 knit, 81 x 81 directions, 16 components\n");
-    if (make_package(pkg, &err) != BTF_OK)
+    const char *given = getenv("BENCH_PACKAGES");
+#ifndef BENCH_READ_ONLY
+    if (argc == 3 && !strcmp(argv[1], "--write-packages"))
+        return make_packages(argv[2], &err) == BTF_OK ? 0 : die("packages", &err);
+    if (!given && !mkdtemp(dir))
+        return die("mkdtemp", NULL);
+    if (!given && make_packages(dir, &err) != BTF_OK)
         return die("package", &err);
+#else
+    (void)argc, (void)argv;
+    if (!given)
+        return die("BENCH_PACKAGES (a folder with knit and knit-v2) is not set", NULL);
+#endif
+    snprintf(pkg, sizeof pkg, "%s/knit", given ? given : dir);
     btf_package *p = NULL;
     if (btf_package_read(pkg, 0, &p, &err) != BTF_OK)
         return die("package read", &err);
@@ -948,7 +975,12 @@ int main(void)
     int rc = run(gl, p, pkg);
     btf_gl_free(gl);
     btf_package_free(p);
-    remove_dir(pkg);
-    rmdir(dir);
+    if (!given) {
+        char v2[320];
+        snprintf(v2, sizeof v2, "%s-v2", pkg);
+        remove_dir(v2);
+        remove_dir(pkg);
+        rmdir(dir);
+    }
     return rc;
 }
