@@ -22,7 +22,7 @@ static const btf_command commands[] = {
     {"gen", cmd_gen, "synthetic material (knit, tiles, stone) with known ground truth"},
     {"gen-model", cmd_gen_model, "a small glTF product (a stool of three materials) with known geometry"},
     {"import-thesis", cmd_import_thesis, "reconstruct a thesis package into images or a .btf file"},
-    {"library", cmd_library, "build a library: one package per source, parallel jobs, up-to-date skipping"},
+    {"library", cmd_library, "build a library (one package per source, parallel jobs, up-to-date skipping); publish it for a static host"},
     {"lod", cmd_lod, "add spatial levels (package version 2) to a compressed package"},
     {"render", cmd_render, "render a package on a plane, sphere, cylinder or glTF model to PNG (headless GL)"},
     {NULL, NULL, NULL},

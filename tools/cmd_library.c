@@ -1,5 +1,6 @@
 /* cmd_library.c - `btf library build SRC... --out LIB [-j N]`: a library of packages,
- * one independent job per material (tools/btf_cli.h).
+ * one independent job per material (tools/btf_cli.h); `btf library publish LIB OUT`: the
+ * library as files for a static host (btfd's --publish mode, library_publish below).
  *
  *     btf library build wool/ corduroy.btf gen:knit:64 --out lib -j 4
  *     btf library build stone=/data/stone --out lib --components 12
@@ -86,7 +87,16 @@ static void library_usage(FILE *f)
             "  --linear         packages of linear light, as `btf compress --linear` (for\n"
             "                   environment light: doc/lighting.md)\n"
             "  --force          rebuild even when up to date\n"
-            "  --quiet          print only failures\n");
+            "  --quiet          print only failures\n"
+            "\n"
+            "usage: btf library publish LIB OUT [--client DIR]\n"
+            "\n"
+            "Writes the library LIB into the folder OUT for any static HTTP server or CDN, at the\n"
+            "paths btfd serves: OUT/materials.json (the list), OUT/materials/NAME/thumbnail.png,\n"
+            "OUT/materials/NAME/ETAG/FILE (immutable), and the viewer's scripts (*.js of --client DIR,\n"
+            "by default the bundle beside this program). Files are written atomically and only when\n"
+            "they change; nothing is removed, so the packages an older list names stay. It runs\n"
+            "`btfd --library LIB --publish OUT`, the btfd beside this program (or $BTFD).\n");
     btf_args_exit_codes(f);
 }
 
@@ -346,10 +356,68 @@ static int library_build(int argc, char **argv)
     return rc < 0 ? 0 : rc;
 }
 
+/* `btf library publish LIB OUT [--client DIR]`: btfd's --publish mode, which reads the library
+ * with the code that serves it (server/btfd_publish.c: one copy of the list, the etags and
+ * the paths). Runs the btfd beside this program (BTFD in the environment overrides it) with
+ * --client DIR, by default the bundle beside this program (client/, as make build writes it)
+ * when there is one, else btfd's default. Returns its exit status. */
+static int library_publish(int argc, char **argv)
+{
+    const char *client = NULL, *pos[2] = {NULL, NULL};
+    int npos = 0;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+            library_usage(stdout);
+            return 0;
+        }
+        if (!strcmp(argv[i], "--client") && i + 1 < argc)
+            client = argv[++i];
+        else if (argv[i][0] != '-' && npos < 2)
+            pos[npos++] = argv[i];
+        else {
+            fprintf(stderr, "btf library publish: unexpected argument '%s'\n", argv[i]);
+            return 2;
+        }
+    }
+    if (npos != 2) {
+        fprintf(stderr, "btf library publish: LIB and OUT are required (btf library publish LIB OUT)\n");
+        return 2;
+    }
+    char exe[BTF_FS_PATH_MAX], btfd[BTF_FS_PATH_MAX + 8], bundle[BTF_FS_PATH_MAX + 24];
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    exe[n > 0 ? n : 0] = 0;
+    char *slash = strrchr(exe, '/');
+    if (slash)
+        *slash = 0;
+    snprintf(btfd, sizeof btfd, "%s/btfd", slash ? exe : ".");
+    snprintf(bundle, sizeof bundle, "%s/client/btf-viewer.js", slash ? exe : ".");
+    const char *prog = getenv("BTFD") && getenv("BTFD")[0] ? getenv("BTFD") : btfd;
+    if (!client && btf_fs_size(bundle) >= 0) {
+        bundle[strlen(bundle) - strlen("/btf-viewer.js")] = 0;
+        client = bundle;
+    }
+    char *args[] = {(char *)prog, "--library", (char *)pos[0], "--publish", (char *)pos[1],
+                    client ? "--client" : NULL, (char *)client, NULL};
+    fflush(stdout);
+    fflush(stderr);
+    pid_t pid = fork();
+    if (pid == 0) {
+        execv(prog, args);
+        fprintf(stderr, "btf library publish: cannot run %s: %s\n", prog, strerror(errno));
+        _exit(1);
+    }
+    int status = 0;
+    if (pid < 0 || waitpid(pid, &status, 0) != pid)
+        return 1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+}
+
 int cmd_library(int argc, char **argv)
 {
     if (argc >= 2 && !strcmp(argv[1], "build"))
         return library_build(argc - 1, argv + 1);
+    if (argc >= 2 && !strcmp(argv[1], "publish"))
+        return library_publish(argc - 1, argv + 1);
     if (argc >= 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
         library_usage(stdout);
         return 0;
