@@ -206,15 +206,35 @@ vec3 btf_view_sample(int vi, int b, btf_interp il, int l0, ivec4 xy0, vec2 a0, i
     return s;
 }
 
-vec3 btf_decode_lod(vec2 uv, vec3 light, vec3 view, float lod)
+// The spatial taps of uv at lod: levels l0 and l1 (lod clamped to [0, N-1], trilinear
+// between floor(lod) and the next) with weight 1 - f and f, their texels and fractions.
+struct btf_taps {
+    int l0, l1;
+    float f;
+    ivec4 xy0, xy1;
+    vec2 a0, a1;
+};
+
+btf_taps btf_decode_taps(vec2 uv, float lod)
 {
-    // levels: lod clamped to [0, N-1], trilinear between floor(lod) and the next
+    btf_taps t;
     int top = BTF__LEVELS ? max(u_btf_levels, 1) - 1 : 0;
     float lc = clamp(lod, 0.0, float(top));
-    int l0 = int(floor(lc)), l1 = min(l0 + 1, top);
-    float f = lc - float(l0);
-    vec2 a0, a1;
-    ivec4 xy0 = btf_texel_taps(uv, l0, a0), xy1 = btf_texel_taps(uv, l1, a1);
+    t.l0 = int(floor(lc));
+    t.l1 = min(t.l0 + 1, top);
+    t.f = lc - float(t.l0);
+    t.xy0 = btf_texel_taps(uv, t.l0, t.a0);
+    t.xy1 = btf_texel_taps(uv, t.l1, t.a1);
+    return t;
+}
+
+vec3 btf_decode_lod(vec2 uv, vec3 light, vec3 view, float lod)
+{
+    btf_taps t = btf_decode_taps(uv, lod);
+    int l0 = t.l0, l1 = t.l1;
+    float f = t.f;
+    ivec4 xy0 = t.xy0, xy1 = t.xy1;
+    vec2 a0 = t.a0, a1 = t.a1;
     btf_interp il = btf_dirs_interp_vec(0, light);
     btf_interp iv = btf_dirs_interp_vec(1, view);
     vec3 rgb = iv.w.x * btf_view_sample(iv.idx.x, iv.blk.x, il, l0, xy0, a0, l1, xy1, a1, f);

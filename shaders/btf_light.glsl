@@ -128,12 +128,11 @@ void btf_light_view_sample(int vi, int b, btf_interp il, vec3 e[9], vec3 off, in
 
 void btf_light_decode(vec2 uv, vec3 light, vec3 view, mat3 frame, float lod, out vec3 point, out vec3 env)
 {
-    int top = BTF__LEVELS ? max(u_btf_levels, 1) - 1 : 0;
-    float lc = clamp(lod, 0.0, float(top));
-    int l0 = int(floor(lc)), l1 = min(l0 + 1, top);
-    float f = lc - float(l0);
-    vec2 a0, a1;
-    ivec4 xy0 = btf_texel_taps(uv, l0, a0), xy1 = btf_texel_taps(uv, l1, a1);
+    btf_taps t = btf_decode_taps(uv, lod);
+    int l0 = t.l0, l1 = t.l1;
+    float f = t.f;
+    ivec4 xy0 = t.xy0, xy1 = t.xy1;
+    vec2 a0 = t.a0, a1 = t.a1;
     btf_interp il;
     if (BTF__POINT)
         il = btf_dirs_interp_vec(0, light);

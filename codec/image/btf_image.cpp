@@ -87,19 +87,32 @@ extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *chan
     return BTF_OK;
 }
 
+// open_input for the pixels, then a 2-D image of 1..4 channels, each side 1..max_side;
+// NULL with *r and err set otherwise.
+static std::unique_ptr<ImageInput> open_image(const char *path, int max_side, btf_result *r, btf_error *err)
+{
+    auto in = open_input(path, 0, r, err);
+    if (!in)
+        return in;
+    const ImageSpec &s = in->spec();
+    if (s.width < 1 || s.height < 1 || s.width > max_side || s.height > max_side || s.nchannels < 1 ||
+        s.nchannels > 4 || s.depth != 1) {
+        *r = btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d; at most %d per side)", path,
+                      s.width, s.height, s.nchannels, s.depth, max_side);
+        return nullptr;
+    }
+    return in;
+}
+
 extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels,
                                         btf_error *err)
 {
     *pixels = nullptr;
     btf_result r = BTF_OK;
-    auto in = open_input(path, 0, &r, err);
+    auto in = open_image(path, kMaxSide, &r, err);
     if (!in)
         return r;
     const ImageSpec &s = in->spec();
-    if (s.width < 1 || s.height < 1 || s.width > kMaxSide || s.height > kMaxSide || s.nchannels < 1 ||
-        s.nchannels > 4 || s.depth != 1)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d)", path, s.width, s.height,
-                        s.nchannels, s.depth);
     size_t n = (size_t)s.width * (size_t)s.height * (size_t)s.nchannels;
     long long file = btf_fs_size(path);
     if (!strcmp(in->format_name(), "webp") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO &&
@@ -151,15 +164,13 @@ extern "C" btf_result btf_image_read_rgb_f32(const char *path, int max_w, int ma
                                              btf_error *err)
 {
     *rgb = nullptr;
+    if (max_w < 1 || max_h < 1)
+        return btf_fail(err, BTF_ERR_ARG, "%s: bound %dx%d", path, max_w, max_h);
     btf_result r = BTF_OK;
-    auto in = open_input(path, 0, &r, err);
+    auto in = open_image(path, BTF_IMAGE_MAX_F32_SIDE, &r, err);
     if (!in)
         return r;
     const ImageSpec &s = in->spec();
-    if (s.width < 1 || s.height < 1 || s.width > BTF_IMAGE_MAX_F32_SIDE || s.height > BTF_IMAGE_MAX_F32_SIDE ||
-        s.nchannels < 1 || s.nchannels > 4 || s.depth != 1 || max_w < 1 || max_h < 1)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d; at most %d per side)", path,
-                        s.width, s.height, s.nchannels, s.depth, BTF_IMAGE_MAX_F32_SIDE);
     int f = 1;
     while ((s.width + f - 1) / f > max_w || (s.height + f - 1) / f > max_h)
         f++;
