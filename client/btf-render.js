@@ -153,6 +153,7 @@ export class MeshRenderer {
       gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
       gl.uniform4f(p.loc('u_light'), cam.light[0], cam.light[1], cam.light[2], 0);
       gl.uniform1f(p.loc('u_flat_ambient'), FLAT_AMBIENT);
+      setLights(gl, p, lights); // the flat parts get the same lights, exposure and tone curve
       for (const f of flats) {
         gl.uniform4f(p.loc('u_base_color'), f.color[0], f.color[1], f.color[2], f.color[3]);
         gl.bindVertexArray(f.mesh.vao);
