@@ -16,6 +16,10 @@
 // until a listener asks for more.
 
 import {dropChunks, loadChunks, mayHaveChunks, storeChunk} from './btf-cache.js';
+import {Subscription, mergeBudgets} from './btf-subscription.js';
+import {HttpStream, libraryBase} from './btf-http.js';
+
+export {mergeBudgets};
 
 export const SUBPROTOCOL = 'btf-stream.v1';
 const HEADER = 20;
@@ -42,79 +46,6 @@ function wireBudget(b) {
   return o;
 }
 
-// The largest of several budgets (a limit only when every listener has one).
-export function mergeBudgets(list) {
-  const out = {chunks: -1, bytes: -1, error: -1, pixels: -1, threshold: -1};
-  for (const key of ['chunks', 'bytes', 'pixels']) {
-    let v = 0;
-    for (const b of list) {
-      if (!(b[key] >= 0)) { v = -1; break; }
-      v = Math.max(v, b[key]);
-    }
-    out[key] = list.length ? v : 0;
-  }
-  let e = Infinity;
-  for (const b of list) {
-    if (!(b.error >= 0)) { e = -1; break; }
-    e = Math.min(e, b.error);
-  }
-  out.error = list.length && e !== Infinity ? e : -1;
-  const t = list.map((b) => b.threshold).filter((x) => x >= 0);
-  out.threshold = out.pixels >= 0 && t.length ? Math.min(...t) : -1;
-  return out;
-}
-
-// One material on one connection; lives while a listener holds it.
-class Subscription {
-  constructor(stream, material) {
-    this.stream = stream;
-    this.material = material;
-    this.listeners = new Set();
-    this.mid = 0;
-    this.seq = 0;           // seq of the subscribe sent on the current connection (its manifest echoes it)
-    this.sent = false;      // subscribe sent on the current connection
-    this.etag = null;
-    this.manifest = null;   // raw manifest JSON object
-    this.limit = 0;         // chunks the server says the budget allows
-    this.chunks = [];       // chunk index -> array of Uint8Array (its files), when complete
-    this.partial = new Map(); // chunk index -> {files: [Uint8Array|undefined], done: Set}
-    this.received = 0;      // complete chunks
-    this.bytes = 0;         // payload bytes received (header excluded)
-    this.complete = false;
-    this.sentBudget = null;
-    this.error = null;
-    this.loading = true;    // reading kept chunks (btf-cache.js); subscribe waits for it
-    this.unannounced = 0;   // kept chunks the listeners have not been told about yet
-    this.cached = 0;        // chunks that came from the browser's cache
-    this.arrivedAt = [];    // chunk index -> when its last byte arrived (performance.now)
-  }
-
-  // Chunks kept from an earlier visit become held ones: the subscribe lists them in
-  // `have` with their etag, and they are replayed once the manifest confirms the etag.
-  adopt(kept) {
-    if (kept && !this.manifest) {
-      this.etag = kept.etag;
-      kept.chunks.forEach((files, j) => { this.chunks[j] = files; });
-      this.received = this.cached = this.unannounced = kept.chunks.length;
-    }
-    this.loading = false;
-  }
-
-  have() {
-    const h = [];
-    this.chunks.forEach((c, i) => c && h.push(i));
-    return h;
-  }
-
-  budget() {
-    return mergeBudgets([...this.listeners].map((l) => l.budget()));
-  }
-
-  emit(ev, ...args) {
-    for (const l of this.listeners) if (l[ev]) l[ev](this, ...args);
-  }
-}
-
 // Flow state of one connection: bytes received, when, the round trip (ping at open).
 function newFlow() {
   return {received: 0, window: WINDOW_START, rtt: null, hist: [], timer: 0, lastAck: 0, pingSeq: 0,
@@ -134,10 +65,13 @@ function flowWindow(f) {
 }
 
 export class BtfStream {
-  // The shared stream of a server URL (ws:// or wss://).
+  // The shared stream of a source: a btfd's WebSocket (ws:// or wss://), or a library over
+  // HTTP (http:// or https://: a static host, btf-http.js), one per page.
   static for(url) {
-    const key = new URL(url).href;
-    if (!streams.has(key)) streams.set(key, new BtfStream(key));
+    const u = new URL(url, globalThis.location?.href);
+    const http = u.protocol === 'http:' || u.protocol === 'https:';
+    const key = http ? libraryBase(u.href) : u.href;
+    if (!streams.has(key)) streams.set(key, http ? new HttpStream(key) : new BtfStream(key));
     return streams.get(key);
   }
 
@@ -171,6 +105,7 @@ export class BtfStream {
   }
 
   connect() {
+    if (this.http) return;
     let ws;
     this.attempts++;
     try {
@@ -199,6 +134,7 @@ export class BtfStream {
   onClose(ws, ev) {
     if (this.ws !== ws) return;
     const opened = this.open;
+    if (!opened && !this.connects && !this.probed && this.subs.size) return this.probeHttp(ws, ev);
     this.open = false;
     this.ws = null;
     clearTimeout(this.flow?.timer);
@@ -220,6 +156,33 @@ export class BtfStream {
         drained: ev.code === 1001});
     }
     // else: everything asked for is here; the next subscribe or larger budget reconnects
+  }
+
+  // The socket never opened: is it the WebSocket only (a proxy that refuses upgrades)? When
+  // the server answers its list over HTTP (btfd: GET /materials.json), the stream goes on
+  // over HTTP from the same server (btf-http.js); else the failure takes its usual course.
+  probeHttp(ws, ev) {
+    this.probed = true;
+    const base = libraryBase(this.url);
+    fetch(new URL('materials.json', base), {credentials: 'omit'})
+      .then((r) => (r.ok ? r.json() : null))
+      .catch(() => null)
+      .then((list) => {
+        if (list && Array.isArray(list.materials)) return this.fallBack(base);
+        this.ws = ws;
+        this.onClose(ws, ev);
+      });
+  }
+
+  // From now on every subscription of this stream is one of an HTTP stream of the same
+  // server; the listeners move there (onSubscribe gives them the new subscription).
+  fallBack(base) {
+    this.ws = null;
+    this.http = new HttpStream(base, this);
+    const subs = [...this.subs.values()];
+    this.subs.clear();
+    this.byMid.clear();
+    for (const sub of subs) for (const l of sub.listeners) this.http.subscribe(sub.material, l);
   }
 
   // Schedules the next attempt: RETRY_MS[retry - 1], +-25% jitter so many pages do not
@@ -286,6 +249,7 @@ export class BtfStream {
   //            onComplete(sub, msg), onError(sub, msg), onStreamError(sub, text)}
   // Returns the subscription; chunks already here are replayed to the listener.
   subscribe(material, listener) {
+    if (this.http) return this.http.subscribe(material, listener);
     let sub = this.subs.get(material);
     const fresh = !sub;
     if (fresh) {
@@ -463,7 +427,8 @@ export class BtfStream {
   }
 
   stats() {
-    return {url: this.url, open: this.open, bytes: this.bytes, frames: this.frames, connects: this.connects,
+    if (this.http) return {...this.http.stats(), url: this.url, fallback: this.http.url, bytes: this.bytes};
+    return {url: this.url, transport: 'ws', open: this.open, bytes: this.bytes, frames: this.frames, connects: this.connects,
             attempts: this.attempts, pieces: this.pieces,
             flow: this.flow ? {window: this.flow.window, rtt: this.flow.rtt, received: this.flow.received} : null,
             subscriptions: [...this.subs.values()].map((s) => ({material: s.material, received: s.received,

@@ -1,6 +1,7 @@
 // modules.test.mjs - the client's browser-free modules in node: manifest validation
 // and weight dequantisation (client/btf-package.js), shader assembly and compiler-log
-// mapping (client/btf-gl.js), budget merging (client/btf-stream.js), ray casts and
+// mapping (client/btf-gl.js), budget merging (client/btf-stream.js), the HTTP transport's
+// budget, priority and URL rules (client/btf-http.js), ray casts and
 // meshes (client/scene.js), direction tables (client/btf-dirtab.js). No server, no browser.
 import assert from 'node:assert/strict';
 import child from 'node:child_process';
@@ -14,6 +15,7 @@ import {BTF, ROOT, writeSpiralList} from './util.mjs';
 const pkgMod = await import('../../client/btf-package.js');
 globalThis.WebSocket ??= class {}; // btf-stream.js only needs it when connecting
 const streamMod = await import('../../client/btf-stream.js');
+const httpMod = await import('../../client/btf-http.js');
 const glMod = await import('../../client/btf-gl.js');
 const scene = await import('../../client/scene.js');
 
@@ -269,6 +271,47 @@ describe('btf-stream.js budgets', () => {
     assert.deepEqual(m([{chunks: -1, pixels: 300, threshold: 1}, {chunks: -1, pixels: 600, threshold: 2}]),
       {chunks: -1, bytes: -1, error: -1, pixels: 600, threshold: 1});
     assert.equal(m([{chunks: 3, pixels: -1}, {chunks: -1, pixels: 600}]).pixels, -1);
+  });
+});
+
+describe('btf-http.js (the HTTP transport: the rules of btfd in the client)', () => {
+  it('the library base of a source: an http(s) folder, its materials.json, a btfd WebSocket', () => {
+    const b = httpMod.libraryBase;
+    assert.equal(b('https://cdn.example/lib/'), 'https://cdn.example/lib/');
+    assert.equal(b('https://cdn.example/lib'), 'https://cdn.example/lib/');
+    assert.equal(b('https://cdn.example/lib/materials.json?x=1'), 'https://cdn.example/lib/');
+    assert.equal(b('ws://127.0.0.1:8080/stream'), 'http://127.0.0.1:8080/');
+    assert.equal(b('wss://btf.example/lib/stream'), 'https://btf.example/lib/');
+    assert.equal(httpMod.libraryUrl('https://cdn.example/lib/', '/materials/knit/0123/'),
+      'https://cdn.example/lib/materials/knit/0123/');
+  });
+
+  it('budgetLimit is the prefix rule of btfd: chunks, bytes, error, footprint', () => {
+    const m = manifest(), L = (b) => httpMod.budgetLimit(m, {chunks: -1, bytes: -1, error: -1, pixels: -1, ...b});
+    assert.equal(L({}), 2);
+    assert.equal(L({chunks: 1}), 1);
+    assert.equal(L({chunks: 0}), 0);
+    assert.equal(L({bytes: 1000}), 1);
+    assert.equal(L({bytes: 2000}), 1);
+    assert.equal(L({bytes: 2001}), 2);
+    assert.equal(L({error: 3}), 1, 'the first chunk whose lab error is within the budget');
+    assert.equal(L({error: 0.5}), 2);
+    assert.equal(L({pixels: 0}), 0, 'off screen');
+    assert.equal(L({pixels: 100}), 2, 'a package without levels: every chunk');
+    assert.equal(httpMod.manifestMetric(m), 'lab');
+  });
+
+  it('nextChunk: first chunks before any refinement, then error reduction per byte, ties to the earlier', () => {
+    const m = manifest(), n = httpMod.nextChunk;
+    assert.deepEqual(n([{manifest: m, held: 1, next: 1, limit: 2}, {manifest: m, held: 0, next: 0, limit: 2}]),
+      {index: 1, chunk: 0, first: true});
+    assert.deepEqual(n([{manifest: m, held: 1, next: 1, limit: 2}, {manifest: m, held: 1, next: 1, limit: 2}]),
+      {index: 0, chunk: 1, first: false});
+    const cheap = structuredClone(m);
+    cheap.chunks[1].bytes = 10;
+    assert.equal(n([{manifest: m, held: 1, next: 1, limit: 2}, {manifest: cheap, held: 1, next: 1, limit: 2}]).index, 1);
+    assert.equal(n([{manifest: m, held: 2, next: 2, limit: 2}]), null, 'everything held');
+    assert.equal(n([{manifest: m, held: 1, next: 1, limit: 1}]), null, 'the budget allows no more');
   });
 });
 
