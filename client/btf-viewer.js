@@ -7,7 +7,8 @@
 // two lines work on a page of any origin (btfd sends CORS headers, doc/protocol.md).
 // Attributes (each also a JS property, camelCase; every one reacts when changed; the
 // table with defaults and the events is in doc/client.md):
-//   src            WebSocket URL of btfd (default: ws(s) of this script's origin + /stream)
+//   src            WebSocket URL of btfd (default: ws(s) of this script's origin + /stream), or
+//                  the http(s) folder of a published library (btf-http.js)
 //   material       material name in the server's library (with a model: bound to every part
 //                  `materials` does not name)
 //   model          URL of a glTF 2.0 model (.glb, or .gltf with its buffers) drawn instead of
@@ -56,6 +57,7 @@ import './btf-package.js';
 import './btf-upload.js';
 import {BtfSession} from './btf-session.js';
 import {BtfStream} from './btf-stream.js';
+import {libraryBase, libraryUrl} from './btf-http.js';
 import {GpuPackage} from './btf-gl.js';
 import {sharedStats} from './btf-context.js';
 import {LOD_THRESHOLD} from './btf-lod.js';
@@ -115,10 +117,10 @@ function scriptWs() {
   return `${u.protocol === 'https:' ? 'wss:' : 'ws:'}//${u.host}/stream`;
 }
 
-const lists = new Map(); // http base -> Promise of GET /materials (poster thumbnails)
+const lists = new Map(); // library base -> Promise of its materials.json (poster thumbnails)
 function materialList(base) {
   if (!lists.has(base)) {
-    lists.set(base, fetch(new URL('materials', base)).then((r) => (r.ok ? r.json() : {materials: []}))
+    lists.set(base, fetch(new URL('materials.json', base)).then((r) => (r.ok ? r.json() : {materials: []}))
       .catch(() => ({materials: []})));
   }
   return lists.get(base);
@@ -420,11 +422,11 @@ export class BtfViewer extends HTMLElement {
   async defaultPoster(session) {
     const name = this.getAttribute('material');
     if (this.getAttribute('poster') || !name) return;
-    const base = session.src.replace(/^ws(s?):/, 'http$1:');
+    const base = libraryBase(session.src); // btfd's root, or a static host's library folder
     const list = await materialList(base);
     const m = (list.materials || []).find((x) => x.name === name);
     if (session !== this.session || !m || !m.thumbnail || session.loaded) return;
-    this.posterImg.src = new URL(m.thumbnail, base).href;
+    this.posterImg.src = libraryUrl(base, m.thumbnail);
     this.posterImg.hidden = false;
     this.posterShown = this.posterImg.src;
   }
