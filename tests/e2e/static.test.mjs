@@ -9,16 +9,17 @@
 //       to btfd's HTTP routes and draws.
 // Run: node --test tests/e2e/static.test.mjs
 import assert from 'node:assert/strict';
-import {spawn, spawnSync} from 'node:child_process';
+import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import http from 'node:http';
 import path from 'node:path';
 import {after, before, describe, it} from 'node:test';
 import {clsRecorder, startThrottle, visit} from './throttle.mjs';
-import {BTF, freePort, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor} from './util.mjs';
+import {BTF, freePort, launch, makeLibrary, newPage, requireBuild, serveProcess, servePages, startNginx, startServer}
+  from './util.mjs';
 
 const PHONE = {viewport: {width: 390, height: 700}, deviceScaleFactor: 2, isMobile: true, hasTouch: true};
-const NGINX = ['/usr/sbin/nginx', '/usr/bin/nginx'].find((p) => fs.existsSync(p));
+const NGINX = ['/usr/sbin/nginx', '/usr/bin/nginx'].find((p) => fs.existsSync(p)); // startNginx's
 let lib, site, out;
 
 // A page with the two lines of the README's static-host section: the script and the library from `host`.
@@ -42,44 +43,6 @@ before(() => {
 });
 
 after(() => lib?.remove());
-
-// A child process listening on `port` (polled until it answers); stop() ends it.
-async function serve(cmd, args, port, opts = {}) {
-  const p = spawn(cmd, args, {stdio: ['ignore', 'ignore', 'pipe'], ...opts});
-  let err = '';
-  p.stderr.on('data', (d) => { err += d; });
-  for (let t = 0; ; t += 50) {
-    const ok = await new Promise((r) => http.get(`http://127.0.0.1:${port}/`, (res) => { res.resume(); r(true); })
-      .on('error', () => r(false)));
-    if (ok) break;
-    if (t > 10000 || p.exitCode !== null) throw new Error(`${cmd} did not start: ${err}`);
-    await new Promise((r) => setTimeout(r, 50));
-  }
-  return {stop: () => new Promise((r) => (p.exitCode !== null ? r() : (p.once('exit', r), p.kill('SIGTERM'))))};
-}
-
-// nginx serving `root` as files on `port`, adding Access-Control-Allow-Origin: * and nothing else.
-async function startNginx(root, port) {
-  fs.chmodSync(lib.dir, 0o755); // nginx's workers may run as another user (a master started as root)
-  const prefix = fs.mkdtempSync(path.join(lib.dir, 'nginx-'));
-  fs.writeFileSync(path.join(prefix, 'nginx.conf'), `daemon off; worker_processes 1; pid ${prefix}/nginx.pid;
-error_log ${prefix}/error.log;
-events { worker_connections 256; }
-http {
-  access_log off;
-  types { text/html html; text/javascript js; application/json json; image/png png; image/webp webp; }
-  default_type application/octet-stream;
-  client_body_temp_path ${prefix}/body; proxy_temp_path ${prefix}/proxy; fastcgi_temp_path ${prefix}/fcgi;
-  uwsgi_temp_path ${prefix}/uwsgi; scgi_temp_path ${prefix}/scgi;
-  server {
-    listen 127.0.0.1:${port};
-    root ${root};
-    add_header Access-Control-Allow-Origin *;
-  }
-}
-`);
-  return serve(NGINX, ['-p', prefix, '-c', path.join(prefix, 'nginx.conf'), '-e', path.join(prefix, 'error.log')], port);
-}
 
 // A visit that failed, with what the page reported.
 const failure = (ctx) => (e) => {
@@ -116,7 +79,7 @@ describe('the library from a static host', () => {
   it('(a) python3 -m http.server with the page and the library together; a reload streams nothing', async () => {
     const port = await freePort();
     fs.writeFileSync(path.join(site, 'index.html'), page(`http://127.0.0.1:${port}/lib/`));
-    const py = await serve('python3', ['-m', 'http.server', '--bind', '127.0.0.1', String(port)], port, {cwd: site});
+    const py = await serveProcess('python3', ['-m', 'http.server', '--bind', '127.0.0.1', String(port)], port, {cwd: site});
     const ctx = await launch();
     try {
       await ctx.addInitScript(clsRecorder);
@@ -136,7 +99,7 @@ describe('the library from a static host', () => {
 
   it('(b) nginx on another origin, CORS only, phone at 4 Mbit/s and 40 ms', {skip: !NGINX && 'no nginx'}, async () => {
     const port = await freePort();
-    const nginx = await startNginx(out, port);
+    const nginx = await startNginx(out, port, lib.dir);
     const link = await startThrottle({target: port, bps: 4e6, delayMs: 20});
     const pages = await servePages({readme: page(`http://127.0.0.1:${link.port}/`)});
     const ctx = await launch(PHONE);

@@ -33,7 +33,9 @@ function pipe(src, dst, {bps, delayMs, queue}, lane, conn) {
   src.on('data', (buf) => {
     for (let off = 0; off < buf.length; off += PIECE) {
       const piece = buf.subarray(off, off + PIECE);
-      lane.free = Math.max(lane.free, performance.now()) + (piece.length * 8 * 1000) / bps;
+      const start = Math.max(lane.free, performance.now());
+      lane.free = start + (piece.length * 8 * 1000) / bps;
+      lane.log?.push([start + delayMs, lane.free + delayMs, piece.length]); // when it is on the far side
       fifo.push({piece, at: lane.free + delayMs});
       waiting += piece.length;
     }
@@ -49,9 +51,10 @@ function pipe(src, dst, {bps, delayMs, queue}, lane, conn) {
 
 // Resolves {port, url, down, close()}; target: the loopback port behind it; down: bytes
 // delivered towards the client and when the first and last were (ms, performance.now()),
-// and down.conns the same per connection.
+// down.conns the same per connection, down.log every piece's [first bit, last bit, bytes]
+// at the far side (linkShare reads it).
 export function startThrottle({target, bps = 4e6, delayMs = 20, queue = 64 * 1024}) {
-  const sockets = new Set(), down = {bytes: 0, first: null, last: null, free: 0, conns: []},
+  const sockets = new Set(), down = {bytes: 0, first: null, last: null, free: 0, conns: [], log: []},
     up = {bytes: 0, first: null, last: null, free: 0};
   const srv = net.createServer((client) => {
     const upstream = net.connect(target, '127.0.0.1');
@@ -81,6 +84,18 @@ export function startThrottle({target, bps = 4e6, delayMs = 20, queue = 64 * 102
       }),
     });
   }));
+}
+
+// The link's busy share while it carried the last `bytes` bytes it delivered towards the
+// client (a page's package, when nothing follows it): those bytes' link time over the time
+// from the first bit of the piece where they begin to the last bit of the last piece. 1 is a
+// link that never idled meanwhile; it idles while nothing was asked for or sent.
+export function linkShare(down, bytes, bps) {
+  const log = down.log;
+  let n = 0, i = log.length;
+  while (i > 0 && n < bytes) n += log[--i][2];
+  if (!n) return NaN;
+  return (n * 8 * 1000) / bps / (log[log.length - 1][1] - log[i][0]);
 }
 
 // Records cumulative layout shift (entries without recent input) in window.__cls; for addInitScript.

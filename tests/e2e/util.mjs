@@ -103,6 +103,50 @@ export function startServer(lib, extra = [], port = 0) {
   });
 }
 
+// A child process serving HTTP on `port` (polled until it answers, any status); resolves {stop()}.
+export async function serveProcess(cmd, args, port, opts = {}) {
+  const http = await import('node:http');
+  const p = spawn(cmd, args, {stdio: ['ignore', 'ignore', 'pipe'], ...opts});
+  let err = '';
+  p.stderr.on('data', (d) => { err += d; });
+  for (let t = 0; ; t += 50) {
+    const ok = await new Promise((r) => http.get(`http://127.0.0.1:${port}/`, (res) => { res.resume(); r(true); })
+      .on('error', () => r(false)));
+    if (ok) break;
+    if (t > 10000 || p.exitCode !== null) throw new Error(`${cmd} did not start: ${err}`);
+    await new Promise((r) => setTimeout(r, 50));
+  }
+  return {stop: () => new Promise((r) => (p.exitCode !== null ? r() : (p.once('exit', r), p.kill('SIGTERM'))))};
+}
+
+// nginx (Debian's) serving the folder `root` as a static host on `port`: files as they are,
+// Access-Control-Allow-Origin: * added and nothing else; its prefix a new folder under
+// `tmp`, which is made readable to nginx's workers (they run as another user under root).
+export async function startNginx(root, port, tmp) {
+  const bin = ['/usr/sbin/nginx', '/usr/bin/nginx'].find((f) => fs.existsSync(f));
+  if (!bin) throw new Error('nginx is missing: run `make setup` (nginx-light)');
+  fs.chmodSync(tmp, 0o755);
+  const prefix = fs.mkdtempSync(path.join(tmp, 'nginx-'));
+  fs.writeFileSync(path.join(prefix, 'nginx.conf'), `daemon off; worker_processes 1; pid ${prefix}/nginx.pid;
+error_log ${prefix}/error.log;
+events { worker_connections 256; }
+http {
+  access_log off;
+  types { text/html html; text/javascript js; application/json json; image/png png; image/webp webp; }
+  default_type application/octet-stream;
+  client_body_temp_path ${prefix}/body; proxy_temp_path ${prefix}/proxy; fastcgi_temp_path ${prefix}/fcgi;
+  uwsgi_temp_path ${prefix}/uwsgi; scgi_temp_path ${prefix}/scgi;
+  server {
+    listen 127.0.0.1:${port};
+    root ${root};
+    add_header Access-Control-Allow-Origin *;
+  }
+}
+`);
+  return serveProcess(bin, ['-p', prefix, '-c', path.join(prefix, 'nginx.conf'), '-e', path.join(prefix, 'error.log')],
+    port);
+}
+
 // A fresh browser context (own profile dir) with page errors and console errors
 // collected in ctx.problems. Options as playwright's launchPersistentContext. With
 // keepProfile (a directory) that profile is used and kept (a second visit).
