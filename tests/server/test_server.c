@@ -690,6 +690,14 @@ Test(server, list_over_http_and_websocket_skips_non_packages)
     cr_expect(cJSON_IsNull(cJSON_GetObjectItem(a, "thumbnail")));
     cr_expect_str_eq(jstr(b, "thumbnail"), "/materials/beta/thumbnail.png");
     cJSON_Delete(j);
+    /* /materials.json (the file btfd --publish writes) answers the same body */
+    uint8_t *again;
+    size_t alen;
+    cr_assert_eq(http_get(s.port, "/materials", &body, &blen), 200);
+    cr_assert_eq(http_get(s.port, "/materials.json", &again, &alen), 200);
+    cr_expect(alen == blen && !memcmp(again, body, blen), "/materials.json differs from /materials");
+    free(body);
+    free(again);
 
     cr_assert_eq(http_get(s.port, "/materials/beta/thumbnail.png", &body, &blen), 200);
     cr_expect(blen == sizeof thumb && !memcmp(body, thumb, blen), "thumbnail bytes differ");
