@@ -108,13 +108,13 @@ const lists = new Map(); // base -> {at, promise} of its materials.json, shared 
 // replaced, or a material the list did not name).
 function fetchList(base, fresh = false) {
   const known = lists.get(base);
-  if (known && (!fresh || performance.now() - known.at < LIST_AGAIN_MS)) return known.promise;
+  if (known && (!fresh || (known.fresh && performance.now() - known.at < LIST_AGAIN_MS))) return known.promise;
   const promise = fetch(new URL('materials.json', base), {cache: fresh ? 'no-cache' : 'default', credentials: 'omit'})
     .then((r) => {
       if (!r.ok) throw new HttpError(`${base}materials.json: HTTP ${r.status}`, r.status);
       return r.json();
     });
-  const entry = {at: performance.now(), promise};
+  const entry = {at: performance.now(), promise, fresh};
   lists.set(base, entry);
   promise.catch(() => { if (lists.get(base) === entry) lists.delete(base); });
   return promise;
@@ -230,6 +230,7 @@ export class HttpStream {
       if (!manifest || !Array.isArray(manifest.chunks) || !manifest.chunks.length) throw new Error(`${files}manifest.json: no chunks`);
       this.takeManifest(sub, entry.etag, files, manifest);
     } catch (e) {
+      if (e.status === 404) lists.delete(this.base); // a manifest the list names is gone: ask for the list again
       if (!sub.gone) this.failed(e, () => this.start(sub));
     }
   }
