@@ -11,8 +11,8 @@
 //
 // Textures (texelFetch only: no filtering, no float textures, WebGL2 core formats);
 // slot s = the s-th distinct component of the loaded chunks (version 1: chunk s):
-//   u_btf_tex  RGBA32UI array, layer g, mip level l: atlas of slots 8g..8g+7 at level l,
-//              16 bits each: channel c = slot 8g+2c (low half) | slot 8g+2c+1 (high half);
+//   u_btf_tex  RGBA16UI array, layer h, mip level l: atlas of slots 4h..4h+3 at level l,
+//              channel c = slot 4h+c as a 16-bit value q;
 //              T_s = u_btf_tq[2h].[s-4h] + u_btf_tq[2h+1].[s-4h] * q (h = s / 4). A level a
 //              slot has not loaded holds its nearest loaded level (finer levels: the
 //              coarse texel repeated; coarser: the finer texel at the centre)
@@ -21,8 +21,8 @@
 //              W = u_btf_wq[6h + ch] + u_btf_wq[6h + 3 + ch] * q per colour channel ch
 //   The view's block: btf_interp.blk (bits 12.. of the view vertex's .w in btf_dirs_block).
 // Per fragment: 2 direction texels, then per view sample (3): one u_btf_tex texel per
-// 8 slots (4 bilinear, twice between two levels) and per light sample (3) one
-// u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/8) + 3 ceil(C/4)) texels, nearest.
+// 4 slots (4 bilinear, twice between two levels) and per light sample (3) one
+// u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/4) + 3 ceil(C/4)) = 2 + 12 ceil(C/4) texels, nearest.
 
 #ifndef BTF_MAX_CHUNKS
 #define BTF_MAX_CHUNKS 64

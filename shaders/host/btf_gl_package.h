@@ -10,7 +10,7 @@
  *
  * The GPU layout (shaders/btf_decode.glsl and shaders/README.md, "GPU layout"): slot s =
  * the s-th distinct component of the loaded chunks (version 1: chunk s); N levels:
- *   u_btf_tex   RGBA32UI array, layer g = slots 8g..8g+7 at 16 bits each, mip level l;
+ *   u_btf_tex   RGBA16UI array, layer h = slots 4h..4h+3 (channel c = slot 4h+c), mip level l;
  *               values requantised on one grid per component (its manifest ranges over
  *               every block and level), a level a slot lacks filled from its nearest one
  *   u_btf_wt    RGBA32UI array, layer h = slots 4h..4h+3 as 11/11/10-bit RGB, texel
