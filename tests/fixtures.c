@@ -373,3 +373,46 @@ void fx_env_sums(const fx_env_sum *s, const btf_package *p, const btf_env *e, do
     }
     free(mean);
 }
+
+/* A coloured environment: a blue sky brightening to the zenith, a warm sun and a
+ * green floor, as a flat (not run-length) Radiance file written here byte by byte. */
+double fx_sky(const double d[3], int c)
+{
+    static const double sun[3] = {0.5, -0.5, 0.7071067811865476};
+    double s = d[0] * sun[0] + d[1] * sun[1] + d[2] * sun[2], lobe = s > 0.9 ? (s - 0.9) * 10.0 : 0.0;
+    static const double base[3] = {0.3, 0.45, 0.9}, floor_[3] = {0.1, 0.35, 0.08}, warm[3] = {9.0, 6.0, 3.0};
+    double b = d[2] > 0 ? base[c] * (0.6 + 0.4 * d[2]) : floor_[c];
+    return b + warm[c] * lobe * lobe;
+}
+
+static void fx__rgbe(const float v[3], unsigned char out[4])
+{
+    float m = fmaxf(v[0], fmaxf(v[1], v[2]));
+    if (m < 1e-32f) {
+        memset(out, 0, 4);
+        return;
+    }
+    int e;
+    float f = frexpf(m, &e) * 256.0f / m;
+    for (int c = 0; c < 3; c++)
+        out[c] = (unsigned char)(v[c] * f);
+    out[3] = (unsigned char)(e + 128);
+}
+
+void fx_write_sky(const char *path, int w, int h)
+{
+    FILE *f = fopen(path, "wb");
+    cr_assert(f, "cannot write %s", path);
+    fprintf(f, "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n", h, w);
+    for (int j = 0; j < h; j++)
+        for (int i = 0; i < w; i++) {
+            double th = M_PI * (j + 0.5) / h, ph = M_PI - 2 * M_PI * (i + 0.5) / w;
+            double d[3] = {sin(th) * cos(ph), sin(th) * sin(ph), cos(th)};
+            float v[3] = {(float)fx_sky(d, 0), (float)fx_sky(d, 1), (float)fx_sky(d, 2)};
+            unsigned char b[4];
+            fx__rgbe(v, b);
+            fwrite(b, 1, 4, f);
+        }
+    cr_assert_eq(fclose(f), 0);
+}
+

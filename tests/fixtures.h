@@ -193,6 +193,11 @@ fx_env_sum fx_env_sum_make(const btf_package *p);
 void fx_env_sum_free(fx_env_sum *s);
 /* The quadratic of q at unit world direction d, channel c. */
 double fx_quad_eval(const struct btf_env_quad *q, int c, const double d[3]);
+/* A coloured environment (a blue sky brightening to the zenith, a warm sun, a green
+ * floor): its radiance at unit world direction d, channel c; and the function as a
+ * flat (not run-length) Radiance file of w x h, written byte by byte. */
+double fx_sky(const double d[3], int c);
+void fx_write_sky(const char *path, int w, int h);
 void fx_env_sums(const fx_env_sum *s, const btf_package *p, const struct btf_env *e, double rot,
                  const struct btf_env_quad *q, int wrap, const fx_surface *at, fx_light_sums *out);
 

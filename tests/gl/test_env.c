@@ -46,48 +46,6 @@ static void make_package(const char *dir, const char *name, int linear, char *pk
     btf_free(m);
 }
 
-/* A coloured environment: a blue sky brightening to the zenith, a warm sun and a
- * green floor, as a flat (not run-length) Radiance file written here byte by byte. */
-static double sky(const double d[3], int c)
-{
-    static const double sun[3] = {0.5, -0.5, 0.7071067811865476};
-    double s = d[0] * sun[0] + d[1] * sun[1] + d[2] * sun[2], lobe = s > 0.9 ? (s - 0.9) * 10.0 : 0.0;
-    static const double base[3] = {0.3, 0.45, 0.9}, floor_[3] = {0.1, 0.35, 0.08}, warm[3] = {9.0, 6.0, 3.0};
-    double b = d[2] > 0 ? base[c] * (0.6 + 0.4 * d[2]) : floor_[c];
-    return b + warm[c] * lobe * lobe;
-}
-
-static void rgbe(const float v[3], unsigned char out[4])
-{
-    float m = fmaxf(v[0], fmaxf(v[1], v[2]));
-    if (m < 1e-32f) {
-        memset(out, 0, 4);
-        return;
-    }
-    int e;
-    float f = frexpf(m, &e) * 256.0f / m;
-    for (int c = 0; c < 3; c++)
-        out[c] = (unsigned char)(v[c] * f);
-    out[3] = (unsigned char)(e + 128);
-}
-
-static void write_sky(const char *path, int w, int h)
-{
-    FILE *f = fopen(path, "wb");
-    cr_assert(f, "cannot write %s", path);
-    fprintf(f, "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n", h, w);
-    for (int j = 0; j < h; j++)
-        for (int i = 0; i < w; i++) {
-            double th = M_PI * (j + 0.5) / h, ph = M_PI - 2 * M_PI * (i + 0.5) / w;
-            double d[3] = {sin(th) * cos(ph), sin(th) * sin(ph), cos(th)};
-            float v[3] = {(float)sky(d, 0), (float)sky(d, 1), (float)sky(d, 2)};
-            unsigned char b[4];
-            rgbe(v, b);
-            fwrite(b, 1, 4, f);
-        }
-    cr_assert_eq(fclose(f), 0);
-}
-
 /* ---------------------------------------------------------------- the quadratic */
 
 /* Fibonacci point i of n on the sphere. */
@@ -152,7 +110,7 @@ Test(env, rotation_turns_the_quadratic_and_the_lookup)
     char tmp[256], path[300];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     snprintf(path, sizeof path, "%s/sky.hdr", tmp);
-    write_sky(path, 64, 32);
+    fx_write_sky(path, 64, 32);
     cr_assert_eq(btf_env_load(path, &e, &err), BTF_OK, "%s", err.msg);
     const double r = 75.0, cr = cos(r * M_PI / 180), sr = sin(r * M_PI / 180);
     btf_env_quad q0, q1;
@@ -177,9 +135,9 @@ Test(env, rotation_turns_the_quadratic_and_the_lookup)
         for (int i = 0; i < 64; i += 7) {
             double th = M_PI * (j + 0.5) / 32, ph = M_PI - 2 * M_PI * (i + 0.5) / 64;
             double d[3] = {sin(th) * cos(ph), sin(th) * sin(ph), cos(th)};
-            double big = fmax(sky(d, 0), fmax(sky(d, 1), sky(d, 2)));
+            double big = fmax(fx_sky(d, 0), fmax(fx_sky(d, 1), fx_sky(d, 2)));
             for (int c = 0; c < 3; c++) {
-                double want = sky(d, c), got = e->rgb[(j * 64 + i) * 3 + c];
+                double want = fx_sky(d, c), got = e->rgb[(j * 64 + i) * 3 + c];
                 cr_assert(fabs(got - want) <= big / 128, "pixel (%d,%d) c%d: %g, wrote %g", i, j, c, got, want);
             }
         }
@@ -423,7 +381,7 @@ Test(env, render_equals_the_light_sum, .timeout = 300)
     make_package(tmp, "lin", 1, lin, sizeof lin);
     make_package(tmp, "srgb", 0, srgb, sizeof srgb);
     snprintf(sky_path, sizeof sky_path, "%s/sky.hdr", tmp);
-    write_sky(sky_path, 64, 32);
+    fx_write_sky(sky_path, 64, 32);
     btf_env *envs[2] = {NULL, NULL};
     btf_error err = {{0}};
     cr_assert_eq(btf_env_load("studio", &envs[0], &err), BTF_OK, "%s", err.msg);

@@ -561,19 +561,27 @@ Test(model, environment_light_matches_the_light_sum, .timeout = 180)
     btf_package *pkg[2];
     make_packages(tmp, dirs, pkg);
     btf_scene_binding b[2] = {{"Seat", dirs[0], 1.0f}, {"Frame", dirs[1], 3.0f}};
-    btf_env *env = NULL;
+    btf_env *envs[2] = {NULL, NULL};
     btf_error err = {{0}};
-    cr_assert_eq(btf_env_load("studio", &env, &err), BTF_OK, "%s", err.msg);
+    char sky[300];
+    snprintf(sky, sizeof sky, "%s/sky.hdr", tmp);
+    fx_write_sky(sky, 64, 32);
+    cr_assert_eq(btf_env_load("studio", &envs[0], &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_env_load(sky, &envs[1], &err), BTF_OK, "%s", err.msg);
+    fx_env_sum es[2] = {fx_env_sum_make(pkg[0]), fx_env_sum_make(pkg[1])};
+    static const btf_gl_backend be[2] = {BTF_GL_EGL, BTF_GL_OSMESA};
+    for (int run = 0; run < 4; run++) { /* studio, sky; turned 30 and 200 degrees; backends alternate */
+    const btf_env *env = envs[run / 2];
+    double rot = run % 2 ? 200 : 30;
     btf_render_params p = btf_render_defaults(BTF_RENDER_SPHERE);
-    p.width = MW, p.height = MH, p.env = env, p.env_rotation = 30, p.no_point_light = 1;
+    p.width = MW, p.height = MH, p.env = env, p.env_rotation = (float)rot, p.no_point_light = 1;
     p.exposure = 0.5f, p.tone_mapping = BTF_TONE_NONE;
     btf_scene_frame(m, &p);
     btf_env_quad q;
-    btf_env_quadratic(env, 30, &q);
-    fx_env_sum es[2] = {fx_env_sum_make(pkg[0]), fx_env_sum_make(pkg[1])};
+    btf_env_quadratic(env, rot, &q);
     fx_cam c = fx_cam_make(&p);
-    static const btf_gl_backend be[2] = {BTF_GL_EGL, BTF_GL_OSMESA};
-    for (int i = 0; i < 2; i++) {
+    {
+        int i = run % 2;
         float *px = render_stool(be[i], m, b, &p);
         int checked = 0, close = 0, flat = 0;
         double worst = 0;
@@ -588,7 +596,7 @@ Test(model, environment_light_matches_the_light_sum, .timeout = 180)
                 fx_surface at = surface_of(h, bind == 1 ? 3.0f : 1.0f, c.eye);
                 fx_light_sums ls;
                 if (bind >= 0)
-                    fx_env_sums(&es[bind], pkg[bind], env, 30, &q, 1, &at, &ls);
+                    fx_env_sums(&es[bind], pkg[bind], env, rot, &q, 1, &at, &ls);
                 else /* unbound: Lambert under the quadratic, integrated here */
                     for (int k = 0; k < 3; k++)
                         ls.l2[k] = m->parts[part].base_color[k] * lambert(&q, k, at.n);
@@ -603,15 +611,16 @@ Test(model, environment_light_matches_the_light_sum, .timeout = 180)
                 cr_assert_leq(d, 0.05, "%s pixel (%d,%d) part %d: off the light sum by %.4f", btf_gl_backend_name(be[i]),
                               qx, py, part, d);
             }
-        cr_log_info("%s: %d pixels (%d unbound), %.2f%% within 2/255, worst %.4f", btf_gl_backend_name(be[i]), checked,
-                    flat, 100.0 * close / checked, worst);
+        cr_log_info("%s %s %g deg: %d pixels (%d unbound), %.2f%% within 2/255, worst %.4f", btf_gl_backend_name(be[i]),
+                    run / 2 ? "sky" : "studio", rot, checked, flat, 100.0 * close / checked, worst);
         cr_assert_gt(checked - flat, 300, "too few bound pixels: %d", checked - flat);
         cr_assert_gt(flat, 20, "too few unbound pixels: %d", flat);
         cr_assert_geq(close, 0.99 * checked, "%d of %d pixels within 2/255", close, checked);
         free(px);
     }
+    }
     fx_env_sum_free(&es[0]), fx_env_sum_free(&es[1]);
-    btf_env_free(env);
+    btf_env_free(envs[0]), btf_env_free(envs[1]);
     btf_package_free(pkg[0]), btf_package_free(pkg[1]);
     btf_gen_stool_free(ref);
     btf_gltf_free(m);
