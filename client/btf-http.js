@@ -146,7 +146,7 @@ export class HttpStream {
     this.requests = [];      // files in flight: {sub, chunk, file, ctrl, bytes}
     this.inFlightMax = 0;    // most files asked for at once
     this.window = WINDOW_START; // bytes asked for and not here (flowWindow of btf-stream.js)
-    this.rtt = null;         // ms from asking for the list to its answer
+    this.rtt = null;         // ms from asking for the first manifest to its bytes
     this.hist = [];          // [when, bytes received so far] over RATE_SPAN_MS
     this.pieces = {bytes: 0, first: null, last: null, firstBytes: 0};
     this.retry = 0;

@@ -14,7 +14,7 @@ import fs from 'node:fs';
 import http from 'node:http';
 import path from 'node:path';
 import {after, before, describe, it} from 'node:test';
-import {clsRecorder, startThrottle, visit} from './throttle.mjs';
+import {clsRecorder, linkShare, startThrottle, visit} from './throttle.mjs';
 import {BTF, freePort, launch, makeLibrary, newPage, requireBuild, serveProcess, servePages, startNginx, startServer}
   from './util.mjs';
 
@@ -109,11 +109,12 @@ describe('the library from a static host', () => {
       const r = await visit(p, `${pages.url}readme.html`).catch(failure(ctx));
       await judge(p, r, 'nginx, 4 Mbit/s');
       const linkMs = (r.streamBytes * 8 * 1000) / 4e6;
-      console.log(`# nginx, 4 Mbit/s: link time of the package ${linkMs.toFixed(0)} ms, first chunk to last ` +
-        `${(r.lastChunk - r.firstChunk).toFixed(0)} ms`);
-      // as field.test.mjs asks of the WebSocket: whole within 1.25 x the link time + 1 s of the script request
-      assert.ok(r.complete - r.scriptRequest <= 1.25 * linkMs + 1000,
-        `complete ${(r.complete - r.scriptRequest).toFixed(0)} ms after the script request; link time ${linkMs.toFixed(0)} ms`);
+      const share = linkShare(link.down, r.streamBytes, 4e6);
+      console.log(`# nginx, 4 Mbit/s: link time of the package ${linkMs.toFixed(0)} ms, complete ` +
+        `${(r.complete - r.scriptRequest).toFixed(0)} ms after the script request, the link busy ` +
+        `${(100 * share).toFixed(0)}% while it carried the package (bench/bench_link.sh measures it against the WebSocket)`);
+      // a loose bound (the machine may be busy with other tests): requests that leave the link idle fail it
+      assert.ok(share >= 0.7, `the link was busy ${(100 * share).toFixed(0)}% of the time it carried the package`);
       assert.match(String(r.poster), /\/materials\/knit\/thumbnail\.png$/, 'the poster from the static host');
       assert.deepEqual(ctx.problems, []);
     } finally {
