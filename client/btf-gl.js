@@ -221,6 +221,91 @@ function envCells(lights) {
   return cellsOf.get(lights);
 }
 
+// The GPU side of a package in WebGL2 (GpuPackage writes its layout through it): the
+// direction block (a uniform buffer), the two table textures and the three layered
+// integer textures. Another store with the same methods keeps the layout elsewhere
+// (client/three/btf-material.js: three.js textures); GpuPackage takes either.
+export class GlStore {
+  constructor(gl) {
+    this.gl = gl;
+    this.ubo = this.cells = this.tris = this.tex = this.wt = this.envW = null;
+  }
+
+  // The direction tables (btf-dirtab.js dirtabGpu): the block's Float32Array, and the
+  // RGBA32UI tables {width, height, data} of u_btf_dir_cells and u_btf_dir_tris.
+  dirs(ubo, cells, tris) {
+    const gl = this.gl;
+    this.ubo = gl.createBuffer();
+    gl.bindBuffer(gl.UNIFORM_BUFFER, this.ubo);
+    gl.bufferData(gl.UNIFORM_BUFFER, ubo, gl.STATIC_DRAW);
+    gl.bindBuffer(gl.UNIFORM_BUFFER, null);
+    this.cells = this.intTexture(cells);
+    this.tris = this.intTexture(tris);
+  }
+
+  intTexture({width, height, data}) {
+    const gl = this.gl, t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    nearest(gl, gl.TEXTURE_2D);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32UI, width, height);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, width, height, gl.RGBA_INTEGER, gl.UNSIGNED_INT, data);
+    return t;
+  }
+
+  // New layered textures for `layers` layers of 4 slots (the old ones are dropped; the
+  // package puts every layer again): u_btf_tex RGBA16UI atlas x levels, u_btf_wt
+  // RGBA32UI lights x views, u_btf_env_w RGBA32UI 9 x views.
+  allocate({levels, width, height, lights, views, layers}) {
+    const gl = this.gl;
+    const tex = gl.createTexture(), wt = gl.createTexture(), envW = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
+    nearest(gl, gl.TEXTURE_2D_ARRAY);
+    if (levels > 1) {
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, levels - 1);
+    }
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, levels, gl.RGBA16UI, width, height, layers);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, wt);
+    nearest(gl, gl.TEXTURE_2D_ARRAY);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, lights, views, layers);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, envW);
+    nearest(gl, gl.TEXTURE_2D_ARRAY);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, 9, views, layers);
+    for (const t of [this.tex, this.wt, this.envW]) if (t) gl.deleteTexture(t);
+    this.tex = tex;
+    this.wt = wt;
+    this.envW = envW;
+  }
+
+  // Layer h (at mip level l, width x height texels) of u_btf_tex, u_btf_wt, u_btf_env_w.
+  putTex(h, l, width, height, data) {
+    this.put(this.tex, l, h, width, height, this.gl.UNSIGNED_SHORT, data);
+  }
+
+  putWt(h, width, height, data) {
+    this.put(this.wt, 0, h, width, height, this.gl.UNSIGNED_INT, data);
+  }
+
+  putEnv(h, width, height, data) {
+    this.put(this.envW, 0, h, width, height, this.gl.UNSIGNED_INT, data);
+  }
+
+  put(t, l, h, width, height, type, data) {
+    const gl = this.gl;
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, t);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, l, 0, 0, h, width, height, 1, gl.RGBA_INTEGER, type, data);
+  }
+
+  free() {
+    const gl = this.gl;
+    for (const t of [this.tex, this.wt, this.envW, this.cells, this.tris]) if (t) gl.deleteTexture(t);
+    if (this.ubo) gl.deleteBuffer(this.ubo);
+    this.tex = this.wt = this.envW = this.cells = this.tris = this.ubo = null;
+  }
+}
+
 // A package's GPU layout (shaders/README.md, "GPU layout"; the C host's
 // shaders/host/btf_gl_package.c): u_btf_tex RGBA16UI layers of 4 slots at 16 bits on
 // one grid per component, N mip levels; u_btf_wt RGBA32UI layers of 4 slots as
@@ -232,9 +317,12 @@ function envCells(lights) {
 // copy of every layer it uploaded, so a new chunk rewrites only its slot's channel
 // (and, in version 2, the levels it fills) and growing the layer count re-uploads
 // from the copies. Owned by one viewer; free() with the same context.
+// gl: a WebGL2 context (a GlStore is made on it), or a store with GlStore's methods
+// and `packageStore: true` (three.js: client/three/btf-material.js).
 export class GpuPackage {
   constructor(gl, pkg, capacity) {
-    this.gl = gl;
+    this.store = gl && gl.packageStore ? gl : new GlStore(gl);
+    this.gl = this.store.gl || null;
     this.pkg = pkg;
     this.uploaded = 0;
     this.capacity = 0;
@@ -255,24 +343,9 @@ export class GpuPackage {
     const tabs = [buildDirtab(pkg.lights), buildDirtab(pkg.views)];
     const d = dirtabGpu(tabs[0], tabs[1], pkg.viewBlock);
     this.outerCos = Math.cos(pkg.lights.maxTheta * Math.PI / 180);
-    this.ubo = gl.createBuffer();
-    gl.bindBuffer(gl.UNIFORM_BUFFER, this.ubo);
-    gl.bufferData(gl.UNIFORM_BUFFER, d.ubo, gl.STATIC_DRAW);
-    gl.bindBuffer(gl.UNIFORM_BUFFER, null);
-    this.cells = this.intTexture(CELLS, 2 * CELLS, d.cells);
-    this.tris = this.intTexture(d.triWidth, d.rows, d.tris);
-    this.tex = this.wt = this.envW = null;
+    this.store.dirs(d.ubo, {width: CELLS, height: 2 * CELLS, data: d.cells}, {width: d.triWidth, height: d.rows, data: d.tris});
+    this.live = true;
     this.reserve(pkg.version >= 2 ? pkg.components.length : capacity);
-  }
-
-  intTexture(w, h, data) {
-    const gl = this.gl, t = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, t);
-    nearest(gl, gl.TEXTURE_2D);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32UI, w, h);
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, gl.RGBA_INTEGER, gl.UNSIGNED_INT, data);
-    return t;
   }
 
   // Slots in use (version 2: components with a loaded chunk; version 1: chunks).
@@ -283,28 +356,12 @@ export class GpuPackage {
   // Makes room for n slots (n <= manifest chunks); layers grow in steps of 4 slots and
   // are re-uploaded from the CPU copies. Version 2 allocates every component at once.
   reserve(n) {
-    const gl = this.gl, pkg = this.pkg;
+    const pkg = this.pkg;
     n = pkg.version >= 2 ? pkg.components.length : Math.max(1, Math.min(n, pkg.chunks.length));
     if (n <= this.capacity) return;
-    const layers = Math.ceil(n / 4), L = pkg.lights.dirs, V = pkg.views.dirs;
-    const tex = gl.createTexture(), wt = gl.createTexture(), envW = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
-    nearest(gl, gl.TEXTURE_2D_ARRAY);
-    if (this.levels > 1) {
-      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
-      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, this.levels - 1);
-    }
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.levels, gl.RGBA16UI, pkg.atlas.width, pkg.atlas.height, layers);
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, wt);
-    nearest(gl, gl.TEXTURE_2D_ARRAY);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, L, V, layers);
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, envW);
-    nearest(gl, gl.TEXTURE_2D_ARRAY);
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, 9, V, layers);
-    for (const t of [this.tex, this.wt, this.envW]) if (t) gl.deleteTexture(t);
-    this.tex = tex;
-    this.wt = wt;
-    this.envW = envW;
+    const layers = Math.ceil(n / 4);
+    this.store.allocate({levels: this.levels, width: pkg.atlas.width, height: pkg.atlas.height, lights: pkg.lights.dirs,
+      views: pkg.views.dirs, layers});
     const tq = new Float32Array(8 * layers), wq = new Float32Array(24 * layers);
     const envS = new Float32Array(4 * layers);
     tq.set(this.tq);
@@ -322,27 +379,16 @@ export class GpuPackage {
   }
 
   putTex(h, l) {
-    const gl = this.gl, pkg = this.pkg;
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tex);
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, l, 0, 0, h, pkg.atlas.width >> l, pkg.atlas.height >> l, 1, gl.RGBA_INTEGER,
-                     gl.UNSIGNED_SHORT, this.texCopy[h][l]);
+    const pkg = this.pkg;
+    this.store.putTex(h, l, pkg.atlas.width >> l, pkg.atlas.height >> l, this.texCopy[h][l]);
   }
 
   putWt(h) {
-    const gl = this.gl, pkg = this.pkg;
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.wt);
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, h, pkg.lights.dirs, pkg.views.dirs, 1, gl.RGBA_INTEGER,
-                     gl.UNSIGNED_INT, this.wtCopy[h]);
+    this.store.putWt(h, this.pkg.lights.dirs, this.pkg.views.dirs, this.wtCopy[h]);
   }
 
   putEnv(h) {
-    const gl = this.gl;
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.envW);
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, h, 9, this.pkg.views.dirs, 1, gl.RGBA_INTEGER, gl.UNSIGNED_INT,
-                     this.envCopy[h]);
+    this.store.putEnv(h, 9, this.pkg.views.dirs, this.envCopy[h]);
   }
 
   // The layer copies of layer h (created empty on first use).
@@ -357,37 +403,16 @@ export class GpuPackage {
     }
   }
 
-  // RGBA bytes of an image: a decoded one ({width, height, rgba}, btf-decode.js) as it
-  // is; an ImageBitmap (decoded without colour conversion) uploaded into an R8 (grey) or
-  // RGBA8 texture and read back, so they are exactly the file's samples.
-  pixels(img, grey) {
-    return img.rgba ? img.rgba : this.readBack(img, grey);
-  }
-
-  readBack(bitmap, grey) {
-    const gl = this.gl, w = bitmap.width, h = bitmap.height;
-    const t = gl.createTexture(), fb = gl.createFramebuffer();
-    gl.bindTexture(gl.TEXTURE_2D, t);
-    nearest(gl, gl.TEXTURE_2D);
-    gl.texStorage2D(gl.TEXTURE_2D, 1, grey ? gl.R8 : gl.RGBA8, w, h);
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
-    gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
-    gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
-    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, w, h, grey ? gl.RED : gl.RGBA, gl.UNSIGNED_BYTE, bitmap);
-    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb);
-    gl.framebufferTexture2D(gl.READ_FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, t, 0);
-    const px = new Uint8Array(4 * w * h);
-    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
-    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
-    gl.deleteFramebuffer(fb);
-    gl.deleteTexture(t);
-    return px;
+  // RGBA bytes of an image decoded by btf-decode.js ({width, height, rgba}: the file's
+  // exact samples, read in its worker).
+  pixels(img) {
+    if (!img.rgba) throw new Error('an image to upload must be decoded by btf-decode.js');
+    return img.rgba;
   }
 
   // Quantised texels of a decoded atlas image (16-bit: q = R*256 + G, as in the PNG).
   readAtlas(bitmap) {
-    const n = bitmap.width * bitmap.height, rgb = this.pkg.bits === 16, px = this.pixels(bitmap, !rgb);
+    const n = bitmap.width * bitmap.height, rgb = this.pkg.bits === 16, px = this.pixels(bitmap);
     const q = new Uint16Array(n);
     for (let i = 0; i < n; i++) q[i] = rgb ? px[4 * i] * 256 + px[4 * i + 1] : px[4 * i];
     return q;
@@ -483,7 +508,7 @@ export class GpuPackage {
   }
 
   // Uploads chunk j (must be the next one): its atlas (decoded pixels of btf-decode.js, or
-  // an ImageBitmap decoded without colour conversion) on its slot's grid, and its weights (dequantised Float32Array;
+  // its decoded pixels) on its slot's grid, and its weights (dequantised Float32Array;
   // version 2: replaced unless 16-bit weights are there already; .precise = 16-bit).
   upload(j, bitmap, weights) {
     const pkg = this.pkg, ch = pkg.chunks[j], l = pkg.version >= 2 ? ch.level : 0;
@@ -527,14 +552,30 @@ export class GpuPackage {
     this.uploads++;
   }
 
+  // The u_btf_* uniforms of a frame, as btf_gl_package_settings sets them: [name, type
+  // ('1i', '1f', '2i', '4fv'), value]. chunks: what the frame draws; filter: 0 nearest,
+  // 1 bilinear; wrap: 1 tile, 0 clamp.
+  uniforms({chunks = this.uploaded, filter = 1, wrap = 0} = {}) {
+    const pkg = this.pkg;
+    // version 2: every loaded slot (the shader picks the level per pixel)
+    const used = pkg.version >= 2 ? (chunks > 0 ? this.slots : 0) : Math.max(0, Math.min(chunks, this.uploaded));
+    const wq = this.wq.slice();
+    for (let k = used; k < wq.length / 6; k++) for (let c = 0; c < 6; c++) wq[24 * (k >> 2) + 4 * c + (k & 3)] = 0;
+    return [['u_btf_tq', '4fv', this.tq], ['u_btf_wq', '4fv', wq], ['u_btf_size', '2i', [pkg.width, pkg.height]],
+      ['u_btf_atlas_cols', '1i', pkg.atlas.cols], ['u_btf_outer_cos', '1f', this.outerCos], ['u_btf_chunks', '1i', used],
+      ['u_btf_levels', '1i', this.levels], ['u_btf_lod', '1f', 0], ['u_btf_lod_auto', '1i', 1],
+      ['u_btf_filter', '1i', filter], ['u_btf_wrap', '1i', wrap], ['u_btf_linear', '1i', pkg.linear ? 1 : 0],
+      ['u_btf_env_s', '4fv', this.envS]];
+  }
+
   // Binds the textures to units first..first+4 and the direction block to uniform
   // buffer binding 0, and sets the u_btf_* uniforms of prog (in use), as
   // btf_gl_package_bind + btf_gl_package_settings do.
-  bind(prog, first, {chunks = this.uploaded, filter = 1, wrap = 0} = {}) {
-    const gl = this.gl, pkg = this.pkg;
-    const units = [[gl.TEXTURE_2D_ARRAY, this.tex, 'u_btf_tex'], [gl.TEXTURE_2D_ARRAY, this.wt, 'u_btf_wt'],
-                   [gl.TEXTURE_2D, this.cells, 'u_btf_dir_cells'], [gl.TEXTURE_2D, this.tris, 'u_btf_dir_tris'],
-                   [gl.TEXTURE_2D_ARRAY, this.envW, 'u_btf_env_w']];
+  bind(prog, first, settings = {}) {
+    const gl = this.gl, st = this.store;
+    const units = [[gl.TEXTURE_2D_ARRAY, st.tex, 'u_btf_tex'], [gl.TEXTURE_2D_ARRAY, st.wt, 'u_btf_wt'],
+                   [gl.TEXTURE_2D, st.cells, 'u_btf_dir_cells'], [gl.TEXTURE_2D, st.tris, 'u_btf_dir_tris'],
+                   [gl.TEXTURE_2D_ARRAY, st.envW, 'u_btf_env_w']];
     units.forEach(([target, t, name], i) => {
       gl.activeTexture(gl.TEXTURE0 + first + i);
       gl.bindTexture(target, t);
@@ -543,40 +584,25 @@ export class GpuPackage {
     gl.activeTexture(gl.TEXTURE0);
     const block = gl.getUniformBlockIndex(prog.program, 'btf_dirs_block');
     if (block !== gl.INVALID_INDEX) gl.uniformBlockBinding(prog.program, block, 0);
-    gl.bindBufferBase(gl.UNIFORM_BUFFER, 0, this.ubo);
-    // version 2: every loaded slot (the shader picks the level per pixel)
-    const used = pkg.version >= 2 ? (chunks > 0 ? this.slots : 0) : Math.max(0, Math.min(chunks, this.uploaded));
-    const wq = this.wq.slice();
-    for (let k = used; k < wq.length / 6; k++) for (let c = 0; c < 6; c++) wq[24 * (k >> 2) + 4 * c + (k & 3)] = 0;
-    gl.uniform4fv(prog.loc('u_btf_tq'), this.tq);
-    gl.uniform4fv(prog.loc('u_btf_wq'), wq);
-    gl.uniform2i(prog.loc('u_btf_size'), pkg.width, pkg.height);
-    gl.uniform1i(prog.loc('u_btf_atlas_cols'), pkg.atlas.cols);
-    gl.uniform1f(prog.loc('u_btf_outer_cos'), this.outerCos);
-    gl.uniform1i(prog.loc('u_btf_chunks'), used);
-    gl.uniform1i(prog.loc('u_btf_levels'), this.levels);
-    gl.uniform1f(prog.loc('u_btf_lod'), 0);
-    gl.uniform1i(prog.loc('u_btf_lod_auto'), 1);
-    gl.uniform1i(prog.loc('u_btf_filter'), filter);
-    gl.uniform1i(prog.loc('u_btf_wrap'), wrap);
-    gl.uniform1i(prog.loc('u_btf_linear'), pkg.linear ? 1 : 0);
-    gl.uniform4fv(prog.loc('u_btf_env_s'), this.envS);
+    gl.bindBufferBase(gl.UNIFORM_BUFFER, 0, st.ubo);
+    for (const [name, type, v] of this.uniforms(settings)) {
+      if (type === '2i') gl.uniform2i(prog.loc(name), v[0], v[1]);
+      else gl[`uniform${type}`](prog.loc(name), v);
+    }
   }
 
   // Pixels of a grey image decoded by the browser (a PNG such as wt-JJ-8.png, or a
   // lossless WebP texture with R = G = B): exactly the file's grey bytes.
   readGrey(bitmap) {
-    const n = bitmap.width * bitmap.height, px = this.pixels(bitmap, true), out = new Uint8Array(n);
+    const n = bitmap.width * bitmap.height, px = this.pixels(bitmap), out = new Uint8Array(n);
     for (let i = 0; i < n; i++) out[i] = px[4 * i];
     return out;
   }
 
   free() {
-    const gl = this.gl;
-    if (this.ubo) GpuPackage.live--;
-    for (const t of [this.tex, this.wt, this.envW, this.cells, this.tris]) if (t) gl.deleteTexture(t);
-    if (this.ubo) gl.deleteBuffer(this.ubo);
-    this.tex = this.wt = this.envW = this.cells = this.tris = this.ubo = null;
+    if (this.live) GpuPackage.live--;
+    this.live = false;
+    this.store.free();
     this.texCopy = this.wtCopy = this.envCopy = this.q16 = this.q8 = [];
   }
 }
