@@ -10,8 +10,8 @@ import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 import {after, before, describe, it} from 'node:test';
-import {BTF, assertClean, capture, launch, makeLibrary, newPage, readPng, requireBuild, startServer, viewers, waitFor}
-  from './util.mjs';
+import {BTF, assertClean, capture, compareCovered as compare, launch, makeLibrary, newPage, readPng, requireBuild, startServer,
+  viewers, waitFor} from './util.mjs';
 import {writeHdr} from './hdr-writer.mjs';
 import {equirectDir} from '../../client/btf-env.js';
 import {dir} from '../../client/scene.js';
@@ -84,39 +84,6 @@ const settled = (n) => {
   const v = window.__btf?.viewers()[0], l = window.__btf?.element(0).lighting;
   return v && v.drawnChunks === n && v.frames > 0 && l && !['idle', 'loading'].includes(l.environment.state);
 };
-
-// Largest channel difference per pixel over the pixels where either image shows the
-// object; `inner`: the worst over pixels whose 3 x 3 neighbourhood is the object in both
-// (the silhouette's pixels depend on each rasteriser's coverage rule).
-function compare(img, ref) {
-  assert.deepEqual([img.width, img.height], [ref.width, ref.height]);
-  const W = img.width, H = img.height, bg = (a, i) => a[i] === 31 && a[i + 1] === 31 && a[i + 2] === 31;
-  const diffs = [];
-  let inner = 0, innerN = 0, innerOk = 0;
-  for (let y = 0; y < H; y++)
-    for (let x = 0; x < W; x++) {
-      const i = 4 * (y * W + x);
-      if (bg(ref.data, i) && bg(img.data, i)) continue; // the background (0.12 grey) in both
-      const d = Math.max(...[0, 1, 2].map((c) => Math.abs(img.data[i + c] - ref.data[i + c])));
-      diffs.push(d);
-      let edge = x === 0 || y === 0 || x === W - 1 || y === H - 1;
-      for (let dy = -1; dy <= 1 && !edge; dy++)
-        for (let dx = -1; dx <= 1; dx++) {
-          const k = i + 4 * (dy * W + dx);
-          if (bg(ref.data, k) || bg(img.data, k)) edge = true;
-        }
-      if (!edge) {
-        inner = Math.max(inner, d);
-        innerN++;
-        innerOk += d <= 2;
-      }
-    }
-  diffs.sort((a, b) => a - b);
-  const within = (t) => diffs.filter((d) => d <= t).length / diffs.length;
-  return {covered: diffs.length, worst: diffs[diffs.length - 1] ?? 0, inner, innerWithin2: innerOk / innerN,
-    p999: diffs[Math.floor(0.999 * (diffs.length - 1))] ?? 0, within1: within(1), within2: within(2),
-    mean: diffs.reduce((a, d) => a + d, 0) / diffs.length};
-}
 
 describe('lights of <btf-viewer>', () => {
   it('defaults: the studio without `light`, the point light alone with it, both when both are given', async () => {
