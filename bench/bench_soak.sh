@@ -78,7 +78,7 @@ echo "soak_rss_last_kb $rssN kB"
 echo "soak_rss_growth_kb $((rssN - rss1)) kB"
 echo "soak_fd_growth $((fdsN - fds1)) count"
 awk -v c1="$cpu1" -v cN="$cpuN" -v s1="$sent1" -v sN="$sentN" \
-    'BEGIN {gb = (sN - s1) / 1e9; printf "soak_sent_gb %.3f GB\nsoak_cpu_s_per_gb %.2f s\n", gb, gb > 0 ? (cN - c1) / gb : 0}'
+    'BEGIN {gb = (sN - s1) / 1e9; printf "soak_sent_gb %.3f GB\nsoak_cpu_s_per_gb %.2f s\n", gb, (gb > 0 ? (cN - c1) / gb : 0)}'
 echo "soak_error_lines $(grep -c ' ERROR ' "$work/btfd.log" || true) count"
 tail -n 1 "$work/client.txt" | grep -q soak_client_done && echo "soak_client_errors $(awk '/^minute/ {e = $NF} END {print e + 0}' "$work/client.txt") count"
 grep '^minute' "$work/client.txt" | tail -n 1 | sed 's/^/# client: /'
