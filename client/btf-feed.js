@@ -29,6 +29,11 @@ export class MaterialFeed {
     stream.subscribe(this.material, this); // sets this.sub (onSubscribe)
   }
 
+  // The access token of a private library for this material (the element's `token`), or null.
+  token() {
+    return this.view.token ? this.view.token() : null;
+  }
+
   stop() {
     if (this.sub) this.sub.stream.unsubscribe(this.sub, this);
     this.sub = null;

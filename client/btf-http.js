@@ -45,6 +45,12 @@ export function libraryBase(src) {
   return u.href;
 }
 
+// A package file's URL with the subscription's access token of a private library
+// (doc/deploy.md, "Private libraries"), if it has one.
+function signed(sub, url) {
+  return sub.token ? `${url}?token=${encodeURIComponent(sub.token)}` : url;
+}
+
 // A path of the list (`files`, `thumbnail`: "/materials/...", the library's root being "/")
 // as a URL under the library's base.
 export function libraryUrl(base, p) {
@@ -162,7 +168,7 @@ export class HttpStream {
     let sub = this.subs.get(material);
     const fresh = !sub;
     if (fresh) {
-      sub = new Subscription(this, material);
+      sub = new Subscription(this, material, listener.token?.() || null);
       sub.mid = ++this.order;
       sub.want = [];         // chunk index -> {files, done}: asked for, not yet handed on
       this.subs.set(material, sub);
@@ -224,14 +230,14 @@ export class HttpStream {
       }
       const files = libraryUrl(this.base, entry.files || `/materials/${entry.name}/${entry.etag}/`);
       const t0 = performance.now();
-      const manifest = await this.fetchBytes(`${files}manifest.json`).then((b) => JSON.parse(new TextDecoder().decode(b)));
+      const manifest = await this.fetchBytes(signed(sub, `${files}manifest.json`)).then((b) => JSON.parse(new TextDecoder().decode(b)));
       this.rtt ??= performance.now() - t0; // a round trip and a small file
       if (sub.gone) return;
       if (!manifest || !Array.isArray(manifest.chunks) || !manifest.chunks.length) throw new Error(`${files}manifest.json: no chunks`);
       this.takeManifest(sub, entry.etag, files, manifest);
     } catch (e) {
       if (e.status === 404) lists.delete(this.base); // a manifest the list names is gone: ask for the list again
-      if (!sub.gone) this.failed(e, () => this.start(sub));
+      if (!sub.gone && !this.refused(sub, e)) this.failed(e, () => this.start(sub));
     }
   }
 
@@ -318,7 +324,7 @@ export class HttpStream {
     const r = {sub, chunk: j, file: f, ctrl, first, bytes: sub.manifest.chunks[j].bytes / sub.manifest.chunks[j].files.length};
     this.requests.push(r);
     this.inFlightMax = Math.max(this.inFlightMax, this.requests.length);
-    this.fetchBytes(sub.files + name, ctrl.signal).then((bytes) => {
+    this.fetchBytes(signed(sub, sub.files + name), ctrl.signal).then((bytes) => {
       this.requests = this.requests.filter((x) => x !== r);
       if (sub.gone || sub.want[j] !== w) return;
       this.succeeded();
@@ -330,14 +336,24 @@ export class HttpStream {
     }, (e) => {
       this.requests = this.requests.filter((x) => x !== r);
       if (e.name === 'AbortError' || sub.gone || sub.want[j] !== w) return;
-      if (e.status === 404) { // btfd: the package was replaced; a static host keeps old etags
+      if (e.status === 404 || this.refused(sub, e)) { // 404: btfd replaced the package (a static host keeps old etags)
         for (const x of this.requests.filter((y) => y.sub === sub)) x.ctrl.abort();
         this.requests = this.requests.filter((y) => y.sub !== sub);
-        return this.restart(sub);
+        return sub.error ? undefined : this.restart(sub);
       }
       sub.want.length = Math.min(sub.want.length, j); // asked for again, from this chunk on
       this.failed(e, () => this.pump());
     });
+  }
+
+  // A private library's refusal (403; nginx's secure_link answers 410 for an expired
+  // link) is final for the subscription, as btfd's error frame is: no retry. 1 if so.
+  refused(sub, e) {
+    if (e.status !== 403 && e.status !== 410) return 0;
+    sub.error = {code: e.status === 410 ? 'token_expired' : 'forbidden',
+      message: `${e.message}: a private library, and the token is missing, wrong or expired`};
+    sub.emit('onError', sub.error);
+    return 1;
   }
 
   // Complete chunks, in order, to the listeners (and the browser's cache).

@@ -121,6 +121,7 @@ export class BtfSession {
     const feed = new MaterialFeed(this, material, {
       pixels: (drawing) => (!this.host.seen() && !drawing ? 0 : this.host.pixelsPerRepeat()),
       policy: (pkg) => this.host.policy(pkg),
+      token: () => this.host.token(),
     });
     this.feeds = [feed];
     feed.subscribe(this.stream);
@@ -148,6 +149,7 @@ export class BtfSession {
       this.feeds = this.model.materialIds().map((id) => new MaterialFeed(this, id, {
         pixels: (drawing) => (!this.host.seen() && !drawing ? 0 : this.coverage().get(id)?.ppr || 0),
         policy: (pkg) => this.host.policy(pkg),
+        token: () => this.host.token(),
       }));
       for (const f of this.feeds) f.subscribe(this.stream);
       this.updateLabel();

@@ -253,7 +253,7 @@ export class BtfStream {
     let sub = this.subs.get(material);
     const fresh = !sub;
     if (fresh) {
-      sub = new Subscription(this, material);
+      sub = new Subscription(this, material, listener.token?.() || null);
       this.subs.set(material, sub);
     }
     sub.listeners.add(listener);
@@ -289,6 +289,7 @@ export class BtfStream {
     if (sub.loading) return; // sent once the kept chunks are read
     const budget = sub.budget();
     const msg = {type: 'subscribe', material: sub.material, seq: ++this.seq, budget: wireBudget(budget)};
+    if (sub.token) msg.token = sub.token;
     const have = sub.have();
     if (have.length && sub.etag) {
       msg.have = have;

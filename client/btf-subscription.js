@@ -28,9 +28,10 @@ export function mergeBudgets(list) {
 // One material of a stream (a WebSocket, btf-stream.js, or HTTP requests, btf-http.js);
 // lives while a listener holds it.
 export class Subscription {
-  constructor(stream, material) {
+  constructor(stream, material, token = null) {
     this.stream = stream;
     this.material = material;
+    this.token = token;     // a private library's access token (doc/deploy.md), or null
     this.listeners = new Set();
     this.mid = 0;
     this.seq = 0;           // seq of the subscribe sent on the current connection (its manifest echoes it)

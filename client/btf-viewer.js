@@ -9,6 +9,8 @@
 // table with defaults and the events is in doc/client.md):
 //   src            WebSocket URL of btfd (default: ws(s) of this script's origin + /stream), or
 //                  the http(s) folder of a published library (btf-http.js)
+//   token          a private library's access token for the material(s), v1:SCOPE:EXPIRES:SIG,
+//                  signed by the page owner's backend (doc/deploy.md, "Private libraries")
 //   material       material name in the server's library (with a model: bound to every part
 //                  `materials` does not name)
 //   model          URL of a glTF 2.0 model (.glb, or .gltf with its buffers) drawn instead of
@@ -77,9 +79,9 @@ const ATTRS = {
   repeat: 'number', 'budget-chunks': 'number', 'budget-bytes': 'number', 'lod-threshold': 'number',
   'max-dpr': 'number', shaders: 'string', poster: 'string', loading: 'string', 'camera-controls': 'boolean',
   alt: 'string', 'environment-image': 'string', 'environment-rotation': 'number', exposure: 'number',
-  'tone-mapping': 'string',
+  'tone-mapping': 'string', token: 'string',
 };
-const RESTART = new Set(['material', 'model', 'materials', 'src', 'shaders']);
+const RESTART = new Set(['material', 'model', 'materials', 'src', 'shaders', 'token']);
 const SCENE = new Set(['repeat', 'lod-threshold', 'fov', 'geometry']);
 const CAMERA = new Set(['camera-theta', 'camera-phi', 'camera-dist']);
 const LIGHTING = new Set(['light', 'environment-image', 'environment-rotation', 'exposure', 'tone-mapping']);
@@ -183,6 +185,7 @@ export class BtfViewer extends HTMLElement {
       asked: () => ({chunks: this.getAttribute('budget-chunks'), bytes: num(this, 'budget-bytes', -1),
         threshold: num(this, 'lod-threshold', LOD_THRESHOLD)}),
       policy: (pkg) => BtfViewer.budgetPolicy(this, pkg),
+      token: () => this.getAttribute('token') || null,
       pixelsPerRepeat: () => this.pixelsPerRepeat(),
       display: () => this.display || [this.canvas.width, this.canvas.height],
       framed: (frame) => this.framed(frame),
