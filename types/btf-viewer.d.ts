@@ -71,6 +71,8 @@ export declare class BtfViewer extends HTMLElement {
   materials: string | null;
   /** ws(s):// of a btfd (its /stream), or the http(s) folder of a published library. Default: ws(s) of the script's origin + /stream; set it when the script comes from an npm build. */
   src: string | null;
+  /** A private library's access token v1:SCOPE:EXPIRES:SIG for the material(s). */
+  token: string | null;
   /** Base URL of the shader files; default: those inside the script. */
   shaders: string | null;
   geometry: 'plane' | 'sphere' | 'cylinder' | string | null;

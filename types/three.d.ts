@@ -38,6 +38,8 @@ export interface BTFMaterialOptions extends BTFMaterialLighting, BTFMaterialBudg
   src: string;
   /** The library material's name. */
   material: string;
+  /** A private library's access token v1:SCOPE:EXPIRES:SIG (the element's `token`). */
+  token?: string | null;
   /** Base URL of the shader files. Default: those inside the package. */
   shaders?: string | null;
   /** Material repeats per unit of uv. Default 1. */

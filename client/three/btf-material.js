@@ -146,6 +146,7 @@ const vec3 = (v) => (Array.isArray(v) ? new THREE.Vector3(...v) : new THREE.Vect
 //   src            btfd's WebSocket (ws://, wss://) or a published library folder (http(s)://),
 //                  relative to the page; required (a package has no script origin to default to)
 //   material       the library material's name; required
+//   token          a private library's access token (the element's `token`), default none
 //   shaders        base URL of the shader files (default: inside the package, else shaders/
 //                  next to btf-viewer.js)
 //   repeat         number or [u, v]: material repeats per unit of uv (default 1)
@@ -226,7 +227,8 @@ export class BTFMaterial extends THREE.RawShaderMaterial {
       streamOpen: () => mat.recovered(),
       decoded: () => mat.uploadDecoded(),
     };
-    this.feed = new MaterialFeed(this.session, o.material, {pixels: () => o.pixels, policy: () => -1});
+    this.feed = new MaterialFeed(this.session, o.material, {pixels: () => o.pixels, policy: () => -1,
+      token: () => o.token || null});
     shaderFiles(o.shaders).then((sh) => {
       this.shaders = sh;
       this.ready();
