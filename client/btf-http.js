@@ -182,9 +182,7 @@ export class HttpStream {
         if (this.subs.get(material) === sub) this.start(sub);
       });
     } else {
-      if (sub.manifest && listener.onManifest) listener.onManifest(sub);
-      sub.chunks.forEach((c, j) => c && listener.onChunk && listener.onChunk(sub, j));
-      if (sub.complete && listener.onComplete) listener.onComplete(sub, {});
+      sub.replay(listener);
       this.updateBudget(sub);
     }
     return sub;

@@ -268,9 +268,7 @@ export class BtfStream {
         if (this.subs.get(material) === sub) this.sendSubscribe(sub);
       });
     } else {
-      if (sub.manifest && listener.onManifest) listener.onManifest(sub);
-      sub.chunks.forEach((c, j) => c && listener.onChunk && listener.onChunk(sub, j));
-      if (sub.complete && listener.onComplete) listener.onComplete(sub, {});
+      sub.replay(listener);
       this.updateBudget(sub);
     }
     return sub;

@@ -73,6 +73,14 @@ export class Subscription {
     return mergeBudgets([...this.listeners].map((l) => l.budget()));
   }
 
+  // What a listener that joins a running subscription missed: its manifest, the complete
+  // chunks, the end of the budget (both transports).
+  replay(listener) {
+    if (this.manifest && listener.onManifest) listener.onManifest(this);
+    this.chunks.forEach((c, j) => c && listener.onChunk && listener.onChunk(this, j));
+    if (this.complete && listener.onComplete) listener.onComplete(this, {});
+  }
+
   emit(ev, ...args) {
     for (const l of this.listeners) if (l[ev]) l[ev](this, ...args);
   }
