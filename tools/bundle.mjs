@@ -9,34 +9,11 @@
 //   node tools/bundle.mjs OUT        (default build/client)
 import fs from 'node:fs';
 import path from 'node:path';
-import {fileURLToPath} from 'node:url';
 import * as esbuild from 'esbuild';
+import {ROOT, shaderPackPlugin} from './shader-pack.mjs';
 
-const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '..');
 const OUT = path.resolve(process.argv[2] || path.join(ROOT, 'build/client'));
-const PROGRAMS = ['render', 'flat'];
-
-// {manifest: {prefix, programs: {render, flat}}, files} of shaders/, as btf-gl.js loadShaders reads them.
-function shaderPack() {
-  const dir = path.join(ROOT, 'shaders');
-  const manifest = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
-  const programs = {}, files = {};
-  for (const name of PROGRAMS) {
-    const prog = manifest.programs[name];
-    if (!prog) throw new Error(`shaders/manifest.json has no program '${name}'`);
-    programs[name] = prog;
-    for (const f of [...prog.vertex, ...prog.fragment]) files[f] = fs.readFileSync(path.join(dir, f), 'utf8');
-  }
-  return {manifest: {prefix: manifest.prefix, programs}, files};
-}
-
-const packPlugin = {
-  name: 'shader-pack',
-  setup(build) {
-    build.onLoad({filter: /btf-shader-pack\.js$/}, () => ({
-      contents: `export const SHADER_PACK = ${JSON.stringify(shaderPack())};\n`, loader: 'js'}));
-  },
-};
+const packPlugin = shaderPackPlugin(['render', 'flat']);
 
 const tmp = `${OUT}.tmp-${process.pid}`;
 fs.rmSync(tmp, {recursive: true, force: true});

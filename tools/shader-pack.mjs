@@ -1,7 +1,7 @@
 // tools/shader-pack.mjs - the shader files of some programs of shaders/manifest.json as one
 // object, {manifest: {prefix, programs}, files: {NAME: text}}: what client/btf-shader-pack.js
 // holds inside a bundle (btf-gl.js assemble() reads it as it reads the fetched files), and
-// the esbuild plugin that puts it there. Used by tools/npm-dist.mjs.
+// the esbuild plugin that puts it there. Used by tools/bundle.mjs and tools/npm-dist.mjs.
 import fs from 'node:fs';
 import path from 'node:path';
 import {fileURLToPath} from 'node:url';
