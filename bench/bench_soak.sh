@@ -52,9 +52,12 @@ echo "# | minute | RSS kB | descriptors | CPU s | sent MB |"
 echo "# |---|---|---|---|---|"
 samples=()
 replaced=0
+start=$(date +%s)
 for ((m = 1; m <= MINUTES; m++)); do
-    for half in 0 1; do
-        sleep 30
+    for half in 0 1; do # on the clock: the clients' minutes are these
+        at=$((start + 60 * (m - 1) + 30 * (half + 1)))
+        now=$(date +%s)
+        ((at > now)) && sleep $((at - now))
         n=${names[$(((2 * m + half) % 3))]}
         seed=$((100 + 2 * m + half))
         if "$btf" compress "gen:$n:32:$seed" "$lib/.new-$n" --quiet --components 8 >&2 2>/dev/null; then
