@@ -107,7 +107,7 @@ export class BtfSession {
   // shaderBase: a URL, or 'inside:' for the files inside the script (the bundle).
   // model: null, or {url, materials (the attribute's text, or null)}: the model's parts
   // with the materials' bindings, `material` bound to every part no binding names.
-  start(material, src, shaderBase, model = null) {
+  start(material, src, shaderBase, model = null, folder = null) {
     this.started = true;
     if (!material && !model) return this.fail(new Error('no material attribute'));
     if (typeof WebGL2RenderingContext === 'undefined') return this.noWebgl();
@@ -116,7 +116,7 @@ export class BtfSession {
     this.times.start = performance.now();
     this.host.resize(); // the canvas size: the first subscribe's footprint
     this.fetchShaders(model ? ['render', 'flat'] : ['render']); // before the subscribe: a shared subscription replays its manifest at once
-    this.stream = BtfStream.for(src); // connects now (a model's subscriptions follow it)
+    this.stream = BtfStream.for(src, folder); // connects now (a model's subscriptions follow it)
     if (model) return this.startModel(material, model);
     const feed = new MaterialFeed(this, material, {
       pixels: (drawing) => (!this.host.seen() && !drawing ? 0 : this.host.pixelsPerRepeat()),

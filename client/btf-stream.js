@@ -67,12 +67,17 @@ function flowWindow(f) {
 export class BtfStream {
   // The shared stream of a source: a btfd's WebSocket (ws:// or wss://), or a library over
   // HTTP (http:// or https://: a static host, btf-http.js), one per page.
-  static for(url) {
+  // folder: where else a WebSocket source's library may be found over HTTP when the
+  // socket never opens (the viewer's default source: its script's folder, which is
+  // where `btf library publish` puts the script beside the library on a static host).
+  static for(url, folder = null) {
     const u = new URL(url, globalThis.location?.href);
     const http = u.protocol === 'http:' || u.protocol === 'https:';
     const key = http ? libraryBase(u.href) : u.href;
     if (!streams.has(key)) streams.set(key, http ? new HttpStream(key) : new BtfStream(key));
-    return streams.get(key);
+    const s = streams.get(key);
+    if (folder && !http && !s.folders.includes(folder)) s.folders.push(folder);
+    return s;
   }
 
   static all() {
@@ -81,6 +86,7 @@ export class BtfStream {
 
   constructor(url) {
     this.url = url;
+    this.folders = [libraryBase(url)]; // where probeHttp looks for the library over HTTP, in order
     this.subs = new Map(); // material -> Subscription
     this.byMid = new Map();
     this.ws = null;
@@ -158,20 +164,21 @@ export class BtfStream {
     // else: everything asked for is here; the next subscribe or larger budget reconnects
   }
 
-  // The socket never opened: is it the WebSocket only (a proxy that refuses upgrades)? When
-  // the server answers its list over HTTP (btfd: GET /materials.json), the stream goes on
-  // over HTTP from the same server (btf-http.js); else the failure takes its usual course.
-  probeHttp(ws, ev) {
+  // The socket never opened: is it the WebSocket only (a proxy that refuses upgrades), or
+  // no btfd at all but a published library? When the server answers its list over HTTP
+  // (btfd: GET /materials.json), or the script's folder does (a static host), the stream
+  // goes on over HTTP from there (btf-http.js); else the failure takes its usual course.
+  probeHttp(ws, ev, i = 0) {
     this.probed = true;
-    const base = libraryBase(this.url);
+    const base = this.folders[i];
+    if (!base) {
+      this.ws = ws;
+      return this.onClose(ws, ev);
+    }
     fetch(new URL('materials.json', base), {credentials: 'omit'})
       .then((r) => (r.ok ? r.json() : null))
       .catch(() => null)
-      .then((list) => {
-        if (list && Array.isArray(list.materials)) return this.fallBack(base);
-        this.ws = ws;
-        this.onClose(ws, ev);
-      });
+      .then((list) => (list && Array.isArray(list.materials) ? this.fallBack(base) : this.probeHttp(ws, ev, i + 1)));
   }
 
   // From now on every subscription of this stream is one of an HTTP stream of the same

@@ -269,7 +269,8 @@ export class BtfViewer extends HTMLElement {
     const s = this.session, model = this.getAttribute('model');
     s.start(this.getAttribute('material'), this.getAttribute('src') || scriptWs(),
       this.getAttribute('shaders') || (SHADER_PACK ? 'inside:' : SHADERS_URL),
-      model ? {url: new URL(model, document.baseURI).href, materials: this.getAttribute('materials')} : null);
+      model ? {url: new URL(model, document.baseURI).href, materials: this.getAttribute('materials')} : null,
+      this.getAttribute('src') ? null : new URL('./', import.meta.url).href);
     if (s.src && !model) this.defaultPoster(s);
     this.lights.update();
   }

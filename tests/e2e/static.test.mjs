@@ -6,7 +6,9 @@
 //   (b) an nginx static root on another origin that adds only Access-Control-Allow-Origin: *,
 //       through the throttling proxy (4 Mbit/s, 40 ms) on the phone of field.test.mjs;
 //   (c) a btfd behind a proxy that refuses WebSocket upgrades (403): the viewer falls back
-//       to btfd's HTTP routes and draws.
+//       to btfd's HTTP routes and draws;
+//   (d) no src and no btfd: the script in a published folder on a static host finds the
+//       library beside it.
 // Run: node --test tests/e2e/static.test.mjs
 import assert from 'node:assert/strict';
 import {spawnSync} from 'node:child_process';
@@ -162,6 +164,27 @@ describe('the library from a static host', () => {
       await pages.close();
       await new Promise((r) => proxy.close(r));
       await server.stop();
+    }
+  });
+
+  it('(d) no src, the script in the published folder of a static host: the library beside the script', async () => {
+    const port = await freePort();
+    // the README's btfd lines, but the script from the published folder: no btfd anywhere
+    fs.writeFileSync(path.join(site, 'nosrc.html'), page(`http://127.0.0.1:${port}/lib/`)
+      .replace(`src="http://127.0.0.1:${port}/lib/" `, ''));
+    const py = await serveProcess('python3', ['-m', 'http.server', '--bind', '127.0.0.1', String(port)], port, {cwd: site});
+    const ctx = await launch();
+    try {
+      await ctx.addInitScript(clsRecorder);
+      const p = await newPage(ctx);
+      const r = await visit(p, `http://127.0.0.1:${port}/nosrc.html`).catch(failure(ctx));
+      const s = await judge(p, r, 'no src, static host');
+      assert.equal(s.fallback, `http://127.0.0.1:${port}/lib/`, 'the library found beside the script');
+      // the browser reports the failed WebSocket and the root's missing list on the console: nothing else
+      assert.deepEqual(ctx.problems.filter((x) => !/WebSocket connection to .* failed|404/.test(x)), []);
+    } finally {
+      await ctx.close();
+      await py.stop();
     }
   });
 });
