@@ -93,7 +93,7 @@ static btf_result btf__read_wtz(const char *path, int rows, int cols, uint16_t *
     return r;
 }
 
-/* Version 3: wt-JJ.z (doc/package-format.md section 9.3). */
+/* Versions 3 and 4: wt-JJ.z (doc/package-format.md section 9.3). */
 static btf_result btf__load_weights_z(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
 {
     int L = p->lights.n_dirs, V = p->views.n_dirs;
@@ -140,9 +140,11 @@ static btf_result btf__load_weights(const btf_package *p, const char *dir, int i
     size_t nwt = (size_t)V * L * 3;
     char path[4200];
     snprintf(path, sizeof path, "%s/%s", dir, wf);
-    if (p->version == 3)
-        return btf__load_weights_z(p, path, i, wt, err);
-    if (p->version == 4 && strlen(wf) > 2 && !strcmp(wf + strlen(wf) - 2, ".z"))
+    size_t nf = strlen(wf);
+    if (p->version == 3 || (p->version == 4 && nf > 2 && !strcmp(wf + nf - 2, ".z") &&
+                            !(nf > 4 && !strcmp(wf + nf - 4, "-r.z"))))
+        return btf__load_weights_z(p, path, i, wt, err); /* version 4 may carry version 3's wt-JJ.z (section 5.3) */
+    if (p->version == 4 && nf > 2 && !strcmp(wf + nf - 2, ".z"))
         return btf__load_weights_r(p, path, i, wt, err);
     uint8_t *raw = malloc(2 * nwt);
     if (!raw)
