@@ -32,7 +32,7 @@ typedef struct btf__lod {
     char *iswebp;    /* [a*nl+l] version 4: 1 when that level's file is a lossless WebP (smaller than the PNG) */
     int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
     btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
-    char *w16res;    /* [a] version 4: 1 when the 16-bit weights are wt-JJ-r.z (the smaller coding) */
+    char *w16res;    /* [a] version 4: the 16-bit weights' coding (BTF__W16_*, the smallest kept) */
     double thr;
     float **lev;     /* [a*nl+l] dequantised texels, nb * Wl * Hl; level 0 borrowed from p->tex */
     uint8_t **atlas; /* [a*nl+l] atlas pixels for l >= 1 */
@@ -266,6 +266,9 @@ static btf_result btf__errors(btf__lod *s, btf_error *err)
 }
 
 
+/* Codings of a component's 16-bit weights (doc/package-format.md sections 5.1, 5.3, 9.3). */
+enum { BTF__W16_BIN, BTF__W16_RES, BTF__W16_Z };
+
 static btf_result btf__copy_file(const char *from, const char *to, btf_error *err)
 {
     char *data;
@@ -277,14 +280,21 @@ static btf_result btf__copy_file(const char *from, const char *to, btf_error *er
     return r;
 }
 
-static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
+/* The source chunk's texture file (weights = 0: tex-JJ.png or .webp) or weights file
+ * (weights = 1: wt-JJ.bin, or version 3's wt-JJ.z). */
+static const char *btf__src_file(const btf_chunk_info *ci, int weights)
 {
-    for (int i = 0; i < ci->n_files; i++) {
-        size_t n = strlen(ci->files[i]), e = strlen(ext);
-        if (n > e && !strcmp(ci->files[i] + n - e, ext))
+    for (int i = 0; i < ci->n_files; i++)
+        if (!strncmp(ci->files[i], "wt-", 3) == !!weights)
             return ci->files[i];
-    }
     return NULL;
+}
+
+/* Length of a file name without its extension. */
+static int btf__stem_len(const char *name)
+{
+    const char *dot = strrchr(name, '.');
+    return dot ? (int)(dot - name) : (int)strlen(name);
 }
 
 /* Level file name of component a without its extension: level 0 keeps the v1 name,
@@ -292,13 +302,13 @@ static const char *btf__file_ending(const btf_chunk_info *ci, const char *ext)
  * included) adds -dL. */
 static void btf__level_stem(const btf__lod *s, int a, int l, int residual, char *name, size_t n)
 {
-    const char *t = btf__file_ending(&s->p->chunk[a], ".png");
+    const char *t = btf__src_file(&s->p->chunk[a], 0);
     if (residual)
-        snprintf(name, n, "%.*s-d%d", (int)(strlen(t) - 4), t, l);
+        snprintf(name, n, "%.*s-d%d", btf__stem_len(t), t, l);
     else if (l == 0)
-        snprintf(name, n, "%.*s", (int)(strlen(t) - 4), t);
+        snprintf(name, n, "%.*s", btf__stem_len(t), t);
     else
-        snprintf(name, n, "%.*s-l%d", (int)(strlen(t) - 4), t, l);
+        snprintf(name, n, "%.*s-l%d", btf__stem_len(t), t, l);
 }
 
 /* The name of the file that holds level l of component a, as written. */
@@ -310,11 +320,11 @@ static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t 
     snprintf(name + e, n - e, "%s", s->iswebp[k] ? ".webp" : ".png");
 }
 
-/* Name of component a's 8-bit weights: "wt-JJ.bin" -> "wt-JJ-8.png". */
+/* Name of component a's 8-bit weights: "wt-JJ.bin" (or "wt-JJ.z") -> "wt-JJ-8.png". */
 static void btf__w8_name(const btf__lod *s, int a, char *name, size_t n)
 {
-    const char *w = btf__file_ending(&s->p->chunk[a], ".bin");
-    snprintf(name, n, "%.*s-8.png", (int)(strlen(w) - 4), w);
+    const char *w = btf__src_file(&s->p->chunk[a], 1);
+    snprintf(name, n, "%.*s-8.png", btf__stem_len(w), w);
 }
 
 /* Level of component a's first chunk in the order (its coarse weights travel there when > 0). */
@@ -327,7 +337,7 @@ static int btf__first_level(const btf__lod *s, int a)
 }
 
 /* Step multiplier of component a's 8-bit weights: the largest m >= 1 with
- * m * 257 * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a) in every block, so the
+ * m * 257 * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a) in every block (at most 255), so the
  * coarse weights add at most that RMS noise (0..255 scale) per component (the
  * equal-noise allocation of section 4 applied to weights). */
 #define BTF__W8_NOISE 0.25
@@ -344,7 +354,7 @@ static int btf__w8_mult(const btf__lod *s, int a)
         if (rms > 0.0 && st > 0.0 && BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st < m)
             m = BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st;
     }
-    return m < 1.0 ? 1 : (int)m;
+    return m < 1.0 ? 1 : m > 255.0 ? 255 : (int)m; /* 257 m <= 65535, the largest step a manifest holds */
 }
 
 /* Component a's weights requantised to 8 bits (q8 = round(q16 / (257 m)), the same lo),
@@ -365,41 +375,94 @@ static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error 
     return btf_image_write_flags(path, 3 * L, V, 1, 8, q, BTF_IMAGE_PNG_SMALLEST, err);
 }
 
-/* Name of component a's 16-bit weights: the v1 "wt-JJ.bin", or in version 4 when
- * the component has 8-bit weights their residual "wt-JJ-r.z". */
-static void btf__w16_name(const btf__lod *s, int a, int residual, char *name, size_t n)
+/* Name of component a's 16-bit weights in the coding c (BTF__W16_*): "wt-JJ.bin",
+ * "wt-JJ-r.z" (over the 8-bit weights, version 4) or "wt-JJ.z" (version 3's coding). */
+static void btf__w16_name(const btf__lod *s, int a, int c, char *name, size_t n)
 {
-    const char *w = btf__file_ending(&s->p->chunk[a], ".bin");
-    if (residual)
-        snprintf(name, n, "%.*s-r.z", (int)(strlen(w) - 4), w);
-    else
-        snprintf(name, n, "%s", w);
+    static const char *const ext[] = {".bin", "-r.z", ".z"};
+    const char *w = btf__src_file(&s->p->chunk[a], 1);
+    snprintf(name, n, "%.*s%s", btf__stem_len(w), w, ext[c]);
 }
 
-/* Version 4: component a's 16-bit weights (the v1 file's q16) as wt-JJ-r.z, the
- * btf_wtz stream of r = (q16 - s_c q8) mod 65536 with one light per "view" (section 12). */
-static btf_result btf__write_w16_residual(const btf__lod *s, int a, const char *from, const char *to, btf_error *err)
+/* Component a's 16-bit weight codes q16 (V*L*3, malloc'd into *q) from the source
+ * package's file path: wt-JJ.bin (little-endian) or version 3's wt-JJ.z. */
+static btf_result btf__read_q16(const btf__lod *s, const char *path, uint16_t **q, btf_error *err)
 {
     const btf_package *p = s->p;
-    size_t n = (size_t)p->views.n_dirs * p->lights.n_dirs * 3, nd = 0, nz = 0;
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    size_t n = (size_t)V * L * 3, nd = 0;
+    int z = p->version == 3;
     char *raw = NULL;
-    uint8_t *z = NULL;
-    btf_result r = btf_fs_read(from, 2 * n, &raw, &nd, err);
-    if (r == BTF_OK && nd != 2 * n)
-        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %zu bytes, expected %zu", from, nd, 2 * n);
-    uint16_t *q = r == BTF_OK ? malloc(n * sizeof *q) : NULL;
-    if (r == BTF_OK && !q)
+    btf_result r = btf_fs_read(path, z ? btf_wtz_max_bytes(V, L) : 2 * n, &raw, &nd, err);
+    if (r == BTF_OK && !z && nd != 2 * n)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %zu bytes, expected %zu", path, nd, 2 * n);
+    *q = r == BTF_OK ? malloc(n * sizeof **q) : NULL;
+    if (r == BTF_OK && !*q)
         r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
-    unsigned sc = 257u * (unsigned)s->w8mult[a];
-    for (size_t k = 0; q && k < n; k++) {
-        unsigned q16 = (unsigned)(uint8_t)raw[2 * k] | (unsigned)(uint8_t)raw[2 * k + 1] << 8;
-        q[k] = (uint16_t)((q16 - sc * s->w8q[a][k]) & 0xFFFFu);
+    if (r == BTF_OK && z)
+        r = btf_wtz_decode((const uint8_t *)raw, nd, V, L, *q, path, err);
+    for (size_t k = 0; r == BTF_OK && !z && k < n; k++)
+        (*q)[k] = (uint16_t)((unsigned)(uint8_t)raw[2 * k] | (unsigned)(uint8_t)raw[2 * k + 1] << 8);
+    free(raw);
+    return r;
+}
+
+/* Component a's 16-bit weights q16 encoded as c (BTF__W16_*) into *out (malloc'd). */
+static btf_result btf__encode_w16(const btf__lod *s, int a, const uint16_t *q, int c, uint8_t **out, size_t *len,
+                                  btf_error *err)
+{
+    const btf_package *p = s->p;
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    size_t n = (size_t)V * L * 3;
+    if (c == BTF__W16_Z)
+        return btf_wtz_encode(q, V, L, out, len, err);
+    uint16_t *d = malloc(n * sizeof *d);
+    if (!d)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    unsigned sc = c == BTF__W16_RES ? 257u * (unsigned)s->w8mult[a] : 0u;
+    for (size_t k = 0; k < n; k++) /* the residual r = (q16 - s_c q8) mod 65536 (section 5.3) */
+        d[k] = (uint16_t)((q[k] - (sc ? sc * s->w8q[a][k] : 0u)) & 0xFFFFu);
+    btf_result r = BTF_OK;
+    if (c == BTF__W16_RES)
+        r = btf_wtz_encode(d, (int)(n / 3), 1, out, len, err);
+    else if ((*out = malloc(2 * n)) != NULL) {
+        for (size_t k = 0; k < n; k++)
+            (*out)[2 * k] = (uint8_t)(d[k] & 255u), (*out)[2 * k + 1] = (uint8_t)(d[k] >> 8);
+        *len = 2 * n;
+    } else
+        r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    free(d);
+    return r;
+}
+
+/* Component a's 16-bit weights into tmp in the smallest coding a version allows:
+ * version 2 wt-JJ.bin; version 4 also wt-JJ-r.z (with 8-bit weights) and wt-JJ.z.
+ * Fills w16res[a] and wbytes[a]. */
+static btf_result btf__write_w16(btf__lod *s, int a, const char *in_dir, const char *tmp, btf_error *err)
+{
+    char from[8400], to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    uint16_t *q = NULL;
+    uint8_t *best = NULL;
+    size_t nbest = 0;
+    snprintf(from, sizeof from, "%s/%s", in_dir, btf__src_file(&s->p->chunk[a], 1));
+    btf_result r = btf__read_q16(s, from, &q, err);
+    for (int c = BTF__W16_BIN; r == BTF_OK && c <= (s->resid ? BTF__W16_Z : BTF__W16_BIN); c++) {
+        uint8_t *z = NULL;
+        size_t nz = 0;
+        if (c == BTF__W16_RES && !s->w8q[a])
+            continue;
+        r = btf__encode_w16(s, a, q, c, &z, &nz, err);
+        if (r == BTF_OK && (!best || nz < nbest))
+            free(best), best = z, nbest = nz, s->w16res[a] = (char)c;
+        else
+            free(z);
     }
-    if (q)
-        r = btf_wtz_encode(q, (int)(n / 3), 1, &z, &nz, err);
+    btf__w16_name(s, a, s->w16res[a], name, sizeof name);
+    snprintf(to, sizeof to, "%s/%s", tmp, name);
     if (r == BTF_OK)
-        r = btf_fs_write_atomic(to, z, nz, err);
-    free(raw), free(q), free(z);
+        r = btf_fs_write_atomic(to, best, nbest, err);
+    s->wbytes[a] = (long long)nbest;
+    free(q), free(best);
     return r;
 }
 
@@ -421,7 +484,7 @@ static btf_result btf__level0_atlas(btf__lod *s, int a, const char *in_dir, btf_
     const btf_package *p = s->p;
     char path[8400];
     int w, h;
-    snprintf(path, sizeof path, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
+    snprintf(path, sizeof path, "%s/%s", in_dir, btf__src_file(&p->chunk[a], 0));
     btf_result r = btf_image_read_grey(path, &w, &h, &s->atlas[a * s->nl], err); /* refuses what is not grey */
     if (r == BTF_OK && (w != p->atlas_cols * s->W || h != p->atlas_rows * s->H))
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d, expected the %dx%d grey atlas", path, w, h,
@@ -475,9 +538,10 @@ static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir
     btf_result r;
     btf__level_stem(s, a, l, 0, name, sizeof name);
     snprintf(to, sizeof to, "%s/%s", tmp, name);
-    if (l == 0 && !s->webp) {
+    const char *t = btf__src_file(&p->chunk[a], 0);
+    if (l == 0 && !s->webp && !strcmp(t + btf__stem_len(t), ".png")) { /* the source's own file */
         char from[8400];
-        snprintf(from, sizeof from, "%s/%s", in_dir, btf__file_ending(&p->chunk[a], ".png"));
+        snprintf(from, sizeof from, "%s/%s", in_dir, t);
         snprintf(to, sizeof to, "%s/%s.png", tmp, name);
         r = btf__copy_file(from, to, err);
         s->tbytes[k] = btf_fs_size(to);
@@ -506,11 +570,9 @@ static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir
 /* Every texture and weight file into tmp; fills tbytes, wbytes. */
 static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *tmp, btf_error *err)
 {
-    const btf_package *p = s->p;
-    char from[8400], to[8400], g[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    char to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
     btf_result r = BTF_OK;
     for (int a = 0; r == BTF_OK && a < s->C; a++) {
-        const char *wf = btf__file_ending(&p->chunk[a], ".bin");
         if (btf__first_level(s, a) > 0) {
             btf__w8_name(s, a, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
@@ -518,18 +580,8 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
             r = btf__write_w8(s, a, to, err);
             s->w8bytes[a] = btf_fs_size(to);
         }
-        snprintf(from, sizeof from, "%s/%s", in_dir, wf);
-        btf__w16_name(s, a, 0, name, sizeof name);
-        snprintf(to, sizeof to, "%s/%s", tmp, name);
         if (r == BTF_OK)
-            r = btf__copy_file(from, to, err);
-        s->wbytes[a] = btf_fs_size(to);
-        if (r == BTF_OK && s->resid && s->w8q[a]) { /* version 4: the residual over the 8-bit weights when smaller */
-            btf__w16_name(s, a, 1, name, sizeof name);
-            snprintf(g, sizeof g, "%s/%s", tmp, name);
-            r = btf__write_w16_residual(s, a, from, g, err);
-            r = r == BTF_OK ? btf__keep_smaller(to, g, &s->w16res[a], &s->wbytes[a], err) : r;
-        }
+            r = btf__write_w16(s, a, in_dir, tmp, err);
         if (r == BTF_OK && s->resid)
             r = btf__level0_atlas(s, a, in_dir, err);
         for (int l = 0; r == BTF_OK && l < s->nl; l++)
@@ -607,13 +659,11 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     if (r != BTF_OK)
         return r;
     btf_package *p = s->p;
-    if (p->version == 3)
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: version-3 packages (wt-JJ.z weights) take no spatial levels yet", in_dir);
-    if (p->version != 1 || p->n_levels != 1)
+    if ((p->version != 1 && p->version != 3) || p->n_levels != 1)
         return btf_fail(err, BTF_ERR_ARG, "%s: already has spatial levels (version %d)", in_dir, p->version);
     s->C = p->n_chunks, s->nb = p->blocks->n_blocks, s->W = p->width, s->H = p->height;
     s->ch = p->bits == 16 ? 3 : 1, s->qmax = p->bits == 16 ? 65535 : 255;
-    s->resid = o && o->residual;
+    s->resid = (o && o->residual) || p->version == 3; /* rate-distortion steps: version 4 (wt-JJ.z weights) */
     s->webp = s->resid && !o->png_only;
     if (s->resid && p->bits != 8)
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: residual levels (version 4) need 8-bit textures, not %d", in_dir,

@@ -35,7 +35,8 @@ typedef struct btf_lod_options {
     int levels;       /* levels including level 0; 0 = as many as keep tiles >= 8 texels, at most 4 */
     double threshold; /* reference visibility threshold used for the chunk order; 0 = BTF_LOD_THRESHOLD */
     int residual;     /* 1: version 4 (doc/package-format.md section 4.3): every level but the coarsest stored as
-                       * a residual over the coarser one (8-bit packages only); 0: version 2 (independent mips) */
+                       * a residual over the coarser one (8-bit packages only); 0: version 2 (independent mips),
+                       * except from a version-3 package (rate-distortion steps): always version 4 */
     int png_only;     /* with residual: 1 = every texture file a PNG; 0 = each the smaller of PNG and lossless WebP */
     int thumbnail;    /* > 0: out_dir gets thumbnail.png of at most this many pixels a side, decoded from the new
                        * package before it is renamed into place (btf_package_thumbnail); 0 = none */
@@ -49,8 +50,8 @@ typedef struct btf_lod_stats {
     long long first_chunk; /* bytes of chunk 0 */
 } btf_lod_stats;
 
-/* Reads the complete version-1 package in_dir and writes out_dir (a different path)
- * as version 2: level 0 = the v1 files unchanged, level l = 2x2 box averages of
+/* Reads the complete version-1 (or 3) package in_dir and writes out_dir (a different path)
+ * as version 2 (4 from version 3 or with opt->residual): level 0 = the v1 files unchanged, level l = 2x2 box averages of
  * level l-1 (dequantised, requantised with the component's ranges) in tex-JJ-lL.png;
  * chunks are (component, level) pairs in the order of doc/package-format.md section 7.3. */
 btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_options *opt, btf_lod_stats *stats,
@@ -89,7 +90,8 @@ typedef struct btf_lod_selection {
 void btf_lod_select(const btf_package *p, const btf_lod_view *view, btf_lod_selection *out, unsigned char *need);
 
 /* One package from one loaded BTF, as `btf compress` and `btf library build`
- * write it: version 1, or version 2 (4 with residual levels).
+ * write it: version 1 (3 with pkg->rd), or version 2 (4 with residual levels, always
+ * with pkg->rd: a version-3 package takes residual levels only).
  *
  *     btf_lod_options lod = {.levels = 4, .residual = 1};
  *     btf_lod_compress(src, &pca, &pkg, &lod, "lib/wool", &stats, &err);  // 4 levels, version 4
@@ -107,6 +109,26 @@ btf_result btf_lod_compress(const btf *src, const btf_pca_options *pca, const bt
 btf_result btf_lod_compress_views(btf_views *src, const btf_pca_options *pca, const btf_package_options *pkg,
                                   const btf_lod_options *lod, const char *out, btf_compress_stats *stats,
                                   btf_error *err);
+
+/* btf_lod_budget_compress: the first try's budget for the package without levels is
+ * max_bytes / GUESS; a try that fits with at least NEAR of max_bytes ends the search;
+ * at most TRIES tries (each one budget search and one level build). */
+#define BTF_LOD_BUDGET_GUESS 1.2
+#define BTF_LOD_BUDGET_NEAR 0.92
+#define BTF_LOD_BUDGET_TRIES 3
+
+struct btf_budget;
+struct btf_budget_result;
+/* btf_budget_compress (btf_budget.h) with levels: the budget's package, then
+ * btf_lod_build's levels over it (residual, version 4, when opt->rd), into OUT.
+ * With max_error the levels leave the error as it is (level 0 is the budget's
+ * package); with max_bytes the levelled package must fit, so the budget without
+ * levels shrinks by the levels' share as measured on the previous try. res reports
+ * the levelled package (bytes, chunks). Temporaries are OUT.tmp-PID-*. lod NULL or
+ * lod->levels 0: btf_budget_compress. */
+btf_result btf_lod_budget_compress(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                                   const struct btf_budget *budget, const btf_lod_options *lod, const char *out,
+                                   struct btf_budget_result *res, btf_error *err);
 
 #ifdef __cplusplus
 }
