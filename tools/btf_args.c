@@ -96,6 +96,12 @@ int btf_args_pca(const btf_args *a, int c, const char *val, const btf_args_pca_d
     switch (c) {
     case 'k': rc = btf_args_int(a, val, 1, BTF_MAX_DIRS, d->k); break;
     case 'C': rc = btf_args_int(a, val, 1, d->max_components, d->components); break;
+    }
+    if (rc == 0 && d->budget && c == 'k')
+        d->budget->k[0] = *d->k, d->budget->n_k = 1;
+    if (rc == 0 && d->budget && c == 'C')
+        d->budget->max_components = *d->components;
+    switch (c) {
     case 'm': rc = btf_args_enum(a, val, methods, 4, &e), *d->method = (btf_pca_method)e; break;
     case 'd': rc = btf_args_int(a, val, 1, 256, d->downsample); break;
     }

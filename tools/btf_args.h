@@ -10,6 +10,7 @@
 #ifndef BTF_ARGS_H
 #define BTF_ARGS_H
 
+#include "btf_budget.h"
 #include "btf_pca.h"
 
 #include <stdio.h>
@@ -63,10 +64,12 @@ typedef struct btf_args_pca_dst {
     int *k, *components, *downsample;
     btf_pca_method *method;
     int max_components;
+    btf_budget *budget; /* NULL, or the budget whose k / component count --k / --components fix */
 } btf_args_pca_dst;
 /* The PCA options of compress and export-thesis: codes k (--k 1..BTF_MAX_DIRS), C
  * (--components 1..max_components), m (--method auto|gram|randomized|svd), d
- * (--downsample 1..256); other codes are ignored. 0 ok, 2 usage error. */
+ * (--downsample 1..256); other codes are ignored. With d->budget, --k makes k the
+ * budget's only candidate and --components its fixed component count. 0 ok, 2 usage error. */
 int btf_args_pca(const btf_args *a, int c, const char *val, const btf_args_pca_dst *d);
 /* The exit-code lines every --help ends with. */
 void btf_args_exit_codes(FILE *f);

@@ -28,9 +28,8 @@ typedef struct compress_opts {
     btf_package_options pkg;
     int quiet, json;
     int in_memory;     /* --in-memory: load the whole input first (the baseline of the view-by-view read) */
+    int plain;         /* --plain: equal-noise steps (version 1, 2 or 4), not rate-distortion (version 3 or 4) */
     btf_budget budget; /* --max-bytes / --max-error (codec/include/btf_budget.h); both 0 = none */
-    int k_set;         /* --k given: the only candidate of a budget */
-    int components_set; /* --components given: a budget's fixed component count */
     btf_lod_options lod; /* levels > 0: package version 2 (4 with residual) with spatial levels (codec/include/btf_lod.h) */
 } compress_opts;
 
@@ -41,7 +40,7 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--max-bytes N | --max-error E] [--full-search] [--rd]\n"
+            "                           [--max-bytes N | --max-error E] [--full-search] [--plain]\n"
             "                           [--png] [--tex-noise X] [--linear] [--in-memory]\n"
             "                           [--no-thumbnail] [--quiet] [--json]\n"
             "\n"
@@ -66,31 +65,35 @@ static void compress_usage(FILE *f)
             "  --fill-missing   interpolate missing images of an image directory from each\n"
             "                   view's nearest lights, with a warning (default: refuse)\n"
             "  --name NAME      material name in the manifest (default: last element of OUT)\n"
-            "  --levels N       write package version 2 with N spatial levels (as `btf lod`)\n"
-            "  --residual       with --levels: version 4, levels stored as residuals (as `btf lod\n"
-            "                   --residual`; 8-bit textures)\n"
+            "  --levels N       N spatial levels (as `btf lod`): version 4, each level stored as a\n"
+            "                   residual over the coarser one where smaller (with --plain: version 2)\n"
+            "  --residual       with --plain --levels: version 4 (as `btf lod --residual`)\n"
             "  --max-bytes N    the least CIELab error within N bytes (manifest and chunk files):\n"
             "                   k from 1, 3, 9 (or --k) and the chunk count are chosen by\n"
             "                   compressing each k once with up to 16 components (or --components;\n"
             "                   without it the best k again with 24, 36, 56, 64 while it keeps them all);\n"
             "                   the choice and every candidate are recorded in the manifest (\"budget\";\n"
-            "                   with --rd the candidates are measured unwritten, their bytes estimated);\n"
+            "                   the candidates are measured unwritten, their bytes estimated);\n"
             "                   a side of 128 texels or more is halved for the candidates (the\n"
             "                   centre window, texture bytes scaled), the winner compressed from\n"
             "                   the whole material\n"
             "  --max-error E    the fewest bytes whose CIELab error is <= E (as btf eval reports it)\n"
+            "                   (with --levels: the levels' bytes count too; the error is level 0's)\n"
             "  --full-search    with a budget: measure the candidates on the whole material\n"
             "  --in-memory      load the whole input before compressing (the same package; the\n"
             "                   baseline the view-by-view read is measured against)\n"
             "  --no-thumbnail   write no thumbnail.png (default: the material seen head-on, decoded\n"
             "                   from every chunk, at most 128 pixels a side: the viewer's poster)\n"
-            "  --rd             package version 3: texture and weight steps per component chosen\n"
+            "  (default)        package version 3: texture and weight steps per component chosen\n"
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
-            "                   steps, weights deflated (wt-JJ.z); 8-bit textures, no --levels\n"
-            "  --png            with --rd or --residual: every texture a PNG (default: --rd a\n"
-            "                   lossless WebP; --residual each the smaller of a PNG and a WebP)\n"
+            "                   steps, weights deflated (wt-JJ.z); with --levels version 4\n"
+            "  --plain          the equal-noise steps of every component, weights raw: version 1\n"
+            "                   (2 or 4 with --levels); --bits 16 implies it\n"
+            "  --rd             the default (kept for scripts that name it)\n"
+            "  --png            every texture a PNG (default: a lossless WebP; with levels each\n"
+            "                   level the smaller of a PNG and a WebP)\n"
             "  --tex-noise X    RMS quantisation noise per component of the 8-bit textures\n"
-            "                   (0..255 scale, default 0.5); with --rd the total it amounts to\n"
+            "                   (0..255 scale, default 0.5; without --plain the total it amounts to)\n"
             "  --linear         a linear-light package (manifest \"encoding\": \"linear\"): the\n"
             "                   source's sRGB values are decoded to linear light (exact sRGB\n"
             "                   EOTF) before the PCA, so sums over light directions add radiance;\n"
@@ -107,7 +110,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -116,7 +119,8 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     static const char *const groupings[] = {"consecutive", "spatial"};
     static const char *const centers[] = {"none", "row"};
     compress_opts *o = ctx;
-    btf_args_pca_dst pca = {&o->pca.k, &o->pca.components, &o->src.downsample, &o->pca.method, BTF_PACKAGE_MAX_CHUNKS};
+    btf_args_pca_dst pca = {&o->pca.k,      &o->pca.components,     &o->src.downsample,
+                            &o->pca.method, BTF_PACKAGE_MAX_CHUNKS, &o->budget};
     int e = 0, rc = 0;
     switch (c) {
     case BTF_ARG_POS: *(a->npos ? &o->out : &o->in) = v; break;
@@ -134,6 +138,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'M': o->in_memory = 1; break;
     case 'T': o->pkg.thumbnail = 0; break;
     case 'R': o->pkg.rd = 1; break;
+    case 'A': o->plain = 1; break;
     case 'L': o->pkg.linear = 1; break;
     case 'S': o->budget.full_search = 1; break;
     case 'P': o->pkg.png_only = o->lod.png_only = 1; break;
@@ -145,7 +150,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'j': o->json = 1; break;
     case 'B': rc = btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes); break;
     case 'E': rc = btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error); break;
-    default: rc = btf_args_pca(a, c, v, &pca), o->k_set |= c == 'k', o->components_set |= c == 'C';
+    default: rc = btf_args_pca(a, c, v, &pca);
     }
     return rc;
 }
@@ -156,14 +161,17 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
     memset(o, 0, sizeof *o);
     o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8, o->pkg.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE;
     int rc = btf_args_parse(&compress_spec, argc, argv, compress_option, o);
-    if (rc == 0 && o->pkg.rd && (o->lod.levels > 0 || o->pkg.bits != 8)) {
-        fprintf(stderr, "btf compress: --rd writes version 3: 8-bit textures, no --levels\n");
+    if (rc == 0 && o->pkg.rd && (o->plain || o->pkg.bits != 8)) {
+        fprintf(stderr, "btf compress: --rd (the default) has 8-bit textures; not with --plain or --bits 16\n");
         rc = 2;
     }
+    o->pkg.rd = !o->plain && o->pkg.bits == 8; /* rate-distortion steps unless asked otherwise */
     if (rc == 0 && o->lod.residual && (o->lod.levels < 1 || o->pkg.bits != 8)) {
         fprintf(stderr, "btf compress: --residual needs --levels N and 8-bit textures\n");
         rc = 2;
     }
+    if (o->lod.levels > 0)
+        o->lod.residual |= o->pkg.rd; /* a version-3 package takes residual levels (version 4) */
     o->pkg.name = o->name;
     return rc;
 }
@@ -204,13 +212,8 @@ static int compress_json(const char *out, const btf_compress_stats *st, double s
 /* --max-bytes / --max-error: the k and chunk count chosen by measuring (codec/include/btf_budget.h). */
 static btf_result compress_budget(const btf *src, compress_opts *o, btf_compress_stats *st, btf_error *err)
 {
-    if (o->lod.levels > 0)
-        return btf_fail(err, BTF_ERR_ARG, "--levels with --max-bytes or --max-error: add levels with btf lod afterwards");
-    if (o->k_set)
-        o->budget.k[0] = o->pca.k, o->budget.n_k = 1;
-    o->budget.max_components = o->components_set ? o->pca.components : 0; /* 0: 16, more while all are kept */
     btf_budget_result res;
-    btf_result r = btf_budget_compress(src, &o->pca, &o->pkg, &o->budget, o->out, &res, err);
+    btf_result r = btf_lod_budget_compress(src, &o->pca, &o->pkg, &o->budget, &o->lod, o->out, &res, err);
     if (r != BTF_OK)
         return r;
     st->bytes = res.bytes, st->n_chunks = res.n_chunks, st->lab = res.lab, st->rmse = res.rmse;

@@ -69,7 +69,7 @@ static int export_option(void *ctx, const btf_args *a, int c, const char *v)
     } else if (c == 'q' || c == 'e') {
         *(c == 'q' ? &o->quiet : &o->eval) = 1;
     } else {
-        btf_args_pca_dst pca = {&o->ex.k, &o->ex.components, &o->src.downsample, &o->ex.method, BTF_THESIS_MAX_C};
+        btf_args_pca_dst pca = {&o->ex.k, &o->ex.components, &o->src.downsample, &o->ex.method, BTF_THESIS_MAX_C, NULL};
         rc = btf_args_pca(a, c, v, &pca);
     }
     return rc;

@@ -53,6 +53,8 @@ typedef struct library_opts {
     btf_package_options pkg;
     const char *sampling; /* --sampling S for image-directory sources; NULL: inferred */
     int downsample, levels, jobs, force, quiet;
+    int plain;         /* --plain: equal-noise steps (version 1, or 2 with levels), not rate-distortion */
+    btf_budget budget; /* --max-bytes / --max-error per material; both 0 = none */
 } library_opts;
 
 /* One material to build; array owned by cmd_library, lives for the command. */
@@ -68,7 +70,8 @@ static void library_usage(FILE *f)
     fprintf(f,
             "usage: btf library build SRC... --out LIB [-j N] [--k K] [--components C] [--bits 8|16]\n"
             "                         [--method M] [--downsample F] [--levels N] [--sampling S]\n"
-            "                         [--linear] [--force] [--quiet]\n"
+            "                         [--max-bytes N | --max-error E] [--plain] [--linear]\n"
+            "                         [--force] [--quiet]\n"
             "\n"
             "Builds one package per SRC into the library directory LIB (what btfd serves), one job\n"
             "per material, at most N at once (default 1). SRC is anything `btf compress` reads\n"
@@ -84,6 +87,11 @@ static void library_usage(FILE *f)
             "  -j, --jobs N     jobs at once, 1..256 (default 1)\n"
             "  --k, --components, --bits, --method, --downsample, --levels, --sampling\n"
             "                   as for `btf compress` (the sampling of every directory SRC)\n"
+            "  --max-bytes N, --max-error E\n"
+            "                   each material's budget, as for `btf compress` (k and the chunk\n"
+            "                   count chosen by measuring; --k, --components fix them)\n"
+            "  --plain          equal-noise steps (version 1, 2 with --levels) instead of the\n"
+            "                   default rate-distortion steps (version 3, 4 with --levels)\n"
             "  --linear         packages of linear light, as `btf compress --linear` (for\n"
             "                   environment light: doc/lighting.md)\n"
             "  --force          rebuild even when up to date\n"
@@ -101,14 +109,16 @@ static void library_usage(FILE *f)
 }
 
 static const btf_args_spec library_spec = {
-    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l sampling:S linear!L force!f quiet!q",
+    "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l sampling:S linear!L "
+    "max-bytes:B max-error:E plain!A force!f quiet!q",
     library_usage, -1};
 
 /* One option or positional of `btf library build` (btf_args_fn). */
 static int library_option(void *ctx, const btf_args *a, int c, const char *v)
 {
     library_opts *o = ctx;
-    btf_args_pca_dst pca = {&o->pca.k, &o->pca.components, &o->downsample, &o->pca.method, BTF_PACKAGE_MAX_CHUNKS};
+    btf_args_pca_dst pca = {&o->pca.k, &o->pca.components, &o->downsample, &o->pca.method, BTF_PACKAGE_MAX_CHUNKS,
+                            &o->budget};
     switch (c) {
     case BTF_ARG_POS: o->src[o->n_src++] = v; return 0;
     case 'o': o->out = v; return 0;
@@ -117,6 +127,9 @@ static int library_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'l': return btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->levels);
     case 'S': o->sampling = v; return 0;
     case 'L': o->pkg.linear = 1; return 0;
+    case 'A': o->plain = 1; return 0;
+    case 'B': return btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes);
+    case 'E': return btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error);
     case 'f': o->force = 1; return 0;
     case 'q': o->quiet = 1; return 0;
     default: return btf_args_pca(a, c, v, &pca);
@@ -190,11 +203,13 @@ static int stamp_text(const library_opts *o, const library_job *j, char *buf, si
     source_identity(j->spec, id, sizeof id);
     snprintf(buf, n,
              "{\"source\": \"%s\", \"source_mtime_size\": \"%s\", \"btf\": \"%s\",\n"
-             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d sampling=%s%s\",\n"
+             " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d sampling=%s%s rd=%d "
+             "max_bytes=%lld max_error=%.17g\",\n"
              " \"thumbnail\": %d,\n"
              " \"manifest_mtime_size\": \"%lld %lld\"}\n",
              j->spec, id, BTF_VERSION, o->pca.k, o->pca.components, o->pkg.bits, (int)o->pca.method, o->downsample,
-             o->levels, o->sampling ? o->sampling : "-", o->pkg.linear ? " linear" : "", o->pkg.thumbnail,
+             o->levels, o->sampling ? o->sampling : "-", o->pkg.linear ? " linear" : "", o->pkg.rd,
+             o->budget.max_bytes, o->budget.max_error, o->pkg.thumbnail,
              (long long)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec, (long long)st.st_size);
     return 0;
 }
@@ -231,18 +246,22 @@ static int build_one(const library_opts *o, const library_job *j)
     btf_lod_options lod = {0};
     lod.levels = o->levels;
     btf_views views;
-    btf_result r = btf_source_open_views(j->spec, &sa, &views, &err); /* one block of views in memory */
-    if (r == BTF_OK)
+    int budget = o->budget.max_bytes > 0 || o->budget.max_error > 0; /* compresses several times: loaded whole */
+    btf_result r = budget ? BTF_ERR_UNSUPPORTED : btf_source_open_views(j->spec, &sa, &views, &err);
+    if (r == BTF_OK) /* one block of views in memory */
         r = btf_lod_compress_views(&views, &o->pca, &pkg, &lod, out, NULL, &err);
-    btf_views_close(&views);
+    if (!budget)
+        btf_views_close(&views);
     btf_dirset set;
     if (r == BTF_ERR_UNSUPPORTED && o->sampling) /* read only whole (a thesis package) */
         r = btf_source_sampling(o->sampling, &set, &err) == BTF_OK ? BTF_ERR_UNSUPPORTED : BTF_ERR_FORMAT;
     lo.sampling = o->sampling ? &set : NULL;
     if (r == BTF_ERR_UNSUPPORTED) {
+        btf_budget_result res;
         r = btf_source_load(j->spec, &lo, &src, &err);
         if (r == BTF_OK)
-            r = btf_lod_compress(src, &o->pca, &pkg, &lod, out, NULL, &err);
+            r = budget ? btf_lod_budget_compress(src, &o->pca, &pkg, &o->budget, &lod, out, &res, &err)
+                       : btf_lod_compress(src, &o->pca, &pkg, &lod, out, NULL, &err);
     }
     btf_free(src);
     stamp_path(o, j, path, sizeof path);
@@ -339,6 +358,11 @@ static int library_build(int argc, char **argv)
     o.src = calloc((size_t)argc, sizeof *o.src);
     library_job *jobs = calloc((size_t)argc, sizeof *jobs);
     int rc = o.src && jobs ? btf_args_parse(&library_spec, argc, argv, library_option, &o) : 1;
+    if (rc == 0 && o.budget.max_bytes > 0 && o.budget.max_error > 0) {
+        fprintf(stderr, "btf library build: --max-bytes or --max-error, not both\n");
+        rc = 2;
+    }
+    o.pkg.rd = !o.plain && o.pkg.bits == 8; /* rate-distortion steps unless asked otherwise */
     if (rc == 0 && (!o.out || !o.n_src)) {
         fprintf(stderr, "btf library build: %s\n", o.out ? "no SRC given" : "--out LIB is required");
         rc = 2;

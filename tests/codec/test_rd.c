@@ -524,7 +524,40 @@ Test(rd, reader_limits_of_wt_z)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
-Test(rd, version3_takes_no_levels_and_needs_8_bits)
+/* Every measured value of a and b (all chunks) is the same float. */
+static void expect_same_values(const btf_package *a, const btf_package *b)
+{
+    for (int v = 0; v < a->views.n_dirs; v++)
+        for (int l = 0; l < a->lights.n_dirs; l++)
+            for (int y = 0; y < a->height; y++)
+                for (int x = 0; x < a->width; x++) {
+                    float p[3], q[3];
+                    btf_package_value(a, v, l, x, y, 0, p);
+                    btf_package_value(b, v, l, x, y, 0, q);
+                    cr_assert(p[0] == q[0] && p[1] == q[1] && p[2] == q[2], "view %d light %d texel %d,%d", v, l, x, y);
+                }
+}
+
+/* Bytes of the files whose name starts wt- and does not end -8.png: the 16-bit weights. */
+static long long weights16_bytes(const btf_package *p, const char *dir)
+{
+    long long s = 0;
+    char path[1024];
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; f < p->chunk[i].n_files; f++) {
+            const char *n = p->chunk[i].files[f];
+            struct stat st;
+            snprintf(path, sizeof path, "%s/%s", dir, n);
+            if (!strncmp(n, "wt-", 3) && !strstr(n, "-8.png") && stat(path, &st) == 0)
+                s += st.st_size;
+        }
+    return s;
+}
+
+/* A version-3 package takes residual levels (version 4, asked for or not); its
+ * level 0 keeps every value, and its 16-bit weights take the smallest coding, so
+ * never more than version 3's wt-JJ.z. */
+Test(rd, version3_takes_residual_levels_that_keep_its_values)
 {
     char tmp[256], out[512], lv[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
@@ -535,8 +568,14 @@ Test(rd, version3_takes_no_levels_and_needs_8_bits)
     btf_lod_options lo = {0};
     lo.levels = 2;
     btf_error err = {0};
-    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_ERR_UNSUPPORTED);
-    cr_assert(strstr(err.msg, "version-3"), "%s", err.msg);
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg); /* residual 0 */
+    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+    cr_assert_eq(a->version, 3);
+    cr_assert_eq(b->version, 4);
+    cr_assert_eq(b->n_levels, 2);
+    expect_same_values(a, b);
+    cr_expect_leq(weights16_bytes(b, lv), weights16_bytes(a, out));
+    btf_package_free(a), btf_package_free(b);
     btf_pca_options po = {0};
     btf_package_options ko = {0};
     ko.rd = 1, ko.bits = 16;
@@ -545,20 +584,69 @@ Test(rd, version3_takes_no_levels_and_needs_8_bits)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
-Test(rd, cli_rd_writes_version_3_and_refuses_levels_or_16_bits)
+/* The version `btf compress` writes for argv (after IN OUT), or -exit code. */
+static int cli_version(const char *out, char **extra, int n_extra)
+{
+    char *argv[16] = {"compress", "gen:knit:8:77", (char *)out, "--components", "3", "--quiet"};
+    int argc = 6;
+    for (int i = 0; i < n_extra; i++)
+        argv[argc++] = extra[i];
+    int rc = cmd_compress(argc, argv);
+    if (rc != 0)
+        return -rc;
+    btf_package *p = fx_package(out, NULL, 0);
+    int v = p->version;
+    btf_package_free(p);
+    return v;
+}
+
+/* Rate-distortion steps are the default (version 3, with levels 4); --plain and
+ * --bits 16 give the equal-noise layouts; --rd is still accepted. */
+Test(rd, cli_defaults_to_rate_distortion_and_plain_stays_reachable)
 {
     char tmp[256], out[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     snprintf(out, sizeof out, "%s/c", tmp);
-    char *ok[] = {"compress", "gen:knit:8:77", out, "--rd", "--components", "3", "--tex-noise", "1", "--quiet", NULL};
-    cr_assert_eq(cmd_compress(9, ok), 0);
-    btf_package *p = fx_package(out, NULL, 0);
-    cr_assert_eq(p->version, 3);
-    btf_package_free(p);
-    char *lv[] = {"compress", "gen:knit:8:77", out, "--rd", "--levels", "2", "--quiet", NULL};
-    cr_assert_eq(cmd_compress(7, lv), 2);
-    char *b16[] = {"compress", "gen:knit:8:77", out, "--rd", "--bits", "16", "--quiet", NULL};
-    cr_assert_eq(cmd_compress(7, b16), 2);
+    char *none[] = {NULL}, *rd[] = {"--rd"}, *lv[] = {"--levels", "2"}, *plain[] = {"--plain"};
+    char *plain_lv[] = {"--plain", "--levels", "2"}, *plain_res[] = {"--plain", "--levels", "2", "--residual"};
+    char *b16[] = {"--bits", "16"}, *rd16[] = {"--rd", "--bits", "16"}, *rd_plain[] = {"--rd", "--plain"};
+    cr_expect_eq(cli_version(out, none, 0), 3);
+    cr_expect_eq(cli_version(out, rd, 1), 3);
+    cr_expect_eq(cli_version(out, lv, 2), 4);
+    cr_expect_eq(cli_version(out, plain, 1), 1);
+    cr_expect_eq(cli_version(out, plain_lv, 3), 2);
+    cr_expect_eq(cli_version(out, plain_res, 4), 4);
+    cr_expect_eq(cli_version(out, b16, 2), 1);
+    cr_expect_eq(cli_version(out, rd16, 3), -2);
+    cr_expect_eq(cli_version(out, rd_plain, 2), -2);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
+/* A budget with levels: under --max-error the levels leave level 0 as the budget
+ * without them made it (the same values); under --max-bytes the levelled package,
+ * manifest included, fits. */
+Test(rd, a_budget_with_levels_keeps_level_0_and_fits_the_bytes)
+{
+    char tmp[256], a[512], b[512];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(a, sizeof a, "%s/a", tmp);
+    snprintf(b, sizeof b, "%s/b", tmp);
+    char *err_only[] = {"--k", "3", "--max-error", "3"}, *err_lv[] = {"--k", "3", "--max-error", "3", "--levels", "2"};
+    cr_assert_eq(cli_version(a, err_only, 4), 3);
+    cr_assert_eq(cli_version(b, err_lv, 6), 4);
+    btf_package *pa = fx_package(a, NULL, 0), *pb = fx_package(b, NULL, 0);
+    expect_same_values(pa, pb);
+    long long limit = written_bytes(pa, a) * 11 / 10;
+    btf_package_free(pa), btf_package_free(pb);
+    char bytes[32];
+    snprintf(bytes, sizeof bytes, "%lld", limit);
+    char *by_lv[] = {"--k", "3", "--max-bytes", bytes, "--levels", "2"};
+    cr_assert_eq(cli_version(b, by_lv, 6), 4);
+    pb = fx_package(b, NULL, 0);
+    cr_expect_leq(written_bytes(pb, b), limit);
+    cr_expect_eq(pb->n_levels, 2);
+    btf_package_free(pb);
+    cr_assert_eq(fx_count_files(tmp), 2, "no temporary left in %s", tmp);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
