@@ -85,8 +85,8 @@ list_names_files() {
 health_ok() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/healthz") == 200 ]]; }
 cache_status() { get -o "$work/got" -D - "http://127.0.0.1:$port$base$1" | tr -d '\r' | sed -n 's/^X-Cache-Status: //ip'; }
 miss_then_hit() {
-    [[ $(cache_status wt-01.bin) == MISS ]] && cmp "$work/got" "$lib/knit/wt-01.bin" &&
-        [[ $(cache_status wt-01.bin) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.bin"
+    [[ $(cache_status wt-01.z) == MISS ]] && cmp "$work/got" "$lib/knit/wt-01.z" &&
+        [[ $(cache_status wt-01.z) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.z"
 }
 immutable_headers() {
     local h
@@ -95,11 +95,11 @@ immutable_headers() {
         grep -qi "^etag: \"$etag-manifest.json\"$" <<<"$h"
 }
 range_ok() {
-    [[ $(get -o "$work/range" -w '%{http_code}' -H 'Range: bytes=100-1099' "http://127.0.0.1:$port${base}wt-02.bin") == 206 ]] &&
-        cmp "$work/range" <(tail -c +101 "$lib/knit/wt-02.bin" | head -c 1000)
+    [[ $(get -o "$work/range" -w '%{http_code}' -H 'Range: bytes=100-1099' "http://127.0.0.1:$port${base}wt-02.z") == 206 ]] &&
+        cmp "$work/range" <(tail -c +101 "$lib/knit/wt-02.z" | head -c 1000)
 }
-cached_after_kill() { [[ $(cache_status wt-01.bin) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.bin"; }
-old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.bin") == 404 ]]; }
+cached_after_kill() { [[ $(cache_status wt-01.z) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.z"; }
+old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.z") == 404 ]]; }
 # failover SIG [MATERIAL LIB]: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
 failover() {
     local out=$work/clients-$1${2:+-$2}.txt
@@ -135,8 +135,8 @@ check "cluster: stop" server/deploy/cluster.sh stop "$work/cluster-b"
 # a version-4 package (residual levels, lossless WebP textures) through the same failover
 lib4=$work/lib4
 mkdir -p "$lib4"
-check "library: btf compress gen:stone:32 --levels 3 --residual" \
-    "$btf" compress gen:stone:32 "$lib4/lap" --components 4 --levels 3 --residual --quiet
+check "library: btf compress gen:stone:32 --levels 3 (version 4 over rate-distortion steps)" \
+    "$btf" compress gen:stone:32 "$lib4/lap" --components 4 --levels 3 --quiet
 check "the version-4 package holds WebP textures" has_webp "$lib4/lap"
 check "cluster: a fresh nginx + 2 btfd (version 4)" up c "$lib4"
 check "200 clients of a WebP package, one btfd SIGKILLed mid-way: all complete, none twice, resumed" \
@@ -232,8 +232,8 @@ private_links() {
     exp=$((now + 600))
     md5=$(sign_md5 knit "$exp")
     base=$(get "http://127.0.0.1:$nport/materials" | sed -n 's/.*"files":"\([^"]*\)".*/\1/p')
-    url="$base"wt-01.bin
-    [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$exp") == 200 ]] && cmp "$work/got" "$lib/knit/wt-01.bin" &&
+    url="$base"wt-01.z
+    [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$exp") == 200 ]] && cmp "$work/got" "$lib/knit/wt-01.z" &&
         [[ $(code_of "http://127.0.0.1:$nport$url?md5=${md5:0:21}A&expires=$exp") == 403 ]] &&
         [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$((exp + 1))") == 403 ]] &&
         [[ $(code_of "http://127.0.0.1:$nport$url?md5=$(sign_md5 knit $((now - 5)))&expires=$((now - 5))") == 410 ]] &&
