@@ -39,7 +39,7 @@ typedef struct btf__lod {
     double *contrib; /* [a*nl+l] */
     long long *tbytes, *wbytes; /* [a*nl+l] texture file bytes; [a] weight file bytes */
     long long *w8bytes;         /* [a] 8-bit weight file bytes (0: none, the first chunk is level 0) */
-    int *w8mult;                /* [a] step multiplier of the 8-bit weights (btf__w8_mult) */
+    int *w8step;                /* [a] step multiplier s_c of the 8-bit weights (btf__w8_step) */
     uint8_t **w8q;              /* [a] the 8-bit weights written (V*L*3), NULL when none */
     int *order;      /* n_chunks * 2: (a, l) in chunk order */
     int n_order;
@@ -57,7 +57,7 @@ static void btf__lod_free(btf__lod *s)
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
-    free(s->w8bytes), free(s->w8mult), free(s->w8q), free(s->isres), free(s->iswebp), free(s->w16res), free(s->pred);
+    free(s->w8bytes), free(s->w8step), free(s->w8q), free(s->isres), free(s->iswebp), free(s->w16res), free(s->pred);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -336,28 +336,39 @@ static int btf__first_level(const btf__lod *s, int a)
     return 0;
 }
 
-/* Step multiplier of component a's 8-bit weights: the largest m >= 1 with
- * m * 257 * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a) in every block (at most 255), so the
- * coarse weights add at most that RMS noise (0..255 scale) per component (the
- * equal-noise allocation of section 4 applied to weights). */
+/* Step multiplier s_c of component a's 8-bit weights (doc/package-format.md section
+ * 5.2): the largest whole s with s * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a)
+ * in every block, so the coarse weights add at most that RMS noise (0..255 scale) per
+ * component (the equal-noise allocation of section 4 applied to weights), but at
+ * least ceil(q16max / 255) so that 255 codes reach the component's largest 16-bit
+ * code (257 for weights spanning the 16 bits; far fewer under rate-distortion steps),
+ * at most 65535. */
 #define BTF__W8_NOISE 0.25
-static int btf__w8_mult(const btf__lod *s, int a)
+static int btf__w8_step(const btf__lod *s, int a)
 {
     const btf_package *p = s->p;
-    double m = 65535.0;
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    double m = 65535.0, qmax = 0.0;
     for (int b = 0; b < s->nb; b++) {
         const float *t = p->tex[a] + (size_t)b * s->W * s->H;
         double e = 0.0;
         for (size_t k = 0; k < (size_t)s->W * s->H; k++)
             e += (double)t[k] * t[k];
-        double rms = sqrt(e / ((double)s->W * s->H)), st = 257.0 * p->chunk[a].wt_range[2 * b + 1];
+        double rms = sqrt(e / ((double)s->W * s->H)), st = p->chunk[a].wt_range[2 * b + 1];
         if (rms > 0.0 && st > 0.0 && BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st < m)
             m = BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st;
     }
-    return m < 1.0 ? 1 : m > 255.0 ? 255 : (int)m; /* 257 m <= 65535, the largest step a manifest holds */
+    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
+        const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
+        double q = rg[1] > 0.0f ? rint(((double)p->wt[a][k] - rg[0]) / rg[1]) : 0.0;
+        qmax = q > qmax ? q : qmax;
+    }
+    double lo = ceil(qmax / 255.0);
+    m = floor(m) > lo ? floor(m) : lo;
+    return m < 1.0 ? 1 : m > 65535.0 ? 65535 : (int)m;
 }
 
-/* Component a's weights requantised to 8 bits (q8 = round(q16 / (257 m)), the same lo),
+/* Component a's weights requantised to 8 bits (q8 = round(q16 / s_c), the same lo),
  * as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2). */
 static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error *err)
 {
@@ -368,7 +379,7 @@ static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error 
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     for (size_t k = 0; k < (size_t)V * L * 3; k++) {
         const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
-        double x = rg[1] > 0.0f ? ((double)p->wt[a][k] - rg[0]) / (257.0 * s->w8mult[a] * rg[1]) : 0.0;
+        double x = rg[1] > 0.0f ? ((double)p->wt[a][k] - rg[0]) / ((double)s->w8step[a] * rg[1]) : 0.0;
         q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
     }
     s->w8q[a] = q; /* version 4 codes the 16-bit weights over these */
@@ -419,7 +430,7 @@ static btf_result btf__encode_w16(const btf__lod *s, int a, const uint16_t *q, i
     uint16_t *d = malloc(n * sizeof *d);
     if (!d)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
-    unsigned sc = c == BTF__W16_RES ? 257u * (unsigned)s->w8mult[a] : 0u;
+    unsigned sc = c == BTF__W16_RES ? (unsigned)s->w8step[a] : 0u;
     for (size_t k = 0; k < n; k++) /* the residual r = (q16 - s_c q8) mod 65536 (section 5.3) */
         d[k] = (uint16_t)((q[k] - (sc ? sc * s->w8q[a][k] : 0u)) & 0xFFFFu);
     btf_result r = BTF_OK;
@@ -576,7 +587,7 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
         if (btf__first_level(s, a) > 0) {
             btf__w8_name(s, a, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
-            s->w8mult[a] = btf__w8_mult(s, a);
+            s->w8step[a] = btf__w8_step(s, a);
             r = btf__write_w8(s, a, to, err);
             s->w8bytes[a] = btf_fs_size(to);
         }
@@ -622,7 +633,7 @@ static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info 
     c->rmse_float = sqrt(rf_end * rf_end + s->rmse_full[k] * s->rmse_full[k]);
     c->contrib = s->contrib[a * s->nl + l];
     c->rmse_full = s->rmse_full[k];
-    c->wt8_step = s->w8bytes[a] ? 257.0 * s->w8mult[a] : 257.0;
+    c->wt8_step = s->w8bytes[a] ? (double)s->w8step[a] : 257.0;
 }
 
 /* The v2 manifest: the v1 header with levels and the (component, level) chunk list. */
@@ -684,9 +695,9 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->contrib = calloc(n, sizeof(double)), s->tbytes = calloc(n, sizeof(long long));
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
-    s->w8mult = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
+    s->w8step = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
     s->isres = calloc(n, 1), s->iswebp = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
-    if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8mult)
+    if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;
 }

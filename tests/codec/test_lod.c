@@ -334,7 +334,7 @@ Test(lod, bad_inputs)
 
 /* Compact v2 manifest: ranges once per component (base64 float32) equal to v1's JSON
  * numbers bit for bit; no per-chunk ranges; smaller than v1's manifest although it
- * lists LEVELS times the chunks. Coarse weights: 8 bits (q16 / 257) in the first
+ * lists LEVELS times the chunks. Coarse weights: 8 bits (q16 / s_c) in the first
  * chunk, replaced by the exact 16-bit weights when level 0 arrives. */
 Test(lod, compact_manifest_and_coarse_weights)
 {
@@ -371,9 +371,10 @@ Test(lod, compact_manifest_and_coarse_weights)
         coarse += d > 0.5f * st;
     }
     cr_assert_gt(coarse, 0, "the first chunk's weights are really 8-bit");
-    /* the step multiplier is 257 (same range in 255 steps) times a whole number */
-    double m = c->chunk[0].wt8_step / 257.0;
-    cr_assert(m >= 1.0 && m == floor(m), "weights8_step %g", c->chunk[0].wt8_step);
+    /* the step multiplier is a whole number and reaches the 16-bit codes in 255 steps
+     * (these weights span the 16 bits: at least 257) */
+    double m = c->chunk[0].wt8_step;
+    cr_assert(m >= 257.0 && m == floor(m), "weights8_step %g", m);
     btf_package_free(c);
     /* a negative "weights8_step" and a damaged "ranges" entry are format errors naming them */
     snprintf(path, sizeof path, "%s/v2/manifest.json", dir);
