@@ -86,13 +86,15 @@ static void compress_usage(FILE *f)
             "                   from every chunk, at most 128 pixels a side: the viewer's poster)\n"
             "  (default)        package version 3: texture and weight steps per component chosen\n"
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
-            "                   steps, weights deflated (wt-JJ.z); with --levels version 4\n"
+            "                   steps, weights deflated (wt-JJ.z); with --levels version 4;\n"
+            "                   with --bits 16 steps down to 1/65535 of a block's range (PNG\n"
+            "                   textures, no --levels)\n"
             "  --plain          the equal-noise steps of every component, weights raw: version 1\n"
-            "                   (2 or 4 with --levels); --bits 16 implies it\n"
+            "                   (2 or 4 with --levels)\n"
             "  --rd             the default (kept for scripts that name it)\n"
             "  --png            every texture a PNG (default: a lossless WebP; with levels each\n"
             "                   level the smaller of a PNG and a WebP)\n"
-            "  --tex-noise X    RMS quantisation noise per component of the 8-bit textures\n"
+            "  --tex-noise X    RMS quantisation noise per component of the textures\n"
             "                   (0..255 scale, default 0.5; without --plain the total it amounts to)\n"
             "  --linear         a linear-light package (manifest \"encoding\": \"linear\"): the\n"
             "                   source's sRGB values are decoded to linear light (exact sRGB\n"
@@ -161,11 +163,15 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
     memset(o, 0, sizeof *o);
     o->pca.k = 3, o->pca.components = 8, o->pkg.bits = 8, o->pkg.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE;
     int rc = btf_args_parse(&compress_spec, argc, argv, compress_option, o);
-    if (rc == 0 && o->pkg.rd && (o->plain || o->pkg.bits != 8)) {
-        fprintf(stderr, "btf compress: --rd (the default) has 8-bit textures; not with --plain or --bits 16\n");
+    if (rc == 0 && o->pkg.rd && o->plain) {
+        fprintf(stderr, "btf compress: --rd (the default) or --plain, not both\n");
         rc = 2;
     }
-    o->pkg.rd = !o->plain && o->pkg.bits == 8; /* rate-distortion steps unless asked otherwise */
+    o->pkg.rd = !o->plain; /* rate-distortion steps unless asked otherwise */
+    if (rc == 0 && o->pkg.rd && o->pkg.bits != 8 && o->lod.levels > 0) {
+        fprintf(stderr, "btf compress: levels over 16-bit textures need --plain (version 2)\n");
+        rc = 2;
+    }
     if (rc == 0 && o->lod.residual && (o->lod.levels < 1 || o->pkg.bits != 8)) {
         fprintf(stderr, "btf compress: --residual needs --levels N and 8-bit textures\n");
         rc = 2;

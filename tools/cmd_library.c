@@ -362,7 +362,8 @@ static int library_build(int argc, char **argv)
         fprintf(stderr, "btf library build: --max-bytes or --max-error, not both\n");
         rc = 2;
     }
-    o.pkg.rd = !o.plain && o.pkg.bits == 8; /* rate-distortion steps unless asked otherwise */
+    o.pkg.rd = !o.plain && (o.pkg.bits == 8 || o.levels == 0); /* rate-distortion steps unless asked otherwise
+                                                                 * (16-bit levels: version 2 only) */
     if (rc == 0 && (!o.out || !o.n_src)) {
         fprintf(stderr, "btf library build: %s\n", o.out ? "no SRC given" : "--out LIB is required");
         rc = 2;

@@ -605,7 +605,7 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
 {
     const btf_package_channel *c = w->chan;
     btf_rd_params par = {m,           w->acols,     w->arows,  noise,   tmp, c->rd_max_bytes, o->png_only,
-                         c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix};
+                         c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix, w->bits};
     btf_rd_result rr, *keep = c->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)
@@ -722,12 +722,14 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
     r = btf__writer_init(&w, src, bl, po.components, o.bits, stride, err);
     w.chan = &c;
     w.linear = o.linear != 0;
-    float noise = o.bits != 8 || o.tex_noise < 0.0f ? 0.0f : (o.tex_noise > 0.0f ? o.tex_noise : BTF_PACKAGE_TEX_NOISE);
+    /* 16 bits: the full range without rd; rd allocates from the same equal-noise reference as 8 bits */
+    float noise = (o.bits != 8 && !o.rd) || o.tex_noise < 0.0f ? 0.0f
+                  : (o.tex_noise > 0.0f ? o.tex_noise : BTF_PACKAGE_TEX_NOISE);
     for (int j = 0; r == BTF_OK && j < w.C; j++)
         w.tnoise[j] = noise; /* equal noise; --rd replaces it after the PCA */
     w.version = o.rd ? 3 : 1;
     if (r == BTF_OK && o.rd && !(noise > 0.0f))
-        r = btf_fail(err, BTF_ERR_ARG, "rate-distortion steps (rd) need 8-bit textures and tex_noise >= 0");
+        r = btf_fail(err, BTF_ERR_ARG, "rate-distortion steps (rd) need tex_noise >= 0");
     if (r == BTF_OK && c.estimate && !o.rd)
         r = btf_fail(err, BTF_ERR_ARG, "package: estimates come from the rate-distortion allocation (rd)");
     char tmp[BTF_FS_PATH_MAX];

@@ -33,6 +33,8 @@ typedef struct btf__rd {
     const btf_rd_params *par;
     const btf_pca_model *m;
     int C, nb, W, H, rows, L, V, aw;
+    int ch;                /* atlas channels: 1 (8-bit codes) or 3 (16-bit: high, low, 0) */
+    unsigned qmax;         /* the largest texture code: 255 or 65535 */
     int *sub_row;          /* per atlas row of tiles: its row in the rate sample, -1 = not sampled */
     int sub_rows;          /* tile rows in the rate sample (its atlas is aw x sub_rows * H) */
     double rate_scale;     /* tiles of the atlas / tiles in the sample */
@@ -72,16 +74,16 @@ static int btf__rd_sample(btf__rd *r)
 }
 
 /* Texture of component j at noise g: the rate sample's atlas into atlas (aw x
- * sub_rows * H), the added squared error of every block returned. */
+ * sub_rows * H pixels of ch bytes), the added squared error of every block returned. */
 static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
 {
     double d = 0.0;
-    memset(atlas, 0, (size_t)r->aw * r->sub_rows * r->H);
+    memset(atlas, 0, (size_t)r->aw * r->sub_rows * r->H * r->ch);
     for (int b = 0; b < r->nb; b++) {
         const btf_pca_block *pb = &r->m->block[b];
         const float *t = pb->t + (size_t)j * r->rows;
         float wn = r->wnorm[(size_t)j * r->nb + b], rg[2];
-        btf_rd_range(t, (size_t)r->rows, 255u, rg);
+        btf_rd_range(t, (size_t)r->rows, r->qmax, rg);
         rg[1] = btf_rd_step(rg[1], g, pb->cols, wn);
         int sub = r->sub_row[b / r->par->atlas_cols];
         int tx0 = (b % r->par->atlas_cols) * r->W, ty0 = sub * r->H;
@@ -89,9 +91,12 @@ static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
         for (int y = 0; y < r->H; y++)
             for (int x = 0; x < r->W; x++) {
                 float v = t[(size_t)y * r->W + x];
-                unsigned qv = btf_rd_quant(v, rg, 255u);
-                if (sub >= 0)
-                    atlas[(size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)] = (uint8_t)qv;
+                unsigned qv = btf_rd_quant(v, rg, r->qmax);
+                uint8_t *px = atlas + ((size_t)(ty0 + y) * r->aw + (size_t)(tx0 + x)) * r->ch;
+                if (sub >= 0 && r->ch == 3)
+                    px[0] = (uint8_t)(qv >> 8), px[1] = (uint8_t)(qv & 255u);
+                else if (sub >= 0)
+                    px[0] = (uint8_t)qv;
                 double dv = (double)v - (double)(rg[0] + rg[1] * (float)qv);
                 e += dv * dv;
             }
@@ -129,7 +134,7 @@ static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
 
 /* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the rate
  * sample's atlas encoded as the package writes it, times rate_scale: its lossless
- * WebP bytes, or with png_only the PNG file (filter Up) in
+ * WebP bytes, or with png_only or 16-bit codes the PNG file (filter Up) in
  * scratch/rd-candidate-T.png for thread T.
  * atlas is the thread's own buffer. */
 static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
@@ -144,7 +149,7 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int t
     int ah = r->sub_rows * r->H;
     long long s = -1;
     btf_result res = BTF_OK;
-    if (!r->par->png_only) {
+    if (!r->par->png_only && r->ch == 1) {
         uint8_t *webp = NULL;
         size_t nw = 0;
         res = btf_webp_encode_grey(atlas, r->aw, ah, &webp, &nw, err);
@@ -153,7 +158,7 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int t
     } else {
         char path[BTF_FS_PATH_MAX];
         snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
-        res = btf_image_write_flags(path, r->aw, ah, 1, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
+        res = btf_image_write_flags(path, r->aw, ah, r->ch, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
         s = res == BTF_OK ? btf_fs_size(path) : -1;
         remove(path);
         if (res == BTF_OK && s < 0)
@@ -200,7 +205,7 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
     btf_result res = BTF_OK;
 #pragma omp parallel if (btf__rd_threaded(r))
     {
-        uint8_t *atlas = malloc((size_t)r->aw * r->sub_rows * r->H);
+        uint8_t *atlas = malloc((size_t)r->aw * r->sub_rows * r->H * r->ch);
         btf_error e = {{0}};
         btf_result mine = atlas ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (atlas)");
 #pragma omp for schedule(dynamic, 1)
@@ -399,7 +404,8 @@ static void btf__rd_key(const btf__rd *r, double key[8])
             const btf_pca_block *pb = &r->m->block[b];
             sum += (double)pb->t[(size_t)j * r->rows] * (j + 1) + (double)pb->w[(size_t)j * pb->cols] * (b + 1);
         }
-    double k[8] = {r->C, r->nb, r->W, r->H, (double)r->V * 65536.0 + r->L, r->par->tex_noise, r->par->png_only, sum};
+    double k[8] = {r->C, r->nb, r->W, r->H, (double)r->V * 65536.0 + r->L, r->par->tex_noise,
+                   r->par->png_only + 2.0 * r->ch, sum};
     memcpy(key, k, sizeof k);
 }
 
@@ -484,6 +490,9 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     r.par = par, r.m = m, r.C = m->n_comp, r.nb = m->blocks->n_blocks, r.W = m->width, r.H = m->height;
     r.rows = r.W * r.H, r.L = m->lights.n_dirs, r.V = m->views.n_dirs;
     r.aw = par->atlas_cols * r.W;
+    r.ch = par->bits == 16 ? 3 : 1, r.qmax = par->bits == 16 ? 65535u : 255u;
+    if (par->bits != 0 && par->bits != 8 && par->bits != 16)
+        return btf_fail(err, BTF_ERR_ARG, "rate-distortion: %d-bit textures (8 or 16)", par->bits);
     r.dt = calloc((size_t)r.C * BTF__RD_NT, sizeof(double));
     r.dw = calloc((size_t)r.C * BTF__RD_NW, sizeof(double));
     r.energy = calloc((size_t)r.C, sizeof(double));

@@ -6,7 +6,7 @@
  * Texture rates of atlases over 9 tiles are measured on a sample of whole tile rows
  * and scaled (section 11), so bytes_equal and bytes_rd are estimates there.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL};  // equal-noise error, WebP, every step measured
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL, 8};  // equal-noise error, WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -77,6 +77,8 @@ typedef struct btf_rd_params {
      * estimate, so that an allocation made again after a write (btf_budget's refit)
      * counts the bytes the writer produces */
     const double *tex_rate_fix;
+    int bits; /* texture codes: 8 (or 0), or 16: steps may go down to 1/65535 of a block's range, the
+               * atlas then a PNG of (high byte, low byte, 0) pixels, as the writer stores 16 bits */
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */

@@ -257,7 +257,7 @@ static void allocate_near(const btf_pca_model *m, long long max_bytes, const btf
                           btf_rd_result *out)
 {
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, max_bytes, 0, NULL, 0.0, near, NULL};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, max_bytes, 0, NULL, 0.0, near, NULL, 8};
     btf_error err = {0};
     cr_assert_eq(btf_rd_allocate(&par, out, &err), BTF_OK, "%s", err.msg);
 }
@@ -346,7 +346,7 @@ Test(rd, texture_rates_are_scaled_by_a_fix)
     btf_error err = {0};
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
     btf_rd_ladder l = {0};
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, 0, 0, &l, 0.0, NULL, NULL};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, 0, 0, &l, 0.0, NULL, NULL, 8};
     btf_rd_result eq, plain, ones, fixed;
     cr_assert_eq(btf_rd_allocate(&par, &eq, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(l.n_comp, 6, "the ladder is stored");
@@ -576,10 +576,46 @@ Test(rd, version3_takes_residual_levels_that_keep_its_values)
     expect_same_values(a, b);
     cr_expect_leq(weights16_bytes(b, lv), weights16_bytes(a, out));
     btf_package_free(a), btf_package_free(b);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
+/* Bytes and direct RMSE of src compressed (k 3, 4 components) with rd, bits and
+ * tex_noise into dir. */
+static void compress_bits(const btf *src, int rd, int bits, float noise, const char *dir, long long *bytes, double *rmse)
+{
     btf_pca_options po = {0};
+    po.k = 3, po.components = 4;
     btf_package_options ko = {0};
-    ko.rd = 1, ko.bits = 16;
-    cr_assert_eq(btf_package_compress(src, &po, &ko, lv, NULL, &err), BTF_ERR_ARG);
+    ko.rd = rd, ko.bits = bits, ko.tex_noise = noise;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, dir, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *p = fx_package(dir, NULL, 0);
+    cr_assert_eq(p->version, rd ? 3 : 1);
+    cr_assert_eq(p->bits, bits);
+    *bytes = files_bytes(p, dir), *rmse = direct_rmse(p, src);
+    btf_package_free(p);
+}
+
+/* 16-bit rate-distortion steps: at a small noise target the 8-bit codes' floor (1/255
+ * of a block's range) binds, the 16-bit ones go finer (a lower error), and still
+ * take fewer bytes than the plain 16-bit package (every step 1/65535 of the range). */
+Test(rd, sixteen_bit_steps_go_below_the_8_bit_floor)
+{
+    char tmp[256], a[512], b[512], c[512];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(a, sizeof a, "%s/rd8", tmp);
+    snprintf(b, sizeof b, "%s/rd16", tmp);
+    snprintf(c, sizeof c, "%s/plain16", tmp);
+    btf *src = fx_material(BTF_GEN_TILES, 16, rings, 3);
+    long long ba, bb, bc;
+    double ea, eb, ec;
+    compress_bits(src, 1, 8, 0.02f, a, &ba, &ea);
+    compress_bits(src, 1, 16, 0.02f, b, &bb, &eb);
+    compress_bits(src, 0, 16, 0.0f, c, &bc, &ec);
+    cr_expect_lt(eb, ea, "16-bit rd %.5f vs 8-bit rd %.5f", eb, ea);
+    cr_expect_lt(bb, bc, "16-bit rd %lld bytes vs plain 16-bit %lld", bb, bc);
+    cr_expect_leq(eb, ec * 1.01, "16-bit rd %.5f vs plain 16-bit %.5f", eb, ec);
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
@@ -600,8 +636,9 @@ static int cli_version(const char *out, char **extra, int n_extra)
     return v;
 }
 
-/* Rate-distortion steps are the default (version 3, with levels 4); --plain and
- * --bits 16 give the equal-noise layouts; --rd is still accepted. */
+/* Rate-distortion steps are the default (version 3, with levels 4; 16-bit textures
+ * too, but not with levels); --plain gives the equal-noise layouts; --rd is still
+ * accepted. */
 Test(rd, cli_defaults_to_rate_distortion_and_plain_stays_reachable)
 {
     char tmp[256], out[512];
@@ -610,14 +647,17 @@ Test(rd, cli_defaults_to_rate_distortion_and_plain_stays_reachable)
     char *none[] = {NULL}, *rd[] = {"--rd"}, *lv[] = {"--levels", "2"}, *plain[] = {"--plain"};
     char *plain_lv[] = {"--plain", "--levels", "2"}, *plain_res[] = {"--plain", "--levels", "2", "--residual"};
     char *b16[] = {"--bits", "16"}, *rd16[] = {"--rd", "--bits", "16"}, *rd_plain[] = {"--rd", "--plain"};
+    char *b16_lv[] = {"--bits", "16", "--levels", "2"}, *plain16[] = {"--plain", "--bits", "16"};
     cr_expect_eq(cli_version(out, none, 0), 3);
     cr_expect_eq(cli_version(out, rd, 1), 3);
     cr_expect_eq(cli_version(out, lv, 2), 4);
     cr_expect_eq(cli_version(out, plain, 1), 1);
     cr_expect_eq(cli_version(out, plain_lv, 3), 2);
     cr_expect_eq(cli_version(out, plain_res, 4), 4);
-    cr_expect_eq(cli_version(out, b16, 2), 1);
-    cr_expect_eq(cli_version(out, rd16, 3), -2);
+    cr_expect_eq(cli_version(out, b16, 2), 3);
+    cr_expect_eq(cli_version(out, rd16, 3), 3);
+    cr_expect_eq(cli_version(out, b16_lv, 4), -2);
+    cr_expect_eq(cli_version(out, plain16, 3), 1);
     cr_expect_eq(cli_version(out, rd_plain, 2), -2);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
