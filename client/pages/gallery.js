@@ -22,14 +22,14 @@ function card(m) {
     img.alt = m.title || m.name;
     img.loading = 'lazy';
     a.append(img);
-  } else { // no thumbnail in the package: a small live viewer; version 1: first chunk
-    // only; version 2 (spatial levels): the viewer's scene budget (client/btf-lod.js)
+  } else { // no thumbnail in the package: a small live viewer; versions 1 and 3: first
+    // chunk only; versions 2 and 4 (spatial levels): the viewer's scene budget (client/btf-lod.js)
     const v = document.createElement('btf-viewer');
     v.setAttribute('src', wsUrl);
     v.setAttribute('material', m.name);
     v.setAttribute('light', 'fixed');
     v.setAttribute('geometry', 'sphere');
-    if (!(m.version >= 2)) v.setAttribute('budget-chunks', '1');
+    if (m.version !== 2 && m.version !== 4) v.setAttribute('budget-chunks', '1');
     a.append(v);
   }
   const cap = document.createElement('div');

@@ -203,7 +203,9 @@ describe('failures a page owner can handle', () => {
   });
 
   it('the link dropped mid-stream: an error event, then the rest resumes and completes', async () => {
-    const link = await startThrottle({target: server.port, bps: 1e6, delayMs: 20});
+    // 0.4 Mbit/s: the package (rate-distortion steps, about 200 KB) takes seconds, so the
+    // drop comes mid-stream even when the page is slow to draw its first chunks
+    const link = await startThrottle({target: server.port, bps: 4e5, delayMs: 20});
     const ctx = await launch(PHONE);
     try {
       const page = await staticVisit(ctx, `ws://127.0.0.1:${link.port}/stream`, `${pages.url}shaders/`);

@@ -25,7 +25,7 @@ function btf(args) {
 
 before(async () => {
   requireBuild();
-  lib = makeLibrary({'tiles-v1': ['tiles', 4]});
+  lib = makeLibrary({'tiles-v1': ['tiles', 4, 0, ['--plain']]}); // version 1: its levels are version 2 or 4
   const v1 = path.join(lib.lib, 'tiles-v1');
   btf(['lod', v1, path.join(lib.lib, 'tiles-lod'), '--levels', '3', '--quiet']);
   btf(['lod', v1, path.join(lib.lib, 'tiles-lap'), '--levels', '3', '--residual', '--quiet']);
