@@ -55,7 +55,7 @@ for spec in "${mats[@]}"; do
     tl=$(lab "$src" "$tmp/$name-thesis")
     for v in $variants; do
         case $v in
-        v1) "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --quiet ;;
+        v1) "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --plain --quiet ;;
         v3png) "$BTF" compress "$src" "$tmp/$name-v3png" --max-bytes "$tb" --rd --png --quiet
             [[ -z $first_v3 ]] && first_v3=$tmp/$name-v3png first_src=$src ;;
         v3) "$BTF" compress "$src" "$tmp/$name-v3" --max-bytes "$tb" --rd --quiet ;;
@@ -81,7 +81,7 @@ for spec in "${mats[@]}"; do
         continue
     fi
     # the floor at k 3, C 8: 16-bit steps, no centring (the best rank-8 blocks)
-    "$BTF" compress "$src" "$tmp/$name-floor" --k 3 --components 8 --bits 16 --center none --quiet
+    "$BTF" compress "$src" "$tmp/$name-floor" --k 3 --components 8 --bits 16 --center none --plain --quiet
     fl=$(lab "$src" "$tmp/$name-floor")
     rm -rf "$tmp/$name-floor"
     fr=$(awk -v a="$fl" -v t="$tl" 'BEGIN { printf "%.3f", a / t }')

@@ -19,7 +19,7 @@ for spec in tiles64=gen:tiles:64:4242 knit64=gen:knit:64:4243 stone64=gen:stone:
     echo "bench_rdsize: $name" >&2
     row="# $name:"
     for v in v1 v3; do
-        flag=()
+        flag=(--plain)
         [[ $v == v3 ]] && flag=(--rd)
         b=$("$BTF" compress "$src" "$tmp/$name-$v" "${flag[@]}" --json | jq .bytes)
         read -r rmse lab < <("$BTF" eval "$src" "$tmp/$name-$v" --json --no-curve | jq -r '"\(.rgb_rmse) \(.lab_mae)"')

@@ -57,20 +57,20 @@ for spec in "${mats[@]}"; do
     tb=$(find "$tmp/$name-thesis" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
     pw=() pc=() rw=() rc=()
     for i in 1 2 3; do # the plain compresses alternate, so a slow spell hits both
-        read -r w c <<<"$(measure "$BTF" compress "$src" "$tmp/$name-plain" --quiet)"
+        read -r w c <<<"$(measure "$BTF" compress "$src" "$tmp/$name-plain" --plain --quiet)"
         pw+=("$w") pc+=("$c")
         read -r w c <<<"$(measure "$BTF" compress "$src" "$tmp/$name-rd" --rd --quiet)"
         rw+=("$w") rc+=("$c")
     done
     read -r tpw tpc <<<"$(median3 "${pw[@]}") $(median3 "${pc[@]}")"
     read -r trw trc <<<"$(median3 "${rw[@]}") $(median3 "${rc[@]}")"
-    read -r tvw tvc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --quiet)"
+    read -r tvw tvc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --plain --quiet)"
     read -r tsw tsc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-search" --rd --max-bytes "$tb" --quiet)"
     # the same searches measuring every candidate on the whole material, not on its
     # centre window: what the window costs in error (the compressor's own CIELab of
     # the package as written, its 256-texel subsample)
     if [[ ${SEARCH_FULL:-1} != 0 ]]; then
-        read -r tfvw tfvc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-v1full" --max-bytes "$tb" --full-search --quiet)"
+        read -r tfvw tfvc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-v1full" --max-bytes "$tb" --full-search --plain --quiet)"
         read -r tfsw tfsc <<<"$(measure "$BTF" compress "$src" "$tmp/$name-full" --rd --max-bytes "$tb" --full-search --quiet)"
     fi
     blab() { jq -r '.budget.lab' "$1/manifest.json"; }
