@@ -7,6 +7,10 @@
 
 static const uint8_t btf__png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
 
+/* libpng's default limit per side (PNG_USER_WIDTH_MAX): a larger IHDR is refused here
+ * rather than by libpng, whose error goes to stderr. */
+#define BTF__PNG_MAX_SIDE 1000000u
+
 /* Parsed IHDR and what the IDAT stream must inflate to; stack value of one check. */
 typedef struct btf__png {
     uint32_t w, h;
@@ -59,7 +63,7 @@ static btf_result btf__png_ihdr(const uint8_t *d, uint32_t len, btf__png *p, con
         return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG IHDR has %u bytes, not 13", what, len);
     p->w = btf__be32(d), p->h = btf__be32(d + 4), p->depth = d[8], p->color = d[9], p->interlace = d[12];
     int ch = btf__png_channels(p->color, p->depth);
-    if (p->w < 1 || p->h < 1 || p->w > 0x7fffffffu || p->h > 0x7fffffffu || !ch || d[10] || d[11] ||
+    if (p->w < 1 || p->h < 1 || p->w > BTF__PNG_MAX_SIDE || p->h > BTF__PNG_MAX_SIDE || !ch || d[10] || d[11] ||
         p->interlace > 1)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG IHDR is invalid (%ux%u, depth %d, colour type %d)", what, p->w,
                         p->h, p->depth, p->color);
