@@ -14,13 +14,15 @@
 #include <string.h>
 #include <webp/decode.h>
 
-/* The file's bytes (malloc'd) after the structural checks of btf_png / btf_webp. */
-static btf_result lite_load(const char *path, uint8_t **data, size_t *n, int *webp, btf_error *err)
+/* The file's bytes (malloc'd; read through files, NULL: the disk) after the
+ * structural checks of btf_png / btf_webp. */
+static btf_result lite_load(const btf_files *files, const char *path, uint8_t **data, size_t *n, int *webp,
+                            btf_error *err)
 {
     char *d = NULL;
-    btf_result r = btf_fs_read(path, (size_t)1 << 30, &d, n, err);
+    btf_result r = btf_fs_read_with(files, path, (size_t)1 << 30, &d, n, err);
     if (r != BTF_OK)
-        return r == BTF_ERR_MISSING ? BTF_ERR_IO : r;
+        return r;
     *webp = btf_webp_is_webp((const uint8_t *)d, *n);
     if (!*webp && !btf_png_is_png((const uint8_t *)d, *n))
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: neither PNG nor WebP (this build reads only those)", path);
@@ -56,13 +58,15 @@ static btf_result lite_png(const char *path, const uint8_t *d, size_t n, int *w,
     return BTF_OK;
 }
 
-btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels, btf_error *err)
+/* The pixels of the PNG or WebP at path, read through files. */
+static btf_result lite_read(const btf_files *files, const char *path, int *w, int *h, int *channels, uint8_t **pixels,
+                            btf_error *err)
 {
     uint8_t *d = NULL;
     size_t n = 0;
     int webp = 0;
     *pixels = NULL;
-    btf_result r = lite_load(path, &d, &n, &webp, err);
+    btf_result r = lite_load(files, path, &d, &n, &webp, err);
     if (r != BTF_OK)
         return r;
     if (webp) {
@@ -77,6 +81,12 @@ btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, ui
     return r;
 }
 
+btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels, btf_error *err)
+{
+    btf_result r = lite_read(NULL, path, w, h, channels, pixels, err);
+    return r == BTF_ERR_MISSING ? BTF_ERR_IO : r;
+}
+
 btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
 {
     uint8_t *px = NULL;
@@ -85,13 +95,12 @@ btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_e
     return r;
 }
 
-btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
+/* Pixels of ch channels (w x h) to one grey byte each, in place. */
+static btf_result lite_grey(const char *path, int w, int h, int ch, uint8_t **pixels, btf_error *err)
 {
-    int ch = 0;
-    btf_result r = btf_image_read_u8(path, w, h, &ch, pixels, err);
-    if (r != BTF_OK || ch == 1)
-        return r;
-    size_t n = (size_t)*w * (size_t)*h;
+    if (ch == 1)
+        return BTF_OK;
+    size_t n = (size_t)w * (size_t)h;
     uint8_t *px = *pixels;
     for (size_t i = 0; i < n; i++) {
         const uint8_t *p = px + i * 3;
@@ -102,6 +111,37 @@ btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixel
         px[i] = p[0];
     }
     return BTF_OK;
+}
+
+btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
+{
+    int ch = 0;
+    btf_result r = btf_image_read_u8(path, w, h, &ch, pixels, err);
+    return r == BTF_OK ? lite_grey(path, *w, *h, ch, pixels, err) : r;
+}
+
+btf_result btf_image_info_with(const btf_files *files, const char *path, int *w, int *h, int *channels,
+                               btf_error *err)
+{
+    uint8_t *px = NULL;
+    btf_result r = lite_read(files, path, w, h, channels, &px, err);
+    free(px);
+    return r;
+}
+
+btf_result btf_image_read_with(const btf_files *files, const char *path, int w, int h, int channels, int grey,
+                               uint8_t **pixels, btf_error *err)
+{
+    int iw = 0, ih = 0, ch = 0;
+    btf_result r = lite_read(files, path, &iw, &ih, &ch, pixels, err); /* decodes first: a bench of made packages */
+    if (r == BTF_OK && grey && channels == 1)
+        r = lite_grey(path, iw, ih, ch, pixels, err), ch = 1;
+    if (r == BTF_OK && (iw != w || ih != h || ch != channels)) {
+        free(*pixels), *pixels = NULL;
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, expected %dx%d with %d", path, iw, ih, ch, w, h,
+                     channels);
+    }
+    return r;
 }
 
 btf_result btf_image_read_rgb_f32(const char *path, int max_w, int max_h, int *w, int *h, float **rgb, btf_error *err)

@@ -14,6 +14,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+/* The refusal of a file of n bytes over a read's max_bytes (disk and memory alike). */
+static btf_result btf__fs_over(const char *path, unsigned long long n, size_t max_bytes, btf_error *err)
+{
+    return btf_fail(err, BTF_ERR_RANGE, "%s: %llu bytes, larger than the limit of %zu", path, n, max_bytes);
+}
+
 btf_result btf_fs_read(const char *path, size_t max_bytes, char **out, size_t *size, btf_error *err)
 {
     *out = NULL;
@@ -28,8 +34,7 @@ btf_result btf_fs_read(const char *path, size_t max_bytes, char **out, size_t *s
     }
     if ((unsigned long long)st.st_size > max_bytes) {
         close(fd);
-        return btf_fail(err, BTF_ERR_RANGE, "%s: %lld bytes, larger than the limit of %zu", path, (long long)st.st_size,
-                        max_bytes);
+        return btf__fs_over(path, (unsigned long long)st.st_size, max_bytes, err);
     }
     size_t n = (size_t)st.st_size, got = 0;
     char *buf = malloc(n + 1);
@@ -59,6 +64,67 @@ long long btf_fs_size(const char *path)
 {
     struct stat st;
     return stat(path, &st) == 0 && S_ISREG(st.st_mode) ? (long long)st.st_size : -1;
+}
+
+btf_result btf_fs_read_with(const btf_files *files, const char *path, size_t max_bytes, char **out, size_t *size,
+                            btf_error *err)
+{
+    if (!files || !files->read)
+        return btf_fs_read(path, max_bytes, out, size, err);
+    *out = NULL;
+    size_t n = 0;
+    btf_result r = files->read(files->user, path, max_bytes, out, &n, err);
+    if (r == BTF_OK && size)
+        *size = n;
+    return r;
+}
+
+long long btf_fs_size_with(const btf_files *files, const char *path)
+{
+    return files && files->size ? files->size(files->user, path) : btf_fs_size(path);
+}
+
+/* ---------------------------------------------------------------- files in memory */
+
+/* The entry of m named as path's last element, or NULL. */
+static const btf_fs_mem_file *btf__fs_mem_find(const btf_fs_mem *m, const char *path)
+{
+    const char *slash = strrchr(path, '/'), *name = slash ? slash + 1 : path;
+    for (int i = 0; i < m->n; i++)
+        if (m->file[i].name && !strcmp(m->file[i].name, name))
+            return &m->file[i];
+    return NULL;
+}
+
+/* btf_files.read over a btf_fs_mem: a copy, refused as btf_fs_read refuses a file. */
+static btf_result btf__fs_mem_read(void *user, const char *path, size_t max_bytes, char **out, size_t *size,
+                                   btf_error *err)
+{
+    const btf_fs_mem_file *f = btf__fs_mem_find(user, path);
+    *out = NULL;
+    if (!f)
+        return btf_fail(err, BTF_ERR_MISSING, "%s: cannot open (%s)", path, strerror(ENOENT));
+    if (f->size > max_bytes)
+        return btf__fs_over(path, f->size, max_bytes, err);
+    if (!(*out = malloc(f->size + 1)))
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (%zu bytes)", path, f->size + 1);
+    if (f->size)
+        memcpy(*out, f->data, f->size);
+    (*out)[f->size] = 0;
+    *size = f->size;
+    return BTF_OK;
+}
+
+static long long btf__fs_mem_size(void *user, const char *path)
+{
+    const btf_fs_mem_file *f = btf__fs_mem_find(user, path);
+    return f ? (long long)f->size : -1;
+}
+
+btf_files btf_fs_mem_files(const btf_fs_mem *m)
+{
+    btf_files f = {btf__fs_mem_read, btf__fs_mem_size, (void *)m};
+    return f;
 }
 
 /* The directory part of path into buf ("." when there is none). */

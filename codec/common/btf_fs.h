@@ -11,6 +11,11 @@
  *     ... write files into tmp ...
  *     btf_fs_replace_dir(tmp, "lib/wool", is_package, NULL, &err); // never a moment without one
  *
+ *     btf_fs_mem_file f[3] = {{"manifest.json", text, n}, {"tex-00.png", png, png_n}, {"wt-00.bin", wt, wt_n}};
+ *     btf_fs_mem m = {f, 3};
+ *     btf_files files = btf_fs_mem_files(&m);               // a package's first chunk in memory
+ *     btf_package_read_with("mem", 1, &files, &p, &err);    // reads "mem/manifest.json", ...
+ *
  * Writers name temporary files and directories "NAME.tmp-PID[-N]" in the same
  * directory as NAME; readers of libraries skip such names.
  */
@@ -35,6 +40,31 @@ btf_result btf_fs_read(const char *path, size_t max_bytes, char **out, size_t *s
 
 /* Size of a regular file in bytes, or -1 when it is missing or not a regular file. */
 long long btf_fs_size(const char *path);
+
+/* btf_fs_read and btf_fs_size through a reader's btf_files (btf.h): files NULL, or
+ * a NULL callback, is the disk. */
+btf_result btf_fs_read_with(const btf_files *files, const char *path, size_t max_bytes, char **out, size_t *size,
+                            btf_error *err);
+long long btf_fs_size_with(const btf_files *files, const char *path);
+
+/* One file held in memory: the caller's, as are its name and bytes, for as long as
+ * the reads that are served it. */
+typedef struct btf_fs_mem_file {
+    const char *name; /* "manifest.json", "tex-00.png", ... */
+    const void *data;
+    size_t size;
+} btf_fs_mem_file;
+/* Files held in memory, served to a reader by btf_fs_mem_files: a path is looked up
+ * by its last element (a package is one flat directory). The caller's, for as long
+ * as the reads. */
+typedef struct btf_fs_mem {
+    const btf_fs_mem_file *file; /* n of them */
+    int n;
+} btf_fs_mem;
+
+/* A btf_files that serves m (read: a malloc'd copy, refused as btf_fs_read refuses:
+ * a missing name BTF_ERR_MISSING, one over max_bytes BTF_ERR_RANGE). */
+btf_files btf_fs_mem_files(const btf_fs_mem *m);
 
 /* Writes n bytes to path atomically: a temporary in the same directory, fsync,
  * rename over path, fsync of the directory. On failure path is untouched and the

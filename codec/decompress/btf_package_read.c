@@ -21,8 +21,8 @@
 
 /* ---------------------------------------------------------------- chunk files */
 
-/* Dequantisation, the one formula every decoder uses (float32). */
-
+/* Every file is read through a btf_files (btf.h; NULL: the disk) under its path
+ * "DIR/NAME", which the messages name. */
 
 /* The file of chunk ci ending in ext; weights = 1: only names starting "wt-", 0: only others, -1: any. */
 static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext, int weights)
@@ -39,22 +39,16 @@ static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext, in
 
 /* Version 2 coarse weights (doc/package-format.md section 5.2): an 8-bit grey PNG of
  * 3L x V pixels, Wt = lo + wt8_step * step * q with the 16-bit [lo, step]. */
-static btf_result btf__load_weights8(btf_package *p, const char *dir, int i, const char *wf, float *wt,
-                                     btf_error *err)
+static btf_result btf__load_weights8(btf_package *p, const btf_files *fs, const char *dir, int i, const char *wf,
+                                     float *wt, btf_error *err)
 {
-    int L = p->lights.n_dirs, V = p->views.n_dirs, w, h, ch;
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
     char path[4200];
     uint8_t *px = NULL;
     snprintf(path, sizeof path, "%s/%s", dir, wf);
-    btf_result r = btf_image_info(path, &w, &h, &ch, err);
-    if (r == BTF_OK && w == 3 * L && h == V && ch == 1)
-        r = btf_image_read_u8(path, &w, &h, &ch, &px, err);
+    btf_result r = btf_image_read_with(fs, path, 3 * L, V, 1, 0, &px, err);
     if (r != BTF_OK)
         return r;
-    if (w != 3 * L || h != V || ch != 1) {
-        free(px);
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, expected %dx%d grey", path, w, h, ch, 3 * L, V);
-    }
     for (size_t k = 0; k < (size_t)V * L * 3; k++) {
         const float *rg = p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
         wt[k] = rg[0] + (float)p->chunk[i].wt8_step * rg[1] * (float)px[k];
@@ -70,11 +64,12 @@ static btf_result btf__load_weights8(btf_package *p, const char *dir, int i, con
 
 /* A btf_wtz stream of rows x cols x 3 values at path into a new *q (malloc'd, the
  * caller frees it), the file size checked against the stream's bound before reading. */
-static btf_result btf__read_wtz(const char *path, int rows, int cols, uint16_t **q, btf_error *err)
+static btf_result btf__read_wtz(const btf_files *fs, const char *path, int rows, int cols, uint16_t **q,
+                                btf_error *err)
 {
     size_t n = (size_t)rows * cols * 3, max = btf_wtz_max_bytes(rows, cols);
     *q = NULL;
-    long long sz = btf_fs_size(path);
+    long long sz = btf_fs_size_with(fs, path);
     if (sz < 0)
         return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
     if (sz < 1 || (unsigned long long)sz > max)
@@ -82,7 +77,8 @@ static btf_result btf__read_wtz(const char *path, int rows, int cols, uint16_t *
     char *z = NULL;
     size_t nz = 0;
     uint16_t *v = malloc(n * sizeof *v);
-    btf_result r = v ? btf_fs_read(path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    btf_result r = v ? btf_fs_read_with(fs, path, max, &z, &nz, err)
+                     : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     if (r == BTF_OK)
         r = btf_wtz_decode((const uint8_t *)z, nz, rows, cols, v, path, err);
     free(z);
@@ -94,12 +90,13 @@ static btf_result btf__read_wtz(const char *path, int rows, int cols, uint16_t *
 }
 
 /* Versions 3 and 4: wt-JJ.z (doc/package-format.md section 9.3). */
-static btf_result btf__load_weights_z(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
+static btf_result btf__load_weights_z(const btf_package *p, const btf_files *fs, const char *path, int i, float *wt,
+                                      btf_error *err)
 {
     int L = p->lights.n_dirs, V = p->views.n_dirs;
     size_t nwt = (size_t)V * L * 3;
     uint16_t *q = NULL;
-    btf_result r = btf__read_wtz(path, V, L, &q, err);
+    btf_result r = btf__read_wtz(fs, path, V, L, &q, err);
     for (size_t k = 0; r == BTF_OK && k < nwt; k++)
         wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)], q[k]);
     free(q);
@@ -110,7 +107,8 @@ static btf_result btf__load_weights_z(const btf_package *p, const char *path, in
 /* Version 4: wt-JJ-r.z (doc/package-format.md section 5.3), the 16-bit weights as a
  * btf_wtz stream (one light per "view") of r = (q16 - s_c q8) mod 65536 over the
  * component's 8-bit weights, which an earlier chunk carried. */
-static btf_result btf__load_weights_r(const btf_package *p, const char *path, int i, float *wt, btf_error *err)
+static btf_result btf__load_weights_r(const btf_package *p, const btf_files *fs, const char *path, int i, float *wt,
+                                      btf_error *err)
 {
     int L = p->lights.n_dirs, V = p->views.n_dirs;
     size_t nwt = (size_t)V * L * 3;
@@ -122,7 +120,7 @@ static btf_result btf__load_weights_r(const btf_package *p, const char *path, in
         return btf_fail(err, BTF_ERR_FORMAT, "%s: residual weights, but no earlier chunk of component %d carries its 8-bit weights",
                         path, p->chunk[i].component);
     uint16_t *q = NULL;
-    btf_result r = btf__read_wtz(path, V * L, 1, &q, err);
+    btf_result r = btf__read_wtz(fs, path, V * L, 1, &q, err);
     unsigned sc = (unsigned)p->chunk[i].wt8_step;
     for (size_t k = 0; r == BTF_OK && k < nwt; k++)
         wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)],
@@ -131,40 +129,48 @@ static btf_result btf__load_weights_r(const btf_package *p, const char *path, in
     return r;
 }
 
+/* The file at path when it holds exactly n bytes (malloc'd into *file, the caller frees it). */
+static btf_result btf__read_exact(const btf_files *fs, const char *path, size_t n, char **file, btf_error *err)
+{
+    size_t got = 0;
+    long long sz = btf_fs_size_with(fs, path);
+    *file = NULL;
+    if (sz < 0)
+        return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
+    if (sz != (long long)n)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected %zu", path, sz, n);
+    btf_result r = btf_fs_read_with(fs, path, n, file, &got, err);
+    if (r == BTF_OK && got != n) { /* it changed between the two looks */
+        free(*file), *file = NULL;
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %zu bytes, expected %zu", path, got, n);
+    }
+    return r;
+}
+
 /* Weights of chunk i (dequantised) from its .bin (or version 3 .z) file into wt (V*L*3 floats). */
-static btf_result btf__load_weights(const btf_package *p, const char *dir, int i, const char *wf, float *wt,
-                                    btf_error *err)
+static btf_result btf__load_weights(const btf_package *p, const btf_files *fs, const char *dir, int i, const char *wf,
+                                    float *wt, btf_error *err)
 {
     const btf_chunk_info *ci = &p->chunk[i];
     int L = p->lights.n_dirs, V = p->views.n_dirs;
     size_t nwt = (size_t)V * L * 3;
-    char path[4200];
+    char path[4200], *file = NULL;
     snprintf(path, sizeof path, "%s/%s", dir, wf);
     size_t nf = strlen(wf);
     if (p->version == 3 || (p->version == 4 && nf > 2 && !strcmp(wf + nf - 2, ".z") &&
                             !(nf > 4 && !strcmp(wf + nf - 4, "-r.z"))))
-        return btf__load_weights_z(p, path, i, wt, err); /* version 4 may carry version 3's wt-JJ.z (section 5.3) */
+        return btf__load_weights_z(p, fs, path, i, wt, err); /* version 4 may carry version 3's wt-JJ.z (section 5.3) */
     if (p->version == 4 && nf > 2 && !strcmp(wf + nf - 2, ".z"))
-        return btf__load_weights_r(p, path, i, wt, err);
-    uint8_t *raw = malloc(2 * nwt);
-    if (!raw)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
-    long long sz = btf_fs_size(path);
-    FILE *f = sz == (long long)(2 * nwt) ? fopen(path, "rb") : NULL;
-    if (!f || fread(raw, 1, 2 * nwt, f) != 2 * nwt) {
-        if (f)
-            fclose(f);
-        free(raw);
-        if (sz < 0)
-            return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: %lld bytes, expected %zu", path, sz, 2 * nwt);
-    }
-    fclose(f);
+        return btf__load_weights_r(p, fs, path, i, wt, err);
+    btf_result r = btf__read_exact(fs, path, 2 * nwt, &file, err);
+    if (r != BTF_OK)
+        return r;
+    const uint8_t *raw = (const uint8_t *)file;
     for (size_t k = 0; k < nwt; k++) {
         int v = (int)(k / (3 * (size_t)L));
         wt[k] = btf_package_dequant(ci->wt_range + 2 * p->blocks->block_of_view[v], (unsigned)raw[2 * k] | ((unsigned)raw[2 * k + 1] << 8));
     }
-    free(raw);
+    free(file);
     return BTF_OK;
 }
 
@@ -216,7 +222,7 @@ static btf_result btf__residual_level(btf_package *p, int i, const char *path, u
 
 
 /* Loads chunk i's texture (its level's size) and weights (dequantised). */
-static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_error *err)
+static btf_result btf__load_chunk(btf_package *p, const btf_files *fs, const char *dir, int i, btf_error *err)
 {
     const btf_chunk_info *ci = &p->chunk[i];
     const char *tf = btf__chunk_file(ci, ".png", 0);
@@ -231,21 +237,12 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png or .webp texture or no %s weights", dir, i,
                         p->version == 3 ? "wt-*.z" : ".bin");
     int nb = p->blocks->n_blocks, W = p->width >> ci->level, H = p->height >> ci->level;
-    int ch_want = p->bits == 16 ? 3 : 1, w, h, ch;
+    int ch = p->bits == 16 ? 3 : 1, w = p->atlas_cols * W;
     uint8_t *px = NULL;
     snprintf(path, sizeof path, "%s/%s", dir, tf);
-    btf_result r = btf_image_info(path, &w, &h, &ch, err); /* the header first: no decode of a wrong size */
-    if (ch_want == 1 && r == BTF_OK && ch >= 3)
-        ch = 1; /* three or four channels of one grey (a WebP): btf_image_read_grey checks they agree */
-    if (r == BTF_OK && w == p->atlas_cols * W && h == p->atlas_rows * H && ch == ch_want)
-        r = ch == 1 ? btf_image_read_grey(path, &w, &h, &px, err) : btf_image_read_u8(path, &w, &h, &ch, &px, err);
+    btf_result r = btf_image_read_with(fs, path, w, p->atlas_rows * H, ch, 1, &px, err); /* a grey WebP as one */
     if (r != BTF_OK)
         return r;
-    if (w != p->atlas_cols * W || h != p->atlas_rows * H || ch != ch_want) {
-        free(px);
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, manifest says %dx%d with %d", path, w, h,
-                        ch, p->atlas_cols * W, p->atlas_rows * H, ch_want);
-    }
     if (p->version == 4 && (r = btf__residual_level(p, i, path, &px, err)) != BTF_OK) {
         free(px); /* the caller's on failure (NULL when already freed) */
         return r;
@@ -269,8 +266,8 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
         p->q8[i] = px; /* the next finer level's residual is over these bytes */
     else
         free(px);
-    r = wf ? btf__load_weights(p, dir, i, wf, wt, err)
-       : w8 ? btf__load_weights8(p, dir, i, w8, wt, err)
+    r = wf ? btf__load_weights(p, fs, dir, i, wf, wt, err)
+       : w8 ? btf__load_weights8(p, fs, dir, i, w8, wt, err)
             : btf__shared_weights(p, i, wt, err);
     if (r != BTF_OK) {
         free(tex), free(wt);
@@ -290,12 +287,12 @@ static btf_result btf__load_chunk(btf_package *p, const char *dir, int i, btf_er
 }
 
 
-static int btf__chunk_present(const btf_package *p, const char *dir, int i)
+static int btf__chunk_present(const btf_package *p, const btf_files *fs, const char *dir, int i)
 {
     char path[4200];
     for (int f = 0; f < p->chunk[i].n_files; f++) {
         snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[f]);
-        if (btf_fs_size(path) < 0)
+        if (btf_fs_size_with(fs, path) < 0)
             return 0;
     }
     return 1;
@@ -323,26 +320,31 @@ void btf_package_free(btf_package *p)
 
 btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error *err)
 {
+    return btf_package_read_with(dir, n, NULL, out, err);
+}
+
+btf_result btf_package_read_with(const char *dir, int n, const btf_files *files, btf_package **out, btf_error *err)
+{
     *out = NULL;
     if (!dir || strlen(dir) > 4000)
         return btf_fail(err, BTF_ERR_ARG, "package: no directory");
     btf_package *p = calloc(1, sizeof *p);
     if (!p)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", dir);
-    btf_result r = btf_manifest_load(dir, p, err);
+    btf_result r = btf_manifest_load_with(dir, files, p, err);
     int nc = p->n_chunks;
     if (r == BTF_OK && n > nc)
         r = btf_fail(err, BTF_ERR_RANGE, "%s: %d chunks requested, the package has %d", dir, n, nc);
     int want = n == 0 ? nc : n;
     if (n < 0) {
         want = 0;
-        while (r == BTF_OK && want < nc && btf__chunk_present(p, dir, want))
+        while (r == BTF_OK && want < nc && btf__chunk_present(p, files, dir, want))
             want++;
         if (r == BTF_OK && want == 0)
             r = btf_fail(err, BTF_ERR_MISSING, "%s: the files of chunk 0 are missing", dir);
     }
     for (int i = 0; r == BTF_OK && i < want; i++)
-        r = btf__load_chunk(p, dir, i, err);
+        r = btf__load_chunk(p, files, dir, i, err);
     if (r == BTF_OK && !p->dirtab[0]) /* the decoder's direction tables, as the GPU gets them */
         r = btf_dirtab_build(&p->lights, &p->dirtab[0], err);
     if (r == BTF_OK && !p->dirtab[1])

@@ -742,10 +742,15 @@ static int btf__listed_file(const char *name, const struct stat *st, void *ctx)
 
 btf_result btf_manifest_load(const char *dir, btf_package *p, btf_error *err)
 {
+    return btf_manifest_load_with(dir, NULL, p, err);
+}
+
+btf_result btf_manifest_load_with(const char *dir, const btf_files *files, btf_package *p, btf_error *err)
+{
     char path[BTF_FS_PATH_MAX + 64], *text = NULL;
     snprintf(path, sizeof path, "%s/manifest.json", dir);
     memset(p, 0, sizeof *p);
-    btf_result r = btf_fs_read(path, BTF_MANIFEST_MAX_BYTES, &text, NULL, err);
+    btf_result r = btf_fs_read_with(files, path, BTF_MANIFEST_MAX_BYTES, &text, NULL, err);
     if (r == BTF_OK)
         r = btf_manifest_parse(text, path, p, err);
     free(text);

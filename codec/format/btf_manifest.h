@@ -26,8 +26,10 @@ extern "C" {
  * converted. On error p holds what was parsed so far: btf_manifest_clear frees it. */
 btf_result btf_manifest_parse(const char *text, const char *path, btf_package *p, btf_error *err);
 
-/* btf_manifest_parse of DIR/manifest.json (read bounded by BTF_MANIFEST_MAX_BYTES). */
+/* btf_manifest_parse of DIR/manifest.json (read bounded by BTF_MANIFEST_MAX_BYTES);
+ * _with reads it through files (btf.h; NULL: the disk). */
 btf_result btf_manifest_load(const char *dir, btf_package *p, btf_error *err);
+btf_result btf_manifest_load_with(const char *dir, const btf_files *files, btf_package *p, btf_error *err);
 
 /* Manifest text of p (malloc'd) in p->version's layout: version 1 with per-chunk
  * ranges, version 2 with levels and per-component ranges; NULL when out of memory. */

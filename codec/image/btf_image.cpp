@@ -5,6 +5,7 @@
 #include "btf_webp.h"
 #include "btf_common.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <cstdio>
@@ -20,6 +21,7 @@
 using namespace OIIO;
 
 static const int kMaxSide = 1 << 15;
+static const size_t kMaxFileBytes = (size_t)1 << 30; // a larger PNG or WebP is refused unread
 
 // OpenImageIO's message on one line (its errors may span several).
 static std::string one_line(std::string e)
@@ -32,111 +34,215 @@ static std::string one_line(std::string e)
     return e;
 }
 
+// One image being read: its name in messages and, for a PNG or a WebP, its bytes
+// (read from the file, or the caller's), which OpenImageIO decodes from memory;
+// a file of another format OpenImageIO opens by name. A stack value of one read,
+// owning the bytes it read and the memory reader; declared before the ImageInput
+// that reads through it.
+struct source {
+    const char *what = nullptr;
+    const uint8_t *data = nullptr;
+    size_t n = 0;
+    const char *format = nullptr; // "png" or "webp" once checked; nullptr: another format, from the file
+    char *file = nullptr;         // the bytes read from the file (malloc'd)
+    std::unique_ptr<Filesystem::IOMemReader> mem;
+    ~source() { free(file); }
+};
+
+// 1 when the name ends in ext (".png"), ignoring case.
+static int has_ext(const char *name, const char *ext)
+{
+    size_t len = strlen(name), e = strlen(ext);
+    return len > e && !strcasecmp(name + len - e, ext);
+}
+
+// 1 for a PNG (*png set) or a WebP, by its first n bytes or by its name.
+static int png_or_webp(const uint8_t *head, size_t n, const char *name, int *png)
+{
+    *png = (n >= 4 && !memcmp(head, "\x89PNG", 4)) || has_ext(name, ".png");
+    return *png || (n >= 4 && !memcmp(head, "RIFF", 4)) || has_ext(name, ".webp");
+}
+
 // A PNG must pass btf_png_check before OpenImageIO sees it (no decoder messages on
-// stderr, one clear error); other formats go straight to OpenImageIO.
-static btf_result check_file(const char *path, int header_only, btf_error *err)
+// stderr, one clear error), a WebP btf_webp_check; a ".png" holding another format
+// is refused as not a PNG.
+static btf_result check_bytes(source &s, int header_only, btf_error *err)
+{
+    int png = 0;
+    if (!png_or_webp(s.data, s.n, s.what, &png))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: not a PNG or WebP image", s.what);
+    s.format = png ? "png" : "webp";
+    if (!png)
+        return btf_webp_check(s.data, s.n, s.what, nullptr, nullptr, err);
+    return header_only ? btf_png_check_header(s.data, s.n, s.what, err) : btf_png_check(s.data, s.n, s.what, err);
+}
+
+// The bytes of the PNG or WebP at path, read through files (NULL: the disk), into s
+// and checked (the header only, or the whole file).
+static btf_result load_with(const btf_files *files, const char *path, int header_only, source &s, btf_error *err)
+{
+    s.what = path;
+    btf_result r = btf_fs_read_with(files, path, kMaxFileBytes, &s.file, &s.n, err);
+    s.data = (const uint8_t *)s.file;
+    return r == BTF_OK ? check_bytes(s, header_only, err) : r;
+}
+
+// The file at path into s: a PNG or WebP (by its magic or its name) read and checked,
+// any other format left for OpenImageIO to open by name.
+static btf_result load_file(const char *path, int header_only, source &s, btf_error *err)
 {
     uint8_t head[8];
-    size_t n = 0;
+    s.what = path;
     FILE *f = std::fopen(path, "rb");
     if (!f)
         return btf_fail(err, BTF_ERR_IO, "%s: cannot open image", path);
-    n = std::fread(head, 1, sizeof head, f);
+    size_t n = std::fread(head, 1, sizeof head, f);
     std::fclose(f);
-    size_t len = strlen(path);
-    int png = (n >= 4 && !memcmp(head, "\x89PNG", 4)) || (len > 4 && !strcasecmp(path + len - 4, ".png"));
-    int webp = (n >= 4 && !memcmp(head, "RIFF", 4)) || (len > 5 && !strcasecmp(path + len - 5, ".webp"));
-    if (!png && !webp) /* PNG or WebP by its magic or its name: checked; others go to OIIO */
+    int png = 0;
+    if (!png_or_webp(head, n, path, &png))
         return BTF_OK;
-    char *data = nullptr;
-    btf_result r = btf_fs_read(path, (size_t)1 << 30, &data, &n, err);
-    if (r == BTF_OK && webp && !png)
-        r = btf_webp_check((const uint8_t *)data, n, path, nullptr, nullptr, err);
-    else if (r == BTF_OK)
-        r = header_only ? btf_png_check_header((const uint8_t *)data, n, path, err)
-                        : btf_png_check((const uint8_t *)data, n, path, err);
-    free(data);
-    return r == BTF_ERR_MISSING ? BTF_ERR_IO : r;
+    btf_result r = load_with(nullptr, path, header_only, s, err);
+    return r == BTF_ERR_MISSING ? BTF_ERR_IO : r; // gone since it was opened
 }
 
-// Opens path for reading with alpha left unassociated, after check_file (the header
-// alone when only the size is wanted); NULL with *r and err set on failure.
-static std::unique_ptr<ImageInput> open_input(const char *path, int header_only, btf_result *r, btf_error *err)
+// Opens s for reading with alpha left unassociated: the checked bytes through a
+// memory reader, another format by name; NULL with *r and err set on failure.
+static std::unique_ptr<ImageInput> open_input(source &s, btf_result *r, btf_error *err)
 {
-    if ((*r = check_file(path, header_only, err)) != BTF_OK)
-        return nullptr;
-    ImageSpec config;
+    ImageSpec config, spec;
     config.attribute("oiio:UnassociatedAlpha", 1);
-    auto in = ImageInput::open(path, &config);
-    if (!in)
-        *r = btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", path, one_line(OIIO::geterror()).c_str());
-    return in;
+    if (!s.format) {
+        auto in = ImageInput::open(s.what, &config);
+        if (!in)
+            *r = btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", s.what, one_line(OIIO::geterror()).c_str());
+        return in;
+    }
+    s.mem.reset(new Filesystem::IOMemReader(s.data, s.n));
+    Filesystem::IOProxy *proxy = s.mem.get(); // OpenImageIO 2.4 takes it from the configuration only
+    config.attribute("oiio:ioproxy", TypeDesc::PTR, &proxy);
+    auto in = ImageInput::create(s.format, false, &config);
+    if (in && in->open(s.what, spec, config))
+        return in;
+    std::string e = one_line(in ? in->geterror() : OIIO::geterror());
+    *r = btf_fail(err, BTF_ERR_IO, "%s: cannot open image (%s)", s.what, e.c_str());
+    return nullptr;
 }
 
-extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
+// The header of s: size and channel count.
+static btf_result info(source &s, int *w, int *h, int *channels, btf_error *err)
 {
     btf_result r = BTF_OK;
-    auto in = open_input(path, 1, &r, err);
+    auto in = open_input(s, &r, err);
     if (!in)
         return r;
-    const ImageSpec &s = in->spec();
-    *w = s.width;
-    *h = s.height;
-    *channels = s.nchannels;
+    const ImageSpec &sp = in->spec();
+    *w = sp.width;
+    *h = sp.height;
+    *channels = sp.nchannels;
     in->close();
     return BTF_OK;
 }
 
+extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
+{
+    source s;
+    btf_result r = load_file(path, 1, s, err);
+    return r == BTF_OK ? info(s, w, h, channels, err) : r;
+}
+
+extern "C" btf_result btf_image_info_with(const btf_files *files, const char *path, int *w, int *h, int *channels,
+                                          btf_error *err)
+{
+    source s;
+    btf_result r = load_with(files, path, 1, s, err);
+    return r == BTF_OK ? info(s, w, h, channels, err) : r;
+}
+
 // open_input for the pixels, then a 2-D image of 1..4 channels, each side 1..max_side;
 // NULL with *r and err set otherwise.
-static std::unique_ptr<ImageInput> open_image(const char *path, int max_side, btf_result *r, btf_error *err)
+static std::unique_ptr<ImageInput> open_image(source &s, int max_side, btf_result *r, btf_error *err)
 {
-    auto in = open_input(path, 0, r, err);
+    auto in = open_input(s, r, err);
     if (!in)
         return in;
-    const ImageSpec &s = in->spec();
-    if (s.width < 1 || s.height < 1 || s.width > max_side || s.height > max_side || s.nchannels < 1 ||
-        s.nchannels > 4 || s.depth != 1) {
-        *r = btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d; at most %d per side)", path,
-                      s.width, s.height, s.nchannels, s.depth, max_side);
+    const ImageSpec &sp = in->spec();
+    if (sp.width < 1 || sp.height < 1 || sp.width > max_side || sp.height > max_side || sp.nchannels < 1 ||
+        sp.nchannels > 4 || sp.depth != 1) {
+        *r = btf_fail(err, BTF_ERR_FORMAT, "%s: unsupported image %dx%dx%d (depth %d; at most %d per side)", s.what,
+                      sp.width, sp.height, sp.nchannels, sp.depth, max_side);
         return nullptr;
     }
     return in;
+}
+
+// A PNG or WebP whose header claims more pixels than its bytes can hold (the ratios of
+// btf_image.h) is refused before the pixels are allocated.
+static btf_result check_ratio(const source &s, const char *format, const ImageSpec &sp, size_t n, btf_error *err)
+{
+    long long file = (long long)s.n; // a PNG or WebP is always read into memory (load_file)
+    if (!strcmp(format, "webp") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO && n > BTF_IMAGE_MAX_WEBP_FLOOR)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: a %lld-byte WebP claims %dx%dx%d pixels (over %dx its size and %d MiB)",
+                        s.what, file, sp.width, sp.height, sp.nchannels, BTF_IMAGE_MAX_PNG_RATIO,
+                        BTF_IMAGE_MAX_WEBP_FLOOR >> 20);
+    if (!strcmp(format, "png") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: a %lld-byte PNG cannot hold %dx%dx%d pixels (deflate expands at most %dx)",
+                        s.what, file, sp.width, sp.height, sp.nchannels, BTF_IMAGE_MAX_PNG_RATIO);
+    return BTF_OK;
+}
+
+// All pixels as 8-bit samples into buf: a scanline image row by row (read_image
+// would take a buffer of 64 MB whatever the image's size), a tiled one whole.
+static bool read_pixels(ImageInput *in, const ImageSpec &sp, uint8_t *buf)
+{
+    if (sp.tile_width)
+        return in->read_image(0, 0, 0, sp.nchannels, TypeDesc::UINT8, buf);
+    size_t row = (size_t)sp.width * (size_t)sp.nchannels;
+    for (int y = 0; y < sp.height; y++)
+        if (!in->read_scanline(sp.y + y, sp.z, TypeDesc::UINT8, buf + (size_t)y * row))
+            return false;
+    return true;
+}
+
+// The pixels of s, opened as in, as 8-bit samples (malloc'd into *pixels).
+static btf_result decode(ImageInput *in, const source &s, int *w, int *h, int *channels, uint8_t **pixels,
+                         btf_error *err)
+{
+    const ImageSpec &sp = in->spec();
+    size_t n = (size_t)sp.width * (size_t)sp.height * (size_t)sp.nchannels;
+    btf_result r = check_ratio(s, in->format_name(), sp, n, err);
+    if (r != BTF_OK)
+        return r;
+    uint8_t *buf = (uint8_t *)malloc(n);
+    if (!buf)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %zu bytes", s.what, n);
+    if (!read_pixels(in, sp, buf)) {
+        std::string e = one_line(in->geterror());
+        free(buf);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode image (%s)", s.what, e.c_str());
+    }
+    in->close();
+    *w = sp.width;
+    *h = sp.height;
+    *channels = sp.nchannels;
+    *pixels = buf;
+    return BTF_OK;
+}
+
+// The pixels of s as 8-bit samples (malloc'd into *pixels).
+static btf_result read_u8(source &s, int *w, int *h, int *channels, uint8_t **pixels, btf_error *err)
+{
+    btf_result r = BTF_OK;
+    auto in = open_image(s, kMaxSide, &r, err);
+    return in ? decode(in.get(), s, w, h, channels, pixels, err) : r;
 }
 
 extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels,
                                         btf_error *err)
 {
+    source s;
     *pixels = nullptr;
-    btf_result r = BTF_OK;
-    auto in = open_image(path, kMaxSide, &r, err);
-    if (!in)
-        return r;
-    const ImageSpec &s = in->spec();
-    size_t n = (size_t)s.width * (size_t)s.height * (size_t)s.nchannels;
-    long long file = btf_fs_size(path);
-    if (!strcmp(in->format_name(), "webp") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO &&
-        n > BTF_IMAGE_MAX_WEBP_FLOOR)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: a %lld-byte WebP claims %dx%dx%d pixels (over %dx its size and %d MiB)",
-                        path, file, s.width, s.height, s.nchannels, BTF_IMAGE_MAX_PNG_RATIO,
-                        BTF_IMAGE_MAX_WEBP_FLOOR >> 20);
-    if (!strcmp(in->format_name(), "png") && (double)n > (double)file * BTF_IMAGE_MAX_PNG_RATIO)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: a %lld-byte PNG cannot hold %dx%dx%d pixels (deflate expands at most %dx)",
-                        path, file, s.width, s.height, s.nchannels, BTF_IMAGE_MAX_PNG_RATIO);
-    uint8_t *buf = (uint8_t *)malloc(n);
-    if (!buf)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, n);
-    if (!in->read_image(0, 0, 0, s.nchannels, TypeDesc::UINT8, buf)) {
-        std::string e = one_line(in->geterror());
-        free(buf);
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode image (%s)", path, e.c_str());
-    }
-    in->close();
-    *w = s.width;
-    *h = s.height;
-    *channels = s.nchannels;
-    *pixels = buf;
-    return BTF_OK;
+    btf_result r = load_file(path, 0, s, err);
+    return r == BTF_OK ? read_u8(s, w, h, channels, pixels, err) : r;
 }
 
 // Adds row y of a w-pixel image (ch channels, float) into the reduced rows of acc
@@ -166,8 +272,9 @@ extern "C" btf_result btf_image_read_rgb_f32(const char *path, int max_w, int ma
     *rgb = nullptr;
     if (max_w < 1 || max_h < 1)
         return btf_fail(err, BTF_ERR_ARG, "%s: bound %dx%d", path, max_w, max_h);
-    btf_result r = BTF_OK;
-    auto in = open_image(path, BTF_IMAGE_MAX_F32_SIDE, &r, err);
+    source src;
+    btf_result r = load_file(path, 0, src, err);
+    auto in = r == BTF_OK ? open_image(src, BTF_IMAGE_MAX_F32_SIDE, &r, err) : nullptr;
     if (!in)
         return r;
     const ImageSpec &s = in->spec();
@@ -371,25 +478,50 @@ extern "C" btf_result btf_image_write_smallest(const char *stem, int w, int h, c
     return use_webp ? commit(wtmp, webp.c_str(), flags, err) : commit(ptmp, png.c_str(), flags, err);
 }
 
-extern "C" btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
+// Pixels of ch channels (w x h) to one grey byte each, in place: one channel as it
+// is, or three or four whose R, G and B agree (alpha 255); anything else is freed.
+static btf_result to_grey(const char *what, int w, int h, int ch, uint8_t **pixels, btf_error *err)
 {
-    int ch = 0;
-    btf_result r = btf_image_read_u8(path, w, h, &ch, pixels, err);
-    if (r != BTF_OK || ch == 1)
-        return r;
     uint8_t *px = *pixels;
-    size_t n = (size_t)*w * (size_t)*h;
-    for (size_t i = 0; i < n; i++) {
+    size_t n = (size_t)w * (size_t)h;
+    for (size_t i = 0; ch != 1 && i < n; i++) {
         const uint8_t *p = px + i * (size_t)ch;
         if (ch < 3 || p[1] != p[0] || p[2] != p[0] || (ch == 4 && p[3] != 255)) {
             free(px);
             *pixels = nullptr;
-            return btf_fail(err, BTF_ERR_FORMAT, "%s: not a grey image (%d channels that differ at pixel %zu)", path,
+            return btf_fail(err, BTF_ERR_FORMAT, "%s: not a grey image (%d channels that differ at pixel %zu)", what,
                             ch, i);
         }
         px[i] = p[0];
     }
     return BTF_OK;
+}
+
+extern "C" btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
+{
+    int ch = 0;
+    btf_result r = btf_image_read_u8(path, w, h, &ch, pixels, err);
+    return r == BTF_OK ? to_grey(path, *w, *h, ch, pixels, err) : r;
+}
+
+extern "C" btf_result btf_image_read_with(const btf_files *files, const char *path, int w, int h, int channels,
+                                          int grey, uint8_t **pixels, btf_error *err)
+{
+    source s;
+    *pixels = nullptr;
+    btf_result r = load_with(files, path, 1, s, err); // the header first: no decode of a wrong size
+    auto in = r == BTF_OK ? open_image(s, kMaxSide, &r, err) : nullptr;
+    if (!in)
+        return r;
+    const ImageSpec &sp = in->spec();
+    grey = grey && channels == 1;
+    int ch = grey && sp.nchannels >= 3 ? 1 : sp.nchannels, iw, ih;
+    if (sp.width != w || sp.height != h || ch != channels)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with %d channels, expected %dx%d with %d", path, sp.width,
+                        sp.height, ch, w, h, channels);
+    if ((r = check_bytes(s, 0, err)) == BTF_OK) // then the whole file, before the decoder sees its data
+        r = decode(in.get(), s, &iw, &ih, &ch, pixels, err);
+    return r == BTF_OK && grey ? to_grey(path, w, h, ch, pixels, err) : r;
 }
 
 extern "C" btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,

@@ -4,7 +4,8 @@
  *     if (btf_image_read_u8("a.png", &w, &h, &ch, &px, &err) == BTF_OK) { ...; free(px); }
  *
  * Reads any format OpenImageIO reads (PNG, JPEG, WebP, ...) as 8-bit, interleaved,
- * row 0 first, with alpha left unassociated (never premultiplied).
+ * row 0 first, with alpha left unassociated (never premultiplied). A PNG or WebP is
+ * read into memory, checked (btf_png_check, btf_webp_check) and decoded from there.
  * Writes go to "<path>.tmp-<pid>", are fsynced and renamed into place on success.
  */
 #ifndef BTF_IMAGE_H
@@ -65,6 +66,18 @@ btf_result btf_image_write_smallest(const char *stem, int w, int h, const uint8_
  * or three or four whose R, G and B agree (alpha 255), as a grey WebP holds them;
  * any other image is BTF_ERR_FORMAT. */
 btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err);
+
+/* For readers of a directory (packages, thesis packages): the PNG or WebP at path read
+ * through files (btf.h; NULL: the disk) and decoded from memory, as the readers above
+ * decode these formats. Any other format is BTF_ERR_FORMAT; a missing file BTF_ERR_MISSING.
+ * btf_image_info_with: the header only. btf_image_read_with: the pixels (malloc'd) of
+ * an image whose header says w x h with channels channels, else BTF_ERR_FORMAT before
+ * anything is decoded; with grey and channels 1, three or four channels of one grey
+ * (a grey WebP) count as one and are read as one (btf_image_read_grey). */
+btf_result btf_image_info_with(const btf_files *files, const char *path, int *w, int *h, int *channels,
+                               btf_error *err);
+btf_result btf_image_read_with(const btf_files *files, const char *path, int w, int h, int channels, int grey,
+                               uint8_t **pixels, btf_error *err);
 
 /* The largest side btf_image_read_rgb_f32 accepts. */
 #define BTF_IMAGE_MAX_F32_SIDE 65536

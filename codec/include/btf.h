@@ -50,6 +50,22 @@ typedef struct btf_error {
     char msg[512];
 } btf_error;
 
+/* ---------------------------------------------------------------- files */
+
+/* Where a reader of a directory (a package, btf_package_read_with) gets its files,
+ * as cgltf's cgltf_file_options: zero is the disk; the callbacks serve the files
+ * from elsewhere (memory, an archive). The reader asks for "DIR/NAME", the path its
+ * messages name. Plain value, the caller's; user must outlive the read. */
+typedef struct btf_files {
+    /* Whole file into *out, a new NUL-terminated malloc'd buffer the reader frees,
+     * *size its length. A file over max_bytes is BTF_ERR_RANGE before anything is
+     * allocated, a missing one BTF_ERR_MISSING; *out NULL on error. NULL: the disk. */
+    btf_result (*read)(void *user, const char *path, size_t max_bytes, char **out, size_t *size, btf_error *err);
+    /* Size of the file in bytes, -1 when it is missing. NULL: the disk. */
+    long long (*size)(void *user, const char *path);
+    void *user; /* passed to both */
+} btf_files;
+
 /* ---------------------------------------------------------------- directions */
 
 #define BTF_MAX_RINGS 32

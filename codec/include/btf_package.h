@@ -173,6 +173,10 @@ btf_result btf_package_thumbnail_rgb(const btf_package *p, int max_side, int *w,
  * exist), n > 0 exactly the first n, n < 0 as many leading chunks as have their
  * files present (a partially received package). */
 btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error *err);
+/* btf_package_read with every file read through files (btf.h; NULL: the disk), e.g. a
+ * package held in memory: the reader asks files for "DIR/manifest.json", "DIR/tex-00.png",
+ * ... (dir only names them) and decodes PNG and WebP textures from the bytes it gets. */
+btf_result btf_package_read_with(const char *dir, int n, const btf_files *files, btf_package **out, btf_error *err);
 void btf_package_free(btf_package *p);
 
 /* Decoded values (n floats in place) on the scale of the package's source: encoded

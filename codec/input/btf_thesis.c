@@ -116,11 +116,6 @@ void btf_thesis_free(btf_thesis_pkg *p)
 
 /* ------------------------------------------------------------ meta.json */
 
-static btf_result read_text(const char *path, char **out, btf_error *err)
-{
-    return btf_fs_read(path, META_MAX_BYTES, out, NULL, err);
-}
-
 /* Integer field `key` (a decimal string as the thesis writes it, or a JSON integer). */
 static btf_result meta_int(const cJSON *root, const char *key, const char *path, int *out, btf_error *err)
 {
@@ -146,13 +141,13 @@ static btf_result meta_int(const cJSON *root, const char *key, const char *path,
     return BTF_OK;
 }
 
-static btf_result read_meta(const char *dir, btf_thesis_pkg *p, btf_error *err)
+static btf_result read_meta(const char *dir, const btf_files *files, btf_thesis_pkg *p, btf_error *err)
 {
     char path[PATH_MAX_LEN];
     if (part_path(path, dir, PART_META))
         return btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir);
     char *text = NULL;
-    btf_result r = read_text(path, &text, err);
+    btf_result r = btf_fs_read_with(files, path, META_MAX_BYTES, &text, NULL, err);
     if (r != BTF_OK)
         return r;
     cJSON *root = cJSON_Parse(text);
@@ -184,35 +179,13 @@ static btf_result read_meta(const char *dir, btf_thesis_pkg *p, btf_error *err)
 
 /* ------------------------------------------------------------ PNG parts */
 
-/* Reads an RGBA8 PNG of exactly w x h pixels (size checked before decoding). */
-static btf_result read_rgba(const char *path, int w, int h, uint8_t **px, btf_error *err)
-{
-    int iw, ih, ch;
-    *px = NULL;
-    if (access(path, F_OK) != 0)
-        return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
-    btf_result r = btf_image_info(path, &iw, &ih, &ch, err);
-    if (r != BTF_OK)
-        return r;
-    if (iw != w || ih != h || ch != 4)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: is %dx%d with %d channels, expected %dx%d RGBA", path, iw, ih, ch,
-                        w, h);
-    r = btf_image_read_u8(path, &iw, &ih, &ch, px, err);
-    if (r == BTF_OK && (iw != w || ih != h || ch != 4)) {
-        free(*px);
-        *px = NULL;
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: decoded size differs from its header", path);
-    }
-    return r;
-}
-
-static btf_result read_component(const char *dir, btf_thesis_pkg *p, int j, btf_error *err)
+static btf_result read_component(const char *dir, const btf_files *files, btf_thesis_pkg *p, int j, btf_error *err)
 {
     char path[PATH_MAX_LEN];
     if (part_path(path, dir, j))
         return btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir);
-    uint8_t *px = NULL;
-    btf_result r = read_rgba(path, p->S / 2, (p->S / 2) * p->nb, &px, err);
+    uint8_t *px = NULL; /* RGBA8, its size checked before decoding */
+    btf_result r = btf_image_read_with(files, path, p->S / 2, (p->S / 2) * p->nb, 4, 0, &px, err);
     if (r != BTF_OK)
         return r;
     size_t n = (size_t)p->nb * p->S * p->S; /* one byte per texel: flat stream */
@@ -222,13 +195,13 @@ static btf_result read_component(const char *dir, btf_thesis_pkg *p, int j, btf_
     return BTF_OK;
 }
 
-static btf_result read_weights(const char *dir, btf_thesis_pkg *p, btf_error *err)
+static btf_result read_weights(const char *dir, const btf_files *files, btf_thesis_pkg *p, btf_error *err)
 {
     char path[PATH_MAX_LEN];
     if (part_path(path, dir, PART_R))
         return btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir);
     uint8_t *px = NULL;
-    btf_result r = read_rgba(path, p->r_size, p->r_size, &px, err);
+    btf_result r = btf_image_read_with(files, path, p->r_size, p->r_size, 4, 0, &px, err);
     if (r != BTF_OK)
         return r;
     int G = groups(p), C = p->C;
@@ -248,7 +221,7 @@ static btf_result read_weights(const char *dir, btf_thesis_pkg *p, btf_error *er
 
 /* Every image the meta.json announces exists with the announced size in its header,
  * and its file is large enough to hold that many pixels (BTF_IMAGE_MAX_PNG_RATIO). */
-static btf_result check_parts(const char *dir, const btf_thesis_pkg *m, btf_error *err)
+static btf_result check_parts(const char *dir, const btf_files *files, const btf_thesis_pkg *m, btf_error *err)
 {
     char path[PATH_MAX_LEN];
     for (int j = PART_R; j < m->C; j++) {
@@ -257,10 +230,10 @@ static btf_result check_parts(const char *dir, const btf_thesis_pkg *m, btf_erro
         int want_w = j == PART_R ? m->r_size : m->S / 2, want_h = j == PART_R ? m->r_size : (m->S / 2) * m->nb, w, h, ch;
         if (part_path(path, dir, j))
             return btf_fail(err, BTF_ERR_ARG, "%s: path too long", dir);
-        long long bytes = btf_fs_size(path);
+        long long bytes = btf_fs_size_with(files, path);
         if (bytes < 0)
             return btf_fail(err, BTF_ERR_MISSING, "%s: missing", path);
-        btf_result r = btf_image_info(path, &w, &h, &ch, err);
+        btf_result r = btf_image_info_with(files, path, &w, &h, &ch, err);
         if (r != BTF_OK)
             return r;
         if (w != want_w || h != want_h || ch != 4)
@@ -274,22 +247,27 @@ static btf_result check_parts(const char *dir, const btf_thesis_pkg *m, btf_erro
 
 btf_result btf_thesis_read(const char *dir, btf_thesis_pkg *p, btf_error *err)
 {
+    return btf_thesis_read_with(dir, NULL, p, err);
+}
+
+btf_result btf_thesis_read_with(const char *dir, const btf_files *files, btf_thesis_pkg *p, btf_error *err)
+{
     if (!dir || !p)
         return btf_fail(err, BTF_ERR_ARG, "btf_thesis_read: NULL argument");
     memset(p, 0, sizeof *p);
     btf_thesis_pkg m = {0};
-    btf_result r = read_meta(dir, &m, err);
+    btf_result r = read_meta(dir, files, &m, err);
     if (r == BTF_OK)
-        r = check_parts(dir, &m, err); /* before the header's sizes are allocated */
+        r = check_parts(dir, files, &m, err); /* before the header's sizes are allocated */
     if (r != BTF_OK)
         return r;
     if ((r = btf_thesis_alloc(m.C, m.N, m.k, m.S, p, err)) != BTF_OK)
         return r;
     p->r_size = m.r_size, p->tex_size = m.tex_size;
     for (int j = 0; j < p->C && r == BTF_OK; j++)
-        r = read_component(dir, p, j, err);
+        r = read_component(dir, files, p, j, err);
     if (r == BTF_OK)
-        r = read_weights(dir, p, err);
+        r = read_weights(dir, files, p, err);
     if (r != BTF_OK)
         btf_thesis_free(p);
     return r;

@@ -68,6 +68,9 @@ void btf_thesis_free(btf_thesis_pkg *p);
 
 /* Reads and validates a package directory (meta.json numbers, PNG sizes). */
 btf_result btf_thesis_read(const char *dir, btf_thesis_pkg *p, btf_error *err);
+/* The same with every file read through files (btf.h; NULL: the disk), e.g. a package
+ * held in memory (btf_fs_mem_files): dir only names the files, "DIR/meta.json", ... */
+btf_result btf_thesis_read_with(const char *dir, const btf_files *files, btf_thesis_pkg *p, btf_error *err);
 
 /* Writes p into dir (created; its parent must exist; an existing dir is replaced)
  * through a temporary sibling directory renamed into place. */
