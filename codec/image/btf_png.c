@@ -72,6 +72,19 @@ static btf_result btf__png_ihdr(const uint8_t *d, uint32_t len, btf__png *p, con
     return BTF_OK;
 }
 
+/* A PLTE chunk of len bytes as libpng accepts it: one, before the image data, in a
+ * colour image, of 1..256 entries of 3 bytes (libpng's error on any other goes to stderr). */
+static btf_result btf__png_plte(uint32_t len, btf__png *p, int idat, const char *what, btf_error *err)
+{
+    if (p->has_plte++ || idat)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG has a second PLTE chunk or one after the image data", what);
+    if (p->color == 0 || p->color == 4)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG grey image with a PLTE chunk", what);
+    if (len < 3 || len > 768 || len % 3)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG PLTE of %u bytes (3 per entry, 1 to 256 entries)", what, len);
+    return BTF_OK;
+}
+
 /* Inflates the concatenated IDAT data, counting bytes and checking each row's filter byte. */
 typedef struct btf__inflate {
     z_stream z;
@@ -131,7 +144,7 @@ static btf_result btf__png_walk(const uint8_t *d, size_t n, btf__png *p, btf__in
             r = seen_ihdr++ ? btf_fail(err, BTF_ERR_FORMAT, "%s: PNG has two IHDR chunks", what)
                             : btf__png_ihdr(body, len, p, what, err);
         else if (!memcmp(type, "PLTE", 4))
-            p->has_plte = 1;
+            r = btf__png_plte(len, p, idat, what, err);
         else if (!memcmp(type, "IDAT", 4)) {
             if (p->color == 3 && !p->has_plte)
                 return btf_fail(err, BTF_ERR_FORMAT, "%s: PNG palette image without PLTE before IDAT", what);

@@ -21,8 +21,9 @@ extern "C" {
 int btf_png_is_png(const uint8_t *data, size_t n);
 
 /* BTF_OK when data (n bytes) is a well-formed PNG: every chunk complete with a
- * valid CRC and a letter type, IHDR first and valid, PLTE before IDAT for
- * palette images, no unknown critical chunk, IEND last, and the IDAT stream
+ * valid CRC and a letter type, IHDR first and valid, at most one PLTE (1 to 256
+ * entries, in a colour image, before IDAT; required for palette images), no
+ * unknown critical chunk, IEND last, and the IDAT stream
  * inflating to exactly the image's filtered size (Adam7 passes counted for
  * interlaced images) with filter bytes 0..4 (checked for non-interlaced images).
  * BTF_ERR_FORMAT otherwise, naming what is wrong; what names the file. */
