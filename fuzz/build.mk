@@ -2,18 +2,34 @@
 #
 #   $(BUILD)/fuzz/replay_NAME   fuzz/fuzz_NAME.c + fuzz/replay_main.c with gcc: replays
 #                               fuzz/corpus/NAME/* (built by `make build`, run by `make test`)
-#   make fuzz [FUZZ_SECONDS=N]  libFuzzer + ASan/UBSan builds (clang, build-fuzz/) of every
-#                               target, each run for FUZZ_SECONDS, growing fuzz/corpus/NAME
+#   make fuzz                   libFuzzer + ASan/UBSan builds (clang, build-fuzz/) of every
+#                               target, then fuzz/run.sh runs them one at a time, growing
+#                               fuzz/corpus/NAME, and prints one table: executions, seconds,
+#                               executions per second, coverage (cov, ft), corpus size;
+#                               the table is also written to build-fuzz/fuzz/summary.txt
+#                               (FUZZ_SUMMARY), the logs to build-fuzz/fuzz/log/NAME.txt
+#     FUZZ_SECONDS=N            each target's time bound (default 60)
+#     FUZZ_RUNS=N               and an execution bound: -runs=N, whichever comes first (0: none)
+#     FUZZ_TARGETS='a b'        only these targets (default: all, request included)
+#     FUZZ_TMPDIR=DIR           the disk targets' scratch (default /dev/shm where it exists)
+#     FUZZ_CORPUS=DIR           the corpora's root instead of fuzz/corpus (a copy: measure
+#                               without growing the saved corpora)
+#     FUZZ_FLAGS=...            more libFuzzer flags for every target (e.g. -entropic=0)
+#     FUZZ_THREADS=N            OpenMP and OpenBLAS threads of each target (default 1)
+#     FUZZ_ASAN_OPTIONS=...     ASan's options (fast_unwind_on_malloc=0: full allocation
+#                               stacks, at a 30th of the speed; fuzz/run.sh's header)
 #   make fuzz-replay            replays every corpus (also part of `make test` via the suite "fuzz")
 #
 # Targets: dirset (direction-set JSON), dfmf (.btf files), manifest (package
-# manifest), package (package files: textures, weights, 8-bit weights, manifest),
-# thesis (thesis packages), ubo2003_name (image file names), roundtrip (random
-# small BTFs through compress + read + decode), gltf (glTF models of the GL host,
-# shaders/host/btf_gltf.cpp), hdr (environment images, shaders/host/btf_env.c),
-# request (btfd's request parser, server/build.mk).
+# manifest), package (package files on disk: textures, weights, 8-bit weights,
+# manifest), package_mem (the same files read from memory, btf_package_read_with),
+# thesis (thesis packages on disk), thesis_mem (the same from memory),
+# ubo2003_name (image file names), roundtrip (random small BTFs through compress +
+# read + decode; the writer has no memory sink, so its package goes to FUZZ_TMPDIR),
+# gltf (glTF models of the GL host, shaders/host/btf_gltf.cpp), hdr (environment
+# images, shaders/host/btf_env.c), request (btfd's request parser, server/build.mk).
 
-FUZZ_CODEC        := dirset dfmf manifest package thesis ubo2003_name roundtrip gltf hdr
+FUZZ_CODEC        := dirset dfmf manifest package package_mem thesis thesis_mem ubo2003_name roundtrip gltf hdr
 FUZZ_CODEC_OBJ    := $(FUZZ_CODEC:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 FUZZ_CODEC_REPLAY := $(FUZZ_CODEC:%=$(BUILD)/fuzz/replay_%)
 FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS)) -lstdc++ -lm
@@ -33,7 +49,7 @@ fuzz-replay: $(FUZZ_CODEC_REPLAY) $(FUZZ_REPLAY)
 	$(FUZZ_REPLAY) fuzz/corpus/request
 
 # libFuzzer builds: the codec and generator rebuilt with clang and the sanitizers
-# (warnings kept, not fatal: clang's differ from gcc's), then one run per target.
+# (warnings kept, not fatal: clang's differ from gcc's), one binary per target.
 # Leaks inside third-party libraries are suppressed by tests/lsan.supp (full
 # stacks, so a suppression can see the library frame).
 fuzz-codec:
@@ -47,14 +63,14 @@ fuzz-codec:
 	        $(FUZZ_BUILD)/codec/libbtfcodec.a \
 	        $(FUZZ_LINK) || exit 1; \
 	done
-	@mkdir -p $(FUZZ_BUILD)/fuzz/log
-	@for t in $(FUZZ_CODEC); do \
-	    echo "fuzz: $$t for $(FUZZ_SECONDS) s"; \
-	    (cd $(FUZZ_BUILD)/fuzz && ASAN_OPTIONS=fast_unwind_on_malloc=0 \
-	        LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp ./fuzz_$$t -max_total_time=$(FUZZ_SECONDS) -rss_limit_mb=$(FUZZ_RSS_MB) \
-	        -malloc_limit_mb=$(FUZZ_RSS_MB) -max_len=65536 -print_final_stats=1 \
-	        $(CURDIR)/fuzz/corpus/$$t > log/$$t.txt 2>&1) || { tail -40 $(FUZZ_BUILD)/fuzz/log/$$t.txt; exit 1; }; \
-	    grep -E "stat::number_of_executed_units|cov:" $(FUZZ_BUILD)/fuzz/log/$$t.txt | tail -2; \
-	done
+
+FUZZ_TARGETS ?= $(FUZZ_CODEC) request
+FUZZ_RUNS    ?= 0
+FUZZ_TMPDIR  ?= $(if $(wildcard /dev/shm/.),/dev/shm,/tmp)
+FUZZ_CORPUS  ?= fuzz/corpus
+FUZZ_THREADS ?= 1
 
 fuzz: fuzz-codec fuzz-request
+	FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_RUNS=$(FUZZ_RUNS) FUZZ_RSS_MB=$(FUZZ_RSS_MB) FUZZ_TMPDIR=$(FUZZ_TMPDIR) \
+	    FUZZ_ASAN_OPTIONS='$(FUZZ_ASAN_OPTIONS)' FUZZ_FLAGS='$(FUZZ_FLAGS)' FUZZ_CORPUS=$(FUZZ_CORPUS) \
+	    FUZZ_THREADS=$(FUZZ_THREADS) bash fuzz/run.sh $(FUZZ_BUILD) $(FUZZ_TARGETS)

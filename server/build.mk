@@ -5,8 +5,8 @@
 # Targets:
 #   $(BUILD)/btfd                 the server (server/*.c + $(CODEC_LIB), libwebsockets, cJSON)
 #   $(BUILD)/fuzz_request_replay  replays fuzz/corpus/request/* through the parser (cc)
-#   fuzz-request                  libFuzzer build (clang) and a FUZZ_SECONDS run growing the corpus
-# (fuzz/build.mk runs it with the codec targets as `make fuzz`, and replays every corpus)
+#   fuzz-request                  libFuzzer build (clang): build-fuzz/fuzz/fuzz_request
+# (`make fuzz` runs it with the codec targets, fuzz/build.mk, and replays every corpus)
 #   $(BUILD)/resume_clients       the reconnecting load client of tests/deploy_test.sh (nginx + 2 btfd)
 # server/ uses codec/ only: its public headers and common/ (error formatting).
 # `build` gains btfd and the replay binary, so `make test` runs the server tests
@@ -20,7 +20,6 @@ SERVER_LIBS   = $(call pkg,--libs,libwebsockets libcjson libcrypto)
 FUZZ_LIBS     = $(call pkg,--libs,libcjson)
 
 FUZZ_REPLAY  := $(BUILD)/fuzz_request_replay
-FUZZ_BIN     := $(BUILD)/fuzz_request
 FUZZ_SECONDS ?= 60
 FUZZ_SRC     := fuzz/fuzz_request.c server/btfd_request.c
 
@@ -48,9 +47,8 @@ $(RESUME_BIN): tests/deploy/resume_clients.c tests/lws_connect.h $(CODEC_LIB)
 	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE $(CODEC_INNER) -Itests $(SERVER_CFLAGS) -o $@ $< $(CODEC_LIB) \
 	    $(LDFLAGS) $(SERVER_LIBS) -lm
 
-# libFuzzer + ASan/UBSan; new interesting inputs land in fuzz/corpus/request.
+# libFuzzer + ASan/UBSan (FUZZ_BUILD: fuzz/build.mk); `make fuzz` runs it.
 fuzz-request:
-	@mkdir -p $(BUILD)
+	@mkdir -p $(FUZZ_BUILD)/fuzz
 	clang -std=c11 -g -O1 -D_DEFAULT_SOURCE -fsanitize=fuzzer,address,undefined -Iserver \
-	    $(SERVER_CFLAGS) -o $(FUZZ_BIN) $(FUZZ_SRC) $(FUZZ_LIBS) -lm
-	$(FUZZ_BIN) -max_total_time=$(FUZZ_SECONDS) -max_len=20000 fuzz/corpus/request
+	    $(SERVER_CFLAGS) -o $(FUZZ_BUILD)/fuzz/fuzz_request $(FUZZ_SRC) $(FUZZ_LIBS) -lm

@@ -1,6 +1,6 @@
 /* test_fuzz.c - room codec, suite "fuzz": every codec reader's saved fuzz corpus replays without a
- * contract breach (build/fuzz/replay_NAME, fuzz/build.mk), and each regression
- * input of a past finding is refused with a clear error before it can allocate. */
+ * contract breach and without a line on stderr (build/fuzz/replay_NAME, fuzz/build.mk), and each
+ * regression input of a past finding is refused with a clear error before it can allocate. */
 #include <criterion/criterion.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -51,6 +51,8 @@ static int replay(const char *name)
     int st = pclose(p);
     const char *at = strstr(out, "replay: ");
     cr_expect(WIFEXITED(st) && WEXITSTATUS(st) == 0, "%s failed:\n%s", name, out);
+    cr_expect(at == out && len > 0 && strchr(out, '\n') == out + len - 1,
+              "%s printed more than its count (a decoder's message on stderr?):\n%s", name, out);
     return at && WIFEXITED(st) && WEXITSTATUS(st) == 0 ? atoi(at + 8) : -1;
 }
 
@@ -65,8 +67,8 @@ static int corpus_size(const char *name)
 
 Test(fuzz, every_corpus_replays)
 {
-    static const char *targets[] = {"dirset", "dfmf",      "manifest", "package", "thesis",
-                                    "ubo2003_name", "roundtrip", "gltf", "hdr"};
+    static const char *targets[] = {"dirset",     "dfmf",         "manifest",  "package", "package_mem", "thesis",
+                                    "thesis_mem", "ubo2003_name", "roundtrip", "gltf",    "hdr"};
     for (size_t i = 0; i < sizeof targets / sizeof targets[0]; i++) {
         int want = corpus_size(targets[i]);
         cr_expect_gt(want, 0, "fuzz/corpus/%s is empty", targets[i]);

@@ -1,0 +1,153 @@
+/* fuzz_pkg.h - what the package and thesis targets share (header only): the small
+ * valid packages an input starts from (made once per process in the scratch
+ * directory), which file an input's first byte replaces, and the contracts a read
+ * keeps. Used by the disk targets (fuzz_package.c, fuzz_thesis.c), which write the
+ * input into the package's directory, and by their in-memory twins
+ * (fuzz_package_mem.c, fuzz_thesis_mem.c), which put it in a fuzz_mem and read
+ * through btf_files: the same readers and checks without a file system. */
+#ifndef BTF_FUZZ_PKG_H
+#define BTF_FUZZ_PKG_H
+
+#include <math.h>
+
+#include "btf_decode.h"
+#include "btf_gen.h"
+#include "btf_lod.h"
+#include "btf_package.h"
+#include "btf_thesis.h"
+#include "fuzz_util.h"
+
+/* ---------------------------------------------------------------- packages */
+
+/* The packages (v1, v2, v4) every package input starts from; made once per process. */
+typedef struct fuzz_pkgs {
+    char v1[300], v2[300], v4[300];
+    char residual[64]; /* v4's residual level file, or "manifest.json" when the writer kept none */
+} fuzz_pkgs;
+
+static inline void fuzz__pkgs_make(fuzz_pkgs *p)
+{
+    btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 4, 0.0f}};
+    btf_dirset d;
+    btf_error err = {{0}};
+    btf_gen_params gp = btf_gen_defaults(BTF_GEN_TILES);
+    btf *b = NULL;
+    btf_pca_options po = {0};
+    po.k = 2, po.components = 2;
+    btf_lod_options lo = {0}, lr = {0};
+    lo.levels = lr.levels = 2;
+    lr.residual = 1;
+    if (btf_dirset_make(r, 2, &d, &err) != BTF_OK || btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &b, &err) != BTF_OK ||
+        btf_package_compress(b, &po, NULL, p->v1, NULL, &err) != BTF_OK ||
+        btf_lod_build(p->v1, p->v2, &lo, NULL, &err) != BTF_OK || btf_lod_build(p->v1, p->v4, &lr, NULL, &err) != BTF_OK) {
+        fprintf(stderr, "fuzz: package setup failed: %s\n", err.msg);
+        abort();
+    }
+    btf_free(b);
+}
+
+static inline const fuzz_pkgs *fuzz_packages(void)
+{
+    static fuzz_pkgs p;
+    if (p.v1[0])
+        return &p;
+    snprintf(p.v1, sizeof p.v1, "%s/v1", fuzz_dir());
+    snprintf(p.v2, sizeof p.v2, "%s/v2", fuzz_dir());
+    snprintf(p.v4, sizeof p.v4, "%s/v4", fuzz_dir());
+    fuzz__pkgs_make(&p);
+    snprintf(p.residual, sizeof p.residual, "manifest.json");
+    char path[400];
+    for (int j = 0; j < 4 && !strcmp(p.residual, "manifest.json"); j++) {
+        const char *ext = j < 2 ? "webp" : "png"; /* a lossless WebP where the writer found it smaller */
+        snprintf(path, sizeof path, "%s/tex-%02d-d0.%s", p.v4, j % 2, ext);
+        if (btf_fs_size(path) > 0)
+            snprintf(p.residual, sizeof p.residual, "tex-%02d-d0.%s", j % 2, ext);
+    }
+    return &p;
+}
+
+/* The file an input replaces (first byte: 0 texture PNG, 1 weights .bin, 2
+ * manifest.json of v1, 3 an 8-bit weights PNG of v2, 4 the manifest and 5 a
+ * residual level of v4); *pkg gets 1, 2 or 4. */
+static inline const char *fuzz_package_file(const fuzz_pkgs *pk, uint8_t first, int *pkg)
+{
+    const char *names[6] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png", "manifest.json", pk->residual};
+    int which = first % 6;
+    *pkg = which >= 4 ? 4 : which == 3 ? 2 : 1;
+    return names[which];
+}
+
+/* Reads the package dir through files (NULL: the disk) and checks what an accepted
+ * package promises (finite decoded values) or a refused one (no package, one line). */
+static inline void fuzz_package_check(const char *dir, const btf_files *files)
+{
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    if (btf_package_read_with(dir, -1, files, &p, &err) != BTF_OK) {
+        FUZZ_CHECK(p == NULL && err.msg[0] != 0 && !strchr(err.msg, '\n'));
+        return;
+    }
+    btf_decode_options o = {0};
+    float l[3] = {0.1f, 0.2f, 1.0f}, v[3] = {-0.3f, 0.1f, 1.0f}, rgb[3];
+    btf_decode(p, 0.4f, 0.7f, l, v, &o, rgb);
+    FUZZ_CHECK(isfinite(rgb[0]) && isfinite(rgb[1]) && isfinite(rgb[2]));
+    btf_package_free(p);
+}
+
+/* ---------------------------------------------------------------- thesis packages */
+
+/* The thesis package every thesis input starts from (C 2, N 7, k 7, S 4); made once. */
+static inline const char *fuzz_thesis_dir(void)
+{
+    static char dir[300];
+    if (dir[0])
+        return dir;
+    snprintf(dir, sizeof dir, "%s/thesis", fuzz_dir());
+    btf_thesis_pkg p;
+    btf_error err = {{0}};
+    if (btf_thesis_alloc(2, 7, 7, 4, &p, &err) != BTF_OK)
+        abort();
+    for (size_t i = 0; i < (size_t)p.nb * p.S * p.S * p.C; i++)
+        p.L[i] = (float)((i * 37) % 200) / 100.0f - 1.0f;
+    for (size_t i = 0; i < (size_t)p.nb * p.k * p.N * 3 * p.C; i++)
+        p.V[i] = (float)((i * 53) % 200) / 100.0f - 1.0f;
+    for (int i = 0; i < p.nb * p.C; i++)
+        p.sigma[i] = 1.0f + (float)i;
+    if (btf_thesis_write(dir, &p, &err) != BTF_OK) {
+        fprintf(stderr, "fuzz: thesis setup failed: %s\n", err.msg);
+        abort();
+    }
+    btf_thesis_free(&p);
+    return dir;
+}
+
+/* The file a thesis input replaces (first byte: 0 meta.json, 1 R.png, 2 0.png). */
+static inline const char *fuzz_thesis_file(uint8_t first)
+{
+    static const char *names[3] = {"meta.json", "R.png", "0.png"};
+    return names[first % 3];
+}
+
+/* Reads the thesis package dir through files (NULL: the disk): an accepted one
+ * must reconstruct to finite values, a refused one give a one-line message. */
+static inline void fuzz_thesis_check(const char *dir, const btf_files *files)
+{
+    btf_thesis_pkg p;
+    btf_error err = {{0}};
+    if (btf_thesis_read_with(dir, files, &p, &err) != BTF_OK) {
+        FUZZ_CHECK(p.L == NULL && err.msg[0] != 0 && !strchr(err.msg, '\n'));
+        return;
+    }
+    btf_dirset d;
+    btf_ring r[2] = {{0.0f, 1, 0.0f}, {45.0f, 6, 0.0f}};
+    btf *b = NULL;
+    if (p.N == 7 && btf_dirset_make(r, 2, &d, NULL) == BTF_OK &&
+        btf_thesis_reconstruct(&p, &d, 0, 0, BTF_F32, &b, &err) == BTF_OK) {
+        const float *f = b->data;
+        FUZZ_CHECK(isfinite(f[0]));
+        btf_free(b);
+    }
+    btf_thesis_free(&p);
+}
+
+#endif
