@@ -81,8 +81,21 @@ Test(examples, fs_header)
     if (btf_fs_read(path, 1 << 20, &text, &n, &err) != BTF_OK)
         cr_assert_fail("%s", err.msg); // NUL-terminated
     btf_fs_write_atomic(notes, text, n, &err);  // temp + fsync + rename + fsync dir
-    free(text);
     cr_expect_eq(btf_fs_size(notes), (long long)n);
+    char *png, *wt, file[BTF_FS_PATH_MAX + 32];
+    size_t png_n, wt_n;
+    snprintf(file, sizeof file, "%s/tex-00.png", wool);
+    cr_assert_eq(btf_fs_read(file, 1 << 20, &png, &png_n, &err), BTF_OK, "%s", err.msg);
+    snprintf(file, sizeof file, "%s/wt-00.bin", wool);
+    cr_assert_eq(btf_fs_read(file, 1 << 20, &wt, &wt_n, &err), BTF_OK, "%s", err.msg);
+    btf_package *p = NULL;
+    btf_fs_mem_file f[3] = {{"manifest.json", text, n}, {"tex-00.png", png, png_n}, {"wt-00.bin", wt, wt_n}};
+    btf_fs_mem m = {f, 3};
+    btf_files files = btf_fs_mem_files(&m);               // a package's first chunk in memory
+    btf_package_read_with("mem", 1, &files, &p, &err);    // reads "mem/manifest.json", ...
+    cr_expect(p && p->n_loaded == 1, "%s", err.msg);
+    btf_package_free(p);
+    free(text), free(png), free(wt);
     char tmp[BTF_FS_PATH_MAX];
     btf_fs_temp_dir(wool, tmp, sizeof tmp, NULL, NULL, &err);   // "lib/wool.tmp-PID", made empty
     snprintf(path, sizeof path, "%s/manifest.json", tmp);
