@@ -35,7 +35,7 @@
  * (a thesis package or anything btf_load_any reads, at SIZE); default: tiles, knit,
  * stone, a JPEG stone at 64x64, the thesis wool and corduroy at 64x64 (when
  * $BTF_SHARED/data has them), tiles and the two thesis materials at 256x256; seeds
- * no test uses. About an hour on the 2-core test machine (a 256x256 material 6-8
+ * no test uses. About 45 minutes on the 2-core test machine (a 256x256 material 6-8
  * minutes, 8 GB peak: the thesis format's float decode).
  * LOSSY_TMP (default /tmp/btf-bench-lossy) holds the packages while a material runs.
  * Output: `name value unit` lines and `#` table rows (bench/run.sh: results/lossy.txt).
