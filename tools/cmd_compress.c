@@ -176,8 +176,6 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
         fprintf(stderr, "btf compress: --residual needs --levels N and 8-bit textures\n");
         rc = 2;
     }
-    if (o->lod.levels > 0)
-        o->lod.residual |= o->pkg.rd; /* a version-3 package takes residual levels (version 4) */
     o->pkg.name = o->name;
     return rc;
 }

@@ -9,7 +9,6 @@
 #include "btf_common.h"
 
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -50,7 +49,6 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
     lodc_name(&pkg, out, name, sizeof name);
     btf_lod_options lo = *lod;
     lo.thumbnail = pkg.thumbnail; /* the levelled package's, decoded from it */
-    lo.residual |= pkg.rd;        /* rate-distortion steps take residual levels (version 4) */
     pkg.thumbnail = 0;
     btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
     if (r != BTF_OK)
@@ -94,7 +92,6 @@ static btf_result lodc_try(const btf *src, const btf_pca_options *pca, const btf
     btf_result r = btf_budget_compress(src, pca, &po, b, base, res, err);
     btf_lod_options lo = *lod;
     lo.thumbnail = thumbnail;
-    lo.residual |= pkg->rd; /* rate-distortion steps take residual levels (version 4) */
     btf_lod_stats ls = {0};
     if (r == BTF_OK)
         r = btf_lod_build(base, lev, &lo, &ls, err);
