@@ -9,7 +9,11 @@
  *   textured a plain textured surface, one texture() fetch (shaders/bench/textured.frag);
  *   env      the product program lit by the built-in studio environment alone
  *            (doc/lighting.md; BTF_ENV=1, BTF_POINT=0) at the same C, timed in the
- *            same interleaved run as the point-lit product and the thesis.
+ *            same interleaved run as the point-lit product and the thesis;
+ *   fixed    the product program as `btf render` draws this scene (a distant light on
+ *            a plane): BTF_FIXED_LIGHT, the light's weights blended once per draw
+ *            (shaders/host/btf_gl_fixed.h), same run, same error measure. `shader`
+ *            is the run-time light path that curved meshes and point lights take.
  *
  * All three draw the same plane mesh (btf_render.vert, btf_render.h conventions),
  * camera (30, -90, 1.1), fov 40, the material repeated 8 x 8 so it covers the whole
@@ -36,6 +40,7 @@
 #include "btf_gen.h"
 #include "btf_gl.h"
 #include "btf_env.h"
+#include "btf_gl_fixed.h"
 #include "btf_gl_package.h"
 #include "btf_lod.h"
 #include "btf_package.h"
@@ -596,6 +601,11 @@ static int textured_setup(btf_gl *gl, void *ctx)
  *   (coordinates, dequantise and mask a vec4), per (a, g, e) ~60 (3 coordinates, 3 vec4
  *   dequantisations 24, 3 dot4 21, blend 7) -> ~84 + 582 ceil(C/4); textured: ~4. */
 static int shader_fetches(int C) { return 2 + 12 * ((C + 3) / 4); }
+/* fixed light: 1 view-table texel + per (view a, layer h) 1 texture + 1 per-draw weight
+ * texel; ALU: the run-time path less the light lookup (~90) and, per (a, h), less
+ * the 2 extra weight texels' unpacking and the blend (~60 of ~120) */
+static int fixed_fetches(int C) { return 1 + 6 * ((C + 3) / 4); }
+static int fixed_alu(int C) { return 180 + 180 * ((C + 3) / 4); }
 static int shader_alu(int C) { return 270 + 360 * ((C + 3) / 4); }
 static int thesis_fetches(int C) { return 4 + 30 * ((C + 3) / 4); }
 static int thesis_alu(int C) { return 84 + 582 * ((C + 3) / 4); }
@@ -609,18 +619,21 @@ typedef struct product_ctx {
     int C;
     btf_shader_program *prog;
     const btf_env_quad *env; /* NULL: the point light; else the environment alone (doc/lighting.md) */
+    btf_gl_fixed *fixed;     /* non-NULL: BTF_FIXED_LIGHT with these per-draw weights (not owned) */
 } product_ctx;
 
 /* Builds pc->prog from the shaders in dir (NULL: the usual place, btf_shader_desc). */
 static int product_build(btf_gl *gl, product_ctx *pc, const char *dir)
 {
     btf_error err = {{0}};
-    btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 2];
+    btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 3];
     char vals[BTF_GL_PACKAGE_DEFINES][16];
     btf_shader_desc sd = {.dir = dir, .program = "render", .defines = defs};
     sd.n_defines = btf_gl_package_defines(pc->g, 0, pc->C, defs, vals);
     defs[sd.n_defines++] = (btf_shader_define){"BTF_POINT", pc->env ? "0" : "1"};
     defs[sd.n_defines++] = (btf_shader_define){"BTF_ENV", pc->env ? "1" : "0"};
+    if (pc->fixed)
+        defs[sd.n_defines++] = (btf_shader_define){"BTF_FIXED_LIGHT", "1"};
     btf_shader_program_free(gl, pc->prog);
     pc->prog = NULL;
     if (btf_shader_build(gl, &sd, &pc->prog, NULL, &err) != BTF_OK)
@@ -637,6 +650,11 @@ static int product_setup(btf_gl *gl, void *ctx)
         return die("bind", &err);
     btf_gl_decode_settings ds = {0, 1, pc->C};
     btf_gl_package_settings(gl, pc->g, pc->prog, &ds);
+    if (pc->fixed) { /* the plane's local frame is the world's: the local light is the world light */
+        if (btf_gl_fixed_update(gl, pc->fixed, pc->g, pc->s->cam.light, pc->C, &err) != BTF_OK)
+            return die("fixed light", &err);
+        btf_gl_fixed_bind(gl, pc->fixed, pc->prog, BTF_GL_FIXED_UNIT);
+    }
     scene_uniforms(gl, pc->prog->id, pc->s);
     btf_render_params lp = btf_render_defaults(BTF_RENDER_PLANE);
     lp.no_point_light = pc->env != NULL;
@@ -659,8 +677,9 @@ static int draw_once(btf_gl *gl, const scene *s, const btf_gl_target *t, const b
     return 0;
 }
 
-/* Version 2 (spatial levels, 3 levels) of the same package against version 1, all
- * chunks: the level path's cost over level 0 alone, in one run, interleaved. */
+/* The spatial-levels package (3 levels) of the same material against version 1, all
+ * chunks: the level path's cost over level 0 alone, in one run, interleaved, for the
+ * run-time light path and for the fixed-light one. */
 static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const scene *s, const btf_gl_target *t)
 {
     char dir2[1100];
@@ -668,21 +687,33 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     btf_error err = {{0}};
     btf_package *p2 = NULL;
     btf_gl_package *g1 = NULL, *g2 = NULL;
+    btf_gl_fixed *x1 = NULL, *x2 = NULL;
     if (btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
-        btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err))
+        btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err) ||
+        btf_gl_fixed_create(gl, g1, &x1, &err) != BTF_OK || btf_gl_fixed_create(gl, g2, &x2, &err) != BTF_OK)
         return die("levels package", &err);
-    product_ctx pc[2] = {{s, g1, 0, NULL, NULL}, {s, g2, 0, NULL, NULL}};
-    bench_case c[2] = {{.setup = product_setup, .ctx = &pc[0]}, {.setup = product_setup, .ctx = &pc[1]}};
-    int rc = product_build(gl, &pc[0], NULL) || product_build(gl, &pc[1], NULL) || time_frames(gl, s, t, c, 2);
-    if (!rc) {
-        double v1 = c[0].cost.cpu_ms, v2 = c[1].cost.cpu_ms;
-        printf("levels_v1_C%d_cpu_ms %.2f ms\nlevels_v2_C%d_cpu_ms %.2f ms\n", p1->n_loaded, v1, p1->n_loaded, v2);
-        printf("levels_v2_over_v1_cpu_ratio %.3f x\n", v2 / v1);
-        if (c[0].cost.gpu_ms > 0 && c[1].cost.gpu_ms > 0)
-            printf("levels_v2_over_v1_gpu_ratio %.3f x\n", c[1].cost.gpu_ms / c[0].cost.gpu_ms);
+    product_ctx pc[4] = {{s, g1, 0, NULL, NULL, NULL}, {s, g2, 0, NULL, NULL, NULL}, {s, g1, 0, NULL, NULL, x1},
+                         {s, g2, 0, NULL, NULL, x2}};
+    bench_case c[4];
+    int rc = 0;
+    for (int i = 0; i < 4; i++) {
+        c[i] = (bench_case){.setup = product_setup, .ctx = &pc[i]};
+        rc = rc || product_build(gl, &pc[i], NULL);
     }
-    btf_shader_program_free(gl, pc[0].prog);
-    btf_shader_program_free(gl, pc[1].prog);
+    rc = rc || time_frames(gl, s, t, c, 4);
+    static const char *path[2] = {"", "fixed_"};
+    for (int k = 0; k < 2 && !rc; k++) {
+        double v1 = c[2 * k].cost.cpu_ms, v2 = c[2 * k + 1].cost.cpu_ms;
+        printf("levels_%sv1_C%d_cpu_ms %.2f ms\nlevels_%sv2_C%d_cpu_ms %.2f ms\n", path[k], p1->n_loaded, v1, path[k],
+               p1->n_loaded, v2);
+        printf("levels_%sv2_over_v1_cpu_ratio %.3f x\n", path[k], v2 / v1);
+        if (c[2 * k].cost.gpu_ms > 0 && c[2 * k + 1].cost.gpu_ms > 0)
+            printf("levels_%sv2_over_v1_gpu_ratio %.3f x\n", path[k], c[2 * k + 1].cost.gpu_ms / c[2 * k].cost.gpu_ms);
+    }
+    for (int i = 0; i < 4; i++)
+        btf_shader_program_free(gl, pc[i].prog);
+    btf_gl_fixed_free(gl, x1);
+    btf_gl_fixed_free(gl, x2);
     btf_gl_package_free(gl, g1);
     btf_gl_package_free(gl, g2);
     btf_package_free(p2);
@@ -795,21 +826,24 @@ static int run_fetch(btf_gl *gl, const scene *s, const btf_gl_target *t)
 /* One C of the comparison, for the summary table. */
 typedef struct bench_row {
     int C;
-    double shader_ms, thesis_ms, env_ms, e_s, m_s, e_t, m_t;
+    double shader_ms, thesis_ms, env_ms, fixed_ms, e_s, m_s, e_t, m_t, e_x, m_x;
 } bench_row;
 
-/* The results as a markdown table, as comment lines of the results file. */
+/* The results as a markdown table, as comment lines of the results file: the product
+ * as btf render draws this scene (fixed light), then the run-time light path. */
 static void print_table(const bench_row *r, int n)
 {
-    printf("# | C | product ms | thesis ms | thesis / product | environment ms | environment / point | "
-           "fetches (product / thesis) | ALU est. | "
-           "RMSE vs btf_decode (product / thesis) | max error (product / thesis) |\n");
-    printf("# |---|---|---|---|---|---|---|---|---|---|\n");
+    printf("# | C | product ms (fixed light) | thesis ms | thesis / product | run-time light ms | thesis / run-time | "
+           "environment ms | environment / run-time | fetches (fixed / run-time / thesis) | ALU est. (fixed / thesis) | "
+           "RMSE vs btf_decode (fixed / run-time / thesis) | max error (fixed / run-time / thesis) |\n");
+    printf("# |---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (int i = 0; i < n; i++)
-        printf("# | %d | %.1f | %.1f | %.2f | %.1f | %.2f | %d / %d | %d / %d | %.3f / %.3f | %.1f / %.1f |\n", r[i].C,
-               r[i].shader_ms, r[i].thesis_ms, r[i].thesis_ms / r[i].shader_ms, r[i].env_ms,
-               r[i].env_ms / r[i].shader_ms, shader_fetches(r[i].C), thesis_fetches(r[i].C),
-               shader_alu(r[i].C), thesis_alu(r[i].C), r[i].e_s, r[i].e_t, r[i].m_s, r[i].m_t);
+        printf("# | %d | %.1f | %.1f | %.2f | %.1f | %.2f | %.1f | %.2f | %d / %d / %d | %d / %d | %.3f / %.3f / %.3f | "
+               "%.1f / %.1f / %.1f |\n",
+               r[i].C, r[i].fixed_ms, r[i].thesis_ms, r[i].thesis_ms / r[i].fixed_ms, r[i].shader_ms,
+               r[i].thesis_ms / r[i].shader_ms, r[i].env_ms, r[i].env_ms / r[i].shader_ms, fixed_fetches(r[i].C),
+               shader_fetches(r[i].C), thesis_fetches(r[i].C), fixed_alu(r[i].C), thesis_alu(r[i].C), r[i].e_x, r[i].e_s,
+               r[i].e_t, r[i].m_x, r[i].m_s, r[i].m_t);
 }
 
 static int run(btf_gl *gl, const btf_package *p, const char *dir)
@@ -872,9 +906,14 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     printf("textured_fetches 1 per_fragment\ntextured_alu 4 per_fragment_est\n");
     printf("textured_rmse_vs_all_chunks %.3f 0..255\n", e_tex);
 
-    /* BENCH_ALT_SHADERS=DIR: a third case, the product program assembled from DIR's
-     * shader files (same host layout), for A/B runs of a shader change. */
+    /* BENCH_ALT_SHADERS=DIR: one more case, the product program assembled from DIR's
+     * shader files (same host layout), for A/B runs of a shader change; with
+     * BENCH_ALT_FIXED=1 built and bound as the fixed-light case, else as `shader`. */
     const char *alt = getenv("BENCH_ALT_SHADERS");
+    int alt_fixed = getenv("BENCH_ALT_FIXED") && atoi(getenv("BENCH_ALT_FIXED")) == 1;
+    btf_gl_fixed *fixed = NULL; /* the per-draw light weights of the fixed-light case */
+    if (btf_gl_fixed_create(gl, g, &fixed, &err) != BTF_OK)
+        return die("fixed light", &err);
     static const int Cs[5] = {1, 2, 4, 8, 16};
     bench_row rows[5];
     int n_rows = 0;
@@ -885,16 +924,18 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         ref_decode(p, &ref, C);
         /* product: the program specialised for the package (no levels), the filter
          * (nearest) and C, as btf render builds it (btf_gl_package_defines) */
-        product_ctx pc = {&s, g, C, prog, NULL}, pe = {&s, g, C, NULL, &studio}, pa = {&s, g, C, NULL, NULL};
+        product_ctx pc = {&s, g, C, prog, NULL, NULL}, pe = {&s, g, C, NULL, &studio, NULL},
+                    px = {&s, g, C, NULL, NULL, fixed}, pa = {&s, g, C, NULL, NULL, alt_fixed ? fixed : NULL};
         thesis_ctx tc = {.s = &s, .p = p, .prog = thesis};
-        bench_case c[4] = {{.setup = product_setup, .ctx = &pc}, {.setup = thesis_setup, .ctx = &tc},
-                           {.setup = product_setup, .ctx = &pe}, {.setup = product_setup, .ctx = &pa}};
-        int n_cases = alt ? 4 : 3;
-        if (product_build(gl, &pc, NULL) || product_build(gl, &pe, NULL) || (alt && product_build(gl, &pa, alt)) ||
-            thesis_create(gl, p, C, &tc.td))
+        bench_case c[5] = {{.setup = product_setup, .ctx = &pc}, {.setup = thesis_setup, .ctx = &tc},
+                           {.setup = product_setup, .ctx = &pe}, {.setup = product_setup, .ctx = &px},
+                           {.setup = product_setup, .ctx = &pa}};
+        int n_cases = alt ? 5 : 4;
+        if (product_build(gl, &pc, NULL) || product_build(gl, &pe, NULL) || product_build(gl, &px, NULL) ||
+            (alt && product_build(gl, &pa, alt)) || thesis_create(gl, p, C, &tc.td))
             return 1;
         prog = pc.prog;
-        double e[4], m[4];
+        double e[5], m[5];
         if (time_frames(gl, &s, t, c, n_cases))
             return 1;
         for (int i = 0; i < n_cases; i++) /* the environment's picture is not btf_decode's */
@@ -902,6 +943,7 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
                 return 1;
         thesis_free(gl, &tc.td);
         btf_shader_program_free(gl, pa.prog);
+        btf_shader_program_free(gl, px.prog);
         btf_shader_program_free(gl, pe.prog);
         frame_cost ms_s = c[0].cost, ms_t = c[1].cost;
         printf("shader_C%d_ms %.2f ms\nthesis_C%d_ms %.2f ms\n", C, ms_s.wall_ms, C, ms_t.wall_ms);
@@ -918,17 +960,26 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
                ms_e.cpu_ms, C, ms_e.cpu_ms / ms_s.cpu_ms, C, ms_t.cpu_ms / ms_e.cpu_ms);
         if (ms_e.gpu_ms > 0 && ms_s.gpu_ms > 0)
             printf("env_over_point_C%d_gpu_ratio %.3f x\n", C, ms_e.gpu_ms / ms_s.gpu_ms);
+        frame_cost ms_x = c[3].cost;
+        printf("fixed_C%d_cpu_ms %.2f ms\nthesis_over_fixed_C%d_cpu_ratio %.3f x\nfixed_over_shader_C%d_cpu_ratio %.3f x\n"
+               "fixed_C%d_rmse %.3f 0..255\nfixed_C%d_max_err %.1f 0..255\n",
+               C, ms_x.cpu_ms, C, ms_t.cpu_ms / ms_x.cpu_ms, C, ms_x.cpu_ms / ms_s.cpu_ms, C, e[3], C, m[3]);
+        if (ms_x.gpu_ms > 0 && ms_t.gpu_ms > 0)
+            printf("fixed_C%d_gpu_ms %.3f ms\nthesis_over_fixed_C%d_gpu_ratio %.3f x\n", C, ms_x.gpu_ms, C,
+                   ms_t.gpu_ms / ms_x.gpu_ms);
         if (alt)
-            printf("alt_C%d_cpu_ms %.2f ms\nthesis_over_alt_C%d_cpu_ratio %.3f x\nalt_over_shader_C%d_cpu_ratio %.3f x\n"
+            printf("alt_C%d_cpu_ms %.2f ms\nthesis_over_alt_C%d_cpu_ratio %.3f x\nalt_over_%s_C%d_cpu_ratio %.3f x\n"
                    "alt_C%d_rmse %.3f 0..255\nalt_C%d_max_err %.1f 0..255\n",
-                   C, c[3].cost.cpu_ms, C, ms_t.cpu_ms / c[3].cost.cpu_ms, C, c[3].cost.cpu_ms / ms_s.cpu_ms, C, e[3], C,
-                   m[3]);
+                   C, c[4].cost.cpu_ms, C, ms_t.cpu_ms / c[4].cost.cpu_ms, alt_fixed ? "fixed" : "shader", C,
+                   c[4].cost.cpu_ms / (alt_fixed ? ms_x : ms_s).cpu_ms, C, e[4], C, m[4]);
         printf("shader_C%d_fetches %d per_fragment\nthesis_C%d_fetches %d per_fragment\n", C, shader_fetches(C), C,
                thesis_fetches(C));
+        printf("fixed_C%d_fetches %d per_fragment\nfixed_C%d_alu %d per_fragment_est\n", C, fixed_fetches(C), C,
+               fixed_alu(C));
         printf("shader_C%d_alu %d per_fragment_est\nthesis_C%d_alu %d per_fragment_est\n", C, shader_alu(C), C,
                thesis_alu(C));
         fflush(stdout);
-        rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, ms_e.cpu_ms, e[0], m[0], e[1], m[1]};
+        rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, ms_e.cpu_ms, ms_x.cpu_ms, e[0], m[0], e[1], m[1], e[3], m[3]};
     }
     print_table(rows, n_rows);
     if (!getenv("BENCH_MAX_C") && (run_levels(gl, p, dir, &s, t) || run_fetch(gl, &s, t)))
@@ -937,6 +988,7 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     btf_gl_texture_free(gl, tex);
     f->DeleteProgram(thesis);
     f->DeleteProgram(textured);
+    btf_gl_fixed_free(gl, fixed);
     btf_gl_package_free(gl, g);
     btf_shader_program_free(gl, prog);
     btf_gl_target_free(gl, t);

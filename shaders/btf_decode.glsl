@@ -22,7 +22,9 @@
 //   The view's block: btf_interp.blk (bits 12.. of the view vertex's .w in btf_dirs_block).
 // Per fragment: 2 direction texels, then per view sample (3): one u_btf_tex texel per
 // 4 slots (4 bilinear, twice between two levels) and per light sample (3) one
-// u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/4) + 3 ceil(C/4)) = 2 + 12 ceil(C/4) texels, nearest.
+// u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/4) + 3 ceil(C/4)) = 2 + 12 ceil(C/4) texels, nearest;
+// with BTF_FIXED_LIGHT (below) no light lookup and one u_btf_lw texel per view sample
+// and 4 slots: 1 + 6 ceil(C/4).
 
 #ifndef BTF_MAX_CHUNKS
 #define BTF_MAX_CHUNKS 64
@@ -54,6 +56,21 @@ uniform int u_btf_wrap;      // 1 tile (indices modulo the size), 0 clamp to the
 #define BTF__LEVELS (BTF_LEVELS == 1)
 #else
 #define BTF__LEVELS (u_btf_levels > 1)
+#endif
+
+// Host specialisation BTF_FIXED_LIGHT (1): the light has one local direction at every
+// fragment of the draw (a distant light on a flat surface), so the host blends each
+// slot's weights over the light's three samples once per draw (C: btf_gl_fixed_update)
+// into u_btf_lw, texel (view, h) = slots 4h..4h+3 as R (bits 0..10) | G (11..21) |
+// B (22..31) on per-draw grids (u_btf_lq[6h + k]: lo of R, G, B; [6h + 3 + k]: steps),
+// and the decoder reads one weight texel per view sample and layer instead of three,
+// and looks no light direction up (the `light` arguments are ignored).
+#if defined(BTF_FIXED_LIGHT) && BTF_FIXED_LIGHT == 1
+#define BTF__FIXED true
+uniform highp usampler2D u_btf_lw;
+uniform vec4 u_btf_lq[BTF_MAX_CHUNKS / 4 * 6];
+#else
+#define BTF__FIXED false
 #endif
 
 // (floor(a / n), a - n * floor(a / n)) for n > 0 and |a| < 2^24: the quotient in
@@ -129,6 +146,12 @@ vec4 btf_tex_quad(int h, ivec2 tile, int l0, ivec4 xy0, vec2 a0, int l1, ivec4 x
 // weights sum to 1: lo + step * sum(w q) = sum(w (lo + step q))).
 vec3 btf_quad(int h, vec4 T, int vi, btf_interp il)
 {
+#if defined(BTF_FIXED_LIGHT) && BTF_FIXED_LIGHT == 1
+    uvec4 u = texelFetch(u_btf_lw, ivec2(vi, h), 0);
+    vec4 wr = u_btf_lq[6 * h] + u_btf_lq[6 * h + 3] * vec4(u & 2047u);
+    vec4 wg = u_btf_lq[6 * h + 1] + u_btf_lq[6 * h + 4] * vec4(u >> 11 & 2047u);
+    vec4 wb = u_btf_lq[6 * h + 2] + u_btf_lq[6 * h + 5] * vec4(u >> 22);
+#else
     uvec4 u0 = texelFetch(u_btf_wt, ivec3(il.idx.x, vi, h), 0);
     uvec4 u1 = texelFetch(u_btf_wt, ivec3(il.idx.y, vi, h), 0);
     uvec4 u2 = texelFetch(u_btf_wt, ivec3(il.idx.z, vi, h), 0);
@@ -138,6 +161,7 @@ vec3 btf_quad(int h, vec4 T, int vi, btf_interp il)
     vec4 wr = u_btf_wq[6 * h] + u_btf_wq[6 * h + 3] * qr;
     vec4 wg = u_btf_wq[6 * h + 1] + u_btf_wq[6 * h + 4] * qg;
     vec4 wb = u_btf_wq[6 * h + 2] + u_btf_wq[6 * h + 5] * qb;
+#endif
     return vec3(dot(T, wr), dot(T, wg), dot(T, wb));
 }
 
@@ -235,7 +259,9 @@ vec3 btf_decode_lod(vec2 uv, vec3 light, vec3 view, float lod)
     float f = t.f;
     ivec4 xy0 = t.xy0, xy1 = t.xy1;
     vec2 a0 = t.a0, a1 = t.a1;
-    btf_interp il = btf_dirs_interp_vec(0, light);
+    btf_interp il;
+    if (!BTF__FIXED)
+        il = btf_dirs_interp_vec(0, light);
     btf_interp iv = btf_dirs_interp_vec(1, view);
     vec3 rgb = iv.w.x * btf_view_sample(iv.idx.x, iv.blk.x, il, l0, xy0, a0, l1, xy1, a1, f);
     rgb += iv.w.y * btf_view_sample(iv.idx.y, iv.blk.y, il, l0, xy0, a0, l1, xy1, a1, f);

@@ -134,7 +134,7 @@ void btf_light_decode(vec2 uv, vec3 light, vec3 view, mat3 frame, float lod, out
     ivec4 xy0 = t.xy0, xy1 = t.xy1;
     vec2 a0 = t.a0, a1 = t.a1;
     btf_interp il;
-    if (BTF__POINT)
+    if (BTF__POINT && !BTF__FIXED)
         il = btf_dirs_interp_vec(0, light);
     vec3 e[9], off;
     if (BTF__ENV)

@@ -21,7 +21,7 @@ rm -rf "$OUT" "$obj"
 mkdir -p "$OUT/lib" "$obj"
 
 src=(codec/common/*.c codec/format/*.c codec/decompress/*.c codec/image/btf_png.c codec/image/btf_webp.c
-     shaders/host/btf_gl.c shaders/host/btf_gl_egl.c shaders/host/btf_gl_dirs.c shaders/host/btf_gl_package.c
+     shaders/host/btf_gl.c shaders/host/btf_gl_egl.c shaders/host/btf_gl_dirs.c shaders/host/btf_gl_package.c shaders/host/btf_gl_fixed.c
      shaders/host/btf_render.c shaders/host/btf_shader.c shaders/host/btf_env.c
      bench/gpu/btf_image_lite.c bench/gpu/btf_gl_no_osmesa.c bench/gpu/no_lapack.c bench/bench_shader.c)
 inc=(-Icodec/include -Icodec/common -Icodec/image -Icodec/format -Icodec/decompress -Icodec/compress

@@ -404,10 +404,11 @@ btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_sh
     static const char *names[2] = {"u_btf_tex", "u_btf_wt"};
     const GLuint tex[2] = {g->tex, g->wt};
     int env = f->GetUniformLocation(prog->id, "u_btf_env_w") >= 0;
+    int fixed = f->GetUniformLocation(prog->id, "u_btf_lw") >= 0;
     for (int i = 0; i < 2; i++) {
         GLint loc = f->GetUniformLocation(prog->id, names[i]);
-        if (loc < 0 && i == 1 && env)
-            continue; /* environment light alone: no light weights */
+        if (loc < 0 && i == 1 && (env || fixed))
+            continue; /* environment light alone, or the light blended per draw: no light weights */
         if (loc < 0)
             return btf_fail(err, BTF_ERR_MISSING, "shader '%s': no sampler %s", prog->name, names[i]);
         f->ActiveTexture((GLenum)(GL_TEXTURE0 + first_unit + i));
@@ -493,6 +494,25 @@ void btf_gl_package_quant_error(const btf_gl_package *g, double *worst, double *
         *worst = fmax(*worst, e);
         *rms = fmax(*rms, sqrt(v));
     }
+}
+
+int btf_gl_package_slots(const btf_gl_package *g, int n_chunks)
+{
+    int used = btf__slots_used(g, btf__prefix(g, n_chunks));
+    return used > 0 ? used : 1;
+}
+
+float btf_gl_package_weight(const btf_gl_package *g, int s, int l, int v, int c)
+{
+    static const float qmax[3] = {2047.0f, 2047.0f, 1023.0f};
+    int j = 0;
+    while (j < g->n_loaded - 1 && g->chunk_slot[j] != s)
+        j++; /* the slot's first chunk: the weights btf__upload_weights packed */
+    float lo = g->wq[(s / 4) * 24 + c * 4 + s % 4], step = g->wq[(s / 4) * 24 + 12 + c * 4 + s % 4];
+    float w = g->src->wt[j][((size_t)v * g->lights.n_dirs + l) * 3 + c];
+    float q = step > 0.0f ? rintf((w - lo) / step) : 0.0f; /* as btf__pack_weights_slot rounds */
+    q = q < 0.0f ? 0.0f : q > qmax[c] ? qmax[c] : q;
+    return lo + step * q;
 }
 
 int btf_gl_package_defines(const btf_gl_package *g, int filter, int n_chunks, btf_shader_define *defs,

@@ -64,7 +64,8 @@ btf_result btf_gl_package_upload(btf_gl *gl, const btf_package *p, const char *d
 void btf_gl_package_free(btf_gl *gl, btf_gl_package *g);
 
 /* Binds the 4 textures to units first_unit..first_unit+3 (u_btf_env_w, where the
- * program has it, to first_unit+4) and sets every u_btf_*
+ * program has it, to first_unit+4; a BTF_FIXED_LIGHT program has no u_btf_wt, its
+ * u_btf_lw is btf_gl_fixed_bind's) and sets every u_btf_*
  * uniform of prog (in use): chunks used = all uploaded. */
 btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_shader_program *prog, int first_unit,
                                btf_error *err);
@@ -100,6 +101,13 @@ int btf_gl_package_defines(const btf_gl_package *g, int filter, int n_chunks, bt
  * expected square error at a random texel and direction pair, before the angular
  * and spatial interpolation average some of it away). Tests compare the GPU with btf_decode against both. */
 void btf_gl_package_quant_error(const btf_gl_package *g, double *worst, double *rms);
+
+/* Slots (4 per layer) that the first n_chunks chunks use (0 = all loaded), at least 1. */
+int btf_gl_package_slots(const btf_gl_package *g, int n_chunks);
+
+/* Weight of slot s for light l, view v, colour channel c exactly as u_btf_wt holds it:
+ * lo + step q on the slot's grid (the value the run-time decoder dequantises). */
+float btf_gl_package_weight(const btf_gl_package *g, int s, int l, int v, int c);
 
 /* Level of detail of prog (in use): fixed = 0: the render program takes it from
  * screen-space derivatives (u_btf_lod_auto = 1, btf_gl_package_bind's default);

@@ -1,6 +1,7 @@
 /* btf_render.c - scene setup and drawing for `btf render` (see btf_render.h). */
 #include "btf_render.h"
 #include "btf_env.h"
+#include "btf_gl_fixed.h"
 
 #include "btf_image.h"
 #include "btf_shader.h"
@@ -288,7 +289,9 @@ void btf_render_mesh_free(btf_render_mesh *m)
 struct btf_renderer {
     btf_gl *gl;
     btf_shader_program *prog;     /* the one in use: one of progs */
-    btf_shader_program *progs[4]; /* by lights: 1 point, 2 environment, 3 both; built when first used */
+    btf_shader_program *progs[8]; /* by lights: 1 point, 2 environment, 3 both; + 4: the point light
+                                     blended per draw (BTF_FIXED_LIGHT); built when first used */
+    btf_gl_fixed *fixed;          /* the per-draw light weights of progs[4 + ...]; made when first used */
     int debug;
     btf_env_quad quad;            /* the environment's quadratic, for quad_env turned quad_rot */
     const btf_env *quad_env;
@@ -299,19 +302,20 @@ struct btf_renderer {
     int n_indices;
 };
 
-/* Makes progs[lights] (1 point, 2 environment, 3 both) current, building it first:
- * specialised for the package (levels, layers in use) and the lights; the filter stays
- * a uniform. */
+/* Makes progs[lights] (1 point, 2 environment, 3 both; + 4 the point light blended per
+ * draw) current, building it first: specialised for the package (levels, layers in use)
+ * and the lights; the filter stays a uniform. */
 static btf_result btf__renderer_program(btf_renderer *r, int lights, btf_error *err)
 {
     if (!r->progs[lights]) {
-        btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 2];
+        btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 3];
         char vals[BTF_GL_PACKAGE_DEFINES][16];
         int n = btf_gl_package_defines(r->pkg, 0, 0, defs, vals);
         defs[0] = (btf_shader_define){"BTF_RENDER_DEBUG", "1"}; /* in place of BTF_FILTER: a uniform here */
         defs[n] = (btf_shader_define){"BTF_POINT", lights & 1 ? "1" : "0"};
         defs[n + 1] = (btf_shader_define){"BTF_ENV", lights & 2 ? "1" : "0"};
-        btf_shader_desc sd = {.program = "render", .defines = r->debug ? defs : defs + 1, .n_defines = n + 1 + !!r->debug};
+        defs[n + 2] = (btf_shader_define){"BTF_FIXED_LIGHT", lights & 4 ? "1" : "0"};
+        btf_shader_desc sd = {.program = "render", .defines = r->debug ? defs : defs + 1, .n_defines = n + 2 + !!r->debug};
         btf_result res = btf_shader_build(r->gl, &sd, &r->progs[lights], NULL, err);
         if (res != BTF_OK)
             return res;
@@ -361,8 +365,9 @@ void btf_renderer_free(btf_renderer *r)
     if (r->vao)
         f->DeleteVertexArrays(1, &r->vao);
     btf_gl_package_free(r->gl, r->pkg);
-    for (int i = 0; i < 4; i++)
+    for (int i = 0; i < 8; i++)
         btf_shader_program_free(r->gl, r->progs[i]);
+    btf_gl_fixed_free(r->gl, r->fixed);
     free(r);
 }
 
@@ -434,16 +439,40 @@ void btf_render_light_uniforms(btf_gl *gl, GLuint prog, const btf_render_params 
     f->UniformMatrix3fv(f->GetUniformLocation(prog, "u_env_q"), 3, GL_FALSE, q->q);
 }
 
-btf_result btf_renderer_use(btf_renderer *r, const btf_render_params *p, const btf_render_camera *c, btf_error *err)
+/* The per-draw light weights for local light l (made when first needed) bound to the
+ * program in use. */
+static btf_result btf__renderer_fixed(btf_renderer *r, const float l[3], int n_chunks, btf_error *err)
 {
-    btf_result pr = btf__renderer_program(r, (p->no_point_light ? 0 : 1) | (p->env ? 2 : 0), err);
+    btf_result res = r->fixed ? BTF_OK : btf_gl_fixed_create(r->gl, r->pkg, &r->fixed, err);
+    if (res == BTF_OK)
+        res = btf_gl_fixed_update(r->gl, r->fixed, r->pkg, l, n_chunks, err);
+    if (res == BTF_OK)
+        btf_gl_fixed_bind(r->gl, r->fixed, r->prog, BTF_GL_FIXED_UNIT);
+    return res;
+}
+
+/* btf_renderer_use; fixed = 1: the distant light has one local direction, c->light,
+ * over the whole mesh (the built-in plane: its local frame is the world frame), so the
+ * point light is blended per draw (BTF_FIXED_LIGHT). */
+static btf_result btf__renderer_use(btf_renderer *r, const btf_render_params *p, const btf_render_camera *c,
+                                    int fixed, btf_error *err)
+{
+    int lights = (p->no_point_light ? 0 : 1) | (p->env ? 2 : 0);
+    btf_result pr = btf__renderer_program(r, lights | (fixed && (lights & 1) ? 4 : 0), err);
     if (pr != BTF_OK)
         return pr;
     btf_gl_fn(r->gl)->UseProgram(r->prog->id);
     btf_result res = btf_gl_package_bind(r->gl, r->pkg, r->prog, 0, err);
     if (res == BTF_OK)
         btf__renderer_uniforms(r, p, c);
+    if (res == BTF_OK && fixed && (lights & 1))
+        res = btf__renderer_fixed(r, c->light, p->n_chunks, err);
     return res;
+}
+
+btf_result btf_renderer_use(btf_renderer *r, const btf_render_params *p, const btf_render_camera *c, btf_error *err)
+{
+    return btf__renderer_use(r, p, c, 0, err);
 }
 
 btf_result btf_render_frame_begin(btf_gl *gl, const btf_render_params *p, btf_gl_target *t, GLuint *depth,
@@ -489,7 +518,7 @@ btf_result btf_renderer_draw(btf_renderer *r, const btf_render_params *p, btf_gl
     res = btf_render_frame_begin(r->gl, p, t, &depth, err);
     if (res != BTF_OK)
         return res;
-    res = btf_renderer_use(r, p, &cam, err);
+    res = btf__renderer_use(r, p, &cam, p->geometry == BTF_RENDER_PLANE, err);
     if (res == BTF_OK)
         res = btf__renderer_mesh(r, p->geometry, err);
     if (res == BTF_OK) {

@@ -31,7 +31,9 @@
  *   taller than wide: horizontal, tan(fovy/2) = tan(fov/2) / aspect), aspect =
  *   width/height, near 0.05*dist, far dist + 2*extent (extent 0: 2).
  * - Light: distant, towards dir(light_theta, light_phi) (u_light.w = 0), unless
- *   no_point_light; an environment (env) lights too when given.
+ *   no_point_light; an environment (env) lights too when given. On the plane the
+ *   light's local direction is the same at every pixel: btf_renderer_draw blends it
+ *   once per draw (btf_gl_fixed.h, BTF_FIXED_LIGHT); btf_renderer_use (any mesh) does not.
  * Output: with the point light alone, exposure 1 and no tone mapping, the BTF's own
  * values (byte/255 scale), clamped to 0..1; else doc/lighting.md section 4.
  *
