@@ -26,7 +26,7 @@
  *      error between the envelope's points); the same at the thesis format's error.
  * Then what it costs: the ladder's encoding time, libwebp's decoding time per atlas
  * (lossy against the default's lossless files), and whether the C reader takes a
- * lossy texture (it does not: printed). LOSSY_STUDY=1 (default) first compares
+ * lossy texture (printed; it does since the reader takes lossy WebP). LOSSY_STUDY=1 (default) first compares
  * encoder settings on the first material (sns, filter, method, the Y table, sharp
  * YUV, target_PSNR); LOSSY_DUMP=DIR writes its files for bench/lossy_browser.mjs.
  *
@@ -382,23 +382,11 @@ static double eval_reference(const btf *src, const pkg *k)
 
 /* ---------------------------------------------------------------- lossy WebP */
 
-/* libwebp's R of a decoded Y with U = V = 128 (VP8YUVToR, src/dsp/yuv.h). */
-static int webp_r_of_y(int y)
-{
-    int v = ((y * 19077) >> 8) + ((128 * 26149) >> 8) - 14234;
-    return (v & ~16383) == 0 ? v >> 6 : v < 0 ? 0 : 255;
-}
-
-/* The Y whose decoded R is nearest each q (ties: the smaller Y). */
+/* The q -> Y table of the library's lossy encoder (btf_webp_y_of_q). */
 static void y_table(uint8_t tab[256])
 {
-    for (int q = 0; q < 256; q++) {
-        int best = 0;
-        for (int y = 1; y < 256; y++)
-            if (abs(webp_r_of_y(y) - q) < abs(webp_r_of_y(best) - q))
-                best = y;
-        tab[q] = (uint8_t)best;
-    }
+    for (int q = 0; q < 256; q++)
+        tab[q] = (uint8_t)btf_webp_y_of_q(q);
 }
 
 /* pic as YUV 4:2:0: Y from the table, U = V = 128. 0 on failure. */
@@ -435,9 +423,21 @@ static int import_rgb(WebPPicture *pic, const uint8_t *grey, int w, int h)
     return ok;
 }
 
-/* Encodes grey (w x h) as a lossy WebP at quality q with cfg; *out malloc'd. 0 on failure. */
+/* 1 when cfg is the library's lossy encoder (btf_webp_encode_grey_lossy). */
+static int cfg_is_library(const lossy_cfg *cfg)
+{
+    return cfg->method == 6 && cfg->sns == 0 && cfg->filter == 0 && !cfg->autofilter && !cfg->sharp && cfg->ytable &&
+           !(cfg->target_psnr > 0.0f);
+}
+
+/* Encodes grey (w x h) as a lossy WebP at quality q with cfg (the library's encoder
+ * when cfg is its settings and q a whole number); *out malloc'd. 0 on failure. */
 static int webp_lossy(const uint8_t *grey, int w, int h, const lossy_cfg *cfg, float q, uint8_t **out, size_t *n)
 {
+    if (cfg_is_library(cfg) && q == rintf(q)) {
+        btf_error err = {0};
+        return btf_webp_encode_grey_lossy(grey, w, h, (int)q, out, n, &err) == BTF_OK;
+    }
     WebPConfig c;
     WebPPicture pic;
     if (!WebPConfigInit(&c) || !WebPPictureInit(&pic))
@@ -772,7 +772,7 @@ static void study_ymap(void)
     double et = 0.0, er = 0.0;
     for (int q = 0; q < 256; q++) {
         int yr = (16839 * q + 33059 * q + 6420 * q + (1 << 15) + (16 << 16)) >> 16; /* VP8RGBToY */
-        double a = webp_r_of_y(tab[q]) - q, b = webp_r_of_y(yr) - q;
+        double a = btf_webp_r_of_y(tab[q]) - q, b = btf_webp_r_of_y(yr) - q;
         et += a * a, er += b * b;
     }
     printf("lossy_ymap_table_rms %.3f q\n", sqrt(et / 256));

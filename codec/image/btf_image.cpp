@@ -497,11 +497,54 @@ static btf_result to_grey(const char *what, int w, int h, int ch, uint8_t **pixe
     return BTF_OK;
 }
 
+// A lossy WebP (checked in s) as grey: R of libwebp's RGB decode (btf_webp_decode_grey),
+// its header size in *w, *h; refused before allocating when the header claims more
+// pixels than the ratios of btf_image.h allow.
+static btf_result lossy_grey(const source &s, int *w, int *h, uint8_t **pixels, btf_error *err)
+{
+    int fw = 0, fh = 0;
+    btf_result r = btf_webp_check(s.data, s.n, s.what, &fw, &fh, err);
+    size_t n = (size_t)fw * (size_t)fh * 3;
+    if (r == BTF_OK && (double)n > (double)s.n * BTF_IMAGE_MAX_PNG_RATIO && n > BTF_IMAGE_MAX_WEBP_FLOOR)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: a %zu-byte lossy WebP claims %dx%d pixels (over %dx its size and %d MiB)",
+                     s.what, s.n, fw, fh, BTF_IMAGE_MAX_PNG_RATIO, BTF_IMAGE_MAX_WEBP_FLOOR >> 20);
+    uint8_t *px = r == BTF_OK ? (uint8_t *)malloc((size_t)fw * (size_t)fh) : nullptr;
+    if (r == BTF_OK && !px)
+        r = btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %dx%d pixels", s.what, fw, fh);
+    if (r == BTF_OK)
+        r = btf_webp_decode_grey(s.data, s.n, s.what, fw, fh, px, err);
+    if (r != BTF_OK) {
+        free(px);
+        return r;
+    }
+    *w = fw, *h = fh, *pixels = px;
+    return BTF_OK;
+}
+
 extern "C" btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
 {
+    source s;
     int ch = 0;
-    btf_result r = btf_image_read_u8(path, w, h, &ch, pixels, err);
+    *pixels = nullptr;
+    btf_result r = load_file(path, 0, s, err);
+    if (r == BTF_OK && s.format && btf_webp_is_lossy(s.data, s.n))
+        return lossy_grey(s, w, h, pixels, err);
+    r = r == BTF_OK ? read_u8(s, w, h, &ch, pixels, err) : r;
     return r == BTF_OK ? to_grey(path, *w, *h, ch, pixels, err) : r;
+}
+
+// btf_image_read_with for a lossy WebP (checked in s): only as one grey channel of
+// the expected size, compared before anything is allocated.
+static btf_result read_lossy_with(const source &s, int w, int h, int channels, int grey, uint8_t **pixels,
+                                  btf_error *err)
+{
+    int fw = 0, fh = 0;
+    if (!grey || channels != 1)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: a lossy WebP is read only as a grey texture", s.what);
+    btf_result r = btf_webp_check(s.data, s.n, s.what, &fw, &fh, err);
+    if (r == BTF_OK && (fw != w || fh != h))
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with 1 channels, expected %dx%d with 1", s.what, fw, fh, w, h);
+    return r == BTF_OK ? lossy_grey(s, &fw, &fh, pixels, err) : r;
 }
 
 extern "C" btf_result btf_image_read_with(const btf_files *files, const char *path, int w, int h, int channels,
@@ -510,6 +553,8 @@ extern "C" btf_result btf_image_read_with(const btf_files *files, const char *pa
     source s;
     *pixels = nullptr;
     btf_result r = load_with(files, path, 1, s, err); // the header first: no decode of a wrong size
+    if (r == BTF_OK && !strcmp(s.format, "webp") && btf_webp_is_lossy(s.data, s.n))
+        return read_lossy_with(s, w, h, channels, grey, pixels, err);
     auto in = r == BTF_OK ? open_image(s, kMaxSide, &r, err) : nullptr;
     if (!in)
         return r;

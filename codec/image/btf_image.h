@@ -63,8 +63,9 @@ btf_result btf_image_write_flags(const char *path, int w, int h, int channels, i
 btf_result btf_image_write_smallest(const char *stem, int w, int h, const uint8_t *grey, int flags, const char **ext,
                                     long long *bytes, btf_error *err);
 /* Reads an image as grey (malloc'd w*h bytes, caller frees): one channel as it is,
- * or three or four whose R, G and B agree (alpha 255), as a grey WebP holds them;
- * any other image is BTF_ERR_FORMAT. */
+ * or three or four whose R, G and B agree (alpha 255), as a lossless grey WebP holds
+ * them, or R of a lossy WebP's RGB decode (btf_webp_decode_grey); any other image is
+ * BTF_ERR_FORMAT. */
 btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err);
 
 /* For readers of a directory (packages, thesis packages): the PNG or WebP at path read
@@ -73,7 +74,8 @@ btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixel
  * btf_image_info_with: the header only. btf_image_read_with: the pixels (malloc'd) of
  * an image whose header says w x h with channels channels, else BTF_ERR_FORMAT before
  * anything is decoded; with grey and channels 1, three or four channels of one grey
- * (a grey WebP) count as one and are read as one (btf_image_read_grey). */
+ * (a grey WebP) count as one and are read as one, and a lossy WebP is read as R of its
+ * RGB decode (btf_image_read_grey); a lossy WebP is refused for anything else. */
 btf_result btf_image_info_with(const btf_files *files, const char *path, int *w, int *h, int *channels,
                                btf_error *err);
 btf_result btf_image_read_with(const btf_files *files, const char *path, int w, int h, int channels, int grey,

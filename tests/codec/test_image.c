@@ -3,7 +3,9 @@
  * default encoding of the same pixels and against the pixels themselves; filter Up
  * on every row (BTF_IMAGE_PNG_UP) read back from the file's rows; lossless
  * WebP (codec/image/btf_webp.h): grey round trips, the smaller-of-two writer, and damaged
- * or non-grey files refused with one clear error. */
+ * or non-grey files refused with one clear error; lossy WebP: R of libwebp's own RGB
+ * decode, the q -> Y table, and malformed, extended (alpha, animation) or wrongly
+ * sized files refused. */
 #include <criterion/criterion.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -15,6 +17,8 @@
 #include "btf_webp.h"
 #include "fixtures.h"
 
+#include <math.h>
+#include <webp/decode.h>
 #include <webp/encode.h>
 #include <zlib.h>
 
@@ -235,8 +239,9 @@ Test(image, webp_damaged_or_not_grey_refused)
     cr_assert_eq(btf_webp_check(f, n, "ok", &w, &h, &err), BTF_OK, "%s", err.msg);
     cr_assert(w == 64 && h == 48);
     g = malloc(n);
-    /* cut short, a RIFF size that lies, a lossy chunk, a bad signature byte */
-    const char *want[4] = {"RIFF size", "RIFF size", "not a lossless image", "signature"};
+    /* cut short, a RIFF size that lies, a lossy chunk (the VP8L bytes are no VP8 key
+     * frame), a bad signature byte */
+    const char *want[4] = {"RIFF size", "RIFF size", "not a key frame", "signature"};
     for (int k = 0; k < 4; k++) {
         memcpy(g, f, n);
         size_t m = k == 0 ? n - 7 : n;
@@ -266,5 +271,117 @@ Test(image, webp_damaged_or_not_grey_refused)
     cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &back, &err), BTF_ERR_FORMAT);
     cr_assert_not_null(strstr(err.msg, "not a grey image"), "%s", err.msg);
     free(px), free(f), free(g);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* A lossy grey WebP decodes to R of libwebp's own RGB decode (WebPDecodeRGB, called
+ * here directly), through btf_webp_decode_grey and through the file readers; at
+ * quality 100 it stays within the mapping's and VP8's finest quantiser's error. */
+Test(image, lossy_webp_is_r_of_the_rgb_decode)
+{
+    char dir[256], path[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 11;
+    int w = 96, h = 64;
+    uint8_t *px = grey_image(w, h, 0, &seed), *f = NULL, *back = malloc((size_t)w * h);
+    for (int q = 0; q < 256; q++) /* the table: every code within one level (Y 16..235 covers 0..255) */
+        cr_assert_leq(abs(btf_webp_r_of_y(btf_webp_y_of_q(q)) - q), 1, "q %d", q);
+    int quality[2] = {30, 100};
+    for (int k = 0; k < 2; k++) {
+        size_t n = 0;
+        btf_error err = {0};
+        cr_assert_eq(btf_webp_encode_grey_lossy(px, w, h, quality[k], &f, &n, &err), BTF_OK, "%s", err.msg);
+        int fw = 0, fh = 0;
+        cr_assert_eq(btf_webp_check(f, n, "lossy", &fw, &fh, &err), BTF_OK, "%s", err.msg);
+        cr_assert(fw == w && fh == h && btf_webp_is_lossy(f, n));
+        cr_assert_eq(btf_webp_decode_grey(f, n, "lossy", w, h, back, &err), BTF_OK, "%s", err.msg);
+        int dw = 0, dh = 0;
+        uint8_t *rgb = WebPDecodeRGB(f, n, &dw, &dh);
+        cr_assert(rgb && dw == w && dh == h);
+        double e2 = 0.0;
+        for (int i = 0; i < w * h; i++) {
+            cr_assert_eq(back[i], rgb[3 * i], "pixel %d", i);
+            e2 += ((double)back[i] - px[i]) * ((double)back[i] - px[i]);
+        }
+        WebPFree(rgb);
+        /* quality 100: the table's 0.4 RMS plus VP8's finest quantiser (about one level)
+         * is under 1.5; a decode that lost the table's offset (Y taken as q) would
+         * miss by 16 levels or more near black */
+        if (quality[k] == 100)
+            cr_assert_lt(sqrt(e2 / (w * h)), 1.5, "RMS %.3f at quality 100", sqrt(e2 / (w * h)));
+        put(dir, "lossy.webp", f, n, path, sizeof path);
+        uint8_t *g = NULL, *gw = NULL;
+        int bw = 0, bh = 0;
+        cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &g, &err), BTF_OK, "%s", err.msg);
+        cr_assert(bw == w && bh == h && !memcmp(g, back, (size_t)w * h));
+        cr_assert_eq(btf_image_read_with(NULL, path, w, h, 1, 1, &gw, &err), BTF_OK, "%s", err.msg);
+        cr_assert(!memcmp(gw, back, (size_t)w * h));
+        free(g), free(gw), free(f);
+    }
+    free(px), free(back);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* Reads path as a w x h grey texture and expects BTF_ERR_FORMAT naming want. */
+static void refused(const char *path, int w, int h, const char *want, const char *what)
+{
+    btf_error err = {0};
+    uint8_t *px = NULL;
+    cr_assert_eq(btf_image_read_with(NULL, path, w, h, 1, 1, &px, &err), BTF_ERR_FORMAT, "%s", what);
+    cr_assert_null(px, "%s", what);
+    cr_assert_not_null(strstr(err.msg, want), "%s: %s", what, err.msg);
+}
+
+/* A lossy file the format does not allow is refused with a clear message before it
+ * is decoded: cut short, not a key frame, a bad start code, scaling bits, a first
+ * partition past its chunk, the wrong size, alpha (an extended file), animation,
+ * and any lossy file where a reader wants colour. */
+Test(image, lossy_webp_malformed_refused)
+{
+    char dir[256], path[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 12;
+    int w = 64, h = 48;
+    uint8_t *px = grey_image(w, h, 0, &seed), *f = NULL;
+    size_t n = 0;
+    btf_error err = {0};
+    cr_assert_eq(btf_webp_encode_grey_lossy(px, w, h, 60, &f, &n, &err), BTF_OK, "%s", err.msg);
+    uint8_t *g = malloc(n);
+    struct { size_t at; uint8_t or_, and_; size_t cut; const char *want; } c[] = {
+        {0, 0, 0xff, 7, "RIFF size"},           /* truncated */
+        {20, 1, 0xff, 0, "not a key frame"},    /* frame tag bit 0: an inter frame */
+        {23, 0, 0, 0, "start code"},            /* 0x9d -> 0 */
+        {27, 0x40, 0xff, 0, "scaling"},         /* width's scale bits */
+        {22, 0xff, 0xff, 0, "first partition"}, /* partition size bits 19..23 all set */
+    };
+    for (size_t k = 0; k < sizeof c / sizeof c[0]; k++) {
+        memcpy(g, f, n);
+        g[c[k].at] = (uint8_t)((g[c[k].at] | c[k].or_) & c[k].and_);
+        put(dir, "bad.webp", g, n - c[k].cut, path, sizeof path);
+        refused(path, w, h, c[k].want, c[k].want);
+    }
+    put(dir, "ok.webp", f, n, path, sizeof path);
+    refused(path, w + 16, h, "expected", "wrong size");
+    uint8_t *rgb = NULL;
+    cr_assert_eq(btf_image_read_with(NULL, path, w, h, 3, 0, &rgb, &err), BTF_ERR_FORMAT);
+    cr_assert_not_null(strstr(err.msg, "only as a grey texture"), "%s", err.msg);
+    cr_assert_null(rgb);
+    /* alpha: libwebp writes a lossy image with alpha as an extended file (VP8X, ALPH, VP8) */
+    uint8_t *rgba = malloc((size_t)w * h * 4), *out = NULL;
+    for (int i = 0; i < w * h; i++)
+        rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = px[i], rgba[4 * i + 3] = (uint8_t)(i % 200);
+    size_t na = WebPEncodeRGBA(rgba, w, h, 4 * w, 75.0f, &out);
+    cr_assert_gt(na, 30);
+    put(dir, "alpha.webp", out, na, path, sizeof path);
+    WebPFree(out);
+    refused(path, w, h, "'VP8X'", "alpha");
+    /* animation: an extended header with the animation flag and an ANIM chunk */
+    uint8_t anim[44] = "RIFF\0\0\0\0WEBPVP8X\x0a\0\0\0\x02\0\0\0";
+    anim[24] = (uint8_t)(w - 1), anim[27] = (uint8_t)(h - 1);
+    memcpy(anim + 30, "ANIM\x06\0\0\0", 8);
+    anim[4] = sizeof anim - 8;
+    put(dir, "anim.webp", anim, sizeof anim, path, sizeof path);
+    refused(path, w, h, "'VP8X'", "animation");
+    free(px), free(f), free(g), free(rgba);
     cr_assert_eq(fx_rmtree(dir), 0);
 }
