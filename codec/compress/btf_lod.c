@@ -16,6 +16,7 @@
 #include "btf_lap.h"
 #include "btf_manifest.h"
 #include "btf_png.h"
+#include "btf_webp.h"
 #include "btf_wtz.h"
 #include "btf_common.h"
 #include "btf_read.h"
@@ -29,7 +30,8 @@ typedef struct btf__lod {
     int nl, nb, C, W, H, ch, qmax;
     int resid;       /* 1: version 4, levels < nl-1 may be stored as residuals */
     char *isres;     /* [a*nl+l] version 4: 1 when that level's file is a residual (the smaller coding) */
-    char *iswebp;    /* [a*nl+l] version 4: 1 when that level's file is a lossless WebP (smaller than the PNG) */
+    char *iswebp;    /* [a*nl+l] version 4: 1 when that level's file is a WebP (lossless and smaller than the
+                      * PNG, or level 0's lossy file copied from a version-3 source) */
     int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
     btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
     char *w16res;    /* [a] version 4: the 16-bit weights' coding (BTF__W16_*, the smallest kept) */
@@ -537,9 +539,23 @@ static btf_result btf__keep_smaller(const char *plain, const char *alt, char *ch
     return BTF_OK;
 }
 
+/* 1 when the file at path is a lossy WebP (btf_webp_is_lossy on its first bytes). */
+static int btf__lossy_file(const char *path)
+{
+    uint8_t head[16];
+    FILE *f = fopen(path, "rb");
+    size_t n = f ? fread(head, 1, sizeof head, f) : 0;
+    if (f)
+        fclose(f);
+    return btf_webp_is_lossy(head, n);
+}
+
 /* Level l of component a into tmp: the direct file (level 0 copied from the v1
- * package unless WebP may replace it) and, for version 4 below the coarsest level,
- * the residual, the smaller kept; fills tbytes, isres, iswebp. */
+ * package unless WebP may replace it, and a lossy WebP unless every texture is to be
+ * a PNG: its decode is the level's atlas, and coded again losslessly it would cost
+ * more) and, for
+ * version 4 below the coarsest level, the residual, the smaller kept; fills tbytes,
+ * isres, iswebp. */
 static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir, const char *tmp, btf_error *err)
 {
     const btf_package *p = s->p;
@@ -550,12 +566,14 @@ static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir
     btf__level_stem(s, a, l, 0, name, sizeof name);
     snprintf(to, sizeof to, "%s/%s", tmp, name);
     const char *t = btf__src_file(&p->chunk[a], 0);
-    if (l == 0 && !s->webp && !strcmp(t + btf__stem_len(t), ".png")) { /* the source's own file */
-        char from[8400];
-        snprintf(from, sizeof from, "%s/%s", in_dir, t);
-        snprintf(to, sizeof to, "%s/%s.png", tmp, name);
+    char from[8400];
+    snprintf(from, sizeof from, "%s/%s", in_dir, t);
+    int lossy = l == 0 && s->webp && btf__lossy_file(from); /* --png: its decode as a PNG, as every texture */
+    if (lossy || (l == 0 && !s->webp && !strcmp(t + btf__stem_len(t), ".png"))) { /* the source's own file */
+        snprintf(to, sizeof to, "%s/%s%s", tmp, name, lossy ? ".webp" : ".png");
         r = btf__copy_file(from, to, err);
         s->tbytes[k] = btf_fs_size(to);
+        s->iswebp[k] = (char)lossy;
     } else if (s->ch == 1) {
         r = btf__write_level_file(s, to, aw, ah, s->atlas[k], &s->iswebp[k], &s->tbytes[k], err);
         snprintf(to + strlen(to), sizeof to - strlen(to), "%s", s->iswebp[k] ? ".webp" : ".png");

@@ -17,6 +17,7 @@
 #include "btf_manifest.h"
 #include "btf_metrics.h"
 #include "btf_rd.h"
+#include "btf_webp.h"
 #include "btf_wtz.h"
 #include "btf_color.h"
 #include "btf_common.h"
@@ -65,6 +66,10 @@ typedef struct btf__writer {
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
     const char **tex_ext; /* C: ".png" or ".webp", the extension of component j's texture file once written */
+    int *quality;         /* C: -1, or the lossy WebP quality of component j's texture (version 3, btf_rd_result) */
+    uint8_t **lossy;      /* C: component j's lossy WebP file (malloc'd, lossy_n[j] bytes; its atlas holds its
+                           * decode), NULL for a lossless texture */
+    size_t *lossy_n;
     const btf_package_channel *chan; /* the caller's channel (btf_compress.h), all zero when none */
     long long *est_bytes; /* C, with btf_package_channel.estimate: component j's estimated file bytes; else NULL */
     uint16_t **qwt;       /* C arrays V*L*3 */
@@ -94,7 +99,9 @@ static void btf__writer_free(btf__writer *w)
             free(w->wt_range[j]);
     }
     free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise), free(w->rd_json);
-    free(w->tex_ext), free(w->est_bytes);
+    for (int j = 0; w->lossy && j < w->C; j++)
+        free(w->lossy[j]);
+    free(w->tex_ext), free(w->est_bytes), free(w->quality), free(w->lossy), free(w->lossy_n);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
     free(w->ref);
@@ -123,6 +130,10 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->wt_range = calloc((size_t)C, sizeof *w->wt_range);
     w->tnoise = calloc((size_t)C, sizeof(float)), w->wnoise = calloc((size_t)C, sizeof(float));
     w->tex_ext = calloc((size_t)C, sizeof *w->tex_ext);
+    w->quality = malloc((size_t)C * sizeof(int));
+    w->lossy = calloc((size_t)C, sizeof *w->lossy), w->lossy_n = calloc((size_t)C, sizeof(size_t));
+    for (int j = 0; w->quality && j < C; j++)
+        w->quality[j] = -1;
     w->Pq = calloc((size_t)C, sizeof(double)), w->Pf = calloc((size_t)C, sizeof(double));
     w->Qq = calloc(C2, sizeof(double)), w->Qf = calloc(C2, sizeof(double));
     w->TT = calloc(C2, sizeof(double)), w->WW = calloc(C2, sizeof(double));
@@ -134,7 +145,7 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
     w->ref = malloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
-    int ok = w->ref && w->tnoise && w->tex_ext && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
+    int ok = w->ref && w->tnoise && w->tex_ext && w->quality && w->lossy && w->lossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
              w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
     for (int j = 0; ok && j < C; j++) {
@@ -148,7 +159,9 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
 }
 
 
-/* Quantises block b's textures into the atlases; dequantised copies into Tqd, floats into Tfd. */
+/* Quantises block b's textures into the atlases (a lossy component's codes are its
+ * atlas's, the decode of its file, already there); dequantised copies into Tqd, floats
+ * into Tfd. */
 static void btf__quant_textures(btf__writer *w, int b, const btf_pca_block *res)
 {
     int tx0 = (b % w->acols) * w->W, ty0 = (b / w->acols) * w->H;
@@ -163,7 +176,9 @@ static void btf__quant_textures(btf__writer *w, int b, const btf_pca_block *res)
                 size_t r = (size_t)y * w->W + x;
                 unsigned q = btf_rd_quant(t[r], rg, (unsigned)w->qmax);
                 uint8_t *px = w->atlas[j] + ((size_t)(ty0 + y) * w->aw + (size_t)(tx0 + x)) * w->ch;
-                if (w->bits == 16) {
+                if (w->lossy[j]) {
+                    q = px[0];
+                } else if (w->bits == 16) {
                     px[0] = (uint8_t)(q >> 8);
                     px[1] = (uint8_t)(q & 255u);
                 } else {
@@ -454,10 +469,11 @@ static btf_result btf__write_texture(btf__writer *w, const btf_package_options *
     char path[8192];
     snprintf(path, sizeof path, "%s/tex-%02d", tmp, j);
     int webp = w->version == 3 && w->ch == 1 && !o->png_only;
-    w->tex_ext[j] = webp ? ".webp" : ".png";
+    w->tex_ext[j] = webp || w->lossy[j] ? ".webp" : ".png";
     size_t n = strlen(path);
     snprintf(path + n, sizeof path - n, "%s", w->tex_ext[j]);
-    btf_result r = btf_image_write_flags(path, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST, err);
+    btf_result r = w->lossy[j] ? btf_fs_write_atomic(path, w->lossy[j], w->lossy_n[j], err)
+                               : btf_image_write_flags(path, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST, err);
     *bytes = btf_fs_size(path);
     return r;
 }
@@ -578,10 +594,15 @@ static char *btf__rd_json(const btf_rd_result *rr)
     cJSON_AddNumberToObject(o, "bytes", (double)rr->bytes_rd);
     cJSON_AddNumberToObject(o, "kept", rr->n_kept);
     cJSON *t = cJSON_AddArrayToObject(o, "tex_noise"), *wn = cJSON_AddArrayToObject(o, "wt_noise");
+    int lossy = 0;
     for (int j = 0; j < rr->n_comp; j++) {
         cJSON_AddItemToArray(t, cJSON_CreateNumber(rr->tex_noise[j]));
         cJSON_AddItemToArray(wn, cJSON_CreateNumber(rr->wt_noise[j]));
+        lossy |= rr->tex_quality[j] >= 0;
     }
+    cJSON *q = lossy ? cJSON_AddArrayToObject(o, "tex_quality") : NULL;
+    for (int j = 0; q && j < rr->n_comp; j++)
+        cJSON_AddItemToArray(q, cJSON_CreateNumber(rr->tex_quality[j]));
     char *s = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
     return s;
@@ -598,6 +619,47 @@ static int btf__model_fits(const btf_pca_model *m, const btf_views *src, const b
 }
 
 
+/* Component j's atlas (its full-range codes) as a lossy WebP at its quality into
+ * w->lossy[j], and the atlas replaced by its decode, as every reader sees it. */
+static btf_result btf__lossy_atlas(btf__writer *w, int j, btf_error *err)
+{
+    btf_result r = btf_webp_encode_grey_lossy(w->atlas[j], w->aw, w->ah, w->quality[j], &w->lossy[j], &w->lossy_n[j], err);
+    if (r == BTF_OK)
+        r = btf_webp_decode_grey(w->lossy[j], w->lossy_n[j], "package: lossy texture", w->aw, w->ah, w->atlas[j], err);
+    return r;
+}
+
+/* The lossy components' files (btf_rd_result.tex_quality): every block's codes into
+ * the atlases from the model m, then each lossy one encoded and decoded (one thread
+ * per component above BTF_RD_THREAD_MIN_BYTES of atlases), so that the error sums,
+ * the order and the Lab curve that follow measure the decoded texels. */
+static btf_result btf__lossy_atlases(btf__writer *w, const btf_pca_model *m, btf_error *err)
+{
+    int n = 0;
+    for (int j = 0; j < w->C; j++)
+        n += w->quality[j] >= 0;
+    if (n == 0)
+        return BTF_OK;
+    for (int b = 0; b < w->blocks->n_blocks; b++)
+        btf__quant_textures(w, b, &m->block[b]);
+    btf_result *rj = calloc((size_t)w->C, sizeof *rj);
+    btf_error *ej = calloc((size_t)w->C, sizeof *ej);
+    if (!rj || !ej) {
+        free(rj), free(ej);
+        return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory");
+    }
+    size_t atlas_bytes = (size_t)n * (size_t)w->aw * (size_t)w->ah;
+#pragma omp parallel for schedule(dynamic, 1) if (atlas_bytes >= BTF_RD_THREAD_MIN_BYTES)
+    for (int j = 0; j < w->C; j++)
+        rj[j] = w->quality[j] >= 0 ? btf__lossy_atlas(w, j, &ej[j]) : BTF_OK;
+    btf_result r = BTF_OK;
+    for (int j = 0; j < w->C && r == BTF_OK; j++)
+        if ((r = rj[j]) != BTF_OK && err)
+            *err = ej[j];
+    free(rj), free(ej);
+    return r;
+}
+
 /* Version 3: steps by rate-distortion from the float model m, then every block's
  * matrix rebuilt once to quantise it and accumulate the exact error sums. */
 static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
@@ -605,13 +667,15 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
 {
     const btf_package_channel *c = w->chan;
     btf_rd_params par = {m,           w->acols,     w->arows,  noise,   tmp, c->rd_max_bytes, o->png_only,
-                         c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix, w->bits};
+                         c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix, w->bits,
+                         o->lossy};
     btf_rd_result rr, *keep = c->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)
         return r;
     memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
     memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
+    memcpy(w->quality, rr.tex_quality, (size_t)w->C * sizeof(int));
     w->rd_json = btf__rd_json(&rr);
     if (c->estimate && (w->est_bytes = malloc((size_t)w->C * sizeof(long long))) != NULL)
         memcpy(w->est_bytes, rr.comp_bytes, (size_t)w->C * sizeof(long long));
@@ -623,8 +687,9 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
         btf_rd_result_free(&rr);
     if (r != BTF_OK)
         return r;
-    float *A = malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float));
-    if (!A)
+    r = btf__lossy_atlases(w, m, err);
+    float *A = r == BTF_OK ? malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
+    if (r == BTF_OK && !A)
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");
     for (int b = 0; r == BTF_OK && b < w->blocks->n_blocks; b++) {
         r = btf_pca_block_fill(src, w->blocks, b, A, err);

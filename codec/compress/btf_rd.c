@@ -1,6 +1,7 @@
 /* btf_rd.c - equal-slope choice of the quantisation steps (btf_rd.h,
  * doc/package-format.md section 10.8): measured rate and distortion of every
- * candidate step multiplier per component, then one Lagrange multiplier. */
+ * candidate step multiplier (and with lossy, every lossy WebP quality) per
+ * component, then one Lagrange multiplier. */
 #include "btf_rd.h"
 
 #include <cblas.h>
@@ -27,23 +28,28 @@
 _Static_assert(BTF__RD_TEX_LO % 2 == 0 && BTF__RD_NT % 2 == 1, "texture ladder: even equal-noise index and ends");
 #define BTF__RD_NW (BTF__RD_WT_HI - BTF__RD_WT_LO + 2)
 #define BTF__RD_RATE_TILES 9 /* texture rates measured on whole atlas rows holding about this many tiles */
+/* Lossy WebP qualities beside the lossless steps (btf_rd_params.lossy): the candidates
+ * NT .. NT + NQ - 1 of each component's texture ladder, full-range 8-bit codes. */
+static const int btf__rd_quality[] = {0, 10, 20, 35, 50, 60, 70, 78, 85, 90, 94, 97, 100};
+#define BTF__RD_NQ ((int)(sizeof btf__rd_quality / sizeof btf__rd_quality[0]))
 
 /* Measured candidates of one allocation; lives for one btf_rd_allocate call. */
 typedef struct btf__rd {
     const btf_rd_params *par;
     const btf_pca_model *m;
     int C, nb, W, H, rows, L, V, aw;
+    int nt;                /* texture candidates per component: NT lossless steps, then NQ lossy qualities with lossy */
     int ch;                /* atlas channels: 1 (8-bit codes) or 3 (16-bit: high, low, 0) */
     unsigned qmax;         /* the largest texture code: 255 or 65535 */
     int *sub_row;          /* per atlas row of tiles: its row in the rate sample, -1 = not sampled */
     int sub_rows;          /* tile rows in the rate sample (its atlas is aw x sub_rows * H) */
     double rate_scale;     /* tiles of the atlas / tiles in the sample */
-    double *dt, *dw;       /* C x NT, C x NW: added squared error */
+    double *dt, *dw;       /* C x nt, C x NW: added squared error */
     double *energy;        /* C: |T_j W_j^T|^2 summed over blocks: the error of leaving j out */
     long long *rt, *rw;    /* the same: bytes */
     float *gt, *gw;        /* the ladders' noise values */
     float *wnorm;          /* C x nb: |W_j| per block (computed before the threads start) */
-    /* C x NT, C x NW: 1 = the step is measured (near a previous choice, par->near);
+    /* C x nt, C x NW: 1 = the step is measured (near a previous choice, par->near);
      * NULL = every step. An unmeasured step's error is infinite: never chosen. */
     unsigned char *mt, *mw;
 } btf__rd;
@@ -74,8 +80,9 @@ static int btf__rd_sample(btf__rd *r)
 }
 
 /* Texture of component j at noise g: the rate sample's atlas into atlas (aw x
- * sub_rows * H pixels of ch bytes), the added squared error of every block returned. */
-static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
+ * sub_rows * H pixels of ch bytes), the added squared error of every block returned
+ * (and block b's, before its weights' factor, into eb[b] when eb is not NULL). */
+static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas, double *eb)
 {
     double d = 0.0;
     memset(atlas, 0, (size_t)r->aw * r->sub_rows * r->H * r->ch);
@@ -100,6 +107,8 @@ static double btf__rd_tex(const btf__rd *r, int j, float g, uint8_t *atlas)
                 double dv = (double)v - (double)(rg[0] + rg[1] * (float)qv);
                 e += dv * dv;
             }
+        if (eb)
+            eb[b] = e;
         d += e * (double)wn * (double)wn;
     }
     return d;
@@ -132,19 +141,82 @@ static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
     return d;
 }
 
-/* Rate and distortion of texture candidate n = j * NT + i into r->rt, r->dt: the rate
+/* The squared error component j's texture adds when its full-range atlas (the rate
+ * sample's in atlas, each block's rounding error in eb) decodes to dec: exact on the
+ * sampled blocks; on the others their rounding error plus the sample's mean lossy
+ * error per texel (q units, (dec - q)^2) at their step, the two nearly uncorrelated. */
+static double btf__rd_lossy_dist(const btf__rd *r, int j, const uint8_t *atlas, const uint8_t *dec, double *eb)
+{
+    double lossy = 0.0, d = 0.0;
+    long long n = 0;
+    for (int b = 0; b < r->nb; b++) { /* the sampled blocks: exact, into eb[b] */
+        int sub = r->sub_row[b / r->par->atlas_cols];
+        if (sub < 0)
+            continue;
+        const float *t = r->m->block[b].t + (size_t)j * r->rows;
+        float rg[2];
+        btf_rd_range(t, (size_t)r->rows, 255u, rg);
+        size_t o = (size_t)sub * r->H * r->aw + (size_t)(b % r->par->atlas_cols) * r->W;
+        double e = 0.0;
+        for (int y = 0; y < r->H; y++)
+            for (int x = 0; x < r->W; x++) {
+                size_t px = o + (size_t)y * r->aw + x;
+                double dq = (double)dec[px] - (double)atlas[px];
+                double dv = (double)t[(size_t)y * r->W + x] - (double)(rg[0] + rg[1] * (float)dec[px]);
+                lossy += dq * dq, e += dv * dv;
+            }
+        eb[b] = e, n += r->rows;
+    }
+    lossy = n ? lossy / (double)n : 0.0;
+    for (int b = 0; b < r->nb; b++) { /* the others: their rounding error plus the mean lossy error */
+        double wn = r->wnorm[(size_t)j * r->nb + b], e = eb[b];
+        if (r->sub_row[b / r->par->atlas_cols] < 0) {
+            float rg[2];
+            btf_rd_range(r->m->block[b].t + (size_t)j * r->rows, (size_t)r->rows, 255u, rg);
+            e += lossy * (double)rg[1] * (double)rg[1] * (double)r->rows;
+        }
+        d += e * wn * wn;
+    }
+    return d;
+}
+
+/* Lossy candidate n (component j, quality index i - NT): the rate sample's full-range
+ * atlas as a lossy WebP, decoded as a reader decodes it; its bytes times rate_scale and
+ * its error into r->rt, r->dt. buf: the thread's atlas-sized scratch for the decode,
+ * eb its nb doubles. */
+static btf_result btf__rd_lossy_candidate(btf__rd *r, int n, uint8_t *atlas, uint8_t *buf, double *eb, btf_error *err)
+{
+    int j = n / r->nt, ah = r->sub_rows * r->H;
+    btf__rd_tex(r, j, 0.0f, atlas, eb);
+    uint8_t *webp = NULL;
+    size_t nw = 0;
+    btf_result res = btf_webp_encode_grey_lossy(atlas, r->aw, ah, btf__rd_quality[n % r->nt - BTF__RD_NT], &webp, &nw, err);
+    if (res == BTF_OK)
+        res = btf_webp_decode_grey(webp, nw, "rate-distortion: lossy candidate", r->aw, ah, buf, err);
+    free(webp);
+    if (res != BTF_OK)
+        return res;
+    r->dt[n] = btf__rd_lossy_dist(r, j, atlas, buf, eb);
+    r->rt[n] = (long long)llround((double)nw * r->rate_scale);
+    return BTF_OK;
+}
+
+/* Rate and distortion of texture candidate n = j * nt + i into r->rt, r->dt: the rate
  * sample's atlas encoded as the package writes it, times rate_scale: its lossless
  * WebP bytes, or with png_only or 16-bit codes the PNG file (filter Up) in
  * scratch/rd-candidate-T.png for thread T.
  * atlas is the thread's own buffer. */
-static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, int thread, btf_error *err)
+static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, uint8_t *buf, double *eb, int thread,
+                                        btf_error *err)
 {
     if (r->mt && !r->mt[n]) {
         r->dt[n] = INFINITY, r->rt[n] = 0;
         return BTF_OK;
     }
-    r->dt[n] = btf__rd_tex(r, n / BTF__RD_NT, r->gt[n % BTF__RD_NT], atlas);
-    if ((n % BTF__RD_NT) % 2) /* odd indices: the rate interpolated by btf__rd_measure_tex */
+    if (n % r->nt >= BTF__RD_NT)
+        return btf__rd_lossy_candidate(r, n, atlas, buf, eb, err);
+    r->dt[n] = btf__rd_tex(r, n / r->nt, r->gt[n % r->nt], atlas, NULL);
+    if ((n % r->nt) % 2) /* odd indices: the rate interpolated by btf__rd_measure_tex */
         return BTF_OK;
     int ah = r->sub_rows * r->H;
     long long s = -1;
@@ -188,6 +260,17 @@ static int btf__rd_threaded(const btf__rd *r)
     return (size_t)r->C * (atlas + weights) >= BTF_RD_THREAD_MIN_BYTES;
 }
 
+/* The candidate of task n: the lossy candidates of every component first, then the
+ * lossless steps, so that the long encodes do not come last. */
+static int btf__rd_task(const btf__rd *r, int n)
+{
+    int nq = r->nt - BTF__RD_NT;
+    if (n < r->C * nq)
+        return (n / nq) * r->nt + BTF__RD_NT + n % nq;
+    n -= r->C * nq;
+    return (n / BTF__RD_NT) * r->nt + n % BTF__RD_NT;
+}
+
 /* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
 static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
 {
@@ -205,24 +288,28 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
     btf_result res = BTF_OK;
 #pragma omp parallel if (btf__rd_threaded(r))
     {
-        uint8_t *atlas = malloc((size_t)r->aw * r->sub_rows * r->H * r->ch);
+        size_t sz = (size_t)r->aw * r->sub_rows * r->H * r->ch;
+        uint8_t *atlas = malloc(sz), *buf = r->nt > BTF__RD_NT ? malloc(sz) : NULL;
+        double *eb = r->nt > BTF__RD_NT ? malloc(sizeof(double) * (size_t)r->nb) : NULL;
         btf_error e = {{0}};
-        btf_result mine = atlas ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (atlas)");
+        btf_result mine = atlas && (r->nt == BTF__RD_NT || (buf && eb))
+                              ? BTF_OK
+                              : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (atlas)");
 #pragma omp for schedule(dynamic, 1)
-        for (int n = 0; n < r->C * BTF__RD_NT; n++)
+        for (int n = 0; n < r->C * r->nt; n++) /* lossy ones first: the longest encodes */
             if (mine == BTF_OK)
-                mine = btf__rd_tex_candidate(r, n, atlas, omp_get_thread_num(), &e);
+                mine = btf__rd_tex_candidate(r, btf__rd_task(r, n), atlas, buf, eb, omp_get_thread_num(), &e);
 #pragma omp critical(btf__rd_result)
         btf__rd_first_error(mine, &e, &res, err);
-        free(atlas);
+        free(atlas), free(buf), free(eb);
     }
     /* odd indices: the mean of the neighbours' rates (a rate is about linear in the
      * log of the step, so the package comes out nearly as with every step encoded,
      * at half the encodings) */
     for (int j = 0; res == BTF_OK && j < r->C; j++)
         for (int i = 1; i < BTF__RD_NT; i += 2) {
-            long long *rt = r->rt + (size_t)j * BTF__RD_NT;
-            if (!r->mt || r->mt[(size_t)j * BTF__RD_NT + i]) /* its neighbours are measured too */
+            long long *rt = r->rt + (size_t)j * r->nt;
+            if (!r->mt || r->mt[(size_t)j * r->nt + i]) /* its neighbours are measured too */
                 rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2;
         }
     return res;
@@ -286,10 +373,10 @@ static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long
     long long s = 0;
     int kept = 0;
     for (int j = 0; j < r->C; j++) {
-        int a = btf__rd_best(r->dt + (size_t)j * BTF__RD_NT, r->rt + (size_t)j * BTF__RD_NT, BTF__RD_NT, lambda);
+        int a = btf__rd_best(r->dt + (size_t)j * r->nt, r->rt + (size_t)j * r->nt, r->nt, lambda);
         int b = btf__rd_best(r->dw + (size_t)j * BTF__RD_NW, r->rw + (size_t)j * BTF__RD_NW, BTF__RD_NW, lambda);
-        double dj = r->dt[(size_t)j * BTF__RD_NT + a] + r->dw[(size_t)j * BTF__RD_NW + b];
-        long long sj = r->rt[(size_t)j * BTF__RD_NT + a] + r->rw[(size_t)j * BTF__RD_NW + b];
+        double dj = r->dt[(size_t)j * r->nt + a] + r->dw[(size_t)j * BTF__RD_NW + b];
+        long long sj = r->rt[(size_t)j * r->nt + a] + r->rw[(size_t)j * BTF__RD_NW + b];
         d += dj;
         if (!keep || j == 0 || dj + lambda * (double)sj < r->energy[j])
             s += sj, kept++;
@@ -303,16 +390,37 @@ static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long
     return d;
 }
 
-/* One ladder notch finer for component j (tex: texture, else weights) from choice *at:
- * the error it removes and the bytes it adds; 0 when already at the finest step. */
-static int btf__rd_notch(const btf__rd *r, int j, int tex, const int *at, double *dd, long long *ds)
+/* With lossy candidates, the texture candidate of component j after a on the way
+ * to less error: of those with less error than a, the one removing the most error
+ * per byte added (fewer bytes: at once); -1 when none has less. */
+static int btf__rd_next_tex(const btf__rd *r, int j, int a)
 {
-    int n = tex ? BTF__RD_NT : BTF__RD_NW, a = *at;
+    const double *d = r->dt + (size_t)j * r->nt;
+    const long long *s = r->rt + (size_t)j * r->nt;
+    int best = -1;
+    double bg = 0.0;
+    for (int i = 0; i < r->nt; i++) {
+        if (!(d[i] < d[a]))
+            continue;
+        double g = s[i] > s[a] ? (d[a] - d[i]) / (double)(s[i] - s[a]) : INFINITY;
+        if (best < 0 || g > bg || (g == bg && d[i] < d[best]))
+            best = i, bg = g;
+    }
+    return best;
+}
+
+/* One ladder notch finer for component j (tex: texture, else weights) from choice *at:
+ * the error it removes and the bytes it adds, the candidate into *to; 0 when already
+ * at the finest step. */
+static int btf__rd_notch(const btf__rd *r, int j, int tex, const int *at, double *dd, long long *ds, int *to)
+{
+    int n = tex ? r->nt : BTF__RD_NW, a = *at;
     const double *d = (tex ? r->dt : r->dw) + (size_t)j * n;
     const long long *s = (tex ? r->rt : r->rw) + (size_t)j * n;
-    if (a <= 0)
+    *to = tex && r->nt > BTF__RD_NT ? btf__rd_next_tex(r, j, a) : a - 1;
+    if (*to < 0)
         return 0;
-    *dd = d[a] - d[a - 1], *ds = s[a - 1] - s[a];
+    *dd = d[a] - d[*to], *ds = s[*to] - s[a];
     return 1;
 }
 
@@ -326,28 +434,29 @@ static void btf__rd_fill(const btf__rd *r, double lambda, long long max_bytes, i
     if (!kept)
         return; /* lambda's choice stands */
     for (int j = 0; j < r->C; j++) { /* as btf__rd_at decided at lambda */
-        double dj = r->dt[(size_t)j * BTF__RD_NT + it[j]] + r->dw[(size_t)j * BTF__RD_NW + iw[j]];
-        long long sj = r->rt[(size_t)j * BTF__RD_NT + it[j]] + r->rw[(size_t)j * BTF__RD_NW + iw[j]];
+        double dj = r->dt[(size_t)j * r->nt + it[j]] + r->dw[(size_t)j * BTF__RD_NW + iw[j]];
+        long long sj = r->rt[(size_t)j * r->nt + it[j]] + r->rw[(size_t)j * BTF__RD_NW + iw[j]];
         kept[j] = j == 0 || dj + lambda * (double)sj < r->energy[j];
     }
     for (;;) {
-        int bj = -1, btex = 0;
+        int bj = -1, btex = 0, bto = 0;
         double best = 0.0;
         long long bds = 0;
         for (int j = 0; j < r->C; j++)
             for (int tex = 0; tex < 2 && kept[j]; tex++) {
                 double dd = 0.0;
                 long long ds = 0;
-                if (!btf__rd_notch(r, j, tex, tex ? &it[j] : &iw[j], &dd, &ds) || !(dd > 0.0) ||
+                int to = 0;
+                if (!btf__rd_notch(r, j, tex, tex ? &it[j] : &iw[j], &dd, &ds, &to) || !(dd > 0.0) ||
                     *bytes + ds > max_bytes)
                     continue;
                 double gain = ds > 0 ? dd / (double)ds : INFINITY;
                 if (gain > best)
-                    best = gain, bj = j, btex = tex, bds = ds;
+                    best = gain, bj = j, btex = tex, bds = ds, bto = to;
             }
         if (bj < 0)
             break;
-        (btex ? it : iw)[bj]--;
+        (btex ? it : iw)[bj] = bto;
         *bytes += bds;
     }
     free(kept);
@@ -367,6 +476,18 @@ static int btf__rd_nearest(const float *g, int n, float v)
     return best;
 }
 
+/* With par->near: component j's lossy candidates to measure, near a lossy choice of
+ * quality q (within BTF_RD_NEAR_NOTCHES of it); none when it chose a lossless step
+ * (q < 0), whose steps are measured near it instead. */
+static void btf__rd_near_lossy(btf__rd *r, int j, int q)
+{
+    int a = -1;
+    for (int i = 0; q >= 0 && i < BTF__RD_NQ; i++)
+        a = a < 0 || abs(btf__rd_quality[i] - q) < abs(btf__rd_quality[a] - q) ? i : a;
+    for (int i = 0; i < r->nt - BTF__RD_NT; i++)
+        r->mt[(size_t)j * r->nt + BTF__RD_NT + i] = a >= 0 && abs(i - a) <= BTF_RD_NEAR_NOTCHES;
+}
+
 /* With par->near (at most as many components): the masks of the steps to measure.
  * For its components those within BTF_RD_NEAR_NOTCHES of its choices (textures:
  * widened to even ends, whose rates are encoded) and the references (the
@@ -377,16 +498,17 @@ static int btf__rd_near(btf__rd *r)
     const btf_rd_result *nr = r->par->near;
     if (!nr || nr->n_comp < 1 || nr->n_comp > r->C || !nr->tex_noise || !nr->wt_noise)
         return 0;
-    r->mt = malloc((size_t)r->C * BTF__RD_NT), r->mw = malloc((size_t)r->C * BTF__RD_NW);
+    r->mt = malloc((size_t)r->C * r->nt), r->mw = malloc((size_t)r->C * BTF__RD_NW);
     if (!r->mt || !r->mw)
         return -1;
-    memset(r->mt, 1, (size_t)r->C * BTF__RD_NT), memset(r->mw, 1, (size_t)r->C * BTF__RD_NW);
+    memset(r->mt, 1, (size_t)r->C * r->nt), memset(r->mw, 1, (size_t)r->C * BTF__RD_NW);
     for (int j = 0; j < nr->n_comp; j++) {
         int a = btf__rd_nearest(r->gt, BTF__RD_NT, nr->tex_noise[j]);
         int lo = a - BTF_RD_NEAR_NOTCHES, hi = a + BTF_RD_NEAR_NOTCHES;
         lo = lo < 0 ? 0 : lo - (lo % 2), hi = hi >= BTF__RD_NT ? BTF__RD_NT - 1 : hi + (hi % 2);
         for (int i = 0; i < BTF__RD_NT; i++)
-            r->mt[(size_t)j * BTF__RD_NT + i] = (i >= lo && i <= hi) || i == -BTF__RD_TEX_LO;
+            r->mt[(size_t)j * r->nt + i] = (i >= lo && i <= hi) || i == -BTF__RD_TEX_LO;
+        btf__rd_near_lossy(r, j, nr->tex_quality ? nr->tex_quality[j] : -1);
         int b = btf__rd_nearest(r->gw, BTF__RD_NW, nr->wt_noise[j]);
         for (int i = 0; i < BTF__RD_NW; i++)
             r->mw[(size_t)j * BTF__RD_NW + i] = abs(i - b) <= BTF_RD_NEAR_NOTCHES || i == 0;
@@ -405,7 +527,7 @@ static void btf__rd_key(const btf__rd *r, double key[8])
             sum += (double)pb->t[(size_t)j * r->rows] * (j + 1) + (double)pb->w[(size_t)j * pb->cols] * (b + 1);
         }
     double k[8] = {r->C, r->nb, r->W, r->H, (double)r->V * 65536.0 + r->L, r->par->tex_noise,
-                   r->par->png_only + 2.0 * r->ch, sum};
+                   r->par->png_only + 2.0 * r->ch + 8.0 * r->nt, sum};
     memcpy(key, k, sizeof k);
 }
 
@@ -416,7 +538,7 @@ static btf_result btf__rd_ladder_use(btf__rd *r, btf_error *err)
     btf_rd_ladder *l = r->par->ladder;
     double key[8];
     btf__rd_key(r, key);
-    size_t nt = (size_t)r->C * BTF__RD_NT, nw = (size_t)r->C * BTF__RD_NW, c = (size_t)r->C;
+    size_t nt = (size_t)r->C * r->nt, nw = (size_t)r->C * BTF__RD_NW, c = (size_t)r->C;
     if (l && l->n_comp == r->C && !memcmp(l->key, key, sizeof key)) {
         memcpy(r->dt, l->dt, nt * sizeof(double)), memcpy(r->rt, l->rt, nt * sizeof(long long));
         memcpy(r->dw, l->dw, nw * sizeof(double)), memcpy(r->rw, l->rw, nw * sizeof(long long));
@@ -440,7 +562,7 @@ static btf_result btf__rd_ladder_use(btf__rd *r, btf_error *err)
     memcpy(l->dw, r->dw, nw * sizeof(double)), memcpy(l->rw, r->rw, nw * sizeof(long long));
     memcpy(l->energy, r->energy, c * sizeof(double));
     memcpy(l->key, key, sizeof key);
-    l->n_comp = r->C, l->n_tex = BTF__RD_NT, l->n_wt = BTF__RD_NW;
+    l->n_comp = r->C, l->n_tex = r->nt, l->n_wt = BTF__RD_NW;
     return BTF_OK;
 }
 
@@ -456,7 +578,7 @@ void btf_rd_result_free(btf_rd_result *r)
 {
     if (!r)
         return;
-    free(r->tex_noise), free(r->wt_noise), free(r->comp_bytes), free(r->tex_bytes);
+    free(r->tex_noise), free(r->wt_noise), free(r->comp_bytes), free(r->tex_bytes), free(r->tex_quality);
     memset(r, 0, sizeof *r);
 }
 
@@ -472,8 +594,8 @@ static void btf__rd_fix_rates(btf__rd *r)
 {
     for (int j = 0; r->par->tex_rate_fix && j < r->C; j++) {
         double f = r->par->tex_rate_fix[j];
-        for (int i = 0; f > 0.0 && isfinite(f) && i < BTF__RD_NT; i++) {
-            long long *s = &r->rt[(size_t)j * BTF__RD_NT + i];
+        for (int i = 0; f > 0.0 && isfinite(f) && i < r->nt; i++) {
+            long long *s = &r->rt[(size_t)j * r->nt + i];
             *s = *s < 0 ? *s : llround((double)*s * f);
         }
     }
@@ -493,20 +615,22 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     r.ch = par->bits == 16 ? 3 : 1, r.qmax = par->bits == 16 ? 65535u : 255u;
     if (par->bits != 0 && par->bits != 8 && par->bits != 16)
         return btf_fail(err, BTF_ERR_ARG, "rate-distortion: %d-bit textures (8 or 16)", par->bits);
-    r.dt = calloc((size_t)r.C * BTF__RD_NT, sizeof(double));
+    r.nt = BTF__RD_NT + (par->lossy && r.ch == 1 && !par->png_only ? BTF__RD_NQ : 0);
+    r.dt = calloc((size_t)r.C * r.nt, sizeof(double));
     r.dw = calloc((size_t)r.C * BTF__RD_NW, sizeof(double));
     r.energy = calloc((size_t)r.C, sizeof(double));
-    r.rt = calloc((size_t)r.C * BTF__RD_NT, sizeof(long long));
+    r.rt = calloc((size_t)r.C * r.nt, sizeof(long long));
     r.rw = calloc((size_t)r.C * BTF__RD_NW, sizeof(long long));
     r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
     out->tex_noise = calloc((size_t)r.C, sizeof(float));
     out->wt_noise = calloc((size_t)r.C, sizeof(float));
     out->comp_bytes = calloc((size_t)r.C, sizeof(long long));
     out->tex_bytes = calloc((size_t)r.C, sizeof(long long));
+    out->tex_quality = calloc((size_t)r.C, sizeof(int));
     int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
     btf_result res = BTF_OK;
     if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !out->tex_noise || !out->wt_noise ||
-        !out->comp_bytes || !out->tex_bytes || !it || !iw)
+        !out->comp_bytes || !out->tex_bytes || !out->tex_quality || !it || !iw)
         res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
     for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
         r.gt[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_TEX_LO + i));
@@ -520,8 +644,8 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         /* reference: every texture at tex_noise (ladder index -LO), 16-bit weights (index 0) */
         out->d_target = 0.0, out->bytes_equal = 0;
         for (int j = 0; j < r.C; j++) {
-            out->d_target += r.dt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.dw[(size_t)j * BTF__RD_NW];
-            out->bytes_equal += r.rt[(size_t)j * BTF__RD_NT - BTF__RD_TEX_LO] + r.rw[(size_t)j * BTF__RD_NW];
+            out->d_target += r.dt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.dw[(size_t)j * BTF__RD_NW];
+            out->bytes_equal += r.rt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.rw[(size_t)j * BTF__RD_NW];
         }
         double lo = -60.0, hi = 10.0;
         for (int k = 0; k < 80; k++) { /* bisection in log lambda */
@@ -542,12 +666,14 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
             btf__rd_fill(&r, out->lambda, par->max_bytes, it, iw, &out->bytes_rd);
             out->d_rd = 0.0;
             for (int j = 0; j < r.C; j++)
-                out->d_rd += r.dt[(size_t)j * BTF__RD_NT + it[j]] + r.dw[(size_t)j * BTF__RD_NW + iw[j]];
+                out->d_rd += r.dt[(size_t)j * r.nt + it[j]] + r.dw[(size_t)j * BTF__RD_NW + iw[j]];
         }
         out->n_comp = r.C;
         for (int j = 0; j < r.C; j++) {
-            out->tex_noise[j] = r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
-            out->tex_bytes[j] = r.rt[(size_t)j * BTF__RD_NT + it[j]];
+            int lossy = it[j] >= BTF__RD_NT; /* full-range codes, a lossy WebP */
+            out->tex_noise[j] = lossy ? 0.0f : r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
+            out->tex_quality[j] = lossy ? btf__rd_quality[it[j] - BTF__RD_NT] : -1;
+            out->tex_bytes[j] = r.rt[(size_t)j * r.nt + it[j]];
             out->comp_bytes[j] = out->tex_bytes[j] + r.rw[(size_t)j * BTF__RD_NW + iw[j]];
         }
     }

@@ -4,9 +4,11 @@
  * quantisation adds the same squared error as the equal-noise allocation of
  * section 4 with fewer bytes. Used by the package writer (btf_package_options.rd).
  * Texture rates of atlases over 9 tiles are measured on a sample of whole tile rows
- * and scaled (section 11), so bytes_equal and bytes_rd are estimates there.
+ * and scaled (section 11), so bytes_equal and bytes_rd are estimates there. With
+ * lossy, a component's texture may instead be a lossy WebP of its full-range codes
+ * (btf_rd_result.tex_quality), its error then estimated from that sample too.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL, 8};  // equal-noise error, WebP, every step measured
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL, 8, 0};  // equal-noise error, lossless WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -79,6 +81,12 @@ typedef struct btf_rd_params {
     const double *tex_rate_fix;
     int bits; /* texture codes: 8 (or 0), or 16: steps may go down to 1/65535 of a block's range, the
                * atlas then a PNG of (high byte, low byte, 0) pixels, as the writer stores 16 bits */
+    /* 1 (8 bits, not png_only): each component's texture may also be its full-range
+     * atlas as a lossy WebP at one of 13 qualities (0 .. 100), a candidate beside the
+     * lossless steps chosen by the same lambda; its error measured on the rate
+     * sample's decode (the blocks outside it: their rounding error plus the sample's
+     * mean lossy error per texel) */
+    int lossy;
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */
@@ -93,6 +101,8 @@ typedef struct btf_rd_result {
     int n_kept;             /* components worth their bytes at lambda (all without max_bytes) */
     long long *comp_bytes;  /* n_comp: component j's files at its chosen steps (counted as bytes_rd is) */
     long long *tex_bytes;   /* n_comp: the texture atlas's share of comp_bytes */
+    int *tex_quality;       /* n_comp: -1, or the lossy WebP quality 0..100 of component j's texture
+                             * (full-range codes: its tex_noise is 0) */
 } btf_rd_result;
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err);

@@ -55,6 +55,11 @@ typedef struct btf_package_options {
     /* With rd: 1 = every texture a PNG; 0 = every texture a lossless WebP
      * (doc/package-format.md section 4). */
     int png_only;
+    /* With rd (8 bits, not png_only): 1 = a component's texture may also be a lossy
+     * WebP of its full-range codes, at the quality the same rate-distortion choice
+     * picks where it costs fewer bytes for its error than the lossless steps
+     * (doc/package-format.md sections 4.1 and 10.8); 0 = lossless textures only. */
+    int lossy;
     /* > 0: the package gets thumbnail.png (btf_package_thumbnail) of at most this many
      * pixels a side, written into the package before it is renamed into place; 0 =
      * none. Never with estimate. */
