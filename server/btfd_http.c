@@ -359,11 +359,16 @@ static int http_write(btfd_server *srv, struct lws *wsi, btfd_http *h)
 }
 
 /* CORS on a file mount's reply (--allow-origin, btfd_origin.c); 0 ok. */
-static int add_file_cors(struct lws *wsi, void *in)
+/* Headers of a file mount's reply: CORS, and Vary: Accept-Encoding (btfd_gzip.c may
+ * have sent FILE.gz). */
+static int add_file_headers(struct lws *wsi, void *in)
 {
+    static const char vary[] = "accept-encoding";
     struct lws_process_html_args *a = in;
-    unsigned char *p = (unsigned char *)a->p;
-    if (btfd_cors_headers(wsi, server_of(wsi)->opt.allow_origin, &p, p + a->max_len))
+    unsigned char *p = (unsigned char *)a->p, *end = p + a->max_len;
+    if (btfd_cors_headers(wsi, server_of(wsi)->opt.allow_origin, &p, end) ||
+        lws_add_http_header_by_token(wsi, WSI_TOKEN_HTTP_VARY, (const unsigned char *)vary, (int)sizeof vary - 1,
+                                     &p, end))
         return 1;
     a->max_len -= (int)(p - (unsigned char *)a->p);
     a->p = (char *)p;
@@ -388,7 +393,7 @@ int btfd_callback_http(struct lws *wsi, enum lws_callback_reasons reason, void *
             server_of(wsi)->stats.sockets--;
         return 0;
     case LWS_CALLBACK_ADD_HEADERS: /* file mounts: the client files and the shaders */
-        return add_file_cors(wsi, in);
+        return add_file_headers(wsi, in);
     case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION:
         return 1; /* a WebSocket that did not ask for btf-stream.v1 lands here: refuse it */
     case LWS_CALLBACK_HTTP_WRITEABLE:

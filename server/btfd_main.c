@@ -322,6 +322,7 @@ int main(int argc, char **argv)
         btfd_library_free(srv.lib);
         return 1;
     }
+    btfd_gzip_install(srv.ctx);
     btfd_ops_signals(srv.ctx);
     int port = lws_get_vhost_listen_port(lws_get_vhost_by_name(srv.ctx, BTFD_VHOST));
     printf("btfd: listening on http://%s:%d/ (%d materials from %s)\n", o->bind, port, srv.lib->n,

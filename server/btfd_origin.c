@@ -30,12 +30,21 @@ static size_t request_origin(struct lws *wsi, char *buf, size_t n)
     return (size_t)k;
 }
 
+/* access-control-allow-origin and timing-allow-origin (the page may read the reply's
+ * sizes and times in its Resource Timing, e.g. the bytes a gzipped script took) for origin. */
+static int allow_origin(struct lws *wsi, const char *origin, int n, unsigned char **p, unsigned char *end)
+{
+    return lws_add_http_header_by_name(wsi, (const unsigned char *)"access-control-allow-origin:",
+                                       (const unsigned char *)origin, n, p, end) ||
+           lws_add_http_header_by_name(wsi, (const unsigned char *)"timing-allow-origin:",
+                                       (const unsigned char *)origin, n, p, end);
+}
+
 int btfd_cors_headers(struct lws *wsi, const char *list, unsigned char **p, unsigned char *end)
 {
     static const char vary[] = "Origin";
     if (!list || !strcmp(list, "*"))
-        return lws_add_http_header_by_name(wsi, (const unsigned char *)"access-control-allow-origin:",
-                                           (const unsigned char *)"*", 1, p, end);
+        return allow_origin(wsi, "*", 1, p, end);
     char origin[256];
     size_t n = request_origin(wsi, origin, sizeof origin);
     if (lws_add_http_header_by_name(wsi, (const unsigned char *)"vary:", (const unsigned char *)vary,
@@ -43,8 +52,7 @@ int btfd_cors_headers(struct lws *wsi, const char *list, unsigned char **p, unsi
         return 1;
     if (!n || !btfd_origin_allowed(list, origin, n))
         return 0;
-    return lws_add_http_header_by_name(wsi, (const unsigned char *)"access-control-allow-origin:",
-                                       (const unsigned char *)origin, (int)n, p, end);
+    return allow_origin(wsi, origin, (int)n, p, end);
 }
 
 int btfd_origin_check(struct lws *wsi, const char *list)

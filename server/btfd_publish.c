@@ -5,7 +5,7 @@
  *   OUT/materials.json                  the list, the body GET /materials (and /materials.json) answers
  *   OUT/materials/NAME/thumbnail.png    the poster, when the package has one
  *   OUT/materials/NAME/ETAG/FILE        manifest.json, thumbnail.png and every file of its chunks
- *   OUT/FILE.js                         the scripts of the --client folder (the bundle, build/client)
+ *   OUT/FILE.js, OUT/FILE.js.gz         the scripts of the --client folder (the bundle, build/client)
  *
  * The library is read by the code btfd serves it with (btfd_library.c: the same packages
  * skipped, the same etags and summaries). Every file is written atomically (temp + fsync +
@@ -110,7 +110,17 @@ static void publish_material(const char *mats, const btfd_material *m, publish_c
         put_file(path, m->thumb, m->thumb_size, c);
 }
 
-/* The scripts of the client folder (regular *.js files at its top; not the demo pages). */
+/* Whether name is a script (*.js) or its gzipped copy (*.js.gz, for a host that serves it
+ * to a browser that accepts gzip: nginx's gzip_static). */
+static int client_script(const char *name)
+{
+    size_t n = strlen(name);
+    return name[0] != '.' && !strstr(name, ".tmp-") &&
+           ((n > 3 && !strcmp(name + n - 3, ".js")) || (n > 6 && !strcmp(name + n - 6, ".js.gz")));
+}
+
+/* The scripts of the client folder (regular *.js files at its top and their .js.gz; not
+ * the demo pages). */
 static void publish_client(const char *client, const char *out, publish_counts *c)
 {
     DIR *d = opendir(client);
@@ -121,9 +131,8 @@ static void publish_client(const char *client, const char *out, publish_counts *
     }
     struct dirent *e;
     while ((e = readdir(d))) {
-        size_t n = strlen(e->d_name);
         char src[BTF_FS_PATH_MAX], dst[BTF_FS_PATH_MAX];
-        if (n < 4 || strcmp(e->d_name + n - 3, ".js") || e->d_name[0] == '.' || strstr(e->d_name, ".tmp-"))
+        if (!client_script(e->d_name))
             continue;
         if (join(src, sizeof src, client, e->d_name) || join(dst, sizeof dst, out, e->d_name)) {
             c->failed++;

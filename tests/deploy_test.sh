@@ -98,6 +98,14 @@ range_ok() {
     [[ $(get -o "$work/range" -w '%{http_code}' -H 'Range: bytes=100-1099' "http://127.0.0.1:$port${base}wt-02.z") == 206 ]] &&
         cmp "$work/range" <(tail -c +101 "$lib/knit/wt-02.z" | head -c 1000)
 }
+bundle_gzip() { # the .gz make build writes beside it, as it is; the file itself without Accept-Encoding
+    local h
+    h=$(get -o "$work/bundle.gz" -D - -H 'Accept-Encoding: gzip, deflate, br' "http://127.0.0.1:$port/btf-viewer.js" |
+        tr -d '\r') || return 1
+    grep -qi '^content-encoding: gzip$' <<<"$h" && grep -qi '^vary:.*accept-encoding' <<<"$h" &&
+        cmp "$work/bundle.gz" "$BUILD/client/btf-viewer.js.gz" &&
+        get -o "$work/bundle.js" "http://127.0.0.1:$port/btf-viewer.js" && cmp "$work/bundle.js" "$BUILD/client/btf-viewer.js"
+}
 cached_after_kill() { [[ $(cache_status wt-01.z) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.z"; }
 old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.z") == 404 ]]; }
 # failover SIG [MATERIAL LIB]: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
@@ -114,12 +122,15 @@ drained_exit() { # the drained btfd ends by itself, exit status 0
     ! kill -0 "${pids[0]}" 2>/dev/null && grep -q 'draining' "$work/cluster-b/btfd-0.log"
 }
 
+export BTFD_ARGS="--client $(realpath "$BUILD/client")" # the bundle make build writes
 check "cluster: nginx + 2 btfd start" up a
+unset BTFD_ARGS
 check "health through nginx" health_ok
 check "list through nginx names the immutable files base" list_names_files
 check "package file: MISS then HIT from nginx's cache, byte-exact" miss_then_hit
 check "immutable Cache-Control and strong ETag through nginx" immutable_headers
 check "byte range through nginx: 206, right bytes" range_ok
+check "the client bundle through nginx: gzipped for a browser that accepts it, else itself" bundle_gzip
 check "unknown etag: 404" old_etag_404
 check "200 clients, one btfd SIGKILLed mid-way: all complete, none twice, resumed" failover KILL
 check "package file still served by the cache after the kill" cached_after_kill

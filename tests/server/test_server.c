@@ -30,6 +30,7 @@
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include "btf_version.h"
 #include "fixtures.h"
@@ -2028,6 +2029,75 @@ Test(server, package_files_are_immutable_with_strong_etags_and_byte_ranges)
     snprintf(url, sizeof url, "%sc1_f0.bin", base2);
     cr_expect_eq(http_get(s.port, url, &body, &n), 200);
     free(body);
+    srv_stop(&s);
+}
+
+/* src gzipped by zlib (a gzip member, as `gzip` writes it); malloc'd, its size in *n. */
+static uint8_t *gzip_bytes(const char *src, size_t len, size_t *n)
+{
+    z_stream z = {0};
+    cr_assert_eq(deflateInit2(&z, 9, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
+    size_t cap = deflateBound(&z, (uLong)len) + 32;
+    uint8_t *out = malloc(cap);
+    z.next_in = (Bytef *)src, z.avail_in = (uInt)len, z.next_out = out, z.avail_out = (uInt)cap;
+    cr_assert_eq(deflate(&z, Z_FINISH), Z_STREAM_END);
+    *n = z.total_out;
+    deflateEnd(&z);
+    return out;
+}
+
+/* A file mount sends FILE.gz (its bytes as they are, Content-Encoding: gzip) to a request
+ * that accepts gzip and FILE to every other; both say Vary: Accept-Encoding and
+ * revalidate by their own ETags; a .gz older than its FILE, or without one, is not sent. */
+Test(server, client_files_go_gzipped_to_a_browser_that_accepts_gzip)
+{
+    char client[300], shaders[300], text[4096] = "", head[4096], v[200], path[600];
+    mount_dirs(client, shaders);
+    for (int i = 0; i < 100; i++) /* 100 lines of script, compressible as a bundle is */
+        snprintf(text + strlen(text), sizeof text - strlen(text), "export const v%d = %d;\n", i, i * i);
+    size_t len = strlen(text), gzn, stale_n;
+    uint8_t *gz = gzip_bytes(text, len, &gzn), *stale = gzip_bytes("export {};\n", 11, &stale_n), *body;
+    fx_put_text(client, "app.js", text);
+    snprintf(path, sizeof path, "%s/app.js.gz", client);
+    fx_write(path, gz, gzn);
+    fx_put_text(client, "old.js", "export const fresh = 1;\n");
+    snprintf(path, sizeof path, "%s/old.js.gz", client);
+    fx_write(path, stale, stale_n);
+    struct timespec past[2] = {{1000000000, 0}, {1000000000, 0}}; /* 2001: older than old.js */
+    cr_assert_eq(utimensat(AT_FDCWD, path, past, 0), 0);
+    snprintf(path, sizeof path, "%s/only.js.gz", client);
+    fx_write(path, stale, stale_n);
+    srv s;
+    const char *extra[] = {"--client", client, "--shaders", shaders, NULL};
+    srv_start(&s, g_lib, extra);
+    size_t n;
+    cr_assert_eq(http_req(s.port, "/app.js", "Accept-Encoding: gzip, deflate, br\r\n", head, sizeof head, &body, &n), 200);
+    cr_expect(n == gzn && !memcmp(body, gz, n), "the .gz as it is: %zu of %zu bytes", n, gzn);
+    cr_expect_str_eq(resp_header(head, "content-encoding:", v, sizeof v), "gzip");
+    cr_expect(find_nocase(head, "content-type: text/javascript"), "the type of app.js: %s", head);
+    cr_expect(find_nocase(head, "vary: accept-encoding"), "%s", head);
+    char etag_gz[200], hdr[300];
+    resp_header(head, "etag:", etag_gz, sizeof etag_gz);
+    free(body);
+    snprintf(hdr, sizeof hdr, "Accept-Encoding: gzip\r\nIf-None-Match: %s\r\n", etag_gz);
+    cr_expect_eq(http_req(s.port, "/app.js", hdr, head, sizeof head, &body, &n), 304, "revalidates: %s", head);
+    free(body);
+    const char *plain[] = {NULL, "Accept-Encoding: br, deflate\r\n", "Accept-Encoding: identity\r\n"};
+    for (int i = 0; i < 3; i++) {
+        cr_assert_eq(http_req(s.port, "/app.js", plain[i], head, sizeof head, &body, &n), 200);
+        cr_expect(n == len && !memcmp(body, text, n), "%s: the file itself", plain[i] ? plain[i] : "no header");
+        cr_expect(!find_nocase(head, "content-encoding"), "%s", head);
+        cr_expect(find_nocase(head, "vary: accept-encoding"), "%s", head);
+        cr_expect_str_neq(resp_header(head, "etag:", v, sizeof v), etag_gz, "each form has its own etag");
+        free(body);
+    }
+    cr_assert_eq(http_req(s.port, "/old.js", "Accept-Encoding: gzip\r\n", head, sizeof head, &body, &n), 200);
+    cr_expect(strstr((char *)body, "fresh") && !find_nocase(head, "content-encoding"), "a stale .gz: %s", body);
+    free(body);
+    cr_expect_eq(http_req(s.port, "/only.js", "Accept-Encoding: gzip\r\n", head, sizeof head, &body, &n), 404);
+    free(body);
+    free(gz);
+    free(stale);
     srv_stop(&s);
 }
 

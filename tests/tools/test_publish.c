@@ -30,6 +30,8 @@ static void setup(void)
     cr_assert_eq(mkdir(g_client, 0755), 0);
     fx_put_text(g_client, "btf-viewer.js", "export const viewer = 1;\n");
     fx_put_text(g_client, "btf-model-ABC.js", "export const model = 1;\n");
+    fx_put_text(g_client, "btf-viewer.js.gz", "(its gzipped copy)"); /* published as it is */
+    fx_put_text(g_client, "index.html.gz", "(a page's)");             /* not published */
     fx_put_text(g_client, "index.html", "<!doctype html>\n"); /* a demo page: not published */
 }
 
@@ -178,8 +180,13 @@ Test(publish, writes_the_list_the_packages_thumbnails_and_scripts)
     cr_expect(same_file(p, q), "the bundle");
     snprintf(q, sizeof q, "%s/btf-model-ABC.js", g_out);
     cr_expect_geq(btf_fs_size(q), 1, "its model chunk");
+    snprintf(p, sizeof p, "%s/btf-viewer.js.gz", g_client);
+    snprintf(q, sizeof q, "%s/btf-viewer.js.gz", g_out);
+    cr_expect(same_file(p, q), "the bundle's gzipped copy");
     snprintf(q, sizeof q, "%s/index.html", g_out);
     cr_expect_eq(btf_fs_size(q), -1, "no demo page");
+    snprintf(q, sizeof q, "%s/index.html.gz", g_out);
+    cr_expect_eq(btf_fs_size(q), -1, "nor its gzipped copy");
     char *t = tree();
     cr_expect_null(strstr(t, ".tmp-"), "no temporary file left");
     free(t);
