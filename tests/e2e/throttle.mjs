@@ -109,7 +109,7 @@ export function clsRecorder() {
 // One visit of `url` until viewer 0 has drawn its whole budget (timeout ms): what the
 // page showed and when, in ms from navigation start: {firstFrame, firstChunk (the first
 // chunk's last byte arrived), lastChunk, complete, scriptRequest (when the page asked for
-// btf-viewer.js), chunksAtFirstFrame, times (the viewer's loading sequence,
+// btf-viewer.js), scriptBytes ([its body over the link, decoded]), chunksAtFirstFrame, times (the viewer's loading sequence,
 // doc/client.md), streamBytes (chunk payload over the WebSocket), cls, error}.
 export async function visit(page, url, timeout = 120000) {
   await page.goto(url);
@@ -132,6 +132,7 @@ export async function visit(page, url, timeout = 120000) {
     const arrived = sub.arrivedAt || []; // a client without per-chunk times: its first and last piece
     return {firstFrame: v.firstFrameAt, firstChunk: arrived[0] ?? s.pieces.first, complete: v.completeAt,
       scriptRequest: script ? script.startTime : 0,
+      scriptBytes: script ? [script.encodedBodySize, script.decodedBodySize] : [0, 0],
       lastChunk: arrived.length ? Math.max(...arrived.filter(Number.isFinite)) : s.pieces.last,
       chunksAtFirstFrame: v.firstFrameChunks, chunks: v.drawnChunks, times: v.times, streamBytes: v.streamBytes,
       cached: sub.cached, cls: window.__cls ?? null, error: v.error, decoder: v.decoder, poster: v.posterShown};
