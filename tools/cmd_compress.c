@@ -29,6 +29,7 @@ typedef struct compress_opts {
     int quiet, json;
     int in_memory;     /* --in-memory: load the whole input first (the baseline of the view-by-view read) */
     int plain;         /* --plain: equal-noise steps (version 1, 2 or 4), not rate-distortion (version 3 or 4) */
+    int lossless;      /* --lossless: no lossy WebP textures in a rate-distortion package */
     btf_budget budget; /* --max-bytes / --max-error (codec/include/btf_budget.h); both 0 = none */
     btf_lod_options lod; /* levels > 0: package version 2 (4 with residual) with spatial levels (codec/include/btf_lod.h) */
 } compress_opts;
@@ -40,7 +41,7 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--max-bytes N | --max-error E] [--full-search] [--plain]\n"
+            "                           [--max-bytes N | --max-error E] [--full-search] [--plain] [--lossless]\n"
             "                           [--png] [--tex-noise X] [--linear] [--in-memory]\n"
             "                           [--no-thumbnail] [--quiet] [--json]\n"
             "\n"
@@ -86,12 +87,15 @@ static void compress_usage(FILE *f)
             "                   from every chunk, at most 128 pixels a side: the viewer's poster)\n"
             "  (default)        package version 3: texture and weight steps per component chosen\n"
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
-            "                   steps, weights deflated (wt-JJ.z); with --levels version 4;\n"
+            "                   steps, weights deflated (wt-JJ.z); a component's texture a lossy\n"
+            "                   WebP of its full-range codes where that costs fewer bytes for its\n"
+            "                   error (8 bits, without --levels or --png); with --levels version 4;\n"
             "                   with --bits 16 steps down to 1/65535 of a block's range (PNG\n"
             "                   textures, no --levels)\n"
             "  --plain          the equal-noise steps of every component, weights raw: version 1\n"
             "                   (2 or 4 with --levels)\n"
             "  --rd             the default (kept for scripts that name it)\n"
+            "  --lossless       rate-distortion steps with lossless textures only (no lossy WebP)\n"
             "  --png            every texture a PNG (default: a lossless WebP; with levels each\n"
             "                   level the smaller of a PNG and a WebP)\n"
             "  --tex-noise X    RMS quantisation noise per component of the textures\n"
@@ -112,7 +116,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A lossless!O png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -141,6 +145,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'T': o->pkg.thumbnail = 0; break;
     case 'R': o->pkg.rd = 1; break;
     case 'A': o->plain = 1; break;
+    case 'O': o->lossless = 1; break;
     case 'L': o->pkg.linear = 1; break;
     case 'S': o->budget.full_search = 1; break;
     case 'P': o->pkg.png_only = o->lod.png_only = 1; break;
@@ -168,6 +173,9 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
         rc = 2;
     }
     o->pkg.rd = !o->plain; /* rate-distortion steps unless asked otherwise */
+    /* lossy textures where they win, unless asked otherwise; not yet under levels,
+     * whose coarse levels would keep the full-range codes losslessly */
+    o->pkg.lossy = o->pkg.rd && !o->lossless && o->pkg.bits == 8 && !o->pkg.png_only && o->lod.levels == 0;
     if (rc == 0 && o->pkg.rd && o->pkg.bits != 8 && o->lod.levels > 0) {
         fprintf(stderr, "btf compress: levels over 16-bit textures need --plain (version 2)\n");
         rc = 2;

@@ -54,6 +54,7 @@ typedef struct library_opts {
     const char *sampling; /* --sampling S for image-directory sources; NULL: inferred */
     int downsample, levels, jobs, force, quiet;
     int plain;         /* --plain: equal-noise steps (version 1, or 2 with levels), not rate-distortion */
+    int lossless;      /* --lossless: rate-distortion steps without lossy WebP textures */
     btf_budget budget; /* --max-bytes / --max-error per material; both 0 = none */
 } library_opts;
 
@@ -70,7 +71,7 @@ static void library_usage(FILE *f)
     fprintf(f,
             "usage: btf library build SRC... --out LIB [-j N] [--k K] [--components C] [--bits 8|16]\n"
             "                         [--method M] [--downsample F] [--levels N] [--sampling S]\n"
-            "                         [--max-bytes N | --max-error E] [--plain] [--linear]\n"
+            "                         [--max-bytes N | --max-error E] [--plain] [--lossless] [--linear]\n"
             "                         [--force] [--quiet]\n"
             "\n"
             "Builds one package per SRC into the library directory LIB (what btfd serves), one job\n"
@@ -92,6 +93,8 @@ static void library_usage(FILE *f)
             "                   count chosen by measuring; --k, --components fix them)\n"
             "  --plain          equal-noise steps (version 1, 2 with --levels) instead of the\n"
             "                   default rate-distortion steps (version 3, 4 with --levels)\n"
+            "  --lossless       lossless textures only, as `btf compress --lossless` (default:\n"
+            "                   a lossy WebP texture where it wins, as `btf compress`)\n"
             "  --linear         packages of linear light, as `btf compress --linear` (for\n"
             "                   environment light: doc/lighting.md)\n"
             "  --force          rebuild even when up to date\n"
@@ -110,7 +113,7 @@ static void library_usage(FILE *f)
 
 static const btf_args_spec library_spec = {
     "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l sampling:S linear!L "
-    "max-bytes:B max-error:E plain!A force!f quiet!q",
+    "max-bytes:B max-error:E plain!A lossless!O force!f quiet!q",
     library_usage, -1};
 
 /* One option or positional of `btf library build` (btf_args_fn). */
@@ -128,6 +131,7 @@ static int library_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'S': o->sampling = v; return 0;
     case 'L': o->pkg.linear = 1; return 0;
     case 'A': o->plain = 1; return 0;
+    case 'O': o->lossless = 1; return 0;
     case 'B': return btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes);
     case 'E': return btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error);
     case 'f': o->force = 1; return 0;
@@ -204,12 +208,12 @@ static int stamp_text(const library_opts *o, const library_job *j, char *buf, si
     snprintf(buf, n,
              "{\"source\": \"%s\", \"source_mtime_size\": \"%s\", \"btf\": \"%s\",\n"
              " \"settings\": \"k=%d components=%d bits=%d method=%d downsample=%d levels=%d sampling=%s%s rd=%d "
-             "max_bytes=%lld max_error=%.17g\",\n"
+             "lossy=%d max_bytes=%lld max_error=%.17g\",\n"
              " \"thumbnail\": %d,\n"
              " \"manifest_mtime_size\": \"%lld %lld\"}\n",
              j->spec, id, BTF_VERSION, o->pca.k, o->pca.components, o->pkg.bits, (int)o->pca.method, o->downsample,
              o->levels, o->sampling ? o->sampling : "-", o->pkg.linear ? " linear" : "", o->pkg.rd,
-             o->budget.max_bytes, o->budget.max_error, o->pkg.thumbnail,
+             o->pkg.lossy, o->budget.max_bytes, o->budget.max_error, o->pkg.thumbnail,
              (long long)st.st_mtim.tv_sec * 1000000000 + st.st_mtim.tv_nsec, (long long)st.st_size);
     return 0;
 }
@@ -364,6 +368,7 @@ static int library_build(int argc, char **argv)
     }
     o.pkg.rd = !o.plain && (o.pkg.bits == 8 || o.levels == 0); /* rate-distortion steps unless asked otherwise
                                                                  * (16-bit levels: version 2 only) */
+    o.pkg.lossy = o.pkg.rd && !o.lossless && o.pkg.bits == 8 && o.levels == 0; /* as btf compress */
     if (rc == 0 && (!o.out || !o.n_src)) {
         fprintf(stderr, "btf library build: %s\n", o.out ? "no SRC given" : "--out LIB is required");
         rc = 2;

@@ -664,16 +664,17 @@ Test(rd, cli_defaults_to_rate_distortion_and_plain_stays_reachable)
 }
 
 /* A budget with levels: under --max-error the levels leave level 0 as the budget
- * without them made it (the same values); under --max-bytes the levelled package,
- * manifest included, fits. */
+ * without them made it (the same values; levels keep lossless textures, so the
+ * package without them is asked for --lossless); under --max-bytes the levelled
+ * package, manifest included, fits. */
 Test(rd, a_budget_with_levels_keeps_level_0_and_fits_the_bytes)
 {
     char tmp[256], a[512], b[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     snprintf(a, sizeof a, "%s/a", tmp);
     snprintf(b, sizeof b, "%s/b", tmp);
-    char *err_only[] = {"--k", "3", "--max-error", "3"}, *err_lv[] = {"--k", "3", "--max-error", "3", "--levels", "2"};
-    cr_assert_eq(cli_version(a, err_only, 4), 3);
+    char *err_only[] = {"--k", "3", "--max-error", "3", "--lossless"}, *err_lv[] = {"--k", "3", "--max-error", "3", "--levels", "2"};
+    cr_assert_eq(cli_version(a, err_only, 5), 3);
     cr_assert_eq(cli_version(b, err_lv, 6), 4);
     btf_package *pa = fx_package(a, NULL, 0), *pb = fx_package(b, NULL, 0);
     expect_same_values(pa, pb);
