@@ -7,14 +7,15 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-/* The packages v1, v2, v4 in memory, loaded on the first input. */
+/* The packages v1, v2, v4, v3 in memory, loaded on the first input. */
 static fuzz_mem *fuzz_mem_packages(void)
 {
-    static fuzz_mem m[3];
+    static fuzz_mem m[4];
     static int loaded;
     if (!loaded) {
         const fuzz_pkgs *pk = fuzz_packages();
         fuzz_mem_load(pk->v1, &m[0]), fuzz_mem_load(pk->v2, &m[1]), fuzz_mem_load(pk->v4, &m[2]);
+        fuzz_mem_load(pk->v3, &m[3]);
         loaded = 1;
     }
     return m;
@@ -27,9 +28,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     fuzz_mem *m = fuzz_mem_packages();
     int v;
     const char *name = fuzz_package_file(fuzz_packages(), data[0], &v);
-    fuzz_mem *pkg = &m[v == 4 ? 2 : v == 2 ? 1 : 0];
+    fuzz_mem *pkg = &m[v == 4 ? 2 : v == 3 ? 3 : v == 2 ? 1 : 0];
     fuzz_swap s = fuzz_mem_put(pkg, name, data + 1, size - 1);
-    fuzz_package_check(v == 4 ? "mem/v4" : v == 2 ? "mem/v2" : "mem/v1", &pkg->files);
+    fuzz_package_check(v == 4 ? "mem/v4" : v == 3 ? "mem/v3" : v == 2 ? "mem/v2" : "mem/v1", &pkg->files);
     fuzz_mem_restore(&s);
     return 0;
 }

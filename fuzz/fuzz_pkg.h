@@ -19,9 +19,10 @@
 
 /* ---------------------------------------------------------------- packages */
 
-/* The packages (v1, v2, v4) every package input starts from; made once per process. */
+/* The packages (v1, v2, v4, and v3 with lossy WebP textures allowed) every package
+ * input starts from; made once per process. */
 typedef struct fuzz_pkgs {
-    char v1[300], v2[300], v4[300];
+    char v1[300], v2[300], v4[300], v3[300];
     char residual[64]; /* v4's residual level file, or "manifest.json" when the writer kept none */
 } fuzz_pkgs;
 
@@ -37,9 +38,12 @@ static inline void fuzz__pkgs_make(fuzz_pkgs *p)
     btf_lod_options lo = {0}, lr = {0};
     lo.levels = lr.levels = 2;
     lr.residual = 1;
+    btf_package_options ro = {0};
+    ro.rd = 1, ro.lossy = 1;
     if (btf_dirset_make(r, 2, &d, &err) != BTF_OK || btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &b, &err) != BTF_OK ||
         btf_package_compress(b, &po, NULL, p->v1, NULL, &err) != BTF_OK ||
-        btf_lod_build(p->v1, p->v2, &lo, NULL, &err) != BTF_OK || btf_lod_build(p->v1, p->v4, &lr, NULL, &err) != BTF_OK) {
+        btf_lod_build(p->v1, p->v2, &lo, NULL, &err) != BTF_OK || btf_lod_build(p->v1, p->v4, &lr, NULL, &err) != BTF_OK ||
+        btf_package_compress(b, &po, &ro, p->v3, NULL, &err) != BTF_OK) {
         fprintf(stderr, "fuzz: package setup failed: %s\n", err.msg);
         abort();
     }
@@ -54,6 +58,7 @@ static inline const fuzz_pkgs *fuzz_packages(void)
     snprintf(p.v1, sizeof p.v1, "%s/v1", fuzz_dir());
     snprintf(p.v2, sizeof p.v2, "%s/v2", fuzz_dir());
     snprintf(p.v4, sizeof p.v4, "%s/v4", fuzz_dir());
+    snprintf(p.v3, sizeof p.v3, "%s/v3", fuzz_dir());
     fuzz__pkgs_make(&p);
     snprintf(p.residual, sizeof p.residual, "manifest.json");
     char path[400];
@@ -66,12 +71,17 @@ static inline const fuzz_pkgs *fuzz_packages(void)
     return &p;
 }
 
-/* The file an input replaces (first byte: 0 texture PNG, 1 weights .bin, 2
- * manifest.json of v1, 3 an 8-bit weights PNG of v2, 4 the manifest and 5 a
- * residual level of v4); *pkg gets 1, 2 or 4. */
+/* The file an input replaces (first byte below 0xf8, modulo 6: 0 texture PNG, 1
+ * weights .bin, 2 manifest.json of v1, 3 an 8-bit weights PNG of v2, 4 the manifest
+ * and 5 a residual level of v4; 0xf8 and above: v3's WebP texture tex-00.webp, lossy
+ * or lossless, 32 x 32); *pkg gets 1, 2, 3 or 4. */
 static inline const char *fuzz_package_file(const fuzz_pkgs *pk, uint8_t first, int *pkg)
 {
     const char *names[6] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png", "manifest.json", pk->residual};
+    if (first >= 0xf8) {
+        *pkg = 3;
+        return "tex-00.webp";
+    }
     int which = first % 6;
     *pkg = which >= 4 ? 4 : which == 3 ? 2 : 1;
     return names[which];
