@@ -1216,3 +1216,51 @@ Test(rd, reader_refuses_a_malformed_lossy_texture)
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
+
+/* Levels over a package with lossy textures (btf_lod_build, version 4): level 0 keeps
+ * every decoded value, and a lossy level 0 stays its lossy file (copied, byte for
+ * byte) unless its residual is smaller; under png_only it is the PNG of its decode. */
+Test(rd, levels_over_lossy_textures_keep_the_decoded_values)
+{
+    char tmp[256], out[512], lv[512], lp[512];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/m", tmp);
+    snprintf(lv, sizeof lv, "%s/lv", tmp);
+    snprintf(lp, sizeof lp, "%s/lp", tmp);
+    btf *src = fx_material(BTF_GEN_TILES, 64, rings, 3);
+    btf_rd_result rr;
+    compress_lossy(src, 4, 1, out, &rr);
+    btf_lod_options lo = {0}, lpng = {0};
+    lo.levels = lpng.levels = 2;
+    lpng.png_only = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_lod_build(out, lp, &lpng, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0), *c = fx_package(lp, NULL, 0);
+    cr_assert(b->version == 4 && c->version == 4);
+    expect_same_values(a, b);
+    expect_same_values(a, c);
+    int copied = 0;
+    for (int j = 0; j < rr.n_comp; j++) {
+        if (rr.tex_quality[j] < 0)
+            continue;
+        char name[64], path[1024];
+        uint8_t *f = NULL, *g = NULL;
+        size_t n = texture_file(a, out, j, &f), m = 0;
+        snprintf(name, sizeof name, "tex-%02d.webp", j);
+        snprintf(path, sizeof path, "%s/%s", lv, name);
+        btf_error e2 = {0};
+        if (btf_fs_read(path, (size_t)1 << 26, (char **)&g, &m, &e2) == BTF_OK) {
+            cr_assert(m == n && !memcmp(f, g, n), "%s: the lossy file copied byte for byte", name);
+            copied++;
+        }
+        snprintf(path, sizeof path, "%s/%s", lp, name);
+        cr_assert_lt(btf_fs_size(path), 0, "png_only: no WebP level 0 (%s)", name);
+        free(f), free(g);
+    }
+    cr_log_info("%d lossy level-0 files kept as they were", copied);
+    btf_package_free(a), btf_package_free(b), btf_package_free(c);
+    btf_rd_result_free(&rr);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
