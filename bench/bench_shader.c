@@ -692,17 +692,18 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
         btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err) ||
         btf_gl_fixed_create(gl, g1, &x1, &err) != BTF_OK || btf_gl_fixed_create(gl, g2, &x2, &err) != BTF_OK)
         return die("levels package", &err);
-    product_ctx pc[4] = {{s, g1, 0, NULL, NULL, NULL}, {s, g2, 0, NULL, NULL, NULL}, {s, g1, 0, NULL, NULL, x1},
-                         {s, g2, 0, NULL, NULL, x2}};
-    bench_case c[4];
-    int rc = 0;
-    for (int i = 0; i < 4; i++) {
+    const char *alt = getenv("BENCH_ALT_SHADERS"); /* the fixed-light pair again, from these shaders */
+    product_ctx pc[6] = {{s, g1, 0, NULL, NULL, NULL}, {s, g2, 0, NULL, NULL, NULL}, {s, g1, 0, NULL, NULL, x1},
+                         {s, g2, 0, NULL, NULL, x2},       {s, g1, 0, NULL, NULL, x1},   {s, g2, 0, NULL, NULL, x2}};
+    bench_case c[6];
+    int rc = 0, n = alt ? 6 : 4;
+    for (int i = 0; i < n; i++) {
         c[i] = (bench_case){.setup = product_setup, .ctx = &pc[i]};
-        rc = rc || product_build(gl, &pc[i], NULL);
+        rc = rc || product_build(gl, &pc[i], i < 4 ? NULL : alt);
     }
-    rc = rc || time_frames(gl, s, t, c, 4);
-    static const char *path[2] = {"", "fixed_"};
-    for (int k = 0; k < 2 && !rc; k++) {
+    rc = rc || time_frames(gl, s, t, c, n);
+    static const char *path[3] = {"", "fixed_", "alt_fixed_"};
+    for (int k = 0; k < n / 2 && !rc; k++) {
         double v1 = c[2 * k].cost.cpu_ms, v2 = c[2 * k + 1].cost.cpu_ms;
         printf("levels_%sv1_C%d_cpu_ms %.2f ms\nlevels_%sv2_C%d_cpu_ms %.2f ms\n", path[k], p1->n_loaded, v1, path[k],
                p1->n_loaded, v2);
@@ -710,7 +711,7 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
         if (c[2 * k].cost.gpu_ms > 0 && c[2 * k + 1].cost.gpu_ms > 0)
             printf("levels_%sv2_over_v1_gpu_ratio %.3f x\n", path[k], c[2 * k + 1].cost.gpu_ms / c[2 * k].cost.gpu_ms);
     }
-    for (int i = 0; i < 4; i++)
+    for (int i = 0; i < n; i++)
         btf_shader_program_free(gl, pc[i].prog);
     btf_gl_fixed_free(gl, x1);
     btf_gl_fixed_free(gl, x2);
@@ -982,7 +983,10 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         rows[n_rows++] = (bench_row){C, ms_s.cpu_ms, ms_t.cpu_ms, ms_e.cpu_ms, ms_x.cpu_ms, e[0], m[0], e[1], m[1], e[3], m[3]};
     }
     print_table(rows, n_rows);
-    if (!getenv("BENCH_MAX_C") && (run_levels(gl, p, dir, &s, t) || run_fetch(gl, &s, t)))
+    const char *max_c = getenv("BENCH_MAX_C"); /* 0: the level run alone */
+    if ((!max_c || atoi(max_c) == 0) && run_levels(gl, p, dir, &s, t))
+        return 1;
+    if (!max_c && run_fetch(gl, &s, t))
         return 1;
     printf("renderer %s\nplatform %s\n", btf_gl_renderer(gl), btf_gl_platform(gl));
     btf_gl_texture_free(gl, tex);
