@@ -1,6 +1,7 @@
 // btf-cache.js - received chunks kept in the browser for the next visit (Cache API):
 // one entry per (server, material, etag) holding a prefix of its chunks, each chunk one
-// cached response (its files concatenated, sizes in a header). The index (entries, bytes,
+// cached response (its files concatenated, sizes in a header), and the manifest (so a
+// resumed subscription need not receive it again: "manifest_kept", doc/protocol.md). The index (entries, bytes,
 // last use) is itself a cached JSON response. Bounded: least recently used entries go
 // first once the total passes chunkCache.limit bytes. Without the Cache API (pages
 // that are not secure contexts) nothing is kept. A new etag replaces the entry.
@@ -38,6 +39,7 @@ async function dropEntry(cache, index, key) {
   const e = index.entries[key];
   if (!e) return;
   await Promise.all(e.chunks.map((j) => cache.delete(chunkUrl(key, e.etag, j))));
+  if (e.manifest) await cache.delete(chunkUrl(key, e.etag, 'manifest'));
   delete index.entries[key];
   mark(key, false);
 }
@@ -71,7 +73,15 @@ async function evict(cache, index, keep) {
   while (total() > chunkCache.limit && lru.length) await dropEntry(cache, index, lru.shift()[0]);
 }
 
-// The kept chunks of a material: {etag, chunks: [files per chunk 0..n-1]} or null.
+// The kept manifest of an entry (the parsed object), or null.
+async function readManifest(cache, key, e) {
+  if (!e.manifest) return null;
+  const r = await cache.match(chunkUrl(key, e.etag, 'manifest'));
+  return r ? r.json().catch(() => null) : null;
+}
+
+// The kept chunks of a material: {etag, chunks: [files per chunk 0..n-1], manifest (the
+// manifest of etag, or null)} or null.
 export function loadChunks(server, material) {
   if (!chunkCache.enabled) return Promise.resolve(null);
   return serial(async () => {
@@ -86,9 +96,10 @@ export function loadChunks(server, material) {
       let off = 0;
       chunks.push(sizes.map((n) => buf.subarray(off, (off += n))));
     }
+    const manifest = chunks.length ? await readManifest(cache, key, e) : null;
     e.used = Date.now();
     await writeIndex(cache, index);
-    return chunks.length ? {etag: e.etag, chunks} : null;
+    return chunks.length ? {etag: e.etag, chunks, manifest} : null;
   }).catch(() => null);
 }
 
@@ -102,6 +113,25 @@ export function storeChunk(server, material, etag, j, files) {
   batch.items.push({key: entryKey(server, material), etag, j, files});
   if (!batch.done) batch.done = serial(() => writeBatch(batch)).catch(() => {});
   return batch.done;
+}
+
+// Keeps the manifest (object) of a material at etag beside its chunks; an older etag's
+// entry is dropped.
+export function storeManifest(server, material, etag, manifest) {
+  if (!chunkCache.enabled) return Promise.resolve();
+  return serial(async () => {
+    const cache = await caches.open(NAME), index = await readIndex(cache), key = entryKey(server, material);
+    if (index.entries[key] && index.entries[key].etag !== etag) await dropEntry(cache, index, key);
+    const e = index.entries[key] || (index.entries[key] = {etag, chunks: [], bytes: 0, used: 0});
+    if (e.manifest) return;
+    const text = JSON.stringify(manifest);
+    await cache.put(chunkUrl(key, etag, 'manifest'), new Response(text, {headers: {'content-type': 'application/json'}}));
+    e.manifest = text.length;
+    e.bytes += text.length;
+    e.used = Date.now();
+    await evict(cache, index, key);
+    await writeIndex(cache, index);
+  }).catch(() => {});
 }
 
 let pendingStores = null; // the batch the next serial write takes
@@ -136,7 +166,7 @@ export function dropChunks(server, material) {
   }).catch(() => {});
 }
 
-// Test hook: the index ({entries: {key: {etag, chunks, bytes, used}}}).
+// Test hook: the index ({entries: {key: {etag, chunks, bytes, used, manifest (its bytes, if kept)}}}).
 export function cacheIndex() {
   if (!chunkCache.enabled) return Promise.resolve({entries: {}});
   return serial(async () => readIndex(await caches.open(NAME)));

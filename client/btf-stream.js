@@ -15,7 +15,7 @@
 // anything it was asked for is missing, and stays closed once everything has arrived
 // until a listener asks for more.
 
-import {dropChunks, loadChunks, mayHaveChunks, storeChunk} from './btf-cache.js';
+import {dropChunks, loadChunks, mayHaveChunks, storeChunk, storeManifest} from './btf-cache.js';
 import {Subscription, mergeBudgets} from './btf-subscription.js';
 import {HttpStream, libraryBase} from './btf-http.js';
 
@@ -299,6 +299,7 @@ export class BtfStream {
     if (have.length && sub.etag) {
       msg.have = have;
       msg.etag = sub.etag;
+      if (sub.manifest || sub.keptManifest) msg.manifest_kept = true; // resumed: the server leaves it out
     }
     if (!this.send(msg)) return;
     sub.seq = msg.seq;
@@ -398,8 +399,15 @@ export class BtfStream {
       sub.etag = msg.etag;
       sub.limit = msg.limit;
       this.byMid.set(msg.mid, sub);
+      if (msg.manifest) storeManifest(this.url, sub.material, msg.etag, msg.manifest);
       if (!sub.manifest || !msg.resumed) {
-        sub.manifest = msg.manifest;
+        // left out when resumed with "manifest_kept": the one kept with the chunks
+        sub.manifest = msg.manifest || (msg.resumed && sub.keptManifest) || null;
+        sub.keptManifest = null;
+        if (!sub.manifest) { // a server that left out a manifest this page does not hold
+          sub.error = {code: 'bad_manifest', message: `the manifest of ${sub.material} did not come`};
+          return sub.emit('onError', sub.error);
+        }
         sub.emit('onManifest');
       }
       for (; sub.unannounced; sub.unannounced--) sub.emit('onChunk', sub.received - sub.unannounced);

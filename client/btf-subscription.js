@@ -57,6 +57,7 @@ export class Subscription {
   adopt(kept) {
     if (kept && !this.manifest) {
       this.etag = kept.etag;
+      this.keptManifest = kept.manifest || null; // the manifest of that etag, kept with them
       kept.chunks.forEach((files, j) => { this.chunks[j] = files; });
       this.received = this.cached = this.unannounced = kept.chunks.length;
     }

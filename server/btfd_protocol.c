@@ -439,8 +439,9 @@ static int apply_have(btfd_sub *s, const btfd_request *rq)
     return 1;
 }
 
-/* Header of the manifest message, ending in "manifest": so the body follows. */
-static char *manifest_head(const btfd_sub *s, const btfd_request *rq, int resumed)
+/* Header of the manifest message, ending in "manifest": so the body follows; whole (no
+ * "manifest") when `kept`: a resumed client that holds the manifest of this etag. */
+static char *manifest_head(const btfd_sub *s, const btfd_request *rq, int resumed, int kept)
 {
     cJSON *o = reply("manifest", rq);
     cJSON_AddNumberToObject(o, "mid", s->mid);
@@ -452,8 +453,8 @@ static char *manifest_head(const btfd_sub *s, const btfd_request *rq, int resume
     cJSON_AddNumberToObject(o, "held", s->n_have);
     char *txt = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
-    if (!txt)
-        return NULL;
+    if (!txt || kept)
+        return txt;
     size_t n = strlen(txt);
     char *head = malloc(n + 16);
     if (head) {
@@ -506,7 +507,8 @@ static void do_subscribe(btfd_server *srv, btfd_conn *c, const btfd_request *rq)
     srv->stats.subscriptions_total++;
     btfd_log(srv, BTFD_LOG_DEBUG, "conn %llu: subscribe %s (mid %d, limit %d, %s)", (unsigned long long)c->id,
              m->name, s->mid, s->limit, resumed ? "resumed" : "new");
-    queue_text(srv, c, manifest_head(s, rq, resumed), m);
+    int kept = resumed && rq->manifest_kept;
+    queue_text(srv, c, manifest_head(s, rq, resumed, kept), kept ? NULL : m);
     check_complete(srv, c, s);
 }
 

@@ -181,7 +181,7 @@ static btfd_req_status parse_ack(const cJSON *root, btfd_request *out, char *why
     return BTFD_REQ_OK;
 }
 
-/* Fields after "type": seq, material, budget, have, etag as the type needs. */
+/* Fields after "type": seq, material, budget, have, etag, manifest_kept, token as the type needs. */
 static btfd_req_status parse_fields(const cJSON *root, btfd_request *out, char *why, size_t n)
 {
     const cJSON *s = cJSON_GetObjectItemCaseSensitive(root, "seq");
@@ -216,6 +216,12 @@ static btfd_req_status parse_fields(const cJSON *root, btfd_request *out, char *
             return fail(why, n, BTFD_REQ_BAD_FIELD, "\"etag\" must be a string of at most %d bytes",
                         BTFD_ETAG_MAX);
         strcpy(out->etag, e->valuestring);
+    }
+    const cJSON *k = cJSON_GetObjectItemCaseSensitive(root, "manifest_kept");
+    if (k && !cJSON_IsNull(k)) {
+        if (!cJSON_IsBool(k))
+            return fail(why, n, BTFD_REQ_BAD_FIELD, "\"manifest_kept\" must be true or false");
+        out->manifest_kept = cJSON_IsTrue(k);
     }
     const cJSON *t = cJSON_GetObjectItemCaseSensitive(root, "token");
     if (t && !cJSON_IsNull(t)) {

@@ -29,7 +29,7 @@
 
 typedef enum btfd_req_type {
     BTFD_REQ_LIST = 1,    /* {"type":"list"}: rescan (rate limited) and list the library */
-    BTFD_REQ_SUBSCRIBE,   /* {"type":"subscribe","material":..,"budget":{..},"have":[..],"etag":..,"token":..} */
+    BTFD_REQ_SUBSCRIBE,   /* {"type":"subscribe","material":..,"budget":{..},"have":[..],"etag":..,"manifest_kept":..,"token":..} */
     BTFD_REQ_BUDGET,      /* {"type":"budget","material":..,"budget":{..}} */
     BTFD_REQ_UNSUBSCRIBE, /* {"type":"unsubscribe","material":..} */
     BTFD_REQ_PING,        /* {"type":"ping"}: answered with {"type":"pong"} */
@@ -68,6 +68,7 @@ typedef struct btfd_request {
     int n_have;
     uint32_t have[BTFD_HAVE_MAX];     /* chunk indices the client already holds */
     char etag[BTFD_ETAG_MAX + 1];     /* etag of the manifest the "have" refers to */
+    int manifest_kept;                /* subscribe: the client holds the manifest of etag (omit it when resumed) */
     char token[BTFD_REQ_TOKEN_MAX + 1]; /* subscribe: the access token of a private library, "" none */
     int64_t received;                 /* ack: binary message bytes received on the connection */
     int64_t window;                   /* ack: 0 no window, else the most unacknowledged bytes; -1 unchanged */

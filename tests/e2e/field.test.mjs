@@ -6,10 +6,10 @@
 // through the link (script, list, manifest, chunks) plus 1 s of the page's request for
 // the script, the whole picture within 1.5 s of the last chunk, the script crossing the
 // link gzipped,
-// a reload streams at most 5% of the bytes, nothing below the viewer moves (layout
-// shift), and each failure (server down at page load, link dropped mid-stream, shader
-// files failing, server stopped after complete) ends in an `error` event and, once the
-// server is back, in a complete picture. Run: node --test tests/e2e/
+// a reload streams at most 5% of the chunk bytes and takes at most 5% of the link's,
+// nothing below the viewer moves (layout shift), and each failure (server down at page
+// load, link dropped mid-stream, shader files failing, server stopped after complete)
+// ends in an `error` event and, once the server is back, in a complete picture. Run: node --test tests/e2e/
 import assert from 'node:assert/strict';
 import {after, before, describe, it} from 'node:test';
 import path from 'node:path';
@@ -98,6 +98,7 @@ async function fieldRuns(bps, runs) {
       const first = await visit(page, url);
       const linkBytes = link.down.bytes; // everything the first visit took through the link
       const reload = await visit(page, url);
+      reload.linkBytes = link.down.bytes - linkBytes; // all a reload took through the link
       assert.equal(first.error, null);
       const linkMs = (linkBytes * 8 * 1000) / bps;
       out.push({first, reload, linkMs, linkBytes});
@@ -122,12 +123,12 @@ function report(name, runs) {
       `script ${first.scriptBytes[0]} B for ${first.scriptBytes[1]}, stream ${first.streamBytes} B, cls ${first.cls.toFixed(3)}, drawn ${JSON.stringify(t.drawn)}; ` +
       `script ${f(t.script)} start ${f(t.start)} open ${f(t.open)} manifest ${f(t.manifest)} gl ${f(t.gl)} ` +
       `shaders ${f(t.shaders)} decoded ${f(t.decoded)} program ${f(t.program)} (${first.decoder}); ` +
-      `reload ${reload.streamBytes} B, first frame ${f(reload.firstFrame)} ms`);
+      `reload ${reload.streamBytes} B of chunks, ${reload.linkBytes} B on the link, first frame ${f(reload.firstFrame)} ms`);
   }
 }
 
 function judge(runs) {
-  for (const [i, {first, reload, linkMs}] of runs.entries()) {
+  for (const [i, {first, reload, linkMs, linkBytes}] of runs.entries()) {
     const run = `run ${i}: ${JSON.stringify({...first, times: undefined})}`;
     assert.ok(first.chunksAtFirstFrame >= 1 && first.chunksAtFirstFrame <= 2, `first frame with 1-2 chunks; ${run}`);
     assert.ok(first.firstFrame - first.firstChunk <= 1000, `load within 1 s of the first chunk; ${run}`);
@@ -145,6 +146,8 @@ function judge(runs) {
     assert.match(String(first.poster), /\/materials\/knit\/thumbnail\.png$/, `the package's poster showed first; ${run}`);
     assert.ok(reload.streamBytes <= 0.05 * first.streamBytes,
       `run ${i}: the reload streamed ${reload.streamBytes} of ${first.streamBytes} bytes`);
+    // everything it took through the link: the script revalidated, the list, the messages
+    assert.ok(reload.linkBytes <= 0.05 * linkBytes, `run ${i}: the reload took ${reload.linkBytes} of ${linkBytes} B`);
     assert.ok(reload.cls < 0.1, `reload layout shift ${reload.cls}`);
   }
 }

@@ -395,12 +395,14 @@ export async function freePort() {
 }
 
 export function watchFrames(page) {
-  const frames = {text: [], binary: 0, sockets: 0};
+  const frames = {text: [], binary: 0, textBytes: 0, sockets: 0};
   page.on('websocket', (ws) => {
     frames.sockets++;
     ws.on('framereceived', (f) => {
-      if (typeof f.payload === 'string') frames.text.push(JSON.parse(f.payload));
-      else frames.binary += f.payload.length;
+      if (typeof f.payload === 'string') {
+        frames.text.push(JSON.parse(f.payload));
+        frames.textBytes += Buffer.byteLength(f.payload);
+      } else frames.binary += f.payload.length;
     });
   });
   return frames;

@@ -1312,6 +1312,25 @@ Test(server, resume_after_reconnect_sends_only_missing_chunks)
     stream_free(&st2);
     wsc_close(&c);
 
+    /* the same with "manifest_kept": the manifest message comes without the manifest;
+     * with a stale etag it comes whole (the client's copy is of another package) */
+    for (int stale = 0; stale < 2; stale++) {
+        open_ws(&c, &s);
+        snprintf(msg, sizeof msg, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"have\":[0,1],\"etag\":\"%s\","
+                 "\"manifest_kept\":true,\"budget\":{\"chunks\":2}}", stale ? "0000000000000000" : etag);
+        wsc_send_text(&c, msg);
+        cJSON *mj = expect_type(&c, "manifest");
+        cr_expect_eq(cJSON_IsTrue(cJSON_GetObjectItem(mj, "resumed")), !stale);
+        cr_expect_eq(cJSON_HasObjectItem(mj, "manifest"), stale, "stale %d: %s", stale, cJSON_PrintUnformatted(mj));
+        cr_expect_str_eq(jstr(mj, "etag"), etag);
+        cJSON_Delete(mj);
+        wsc_close(&c);
+    }
+    open_ws(&c, &s);
+    wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"manifest_kept\":1}");
+    expect_error(&c, "bad_field");
+    wsc_close(&c);
+
     /* a stale etag: "have" is ignored and everything comes again */
     open_ws(&c, &s);
     wsc_send_text(&c, "{\"type\":\"subscribe\",\"material\":\"alpha\",\"have\":[0,1],\"etag\":\"0000000000000000\"}");
