@@ -6,9 +6,12 @@
  * The fixed-light decoder computes the same sums except that each blended weight is
  * rounded once more, onto its per-draw grid (half a step dL at most, per slot and
  * channel): btf_gl_fixed_quant_error adds max|T| dL/2 + dT dL/4 to Q and E[T^2] dL^2/12
- * to R^2, and the tests hold it to 1e-4 + Qf and 3e-5 + Rf. Against the run-time program
- * on the same queries the difference is that rounding alone plus float noise: within
- * 1e-4 + (Qf - Q). */
+ * to R^2 (Qf, Rf), the bound it is guaranteed. The tests hold it to the run-time path's
+ * own tolerance, 1e-4 + Q and 3e-5 + R, which it meets with room on these packages (the
+ * per-draw step is no coarser than the package's, and the worst case needs every
+ * rounding at its extreme, aligned; measured max 3.6e-4 against 1e-4 + Q >= 1e-3), and
+ * check Qf >= Q. Against the run-time program on the same queries the difference is the
+ * added rounding alone plus float noise: within 1e-4 + (Qf - Q). */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdio.h>
@@ -110,14 +113,15 @@ static void probe_draw(btf_gl *gl, btf_shader_program *prog, const btf_gl_packag
     btf_gl_texture_free(gl, t1);
 }
 
-/* Largest differences of one setting, over every draw of a test. */
+/* Largest differences over every draw of one test; a plain value on that test's stack. */
 typedef struct diff_stats {
-    double cpu, runtime, q_margin; /* max |fixed - cpu|, max |fixed - run-time|, max |fixed - cpu| - 1e-4 - Q */
+    double cpu, runtime, rms; /* max |fixed - cpu|, max |fixed - run-time|, largest RMS |fixed - cpu| of a draw */
+    double runtime_cpu;       /* max |run-time - cpu|, for comparison */
 } diff_stats;
 
 /* Fixed-light and run-time programs (prefix n, filter, lod) on one light's queries:
- * fixed vs btf_decode within 1e-4 + Qf, RMS within 3e-5 + Rf; fixed vs run-time within
- * 1e-4 + Qf - Q. */
+ * fixed vs btf_decode within 1e-4 + Q, RMS within 3e-5 + R (the run-time path's
+ * tolerance); fixed vs run-time within 1e-4 + Qf - Q. */
 static void compare_light(btf_gl *gl, const btf_package *p, const btf_gl_package *g, btf_gl_fixed *x,
                           btf_shader_program *fixed, btf_shader_program *runtime, const btf_gl_decode_settings *s,
                           float lod, const float l[3], const char *what, diff_stats *st)
@@ -140,17 +144,20 @@ static void compare_light(btf_gl *gl, const btf_package *p, const btf_gl_package
         btf_decode(p, q0[i * 4 + 3], q1[i * 4 + 3], l, &q1[i * 4], &o, rgb);
         for (int c = 0; c < 3; c++) {
             double e = fabs(a[i * 4 + c] - rgb[c]), d = fabs(a[i * 4 + c] - b[i * 4 + c]);
-            cr_assert(e <= 1e-4 + qf, "%s query %d c%d: fixed %.7f cpu %.7f (bound %.2e)", what, i, c,
-                      (double)a[i * 4 + c], (double)rgb[c], 1e-4 + qf);
+            cr_assert(e <= 1e-4 + q, "%s query %d c%d: fixed %.7f cpu %.7f (bound %.2e)", what, i, c,
+                      (double)a[i * 4 + c], (double)rgb[c], 1e-4 + q);
             cr_assert(d <= 1e-4 + qf - q, "%s query %d c%d: fixed %.7f run-time %.7f (bound %.2e)", what, i, c,
                       (double)a[i * 4 + c], (double)b[i * 4 + c], 1e-4 + qf - q);
             sq += e * e;
             st->cpu = fmax(st->cpu, e);
             st->runtime = fmax(st->runtime, d);
-            st->q_margin = fmax(st->q_margin, e - 1e-4 - q);
+            st->runtime_cpu = fmax(st->runtime_cpu, fabs(b[i * 4 + c] - rgb[c]));
         }
     }
-    cr_assert(sqrt(sq / (3.0 * FQ)) <= 3e-5 + rf, "%s: RMS %.3g above %.3g", what, sqrt(sq / (3.0 * FQ)), 3e-5 + rf);
+    double rms = sqrt(sq / (3.0 * FQ));
+    cr_assert(rms <= 3e-5 + r, "%s: RMS %.3g above %.3g", what, rms, 3e-5 + r);
+    cr_assert(r < 0.1 / 255.0 && rf < 0.1 / 255.0, "%s: requantisation RMS bounds %.3g, %.3g", what, r, rf);
+    st->rms = fmax(st->rms, rms);
 }
 
 /* Every light of `lights`, prefixes 1, 4 and all, both filters, on one backend. */
@@ -166,7 +173,7 @@ static void check_fixed(btf_gl_backend b, int bits)
     cr_assert_eq(btf_gl_package_upload(gl, p, pkg, &g, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(btf_gl_fixed_create(gl, g, &x, &err), BTF_OK, "%s", err.msg);
     const int prefixes[3] = {1, 4, 0};
-    diff_stats st = {0, 0, -1};
+    diff_stats st = {0, 0, 0, 0};
     for (int k = 0; k < 3; k++)
         for (int filter = 0; filter < 2; filter++) {
             btf_shader_program *fixed = build_probe(gl, g, filter, prefixes[k], 1);
@@ -183,8 +190,8 @@ static void check_fixed(btf_gl_backend b, int bits)
             btf_shader_program_free(gl, fixed);
             btf_shader_program_free(gl, runtime);
         }
-    cr_log_info("fixed light %s %d-bit: max |fixed - cpu| %.2e, |fixed - run-time| %.2e, beyond the run-time bound "
-                "%.2e", btf_gl_backend_name(b), bits, st.cpu, st.runtime, st.q_margin);
+    cr_log_info("fixed light %s %d-bit: max |fixed - cpu| %.2e (RMS %.2e), |run-time - cpu| %.2e, |fixed - run-time| "
+                "%.2e", btf_gl_backend_name(b), bits, st.cpu, st.rms, st.runtime_cpu, st.runtime);
     btf_gl_fixed_free(gl, x);
     btf_gl_package_free(gl, g);
     btf_gl_free(gl);
@@ -214,7 +221,7 @@ Test(gl_fixed, decode_levels_match_cpu)
     cr_assert_eq(btf_gl_fixed_create(gl, g, &x, &err), BTF_OK, "%s", err.msg);
     const int prefixes[2] = {p->n_chunks / 2, 0};
     const float lods[4] = {-1.0f, 0.4f, 1.5f, 2.7f};
-    diff_stats st = {0, 0, -1};
+    diff_stats st = {0, 0, 0, 0};
     for (int k = 0; k < 2; k++)
         for (int filter = 0; filter < 2; filter++) {
             btf_shader_program *fixed = build_probe(gl, g, filter, prefixes[k], 1);
@@ -230,7 +237,8 @@ Test(gl_fixed, decode_levels_match_cpu)
             btf_shader_program_free(gl, fixed);
             btf_shader_program_free(gl, runtime);
         }
-    cr_log_info("fixed light, levels: max |fixed - cpu| %.2e, |fixed - run-time| %.2e", st.cpu, st.runtime);
+    cr_log_info("fixed light, levels: max |fixed - cpu| %.2e, |run-time - cpu| %.2e, |fixed - run-time| %.2e", st.cpu,
+                st.runtime_cpu, st.runtime);
     btf_gl_fixed_free(gl, x);
     btf_gl_package_free(gl, g);
     btf_gl_free(gl);
@@ -246,8 +254,9 @@ Test(gl_fixed, decode_levels_match_cpu)
 /* The plane drawn by btf_renderer_draw (the fixed-light program: a distant light on
  * the plane) and by btf_renderer_use with the plane's mesh (the run-time program), same
  * parameters, debug outputs: the same fragments (uv, local light and view equal), colour
- * within 1e-4 + Qf - Q of each other and within 1e-4 + Qf of btf_decode at the
- * fragment's own uv, light and view (the horizon fade applied as btf_render.frag does). */
+ * within 1e-4 + Qf - Q of each other and within 1e-4 + Q (the run-time path's tolerance,
+ * test_gl.c) of btf_decode at the fragment's own uv, light and view (the horizon fade
+ * applied as btf_render.frag does). */
 static void check_renderer(btf_gl_backend b, int filter, float light_theta, float light_phi)
 {
     char tmp[256], pkg[300];
@@ -314,7 +323,7 @@ static void check_renderer(btf_gl_backend b, int filter, float light_theta, floa
         for (int c = 0; c < 3; c++) {
             double want = fmin(fmax(rgb[c] * fade, 0.0), 1.0), got = out[0][0][i * 4 + c];
             double e = fabs(got - want), d = fabs(got - out[1][0][i * 4 + c]);
-            cr_assert(e <= 1e-4 + qf, "%s pixel %d c%d: fixed %.7f cpu %.7f", btf_gl_backend_name(b), i, c, got, want);
+            cr_assert(e <= 1e-4 + q, "%s pixel %d c%d: fixed %.7f cpu %.7f", btf_gl_backend_name(b), i, c, got, want);
             cr_assert(d <= 1e-4 + qf - q, "%s pixel %d c%d: fixed %.7f run-time %.7f", btf_gl_backend_name(b), i, c,
                       got, (double)out[1][0][i * 4 + c]);
             worst[0] = fmax(worst[0], e), worst[1] = fmax(worst[1], d);
@@ -322,7 +331,7 @@ static void check_renderer(btf_gl_backend b, int filter, float light_theta, floa
     }
     cr_assert_gt(drawn, RW * RH / 3, "only %d pixels drawn", drawn);
     cr_log_info("%s renderer, light (%g, %g): max |fixed - cpu| %.2e, |fixed - run-time| %.2e (bounds %.2e, %.2e)",
-                btf_gl_backend_name(b), (double)light_theta, (double)light_phi, worst[0], worst[1], 1e-4 + qf,
+                btf_gl_backend_name(b), (double)light_theta, (double)light_phi, worst[0], worst[1], 1e-4 + q,
                 1e-4 + qf - q);
     btf_gl_fixed_free(gl, x);
     btf_render_mesh_free(m);
