@@ -530,13 +530,27 @@ static cJSON *btf__rings_json(const btf_dirset *d, const btf_dirtab *tab)
 }
 
 /* Version 1 per-chunk ranges: [[lo, step], ...] per block. */
+/* A float as the shortest decimal that a reader's double, rounded to float, takes back to
+ * it exactly (at most 9 significant digits, against the 17 of the double it widens to). */
+static cJSON *btf__f32_json(float x)
+{
+    char b[32];
+    for (int digits = 6; digits <= 9 && isfinite(x); digits++) {
+        snprintf(b, sizeof b, "%.*g", digits, (double)x);
+        double d = strtod(b, NULL);
+        if ((float)d == x)
+            return cJSON_CreateNumber(d);
+    }
+    return cJSON_CreateNumber((double)x);
+}
+
 static cJSON *btf__ranges_json(const float *rg, int n_blocks)
 {
     cJSON *a = cJSON_CreateArray();
     for (int b = 0; b < n_blocks; b++) {
         cJSON *p = cJSON_CreateArray();
-        cJSON_AddItemToArray(p, cJSON_CreateNumber(rg[2 * b]));
-        cJSON_AddItemToArray(p, cJSON_CreateNumber(rg[2 * b + 1]));
+        cJSON_AddItemToArray(p, btf__f32_json(rg[2 * b]));
+        cJSON_AddItemToArray(p, btf__f32_json(rg[2 * b + 1]));
         cJSON_AddItemToArray(a, p);
     }
     return a;

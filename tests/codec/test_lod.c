@@ -333,8 +333,7 @@ Test(lod, bad_inputs)
 }
 
 /* Compact v2 manifest: ranges once per component (base64 float32) equal to v1's JSON
- * numbers bit for bit; no per-chunk ranges; smaller than v1's manifest although it
- * lists LEVELS times the chunks. Coarse weights: 8 bits (q16 / s_c) in the first
+ * numbers bit for bit; no per-chunk ranges; their text shorter than v1's JSON ranges. Coarse weights: 8 bits (q16 / s_c) in the first
  * chunk, replaced by the exact 16-bit weights when level 0 arrives. */
 Test(lod, compact_manifest_and_coarse_weights)
 {
@@ -350,16 +349,34 @@ Test(lod, compact_manifest_and_coarse_weights)
         cr_assert_eq(memcmp(p->chunk[i].wt_range, p1->chunk[a].wt_range, (size_t)nb * 2 * sizeof(float)), 0);
         cr_assert_eq(memcmp(p->wt[i], p1->wt[a], (size_t)V * L * 3 * sizeof(float)), 0, "chunk %d: 16-bit weights", i);
     }
-    long long sz[2];
+    /* the ranges' text: v2's base64 once per component against v1's JSON numbers per chunk */
+    size_t rg[2] = {0, 0};
     for (int k = 0; k < 2; k++) {
         snprintf(path, sizeof path, "%s/%s/manifest.json", dir, k ? "v2" : "v1");
-        FILE *f = fopen(path, "rb");
-        cr_assert(f);
-        fseek(f, 0, SEEK_END);
-        sz[k] = ftell(f);
-        fclose(f);
+        size_t n;
+        char *txt = fx_read(path, &n);
+        cJSON *m = cJSON_ParseWithLength(txt, n), *x;
+        cr_assert_not_null(m);
+        cJSON *ranges = cJSON_GetObjectItem(m, "ranges"), *chunks = cJSON_GetObjectItem(m, "chunks");
+        cr_assert_eq(!!ranges, k, "%s: ranges once per component", k ? "v2" : "v1");
+        cJSON_ArrayForEach(x, ranges)
+            rg[k] += strlen(cJSON_GetStringValue(x));
+        cJSON_ArrayForEach(x, chunks) {
+            cr_assert_eq(!!cJSON_GetObjectItem(x, "tex_range"), !k, "%s: ranges per chunk", k ? "v2" : "v1");
+            for (int j = 0; j < 2 && !k; j++) {
+                char *t = cJSON_PrintUnformatted(cJSON_GetObjectItem(x, j ? "wt_range" : "tex_range"));
+                rg[k] += strlen(t);
+                free(t);
+            }
+        }
+        cJSON_Delete(m);
+        free(txt);
     }
-    cr_assert_lt(sz[1], sz[0], "v2 manifest %lld B, v1 %lld B", sz[1], sz[0]);
+    cr_assert(rg[1] > 0 && rg[1] < rg[0], "v2 ranges %zu B, v1 %zu B", rg[1], rg[0]);
+    /* v1's numbers are the shortest decimals of their floats (at most 9 significant
+     * digits: "[a,b]," and about 12 characters a number, not a double's 17 digits) */
+    size_t numbers = (size_t)p1->n_chunks * 2 * (size_t)nb * 2;
+    cr_expect_leq(rg[0], numbers * 14, "v1 ranges %zu B for %zu numbers", rg[0], numbers);
     /* chunk 0 alone: 8-bit weights within half an 8-bit step (257 16-bit steps) of the 16-bit ones */
     int a = 0, coarse = 0;
     while (p1->chunk[a].component != c->chunk[0].component)
