@@ -304,6 +304,18 @@ Test(image, lossy_webp_is_r_of_the_rgb_decode)
             e2 += ((double)back[i] - px[i]) * ((double)back[i] - px[i]);
         }
         WebPFree(rgb);
+        /* the format's rule for what this encoder writes: chroma 128 everywhere, so the
+         * value is VP8YUVToR(Y, 128) of the decoded Y plane alone */
+        uint8_t *u = NULL, *v = NULL;
+        int ys = 0, uvs = 0;
+        uint8_t *yp = WebPDecodeYUV(f, n, &dw, &dh, &u, &v, &ys, &uvs);
+        cr_assert_not_null(yp);
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                cr_assert(u[(y / 2) * uvs + x / 2] == 128 && v[(y / 2) * uvs + x / 2] == 128, "chroma at %d,%d", x, y);
+                cr_assert_eq(btf_webp_r_of_y(yp[y * ys + x]), back[y * w + x], "texel %d,%d", x, y);
+            }
+        WebPFree(yp);
         /* quality 100: the table's 0.4 RMS plus VP8's finest quantiser (about one level)
          * is under 1.5; a decode that lost the table's offset (Y taken as q) would
          * miss by 16 levels or more near black */
