@@ -46,7 +46,7 @@ static btf_result btf__check_vp8l(const uint8_t *data, size_t n, const char *wha
 }
 
 /* The VP8 chunk's frame header: a shown key frame, version 0..3, the start code, no
- * scaling, a first partition inside the chunk (RFC 6386 sections 9.1 and 19.1). */
+ * scaling, a first partition inside the chunk (doc/package-format.md section 4.1). */
 static btf_result btf__check_vp8(const uint8_t *data, size_t n, const char *what, int *w, int *h, btf_error *err)
 {
     uint32_t chunk = btf__le32(data + 16);
