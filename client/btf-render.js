@@ -5,6 +5,7 @@
 // and a model's parts (btf-model.js) with their packages, the unbound ones with the
 // program "flat" (btf_flat.frag), as btf_scene_draw (shaders/host/btf_scene.c) does.
 
+import {FixedLight} from './btf-fixed.js';
 import {buildProgram, decodeDefines, finishProgram, programReady, startProgram} from './btf-gl.js';
 import {buildMesh, cameraMake} from './scene.js';
 
@@ -41,6 +42,7 @@ export class MeshRenderer {
     this.progs = new Map(); // defines key -> linked program
     this.pending = new Map(); // defines key -> startProgram's compile in flight
     this.meshes = new Map(); // geometry -> {vao, count, buffers}
+    this.fixed = null; // FixedLight of the package draw() last blended a plane's light for
   }
 
   static key(defines) {
@@ -167,7 +169,8 @@ export class MeshRenderer {
   // Clears to the background and draws pkg (a GpuPackage) for the scene `view`
   // ({geometry, camera/light angles, fov, repeat, background, chunks, horizonFade,
   // filter: 0 nearest, else bilinear, quads: the variant's layers, see defines;
-  // lighting: {point, env, exposure, tone}, default POINT_LIGHT}), as btf_renderer_draw does.
+  // lighting: {point, env, exposure, tone}, default POINT_LIGHT; fixedLight: false keeps
+  // the run-time light path on the plane}), as btf_renderer_draw does.
   draw(pkg, view, w, h) {
     const gl = this.gl;
     gl.viewport(0, 0, w, h);
@@ -177,9 +180,23 @@ export class MeshRenderer {
     if (!pkg || !pkg.uploaded || !view.chunks) return;
     const cam = cameraMake(view, w / h), lights = view.lighting || POINT_LIGHT;
     const filter = view.filter === 0 ? 0 : 1;
-    const p = this.program(MeshRenderer.defines(pkg, filter, view.quads, lights));
+    const defines = MeshRenderer.defines(pkg, filter, view.quads, lights);
+    // a distant light on the plane: one local direction (cam.light, the plane's frame is the
+    // world's), blended once per draw (btf-fixed.js), once that variant compiled
+    const fixed = view.geometry === 'plane' && lights.point && view.fixedLight !== false
+      ? [...defines, ['BTF_FIXED_LIGHT', 1]] : null;
+    const useFixed = fixed && this.ready(fixed);
+    const p = this.program(useFixed ? fixed : defines);
     gl.useProgram(p.program);
     pkg.bind(p, 0, {chunks: view.chunks, filter, wrap: cam.wrap});
+    if (useFixed) {
+      if (!this.fixed || this.fixed.gpu !== pkg) {
+        if (this.fixed) this.fixed.free();
+        this.fixed = new FixedLight(gl, pkg);
+      }
+      const used = pkg.pkg.version >= 2 ? (view.chunks > 0 ? pkg.slots : 0) : Math.min(view.chunks, pkg.uploaded);
+      this.fixed.bind(p, 5, cam.light, used);
+    }
     setLights(gl, p, lights);
     gl.uniformMatrix4fv(p.loc('u_model'), false, new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]));
     gl.uniformMatrix4fv(p.loc('u_view_proj'), false, cam.viewProj);
@@ -211,6 +228,8 @@ export class MeshRenderer {
       m.buffers.forEach((b) => gl.deleteBuffer(b));
     }
     this.meshes.clear();
+    if (this.fixed) this.fixed.free();
+    this.fixed = null;
   }
 }
 

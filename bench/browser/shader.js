@@ -3,6 +3,7 @@
 // thesis shader (shaders/bench/thesis.frag, its data built here exactly as
 // bench/bench_shader.c builds it) in one WebGL2 context, 1280x720, the same plane,
 // camera, light and package; frames timed to a one-pixel readback, interleaved.
+import {decodeImage} from '/client/btf-decode.js';
 import {loadShaders, GpuPackage} from '/client/btf-gl.js';
 import {parseManifest, dequantWeights} from '/client/btf-package.js';
 import {MeshRenderer} from '/client/btf-render.js';
@@ -18,8 +19,7 @@ async function load(gl, C) {
   const gpu = new GpuPackage(gl, pkg, C), weights = [];
   for (let j = 0; j < C; j++) {
     const ch = pkg.chunks[j];
-    const bm = await createImageBitmap(await (await fetch(`/pkg/${ch.tex}`)).blob(),
-      {colorSpaceConversion: 'none', premultiplyAlpha: 'none'});
+    const bm = await decodeImage(new Uint8Array(await (await fetch(`/pkg/${ch.tex}`)).arrayBuffer()), 'image/png');
     const w = dequantWeights(pkg, ch, await (await fetch(`/pkg/${ch.wt}`)).arrayBuffer());
     w.precise = true;
     weights.push(w);
@@ -171,14 +171,18 @@ export async function run(C) {
   const td = thesisData(gl, pkg, gpu, weights, C), mesh = renderer.mesh('plane');
   const out = {renderer: gl.getParameter(gl.RENDERER)};
   const view = (filter) => ({...SCENE, chunks: C, filter});
+  const runtime = {...view(0), fixedLight: false}; // the run-time light path (curved meshes, models)
   for (let r = 0; r < 2; r++) { // interleaved rounds; the lower median of each
     const v = time(gl, () => renderer.draw(gpu, view(1), W, H));
     const n = time(gl, () => renderer.draw(gpu, view(0), W, H));
+    const rt = time(gl, () => renderer.draw(gpu, runtime, W, H));
     const t = time(gl, () => drawThesis(gl, prog, mesh, pkg, td));
     out.viewer = Math.min(out.viewer ?? Infinity, v);
     out.nearest = Math.min(out.nearest ?? Infinity, n);
+    out.runtime = Math.min(out.runtime ?? Infinity, rt);
     out.thesis = Math.min(out.thesis ?? Infinity, t);
   }
+  out.fixed = [...renderer.progs.keys()].some((k) => k.includes('BTF_FIXED_LIGHT=1'));
   const e = gl.getError();
   if (e) throw new Error(`GL error 0x${e.toString(16)}`);
   return out;

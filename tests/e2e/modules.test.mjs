@@ -558,3 +558,50 @@ describe('btf-dirtab.js direction lists', () => {
     }
   });
 });
+
+// The per-draw light blend of the plane (client/btf-fixed.js, the twin of
+// shaders/host/btf_gl_fixed.c): on random weight codes and grids laid out as a GpuPackage
+// holds them, every stored value is the light-blended weight within half its per-draw
+// step, each grid spans its views (codes 0 and the maximum both used), slots beyond the
+// prefix stay zero.
+describe('btf-fixed.js', async () => {
+  const fixed = await import('../../client/btf-fixed.js');
+  it('stores the light-blended weights within half a per-draw step', () => {
+    const d = pkgMod.parseManifest(manifest()).lights, L = d.dirs, V = d.dirs, layers = 2, used = 6;
+    let seed = 12345;
+    const rnd = () => ((seed = (seed * 1103515245 + 12345) >>> 0) >>> 8) / 2 ** 24;
+    const wtCopy = [], wq = new Float32Array(24 * layers), QMAX = [2047, 2047, 1023], SHIFT = [0, 11, 22];
+    for (let h = 0; h < layers; h++) {
+      const a = new Uint32Array(4 * L * V);
+      for (let i = 0; i < a.length; i++)
+        a[i] = (Math.floor(rnd() * 2048) | Math.floor(rnd() * 2048) << 11 | Math.floor(rnd() * 1024) << 22) >>> 0;
+      wtCopy.push(a);
+    }
+    for (let i = 0; i < 12 * layers; i++) wq[i + 12 * Math.floor(i / 12)] = rnd() * 2 - 1; // lo
+    for (let i = 0; i < 12 * layers; i++) wq[i + 12 * Math.floor(i / 12) + 12] = rnd() * 1e-3; // step
+    const gpu = {pkg: {lights: {dirs: L}, views: {dirs: V}}, capacity: 4 * layers, wtCopy, wq};
+    const tab = tabMod.buildDirtab(d);
+    for (const light of [[0, 0, 1], [0.3, -0.5, 0.8], [0.9, 0.2, 0.1], [0.5, 0.5, -0.2]]) {
+      const {codes, lq} = fixed.fixedBlend(gpu, tab, light, used), il = tabMod.dirtabInterp(tab, light);
+      for (let s = 0; s < 4 * layers; s++)
+        for (let c = 0; c < 3; c++) {
+          const h = s >> 2, k = s & 3, lo = lq[24 * h + 4 * c + k], st = lq[24 * h + 12 + 4 * c + k];
+          let min = Infinity, max = -Infinity;
+          for (let v = 0; v < V; v++) {
+            const q = (codes[4 * (h * V + v) + k] >>> SHIFT[c]) & QMAX[c];
+            min = Math.min(min, q);
+            max = Math.max(max, q);
+            if (s >= used) continue;
+            let want = 0;
+            for (let e = 0; e < 3; e++) {
+              const qe = (wtCopy[h][4 * (v * L + il.idx[e]) + k] >>> SHIFT[c]) & QMAX[c];
+              want += il.w[e] * (wq[24 * h + 4 * c + k] + wq[24 * h + 12 + 4 * c + k] * qe);
+            }
+            assert.ok(Math.abs(lo + st * q - want) <= st / 2 + 1e-6, `slot ${s} c${c} view ${v}: ${lo + st * q} ${want}`);
+          }
+          if (s >= used) assert.deepEqual([min, max, lo, st], [0, 0, 0, 0], `slot ${s} beyond the prefix`);
+          else assert.deepEqual([min, max], [0, QMAX[c]], `slot ${s} c${c}: the grid spans the views`);
+        }
+    }
+  });
+});
