@@ -74,6 +74,8 @@ static btf_result lite_read(const btf_files *files, const char *path, int *w, in
         *channels = 3;
         if (!*pixels)
             r = btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode the WebP image", path);
+        for (size_t i = 0; *pixels && btf_webp_is_lossy(d, n) && i < (size_t)*w * (size_t)*h; i++)
+            (*pixels)[3 * i + 1] = (*pixels)[3 * i + 2] = (*pixels)[3 * i]; /* a lossy texture is its R (package-format.md 4.1) */
     } else {
         r = lite_png(path, d, n, w, h, channels, pixels, err);
     }
