@@ -182,10 +182,14 @@ export class MeshRenderer {
     const filter = view.filter === 0 ? 0 : 1;
     const defines = MeshRenderer.defines(pkg, filter, view.quads, lights);
     // a distant light on the plane: one local direction (cam.light, the plane's frame is the
-    // world's), blended once per draw (btf-fixed.js), once that variant compiled
+    // world's), blended once per draw (btf-fixed.js), once that variant compiled: started by
+    // the first such draw, which (like every draw until it is ready) takes the run-time
+    // path, so a first frame never waits on its compile, with KHR_parallel_shader_compile or not
     const fixed = view.geometry === 'plane' && lights.point && view.fixedLight !== false
       ? [...defines, ['BTF_FIXED_LIGHT', 1]] : null;
-    const useFixed = fixed && this.ready(fixed);
+    const fixedKey = fixed && MeshRenderer.key(fixed);
+    const useFixed = !!fixed && (this.progs.has(fixedKey) || (this.pending.has(fixedKey) && this.ready(fixed)));
+    if (fixed && !useFixed) this.start(fixed);
     const p = this.program(useFixed ? fixed : defines);
     gl.useProgram(p.program);
     pkg.bind(p, 0, {chunks: view.chunks, filter, wrap: cam.wrap});
