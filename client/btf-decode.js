@@ -1,4 +1,4 @@
-// btf-decode.js - image files of a chunk (PNG, lossless WebP) to their exact 8-bit samples,
+// btf-decode.js - image files of a chunk (PNG, WebP lossless or lossy) to their 8-bit samples,
 // off the main thread: a worker decodes with createImageBitmap (no colour conversion, no
 // premultiplication) and reads the pixels back from an OffscreenCanvas 2D context, so the
 // page's main thread never waits on a decode or a GPU readback. Every file these

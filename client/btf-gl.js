@@ -591,8 +591,9 @@ export class GpuPackage {
     }
   }
 
-  // Pixels of a grey image decoded by the browser (a PNG such as wt-JJ-8.png, or a
-  // lossless WebP texture with R = G = B): exactly the file's grey bytes.
+  // Pixels of a grey image decoded by the browser (a PNG such as wt-JJ-8.png, or a WebP
+  // texture): R of each pixel, the file's grey bytes (a lossy WebP's G may differ from
+  // its R by one: package-format.md 4.1 reads R).
   readGrey(bitmap) {
     const n = bitmap.width * bitmap.height, px = this.pixels(bitmap), out = new Uint8Array(n);
     for (let i = 0; i < n; i++) out[i] = px[4 * i];

@@ -36,7 +36,7 @@ export class ChunkUploads {
     }
   }
 
-  // Decodes chunk j (a texture is a PNG or, versions 3 and 4, a lossless WebP:
+  // Decodes chunk j (a texture is a PNG or, versions 3 and 4, a WebP, lossless or lossy:
   // doc/package-format.md) and queues it.
   async decode(j) {
     if (this.freed || j < this.gpu.uploaded) return;
