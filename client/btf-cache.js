@@ -1,8 +1,8 @@
 // btf-cache.js - received chunks kept in the browser for the next visit (Cache API):
 // one entry per (server, material, etag) holding a prefix of its chunks, each chunk one
 // cached response (its files concatenated, sizes in a header), and the manifest (so a
-// resumed subscription need not receive it again: "manifest_kept", doc/protocol.md). The index (entries, bytes,
-// last use) is itself a cached JSON response. Bounded: least recently used entries go
+// resumed subscription need not receive it again: "manifest_kept", doc/protocol.md).
+// The index (entries, bytes, last use) is itself a cached JSON response. Bounded: least recently used entries go
 // first once the total passes chunkCache.limit bytes. Without the Cache API (pages
 // that are not secure contexts) nothing is kept. A new etag replaces the entry.
 
@@ -166,7 +166,8 @@ export function dropChunks(server, material) {
   }).catch(() => {});
 }
 
-// Test hook: the index ({entries: {key: {etag, chunks, bytes, used, manifest (its bytes, if kept)}}}).
+// Test hook: the index ({entries: {key: {etag, chunks, bytes, used, manifest (its bytes,
+// if kept)}}}).
 export function cacheIndex() {
   if (!chunkCache.enabled) return Promise.resolve({entries: {}});
   return serial(async () => readIndex(await caches.open(NAME)));

@@ -76,7 +76,8 @@ void btfd_gzip_install(struct lws_context *ctx);
 
 /* btfd_origin.c (--allow-origin). Whether origin (n bytes) is in list (NULL or "*": any). */
 int btfd_origin_allowed(const char *list, const char *origin, size_t n);
-/* Adds access-control-allow-origin and timing-allow-origin (and vary: Origin for a list) to an HTTP reply; 0 ok. */
+/* Adds access-control-allow-origin and timing-allow-origin (and vary: Origin for a list)
+ * to an HTTP reply; 0 ok. */
 int btfd_cors_headers(struct lws *wsi, const char *list, unsigned char **p, unsigned char *end);
 /* WebSocket handshake: 0 when its Origin is allowed, else -1 (the caller closes with 1008). */
 int btfd_origin_check(struct lws *wsi, const char *list);

@@ -358,9 +358,8 @@ static int http_write(btfd_server *srv, struct lws *wsi, btfd_http *h)
     return lws_http_transaction_completed(wsi) ? -1 : 0;
 }
 
-/* CORS on a file mount's reply (--allow-origin, btfd_origin.c); 0 ok. */
-/* Headers of a file mount's reply: CORS, and Vary: Accept-Encoding (btfd_gzip.c may
- * have sent FILE.gz). */
+/* Headers of a file mount's reply: CORS (--allow-origin, btfd_origin.c) and Vary:
+ * Accept-Encoding (btfd_gzip.c may have sent FILE.gz); 0 ok. */
 static int add_file_headers(struct lws *wsi, void *in)
 {
     static const char vary[] = "accept-encoding";

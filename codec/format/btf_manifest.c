@@ -529,7 +529,6 @@ static cJSON *btf__rings_json(const btf_dirset *d, const btf_dirtab *tab)
     return o;
 }
 
-/* Version 1 per-chunk ranges: [[lo, step], ...] per block. */
 /* A float as the shortest decimal that a reader's double, rounded to float, takes back to
  * it exactly (at most 9 significant digits, against the 17 of the double it widens to). */
 static cJSON *btf__f32_json(float x)
@@ -544,6 +543,7 @@ static cJSON *btf__f32_json(float x)
     return cJSON_CreateNumber((double)x);
 }
 
+/* Version 1 per-chunk ranges: [[lo, step], ...] per block. */
 static cJSON *btf__ranges_json(const float *rg, int n_blocks)
 {
     cJSON *a = cJSON_CreateArray();
