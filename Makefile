@@ -158,13 +158,20 @@ check: build
 	bash tools/check_rooms.sh $(BUILD)
 	$(TEST_BIN) --jobs 2 --filter '!(slow*)'
 
+# Every sanitizer report of every process the suites start (btf, btfd, the test
+# runner; a test may swallow a child's stderr) goes to a file under ASAN_REPORTS, and
+# the run fails when any was written (tests/asan_reports.sh prints them).
+ASAN_REPORTS := build-asan/reports
+ASAN_ENV = ASAN_OPTIONS=detect_leaks=1:log_path=$(CURDIR)/$(ASAN_REPORTS)/asan \
+    LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp \
+    UBSAN_OPTIONS=print_stacktrace=1:log_path=$(CURDIR)/$(ASAN_REPORTS)/ubsan
 asan: setup
 	$(MAKE) BUILD=build-asan OPT='-O1 -g -fno-omit-frame-pointer' \
 	    SAN='-fsanitize=address,undefined -fno-sanitize-recover=undefined' build
-	ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 \
-	    BTF_BUILD=$(CURDIR)/build-asan build-asan/run_tests --jobs 2
-	ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 \
-	    $(MAKE) BUILD=build-asan e2e
+	rm -rf $(ASAN_REPORTS) && mkdir -p $(ASAN_REPORTS)
+	$(ASAN_ENV) BTF_BUILD=$(CURDIR)/build-asan build-asan/run_tests --jobs 2 || { bash tests/asan_reports.sh $(ASAN_REPORTS); exit 1; }
+	$(ASAN_ENV) $(MAKE) BUILD=build-asan e2e || { bash tests/asan_reports.sh $(ASAN_REPORTS); exit 1; }
+	bash tests/asan_reports.sh $(ASAN_REPORTS)
 
 # bench/        benchmark programs (one per bench/bench_*.c) and scripts
 BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/*.c))

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# tests/asan_reports.sh DIR - the end of `make asan`: prints every sanitizer report
+# the processes of the run wrote under DIR (ASan, LeakSanitizer and UBSan write
+# DIR/asan.PID or DIR/ubsan.PID through log_path, only when they have something to
+# report) and exits 1 when there is any, 0 when there is none.
+set -uo pipefail
+dir=${1:?usage: tests/asan_reports.sh DIR}
+shopt -s nullglob
+reports=("$dir"/asan.* "$dir"/ubsan.*)
+if ((${#reports[@]} == 0)); then
+    echo "asan: no sanitizer report from any process"
+    exit 0
+fi
+for r in "${reports[@]}"; do
+    echo "==== $r"
+    cat "$r"
+done
+echo "asan: ${#reports[@]} sanitizer report(s) above (files in $dir)" >&2
+exit 1
