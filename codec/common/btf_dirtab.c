@@ -85,18 +85,72 @@ static void btf__fan(btf__tris *b, const btf_dirset *d, int r, int pole)
         btf__add(b, btf__ring_vertex(d, r, k), btf__ring_vertex(d, r, k + 1), pole);
 }
 
-/* Neighbour across each edge: the triangle holding the reversed edge. */
-static void btf__adjacency(btf_dirtab *t)
+/* One directed edge a -> c of triangle tri; a sorted array of them, by (a, c, tri),
+ * finds the triangles holding an edge without comparing every pair of triangles.
+ * Values in an array owned by the function that sorted it. */
+typedef struct btf__edge {
+    int a, c, tri;
+} btf__edge;
+
+static int btf__edge_cmp(const void *x, const void *y)
 {
+    const btf__edge *p = x, *q = y;
+    return p->a != q->a ? (p->a > q->a) - (p->a < q->a)
+           : p->c != q->c ? (p->c > q->c) - (p->c < q->c)
+                          : (p->tri > q->tri) - (p->tri < q->tri);
+}
+
+/* The 3 n_tris directed edges of t's triangles (tri[k] -> tri[k + 1]), sorted; a new
+ * array the caller frees, NULL when out of memory. */
+static btf__edge *btf__edges(const btf_dirtab *t)
+{
+    btf__edge *e = malloc(sizeof(btf__edge) * 3 * (size_t)(t->n_tris > 0 ? t->n_tris : 1));
+    if (!e)
+        return NULL;
     for (int i = 0; i < t->n_tris; i++)
-        for (int e = 0; e < 3; e++) {
-            int a = t->tri[i][(e + 1) % 3], c = t->tri[i][(e + 2) % 3];
-            t->adj[i][e] = -1;
-            for (int j = 0; j < t->n_tris && t->adj[i][e] < 0; j++)
-                for (int f = 0; f < 3 && j != i; f++)
-                    if (t->tri[j][(f + 1) % 3] == c && t->tri[j][(f + 2) % 3] == a)
-                        t->adj[i][e] = j;
+        for (int k = 0; k < 3; k++) {
+            btf__edge x = {t->tri[i][k], t->tri[i][(k + 1) % 3], i};
+            e[3 * i + k] = x;
         }
+    qsort(e, 3 * (size_t)t->n_tris, sizeof *e, btf__edge_cmp);
+    return e;
+}
+
+/* The smallest triangle other than skip holding the directed edge a -> c in the n
+ * sorted edges e; -1 when none does. */
+static int btf__edge_find(const btf__edge *e, int n, int a, int c, int skip)
+{
+    int lo = 0, hi = n; /* first edge not below (a, c) */
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (e[mid].a < a || (e[mid].a == a && e[mid].c < c))
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    for (; lo < n && e[lo].a == a && e[lo].c == c; lo++)
+        if (e[lo].tri != skip)
+            return e[lo].tri;
+    return -1;
+}
+
+/* Neighbour across each edge: the first triangle holding the reversed edge. */
+static btf_result btf__adjacency(btf_dirtab *t, btf_error *err)
+{
+    btf__edge *e = btf__edges(t);
+    if (!e)
+        return btf_fail(err, BTF_ERR_NOMEM, "dirtab: out of memory");
+    for (int i = 0; i < t->n_tris; i++)
+        for (int k = 0; k < 3; k++)
+            t->adj[i][k] = btf__edge_find(e, 3 * t->n_tris, t->tri[i][(k + 2) % 3], t->tri[i][(k + 1) % 3], i);
+    free(e);
+    return BTF_OK;
+}
+
+/* The vertex with the smallest of three volumes. */
+static int btf__least(const float w[3])
+{
+    return w[0] <= w[1] && w[0] <= w[2] ? 0 : w[1] <= w[2] ? 1 : 2;
 }
 
 /* Barycentric volumes of p in triangle i; returns the vertex with the smallest. */
@@ -106,7 +160,7 @@ static int btf__volumes(const btf_dirtab *t, int i, const float p[3], float w[3]
     w[0] = btf__det3(p, y, z);
     w[1] = btf__det3(p, z, x);
     w[2] = btf__det3(p, x, y);
-    return w[0] <= w[1] && w[0] <= w[2] ? 0 : w[1] <= w[2] ? 1 : 2;
+    return btf__least(w);
 }
 
 /* From triangle i, steps across the edge facing p until p is inside (all volumes
@@ -130,21 +184,30 @@ static void btf__cell_centre(int i, int j, float p[3])
     p[0] = a / n, p[1] = b / n, p[2] = z / n;
 }
 
-/* Each cell's triangle: walked from the previous cell's, else searched. */
-static void btf__cells(btf_dirtab *t)
+/* Each cell's triangle: walked from the previous cell's, else searched. Returns 1
+ * when every cell centre lies in its cell's triangle (no volume below -1e-6: the
+ * hemisphere is covered), else 0; with stop, at the first cell that does not (the
+ * caller refuses the table, the other cells left unset). */
+static int btf__cells(btf_dirtab *t, int stop)
 {
-    int prev = 0;
+    int prev = 0, covered = 1;
     for (int j = 0; j < BTF__N; j++)
         for (int i = 0; i < BTF__N; i++) {
             float p[3], w[3];
             btf__cell_centre(i, j, p);
-            int c = btf__walk(t, prev, p, 4 * BTF__N, w);
-            int k = btf__volumes(t, c, p, w);
+            int c = btf__walk(t, prev, p, 4 * BTF__N, w), k = btf__least(w); /* w: c's volumes */
+            float least = w[k]; /* the smallest volume of the cell's triangle */
             for (int s = 0; s < t->n_tris && w[k] < 0.0f; s++)
                 if (w[k = btf__volumes(t, s, p, w)] >= 0.0f)
-                    c = s;
+                    c = s, least = w[k];
             t->cell[j * BTF__N + i] = prev = c;
+            if (least < -1e-6f) {
+                covered = 0;
+                if (stop)
+                    return 0;
+            }
         }
+    return covered;
 }
 
 static btf_dirtab *btf__alloc(int n_dirs, int nv, int cap)
@@ -184,9 +247,12 @@ static btf_result btf__build_rings(const btf_dirset *d, btf_dirtab **out, btf_er
     for (int r = 0; r + 1 < d->n_rings; r++)
         btf__band(&b, d, r);
     btf__fan(&b, d, d->n_rings - 1, d->n_dirs + 1); /* beyond the outermost ring */
-    btf__adjacency(t);
+    if (btf__adjacency(t, err) != BTF_OK) {
+        free(t);
+        return BTF_ERR_NOMEM;
+    }
     if (t->n_tris > 0)
-        btf__cells(t);
+        btf__cells(t, 0);
     *out = t;
     return BTF_OK;
 }
@@ -295,26 +361,41 @@ static int btf__outside(const btf_dirtab *t, int i, int v)
     return h > BTF__CONVEX_EPS * len;
 }
 
+/* The first triangle before i holding one of i's directed edges, -1 when none does
+ * (e: the sorted edges of all n_tris triangles). */
+static int btf__shared_edge(const btf_dirtab *t, const btf__edge *e, int i)
+{
+    int first = -1;
+    for (int k = 0; k < 3; k++) {
+        int j = btf__edge_find(e, 3 * t->n_tris, t->tri[i][k], t->tri[i][(k + 1) % 3], -1);
+        if (j >= 0 && j < i && (first < 0 || j < first))
+            first = j;
+    }
+    return first;
+}
+
 /* Orientation, each directed edge once, and convexity (what makes the walk and the
  * interpolation well defined whoever wrote the triangles). */
 static btf_result btf__list_shape_ok(const btf_dirtab *t, btf_error *err)
 {
-    for (int i = 0; i < t->n_tris; i++) {
+    btf__edge *e = btf__edges(t);
+    if (!e)
+        return btf_fail(err, BTF_ERR_NOMEM, "dirtab: out of memory");
+    btf_result r = BTF_OK;
+    for (int i = 0; i < t->n_tris && r == BTF_OK; i++) {
         const int *a = t->tri[i];
+        int j = -1;
         if (!(btf__det3(t->vert[a[0]], t->vert[a[1]], t->vert[a[2]]) > 0.0f))
-            return btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangle %d is flat or clockwise seen from outside", i);
-        for (int v = 0; v < t->n_verts; v++)
+            r = btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangle %d is flat or clockwise seen from outside", i);
+        for (int v = 0; v < t->n_verts && r == BTF_OK; v++)
             if (btf__outside(t, i, v))
-                return btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangle %d is not on the convex hull (vertex %d outside)",
-                                i, v);
-        for (int j = 0; j < i; j++)
-            for (int e = 0; e < 3; e++)
-                for (int f = 0; f < 3; f++)
-                    if (a[e] == t->tri[j][f] && a[(e + 1) % 3] == t->tri[j][(f + 1) % 3])
-                        return btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangles %d and %d share an edge the same way",
-                                        j, i);
+                r = btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangle %d is not on the convex hull (vertex %d outside)",
+                             i, v);
+        if (r == BTF_OK && (j = btf__shared_edge(t, e, i)) >= 0)
+            r = btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangles %d and %d share an edge the same way", j, i);
     }
-    return BTF_OK;
+    free(e);
+    return r;
 }
 
 /* Every edge touching a measured direction has a neighbour: the kept triangles end only
@@ -330,18 +411,6 @@ static btf_result btf__list_closed(const btf_dirtab *t, btf_error *err)
                                 "hemisphere", i, a, b);
         }
     return BTF_OK;
-}
-
-/* 1 when every cell centre lies in its cell's triangle (the hemisphere is covered). */
-static int btf__covered(const btf_dirtab *t)
-{
-    for (int c = 0; c < BTF__N * BTF__N; c++) {
-        float p[3], w[3];
-        btf__cell_centre(c % BTF__N, c / BTF__N, p);
-        if (w[btf__volumes(t, t->cell[c], p, w)] < -1e-6f)
-            return 0;
-    }
-    return 1;
 }
 
 /* The table of checked list-numbered triangles. */
@@ -369,15 +438,12 @@ static btf_result btf__list_table(const btf_dirset *d, const int (*tris)[3], int
     t->n_tris = n_tris;
     free(map);
     btf_result r = btf__list_shape_ok(t, err);
-    if (r == BTF_OK) {
-        btf__adjacency(t);
+    if (r == BTF_OK)
+        r = btf__adjacency(t, err);
+    if (r == BTF_OK)
         r = btf__list_closed(t, err);
-    }
-    if (r == BTF_OK) {
-        btf__cells(t);
-        if (!btf__covered(t))
-            r = btf_fail(err, BTF_ERR_FORMAT, "dirtab: the triangles do not cover the upper hemisphere");
-    }
+    if (r == BTF_OK && !btf__cells(t, 1))
+        r = btf_fail(err, BTF_ERR_FORMAT, "dirtab: the triangles do not cover the upper hemisphere");
     if (r != BTF_OK) {
         free(t);
         return r;
