@@ -7,7 +7,7 @@
 #                               fuzz/corpus/NAME, and prints one table: executions, seconds,
 #                               executions per second, coverage (cov, ft), corpus size;
 #                               the table is also written to build-fuzz/fuzz/summary.txt
-#                               (FUZZ_SUMMARY), the logs to build-fuzz/fuzz/log/NAME.txt
+#                               (FUZZ_SUMMARY; fuzz-deep: summary-deep.txt), the logs to build-fuzz/fuzz/log/NAME.txt
 #     FUZZ_SECONDS=N            each target's time bound (default 60)
 #     FUZZ_RUNS=N               and an execution bound: -runs=N, whichever comes first (0: none)
 #     FUZZ_TARGETS='a b'        only these targets (default: all, request included)
@@ -16,8 +16,17 @@
 #                               without growing the saved corpora)
 #     FUZZ_FLAGS=...            more libFuzzer flags for every target (e.g. -entropic=0)
 #     FUZZ_THREADS=N            OpenMP and OpenBLAS threads of each target (default 1)
+#     FUZZ_NICE=N               run each target under nice -n N (default: not)
 #     FUZZ_ASAN_OPTIONS=...     ASan's options (fast_unwind_on_malloc=0: full allocation
 #                               stacks, at a 30th of the speed; fuzz/run.sh's header)
+#                               Each target's -max_len (the largest input its format
+#                               needs) and its own flags are in fuzz/run.sh (target_settings)
+#   make fuzz-deep              the deep run: every target to FUZZ_DEEP_RUNS (default 10 M)
+#                               executions or FUZZ_DEEP_SECONDS (default 3600) each, whichever
+#                               comes first, under nice -n 19, on a copy
+#                               of the corpora in $(FUZZ_BUILD)/deep-corpus (made from
+#                               fuzz/corpus on the first run, kept and grown by later ones):
+#                               the saved corpora stay small, as `make test` replays them
 #   make fuzz-replay            replays every corpus (also part of `make test` via the suite "fuzz")
 #
 # Targets: dirset (direction-set JSON), dfmf (.btf files), manifest (package
@@ -43,7 +52,7 @@ build: $(FUZZ_CODEC_REPLAY)
 $(BUILD)/fuzz/replay_%: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay_main.o $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(FUZZ_LINK)
 
-.PHONY: fuzz fuzz-replay fuzz-codec
+.PHONY: fuzz fuzz-deep fuzz-replay fuzz-codec
 fuzz-replay: $(FUZZ_CODEC_REPLAY) $(FUZZ_REPLAY)
 	@for t in $(FUZZ_CODEC); do $(BUILD)/fuzz/replay_$$t fuzz/corpus/$$t || exit 1; done
 	$(FUZZ_REPLAY) fuzz/corpus/request
@@ -68,9 +77,19 @@ FUZZ_TARGETS ?= $(FUZZ_CODEC) request
 FUZZ_RUNS    ?= 0
 FUZZ_TMPDIR  ?= $(if $(wildcard /dev/shm/.),/dev/shm,/tmp)
 FUZZ_CORPUS  ?= fuzz/corpus
+FUZZ_SUMMARY ?= $(FUZZ_BUILD)/fuzz/summary.txt
 FUZZ_THREADS ?= 1
+FUZZ_NICE    ?=
+FUZZ_DEEP_RUNS    ?= 10000000
+FUZZ_DEEP_SECONDS ?= 3600
 
 fuzz: fuzz-codec fuzz-request
 	FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_RUNS=$(FUZZ_RUNS) FUZZ_RSS_MB=$(FUZZ_RSS_MB) FUZZ_TMPDIR=$(FUZZ_TMPDIR) \
 	    FUZZ_ASAN_OPTIONS='$(FUZZ_ASAN_OPTIONS)' FUZZ_FLAGS='$(FUZZ_FLAGS)' FUZZ_CORPUS=$(FUZZ_CORPUS) \
-	    FUZZ_THREADS=$(FUZZ_THREADS) bash fuzz/run.sh $(FUZZ_BUILD) $(FUZZ_TARGETS)
+	    FUZZ_THREADS=$(FUZZ_THREADS) FUZZ_NICE=$(FUZZ_NICE) FUZZ_SUMMARY=$(FUZZ_SUMMARY) bash fuzz/run.sh $(FUZZ_BUILD) $(FUZZ_TARGETS)
+
+# The deep run: make fuzz with other defaults, on a copy of the corpora.
+fuzz-deep:
+	@test -d $(FUZZ_BUILD)/deep-corpus || { mkdir -p $(FUZZ_BUILD) && cp -r fuzz/corpus $(FUZZ_BUILD)/deep-corpus; }
+	$(MAKE) fuzz FUZZ_RUNS=$(FUZZ_DEEP_RUNS) FUZZ_SECONDS=$(FUZZ_DEEP_SECONDS) FUZZ_NICE=$(or $(FUZZ_NICE),19) \
+	    FUZZ_CORPUS=$(FUZZ_BUILD)/deep-corpus FUZZ_SUMMARY=$(FUZZ_BUILD)/fuzz/summary-deep.txt
