@@ -7,7 +7,8 @@
 #                               fuzz/corpus/NAME, and prints one table: executions, seconds,
 #                               executions per second, coverage (cov, ft), corpus size;
 #                               the table is also written to build-fuzz/fuzz/summary.txt
-#                               (FUZZ_SUMMARY; fuzz-deep: summary-deep.txt), the logs to build-fuzz/fuzz/log/NAME.txt
+#                               (FUZZ_SUMMARY; fuzz-deep: summary-deep.txt), the logs to
+#                               build-fuzz/fuzz/log/NAME.txt
 #     FUZZ_SECONDS=N            each target's time bound (default 60)
 #     FUZZ_RUNS=N               and an execution bound: -runs=N, whichever comes first (0: none)
 #     FUZZ_TARGETS='a b'        only these targets (default: all, request included)
@@ -19,8 +20,8 @@
 #     FUZZ_NICE=N               run each target under nice -n N (default: not)
 #     FUZZ_ASAN_OPTIONS=...     ASan's options (fast_unwind_on_malloc=0: full allocation
 #                               stacks, at a 30th of the speed; fuzz/run.sh's header)
-#                               Each target's -max_len (the largest input its format
-#                               needs) and its own flags are in fuzz/run.sh (target_settings)
+#     (per target)              -max_len (the largest input its format needs) and its own
+#                               libFuzzer flags and environment: fuzz/run.sh, target_settings
 #   make fuzz-deep              the deep run: every target to FUZZ_DEEP_RUNS (default 10 M)
 #                               executions or FUZZ_DEEP_SECONDS (default 3600) each, whichever
 #                               comes first, under nice -n 19, on a copy
