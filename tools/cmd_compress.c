@@ -89,7 +89,8 @@ static void compress_usage(FILE *f)
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
             "                   steps, weights deflated (wt-JJ.z); a component's texture a lossy\n"
             "                   WebP of its full-range codes where that costs fewer bytes for its\n"
-            "                   error (8 bits, without --levels or --png); with --levels version 4;\n"
+            "                   error (8 bits, not with --png), its coarse levels too at the same\n"
+            "                   quality; with --levels version 4;\n"
             "                   with --bits 16 steps down to 1/65535 of a block's range (PNG\n"
             "                   textures, no --levels)\n"
             "  --plain          the equal-noise steps of every component, weights raw: version 1\n"
@@ -173,9 +174,9 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
         rc = 2;
     }
     o->pkg.rd = !o->plain; /* rate-distortion steps unless asked otherwise */
-    /* lossy textures where they win, unless asked otherwise; not yet under levels,
-     * whose coarse levels would keep the full-range codes losslessly */
-    o->pkg.lossy = o->pkg.rd && !o->lossless && o->pkg.bits == 8 && !o->pkg.png_only && o->lod.levels == 0;
+    /* lossy textures where they win, unless asked otherwise (with levels, a lossy
+     * component's coarse levels get its quality: btf_lod_build) */
+    o->pkg.lossy = o->pkg.rd && !o->lossless && o->pkg.bits == 8 && !o->pkg.png_only;
     if (rc == 0 && o->pkg.rd && o->pkg.bits != 8 && o->lod.levels > 0) {
         fprintf(stderr, "btf compress: levels over 16-bit textures need --plain (version 2)\n");
         rc = 2;

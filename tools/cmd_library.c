@@ -368,7 +368,7 @@ static int library_build(int argc, char **argv)
     }
     o.pkg.rd = !o.plain && (o.pkg.bits == 8 || o.levels == 0); /* rate-distortion steps unless asked otherwise
                                                                  * (16-bit levels: version 2 only) */
-    o.pkg.lossy = o.pkg.rd && !o.lossless && o.pkg.bits == 8 && o.levels == 0; /* as btf compress */
+    o.pkg.lossy = o.pkg.rd && !o.lossless && o.pkg.bits == 8; /* as btf compress */
     if (rc == 0 && (!o.out || !o.n_src)) {
         fprintf(stderr, "btf library build: %s\n", o.out ? "no SRC given" : "--out LIB is required");
         rc = 2;

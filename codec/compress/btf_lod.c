@@ -3,6 +3,7 @@
  * readers use (the texel look-up between levels, the chunk selection) is btf_lod_select.c. */
 #include "btf_lod.h"
 
+#include <cjson/cJSON.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -23,6 +24,8 @@
 
 /* ---------------------------------------------------------------- builder */
 
+#define BTF__LOD_PATH 8400 /* a file path in the output's temporary directory */
+
 /* State of one btf_lod_build call. Index a = position of the component in the v1
  * chunk order; [a * nl + l] = its level l. */
 typedef struct btf__lod {
@@ -33,6 +36,11 @@ typedef struct btf__lod {
     char *iswebp;    /* [a*nl+l] version 4: 1 when that level's file is a WebP (lossless and smaller than the
                       * PNG, or level 0's lossy file copied from a version-3 source) */
     int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
+    int *quality;    /* [a] version 4 from a version-3 source whose level 0 is a lossy WebP: that file's quality
+                      * (the source's "rd" record), which the coarse levels get too; -1: lossless levels */
+    uint8_t **lossy; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's lossy WebP file (its decode is
+                      * the level's atlas and texels), NULL otherwise */
+    size_t *lossy_n; /* [a*nl+l] bytes of lossy[a*nl+l] */
     btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
     char *w16res;    /* [a] version 4: the 16-bit weights' coding (BTF__W16_*, the smallest kept) */
     double thr;
@@ -56,6 +64,9 @@ static void btf__lod_free(btf__lod *s)
         if (s->atlas)
             free(s->atlas[i]);
     }
+    for (int i = 0; s->lossy && i < s->C * s->nl; i++)
+        free(s->lossy[i]);
+    free(s->lossy), free(s->lossy_n), free(s->quality);
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
@@ -85,12 +96,30 @@ static void btf__box(const float *prev, int nb, int w, int h, float *next)
             }
 }
 
+/* Level l of component a's texels (s->lev) from its atlas codes (s->atlas) and the v1 ranges. */
+static void btf__dequant_level(btf__lod *s, int a, int l)
+{
+    const btf_package *p = s->p;
+    int w = s->W >> l, h = s->H >> l, aw = p->atlas_cols * w;
+    float *dq = s->lev[a * s->nl + l];
+    const uint8_t *px = s->atlas[a * s->nl + l];
+    for (int b = 0; b < s->nb; b++) {
+        const float *rg = p->chunk[a].tex_range + 2 * b;
+        int x0 = (b % p->atlas_cols) * w, y0 = (b / p->atlas_cols) * h;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                const uint8_t *o = px + ((size_t)(y0 + y) * aw + (size_t)(x0 + x)) * s->ch;
+                unsigned q = s->ch == 3 ? (unsigned)o[0] << 8 | o[1] : o[0];
+                dq[(size_t)b * w * h + (size_t)y * w + x] = btf_package_dequant(rg, q);
+            }
+    }
+}
+
 /* Quantises level l of component a from the exact values ex with the v1 ranges. */
 static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
 {
     const btf_package *p = s->p;
     int w = s->W >> l, h = s->H >> l, aw = p->atlas_cols * w;
-    float *dq = s->lev[a * s->nl + l];
     uint8_t *px = s->atlas[a * s->nl + l];
     for (int b = 0; b < s->nb; b++) {
         const float *rg = p->chunk[a].tex_range + 2 * b;
@@ -100,7 +129,6 @@ static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
                 size_t i = (size_t)b * w * h + (size_t)y * w + x;
                 float qf = rg[1] > 0.0f ? rintf((ex[i] - rg[0]) / rg[1]) : 0.0f;
                 unsigned q = qf <= 0.0f ? 0u : qf >= (float)s->qmax ? (unsigned)s->qmax : (unsigned)qf;
-                dq[i] = rg[0] + rg[1] * (float)q;
                 uint8_t *o = px + ((size_t)(y0 + y) * aw + (size_t)(x0 + x)) * s->ch;
                 if (s->ch == 3)
                     o[0] = (uint8_t)(q >> 8), o[1] = (uint8_t)(q & 255u);
@@ -108,6 +136,23 @@ static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
                     o[0] = (uint8_t)q;
             }
     }
+    btf__dequant_level(s, a, l);
+}
+
+/* Level l of component a coded as a lossy WebP at quality[a] (kept in s->lossy), and
+ * its atlas and texels replaced by the decode, which is what a reader gets. */
+static btf_result btf__lossy_level(btf__lod *s, int a, int l, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
+    size_t k = (size_t)a * s->nl + l;
+    uint8_t *px = s->atlas[k];
+    btf_result r = btf_webp_encode_grey_lossy(px, aw, ah, s->quality[a], &s->lossy[k], &s->lossy_n[k], err);
+    if (r == BTF_OK)
+        r = btf_webp_decode_grey(s->lossy[k], s->lossy_n[k], "lod: lossy level", aw, ah, px, err);
+    if (r == BTF_OK)
+        btf__dequant_level(s, a, l);
+    return r;
 }
 
 /* Levels 1..nl-1 of every component. */
@@ -131,6 +176,11 @@ static btf_result btf__make_levels(btf__lod *s, btf_error *err)
                 return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
             }
             btf__quant_level(s, a, l, ex);
+            btf_result r = s->quality[a] >= 0 ? btf__lossy_level(s, a, l, err) : BTF_OK;
+            if (r != BTF_OK) {
+                free(ex), free(ex2);
+                return r;
+            }
         }
     }
     int ok = ex && ex2;
@@ -550,6 +600,43 @@ static int btf__lossy_file(const char *path)
     return btf_webp_is_lossy(head, n);
 }
 
+/* Level k's lossy file (s->lossy[k]) in place of the lossless one at path (stem
+ * bytes of it before the extension): written as stem.webp, the PNG removed; path
+ * becomes the file kept. */
+static btf_result btf__keep_lossy(btf__lod *s, size_t k, char *path, size_t stem, btf_error *err)
+{
+    char webp[BTF__LOD_PATH];
+    snprintf(webp, sizeof webp, "%.*s.webp", (int)stem, path);
+    btf_result r = btf_fs_write_atomic(webp, s->lossy[k], s->lossy_n[k], err);
+    if (r == BTF_OK && strcmp(webp, path) != 0 && remove(path) != 0)
+        r = btf_fail(err, BTF_ERR_IO, "%s: cannot remove (%s)", path, strerror(errno));
+    if (r == BTF_OK) {
+        snprintf(path, BTF__LOD_PATH, "%s", webp);
+        s->iswebp[k] = 1, s->tbytes[k] = (long long)s->lossy_n[k];
+    }
+    return r;
+}
+
+/* Fills s->quality: for each component whose level-0 file in in_dir is a lossy WebP,
+ * the quality the source's "rd" record gives it (tex_quality, by component), so that
+ * its coarse levels get the same quality; -1 for the others, and for all of them
+ * when the levels are not 8-bit WebP-allowed (--png) or the record says nothing. */
+static void btf__coarse_quality(btf__lod *s, const char *in_dir)
+{
+    const btf_package *p = s->p;
+    cJSON *rd = s->webp && s->ch == 1 && p->rd ? cJSON_Parse(p->rd) : NULL;
+    const cJSON *tq = cJSON_GetObjectItemCaseSensitive(rd, "tex_quality");
+    for (int a = 0; a < s->C; a++) {
+        const cJSON *q = cJSON_IsArray(tq) ? cJSON_GetArrayItem(tq, p->chunk[a].component) : NULL;
+        char path[BTF__LOD_PATH];
+        snprintf(path, sizeof path, "%s/%s", in_dir, btf__src_file(&p->chunk[a], 0));
+        s->quality[a] = cJSON_IsNumber(q) && q->valuedouble >= 0 && q->valuedouble <= 100 && btf__lossy_file(path)
+                            ? (int)q->valuedouble
+                            : -1;
+    }
+    cJSON_Delete(rd);
+}
+
 /* Level l of component a into tmp: the direct file (level 0 copied from the v1
  * package unless WebP may replace it, and a lossy WebP unless every texture is to be
  * a PNG: its decode is the level's atlas, and coded again losslessly it would cost
@@ -560,7 +647,7 @@ static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir
 {
     const btf_package *p = s->p;
     size_t k = (size_t)a * s->nl + l;
-    char to[8400], g[8400], name[BTF_PACKAGE_NAME_MAX + 8];
+    char to[BTF__LOD_PATH], g[BTF__LOD_PATH], name[BTF_PACKAGE_NAME_MAX + 8];
     int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
     btf_result r;
     btf__level_stem(s, a, l, 0, name, sizeof name);
@@ -575,8 +662,11 @@ static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir
         s->tbytes[k] = btf_fs_size(to);
         s->iswebp[k] = (char)lossy;
     } else if (s->ch == 1) {
+        size_t stem = strlen(to);
         r = btf__write_level_file(s, to, aw, ah, s->atlas[k], &s->iswebp[k], &s->tbytes[k], err);
-        snprintf(to + strlen(to), sizeof to - strlen(to), "%s", s->iswebp[k] ? ".webp" : ".png");
+        snprintf(to + stem, sizeof to - stem, "%s", s->iswebp[k] ? ".webp" : ".png");
+        if (r == BTF_OK && s->lossy[k] && (long long)s->lossy_n[k] < s->tbytes[k])
+            r = btf__keep_lossy(s, k, to, stem, err);
     } else {
         snprintf(to + strlen(to), sizeof to - strlen(to), ".png");
         r = btf_image_write_flags(to, aw, ah, s->ch, 8, s->atlas[k], BTF_IMAGE_PNG_SMALLEST, err);
@@ -693,7 +783,7 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->C = p->n_chunks, s->nb = p->blocks->n_blocks, s->W = p->width, s->H = p->height;
     s->ch = p->bits == 16 ? 3 : 1, s->qmax = p->bits == 16 ? 65535 : 255;
     s->resid = (o && o->residual) || p->version == 3; /* rate-distortion steps: version 4 (wt-JJ.z weights) */
-    s->webp = s->resid && !o->png_only;
+    s->webp = s->resid && !(o && o->png_only);
     if (s->resid && p->bits != 8)
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: residual levels (version 4) need 8-bit textures, not %d", in_dir,
                         p->bits);
@@ -715,6 +805,11 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
     s->w8step = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
     s->isres = calloc(n, 1), s->iswebp = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
+    s->quality = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
+    s->lossy_n = calloc(n, sizeof(size_t));
+    if (!s->quality || !s->lossy || !s->lossy_n)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+    btf__coarse_quality(s, in_dir);
     if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;

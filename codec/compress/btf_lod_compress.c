@@ -50,6 +50,7 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
     btf_lod_options lo = *lod;
     lo.thumbnail = pkg.thumbnail; /* the levelled package's, decoded from it */
     pkg.thumbnail = 0;
+    pkg.levels = 1; /* a lossy texture's rate weighed with its coarse levels */
     btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
     if (r != BTF_OK)
         return r;
@@ -89,6 +90,7 @@ static btf_result lodc_try(const btf *src, const btf_pca_options *pca, const btf
     btf_package_options po = *pkg;
     int thumbnail = po.thumbnail;
     po.thumbnail = 0;
+    po.levels = 1; /* as build_v2 */
     btf_result r = btf_budget_compress(src, pca, &po, b, base, res, err);
     btf_lod_options lo = *lod;
     lo.thumbnail = thumbnail;

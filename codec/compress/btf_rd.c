@@ -588,15 +588,17 @@ static void btf__rd_free(btf__rd *r)
     free(r->sub_row), free(r->mt), free(r->mw);
 }
 
-/* par->tex_rate_fix applied to the texture rates in use (the ladder keeps them as
- * measured); a step not measured (negative rate) stays so. */
+/* par->tex_rate_fix and par->lossy_rate_scale applied to the texture rates in use
+ * (the ladder keeps them as measured); a step not measured (negative rate) stays so. */
 static void btf__rd_fix_rates(btf__rd *r)
 {
-    for (int j = 0; r->par->tex_rate_fix && j < r->C; j++) {
-        double f = r->par->tex_rate_fix[j];
-        for (int i = 0; f > 0.0 && isfinite(f) && i < r->nt; i++) {
+    double lossy = r->par->lossy_rate_scale > 0.0 && isfinite(r->par->lossy_rate_scale) ? r->par->lossy_rate_scale : 1.0;
+    for (int j = 0; j < r->C; j++) {
+        double f = r->par->tex_rate_fix ? r->par->tex_rate_fix[j] : 1.0;
+        f = f > 0.0 && isfinite(f) ? f : 1.0;
+        for (int i = 0; i < r->nt && (f != 1.0 || lossy != 1.0); i++) {
             long long *s = &r->rt[(size_t)j * r->nt + i];
-            *s = *s < 0 ? *s : llround((double)*s * f);
+            *s = *s < 0 ? *s : llround((double)*s * f * (i >= BTF__RD_NT ? lossy : 1.0));
         }
     }
 }

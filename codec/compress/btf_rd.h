@@ -8,7 +8,7 @@
  * lossy, a component's texture may instead be a lossy WebP of its full-range codes
  * (btf_rd_result.tex_quality), its error then estimated from that sample too.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL, 8, 0};  // equal-noise error, lossless WebP, every step measured
+ *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0};  // equal-noise error, lossless WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -52,6 +52,14 @@ typedef struct btf_rd_ladder {
 } btf_rd_ladder;
 
 /* Inputs of one allocation; plain value, its pointers are borrowed for the call. */
+/* Lossy rates under spatial levels (btf_package_options.levels): a lossy component's
+ * coarse levels are lossy at its quality, the three of a 4-level pyramid costing
+ * 0.45-0.55 of its level 0 (tiles 64 and 128), while a lossless component's levels
+ * are residuals costing 0.13-0.41 of its level-0 bytes (knit and tiles 128); so a
+ * lossy texture counts (1 + 0.5) / (1 + 0.2) = 1.25 times its level-0 bytes beside
+ * the lossless steps (doc/package-format.md section 10.7). */
+#define BTF_RD_LOSSY_LEVELS 1.25
+
 typedef struct btf_rd_params {
     const btf_pca_model *model; /* the float PCA of the package */
     int atlas_cols, atlas_rows; /* the package's atlas grid */
@@ -87,6 +95,9 @@ typedef struct btf_rd_params {
      * sample's decode (the blocks outside it: their rounding error plus the sample's
      * mean lossy error per texel) */
     int lossy;
+    /* > 0 (with lossy): every lossy candidate's rate counted this many times over,
+     * against the lossless steps' (BTF_RD_LOSSY_LEVELS when spatial levels follow) */
+    double lossy_rate_scale;
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */

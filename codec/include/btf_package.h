@@ -60,6 +60,9 @@ typedef struct btf_package_options {
      * picks where it costs fewer bytes for its error than the lossless steps
      * (doc/package-format.md sections 4.1 and 10.8); 0 = lossless textures only. */
     int lossy;
+    /* 1: spatial levels will be added to the package (btf_lod_compress): with lossy, a
+     * lossy texture's rate is weighed with its coarse levels (BTF_RD_LOSSY_LEVELS). */
+    int levels;
     /* > 0: the package gets thumbnail.png (btf_package_thumbnail) of at most this many
      * pixels a side, written into the package before it is renamed into place; 0 =
      * none. Never with estimate. */

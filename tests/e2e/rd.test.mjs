@@ -19,7 +19,10 @@ before(async () => {
   requireBuild();
   lib = makeLibrary({tiles: ['tiles', 4, 0, ['--plain']], 'tiles-rd': ['tiles', 4, 0, ['--lossless']],
     // at 32 texels a side lossy textures win for coarser steps than the default's
-    'tiles-rdl': ['tiles', 4, 2], 'tiles-lossy': ['tiles', 4, 0, ['--tex-noise', '1']]});
+    'tiles-rdl': ['tiles', 4, 2], 'tiles-lossy': ['tiles', 4, 0, ['--tex-noise', '1']],
+    // and with levels: a lossy component's coarse levels lossy too (package-format.md
+    // 10.7); the choice weighs lossy textures with their levels, so a coarser noise
+    'tiles-lossyl': ['tiles', 4, 2, ['--tex-noise', '1.5']]});
   server = await startServer(lib.lib);
   desktop = await launch();
   await desktop.addInitScript(() => { window.__btfCache = false; });
@@ -36,7 +39,7 @@ describe('version 3 (wt-JJ.z weights)', () => {
     const page = await newPage(desktop);
     await page.setViewportSize({width: 400, height: 400});
     const shots = {};
-    for (const m of ['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy']) {
+    for (const m of ['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl']) {
       await page.goto(`${server.pagesUrl}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
         '&light-phi=-60&camera-theta=30&width=256&height=256&max-dpr=1');
       await waitFor(page, () => {
@@ -45,8 +48,9 @@ describe('version 3 (wt-JJ.z weights)', () => {
       }, null, `${m} drawn completely`);
       const v = (await viewers(page))[0];
       assert.equal(v.error, null);
-      assert.equal(v.drawnChunks, m === 'tiles-rdl' ? v.manifestChunks : 4);
-      if (m === 'tiles-rdl') assert.ok(v.manifestChunks > 4, 'levels add chunks');
+      const levels = m === 'tiles-rdl' || m === 'tiles-lossyl';
+      assert.equal(v.drawnChunks, levels ? v.manifestChunks : 4);
+      if (levels) assert.ok(v.manifestChunks > 4, 'levels add chunks');
       shots[m] = await capture(page, 0);
     }
     // The packages differ only in their quantisation steps (each adds about 0.5 RMS
@@ -66,6 +70,15 @@ describe('version 3 (wt-JJ.z weights)', () => {
     const dl = meanAbsDiff(shots.tiles, shots['tiles-lossy']);
     console.log(`# version 3 with lossy textures vs version 1: mean |difference| ${dl.toFixed(3)} of 255`);
     assert.ok(dl < 3, `lossy version-3 image within 3 levels of version 1 (${dl})`);
+    // Lossy coarse levels: every chunk drawn, within the bound of the others (1.5
+    // times the default's noise per component).
+    const dir = path.join(lib.lib, 'tiles-lossyl');
+    const coarse = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8')).chunks
+      .filter((c) => c.level > 0 && fs.readFileSync(path.join(dir, c.files[0])).subarray(12, 16).toString('latin1') === 'VP8 ');
+    assert.ok(coarse.length >= 1, 'the package has lossy coarse levels (the test covers them)');
+    const dll = meanAbsDiff(shots.tiles, shots['tiles-lossyl']);
+    console.log(`# ${coarse.length} lossy coarse levels: mean |difference| ${dll.toFixed(3)} of 255 from version 1`);
+    assert.ok(dll < 3, `lossy levels within 3 levels of version 1 (${dll})`);
     assertClean(desktop);
   });
 });
