@@ -10,9 +10,9 @@ import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 import {after, before, describe, it} from 'node:test';
-import {launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor} from './util.mjs';
+import {freshContext, launchBrowser, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor} from './util.mjs';
 
-let lib, srv, pages, secret;
+let lib, srv, pages, secret, browser;
 
 // v1:SCOPE:EXPIRES:SIG signed by Python, expiring `ttl` seconds from now (negative: past).
 function token(scope, ttl, key = secret) {
@@ -38,18 +38,20 @@ before(async () => {
   secret = path.join(lib.dir, 'secret');
   fs.writeFileSync(secret, 'an e2e secret of thirty-two b!!\n', {mode: 0o600});
   srv = await startServer(lib.lib, ['--token-secret-file', secret, '--rescan-ms', '0']);
+  browser = await launchBrowser();
 });
 
 after(async () => {
   await srv?.stop();
   await pages?.close();
+  await browser?.close();
   lib?.remove();
 });
 
 // The page's viewer once it completed or failed: {state, errors}.
 async function show(html) {
   pages = await servePages({index: html});
-  const ctx = await launch();
+  const ctx = await freshContext(browser); // its own cookies, storage and cache: nothing from the test before
   try {
     const p = await newPage(ctx);
     await p.goto(`${pages.url}index.html`);

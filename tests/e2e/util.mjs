@@ -4,6 +4,7 @@
 // no network side traffic; a fresh profile), page error collection, PNG read/write (node:zlib) and image differences.
 import assert from 'node:assert/strict';
 import {spawn, spawnSync} from 'node:child_process';
+import {createHash} from 'node:crypto';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -43,16 +44,57 @@ export function hasRender() {
 // optional spatial levels (a version-2 package, doc/package-format.md section 10),
 // optional further `btf compress` arguments, optional further `btf gen` arguments];
 // without {thumbnails: true} the packages have no thumbnail.png (no poster).
+//
+// The test files share packages: one made with the same name, generator and compress
+// arguments by the same build/btf (its bytes hashed) is copied from BUILD/e2e-cache/,
+// where the first file to need it left it (a file given as an argument counts by its
+// content). btf compress is deterministic, so the copy is the package this run's btf
+// writes; a rebuilt btf has another hash, and its first makeLibrary drops the old cache.
+// BTF_E2E_CACHE=0: every package made afresh.
+let cacheRoot;
+function packageCache() {
+  if (cacheRoot !== undefined) return cacheRoot;
+  cacheRoot = null;
+  if (process.env.BTF_E2E_CACHE === '0') return cacheRoot;
+  if (!fs.existsSync(BTF)) return cacheRoot;
+  const top = path.join(BUILD, 'e2e-cache'), id = createHash('sha256').update(fs.readFileSync(BTF)).digest('hex').slice(0, 16);
+  fs.mkdirSync(top, {recursive: true});
+  for (const e of fs.readdirSync(top))
+    if (e !== id) fs.rmSync(path.join(top, e), {recursive: true, force: true});
+  cacheRoot = path.join(top, id);
+  fs.mkdirSync(cacheRoot, {recursive: true});
+  return cacheRoot;
+}
+
+function cacheKey(parts) {
+  const withFiles = parts.map((a) => (typeof a === 'string' && path.isAbsolute(a) && fs.existsSync(a) &&
+    fs.statSync(a).isFile() ? ['file', fs.readFileSync(a, 'base64')] : a));
+  return createHash('sha256').update(JSON.stringify(withFiles)).digest('hex').slice(0, 32);
+}
+
 export function makeLibrary(materials, {thumbnails = false} = {}) {
   const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-e2e-'));
   const lib = path.join(dir, 'lib');
   fs.mkdirSync(lib);
+  const cache = packageCache();
   for (const [name, [kind, comps, levels, extra = [], genExtra = []]] of Object.entries(materials)) {
-    const src = path.join(dir, `${name}.btf`);
-    run(BTF, ['gen', kind, src, '--size', '32', '--format', 'btf', '--components', '16', ...genExtra]);
-    run(BTF, ['compress', src, path.join(lib, name), '--k', '3', '--components', String(comps), '--quiet',
-      ...(levels ? ['--levels', String(levels)] : []), ...(thumbnails ? [] : ['--no-thumbnail']), ...extra]);
+    const src = path.join(dir, `${name}.btf`), out = path.join(lib, name);
+    const genArgs = ['--size', '32', '--format', 'btf', '--components', '16', ...genExtra];
+    const compressArgs = ['--k', '3', '--components', String(comps), '--quiet',
+      ...(levels ? ['--levels', String(levels)] : []), ...(thumbnails ? [] : ['--no-thumbnail']), ...extra];
+    const cached = cache && path.join(cache, cacheKey([name, kind, ...genArgs, '|', ...compressArgs]));
+    if (cached && fs.existsSync(cached)) {
+      fs.cpSync(cached, out, {recursive: true});
+      continue;
+    }
+    run(BTF, ['gen', kind, src, ...genArgs]);
+    run(BTF, ['compress', src, out, ...compressArgs]);
     fs.rmSync(src);
+    if (cached) { // written whole beside it, then renamed: a reader never sees a half package
+      const tmp = `${cached}.tmp-${process.pid}`;
+      fs.cpSync(out, tmp, {recursive: true});
+      try { fs.renameSync(tmp, cached); } catch { fs.rmSync(tmp, {recursive: true, force: true}); }
+    }
   }
   return {dir, lib, remove: () => fs.rmSync(dir, {recursive: true, force: true})};
 }
@@ -157,6 +199,17 @@ export async function launch(options = {}, keepProfile = null) {
     executablePath: CHROMIUM, headless: true, args: CHROMIUM_ARGS, viewport: {width: 1000, height: 700},
     ...options,
   });
+  watchProblems(ctx);
+  const close = ctx.close.bind(ctx);
+  ctx.close = async () => {
+    await close();
+    if (!keepProfile) fs.rmSync(profile, {recursive: true, force: true});
+  };
+  return ctx;
+}
+
+// Collects the page errors and console errors of ctx's pages in ctx.problems.
+function watchProblems(ctx) {
   ctx.problems = [];
   const watch = (page) => {
     page.on('pageerror', (e) => ctx.problems.push(`page error: ${e.message}`));
@@ -166,11 +219,20 @@ export async function launch(options = {}, keepProfile = null) {
   };
   ctx.pages().forEach(watch);
   ctx.on('page', watch);
-  const close = ctx.close.bind(ctx);
-  ctx.close = async () => {
-    await close();
-    if (!keepProfile) fs.rmSync(profile, {recursive: true, force: true});
-  };
+}
+
+// One Chromium for the tests of a file (its after() closes it), where each test takes a
+// fresh context of it (freshContext): a file's tests pay for one browser start, not one each.
+export async function launchBrowser(options = {}) {
+  const {chromium} = await import('playwright-core');
+  return chromium.launch({executablePath: CHROMIUM, headless: true, args: CHROMIUM_ARGS, ...options});
+}
+
+// A new context of browser (launchBrowser): its own cookies, storage and HTTP cache, as a
+// fresh profile of launch() has; problems collected as launch() does.
+export async function freshContext(browser, options = {}) {
+  const ctx = await browser.newContext({viewport: {width: 1000, height: 700}, ...options});
+  watchProblems(ctx);
   return ctx;
 }
 
