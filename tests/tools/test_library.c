@@ -213,29 +213,29 @@ static int version_of(const char *name)
  * versions 2 and 1; levels, --plain and a budget are part of the settings. */
 Test(library, levels_plain_and_budgets_are_part_of_the_settings)
 {
-    const char *two[] = {"gen:knit:16", "--components", "3", "--levels", "2", NULL};
+    const char *two[] = {"gen:knit:8", "--components", "3", "--levels", "2", NULL};
     cr_assert_eq(build(two), 0);
-    cr_expect_eq(version_of("gen-knit-16"), 4);
+    cr_expect_eq(version_of("gen-knit-8"), 4);
     cr_expect_eq(entries_with(".tmp-"), 0, "the v1 temporary is gone");
-    long long a = identity("gen-knit-16");
+    long long a = identity("gen-knit-8");
     cr_assert_eq(build(two), 0);
-    cr_expect_eq(identity("gen-knit-16"), a);
-    const char *one[] = {"gen:knit:16", "--components", "3", NULL};
+    cr_expect_eq(identity("gen-knit-8"), a);
+    const char *one[] = {"gen:knit:8", "--components", "3", NULL};
     cr_assert_eq(build(one), 0);
-    cr_expect_eq(version_of("gen-knit-16"), 3, "dropping --levels did not rebuild");
-    const char *plain2[] = {"gen:knit:16", "--components", "3", "--levels", "2", "--plain", NULL};
+    cr_expect_eq(version_of("gen-knit-8"), 3, "dropping --levels did not rebuild");
+    const char *plain2[] = {"gen:knit:8", "--components", "3", "--levels", "2", "--plain", NULL};
     cr_assert_eq(build(plain2), 0);
-    cr_expect_eq(version_of("gen-knit-16"), 2);
-    const char *plain[] = {"gen:knit:16", "--components", "3", "--plain", NULL};
+    cr_expect_eq(version_of("gen-knit-8"), 2);
+    const char *plain[] = {"gen:knit:8", "--components", "3", "--plain", NULL};
     cr_assert_eq(build(plain), 0);
-    cr_expect_eq(version_of("gen-knit-16"), 1);
-    const char *budget[] = {"gen:knit:16", "--k", "3", "--max-error", "4", NULL};
+    cr_expect_eq(version_of("gen-knit-8"), 1);
+    const char *budget[] = {"gen:knit:8", "--k", "3", "--max-error", "4", NULL};
     cr_assert_eq(build(budget), 0);
-    cr_expect_eq(version_of("gen-knit-16"), 3);
-    cJSON *j = manifest_of("gen-knit-16");
+    cr_expect_eq(version_of("gen-knit-8"), 3);
+    cJSON *j = manifest_of("gen-knit-8");
     cr_expect(cJSON_IsObject(cJSON_GetObjectItem(j, "budget")), "a budget's record in the manifest");
     cJSON_Delete(j);
-    const char *both[] = {"gen:knit:16", "--max-error", "4", "--max-bytes", "100000", NULL};
+    const char *both[] = {"gen:knit:8", "--max-error", "4", "--max-bytes", "100000", NULL};
     cr_expect_eq(build(both), 2);
 }
 
