@@ -169,7 +169,7 @@ check: build
 # the run fails when any was written (tests/asan_reports.sh prints them).
 ASAN_REPORTS := build-asan/reports
 ASAN_ENV = ASAN_OPTIONS=detect_leaks=1:log_path=$(CURDIR)/$(ASAN_REPORTS)/asan \
-    LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp \
+    LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan.supp:print_suppressions=0 \
     UBSAN_OPTIONS=print_stacktrace=1:log_path=$(CURDIR)/$(ASAN_REPORTS)/ubsan
 asan: setup
 	$(MAKE) BUILD=build-asan OPT='-O1 -g -fno-omit-frame-pointer' \
