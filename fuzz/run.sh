@@ -12,15 +12,16 @@
 # executions when that is > 0 (whichever comes first), its log in
 # build-fuzz/fuzz/log/NAME.txt. The disk targets' scratch directories go under
 # FUZZ_TMPDIR (tmpfs: no disk, no fsync cost).
-# The table goes to stdout and to FUZZ_SUMMARY (default build-fuzz/fuzz/summary.txt).
+# The table goes to stdout and to FUZZ_SUMMARY (default build-fuzz/fuzz/summary.txt);
+# its "10M in" is 10 million executions at the target's rate. Each target has its
+# own -max_len and flags (target_settings below); FUZZ_NICE=N runs them under
+# nice -n N (make fuzz-deep: 19).
 #
 # The codec's OpenMP regions (and OpenBLAS) run on FUZZ_THREADS threads, default 1:
 # an input is small, and starting a parallel region costs more than sharing its
 # work (thesis_mem runs 1.6 times as fast on one thread as on two).
 #
-# FUZZ_FLAGS adds libFuzzer flags to every run: -entropic=0 (no rare-feature
-# weighting of the inputs) runs the package readers twice as fast, libFuzzer's
-# bookkeeping of that weighting being most of their time.
+# FUZZ_FLAGS adds libFuzzer flags to every run (after the target's own).
 #
 # ASan unwinds allocation stacks with frame pointers (ASAN_OPTIONS from
 # FUZZ_ASAN_OPTIONS, default empty): fast_unwind_on_malloc=0 would give the full
