@@ -1238,6 +1238,32 @@ static int level_chunk(const btf_package *p, int j, int l)
     return -1;
 }
 
+/* Paths of one lossy-levels test under its temp dir tmp: out (the version-3 package),
+ * lv (levels over it), lp (the same with every level a PNG); a stack value. */
+typedef struct lossy_levels {
+    char tmp[256], out[512], lv[512], lp[512];
+} lossy_levels;
+
+/* The tiles 64x64 compressed with lossy textures (k 3, 4 components; its allocation
+ * in rr) into t->out, then `levels` levels over it into t->lv, and into t->lp with
+ * every level a PNG (the coarse levels exactly their quantised box means). */
+static btf *lossy_with_levels(lossy_levels *t, int levels, btf_rd_result *rr)
+{
+    cr_assert(fx_tmpdir(t->tmp, sizeof t->tmp));
+    snprintf(t->out, sizeof t->out, "%s/m", t->tmp);
+    snprintf(t->lv, sizeof t->lv, "%s/lv", t->tmp);
+    snprintf(t->lp, sizeof t->lp, "%s/lp", t->tmp);
+    btf *src = fx_material(BTF_GEN_TILES, 64, rings, 3);
+    compress_lossy(src, 4, 1, t->out, rr);
+    btf_lod_options lo = {0}, lpng = {0};
+    lo.levels = lpng.levels = levels;
+    lpng.png_only = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_lod_build(t->out, t->lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_lod_build(t->out, t->lp, &lpng, NULL, &err), BTF_OK, "%s", err.msg);
+    return src;
+}
+
 /* Coarse levels of a lossy component are lossy too (btf_lod_build from a version-3
  * package, doc/package-format.md section 10.7): each coarse level's file is either
  * the lossy WebP of the level's quantised box means at the quality the source's
@@ -1246,20 +1272,11 @@ static int level_chunk(const btf_package *p, int j, int l)
  * texels are within a few codes of the lossless ones; and the package is smaller. */
 Test(rd, coarse_levels_of_a_lossy_component_are_lossy_at_its_quality)
 {
-    char tmp[256], out[512], lv[512], lp[512];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(out, sizeof out, "%s/m", tmp);
-    snprintf(lv, sizeof lv, "%s/lv", tmp);
-    snprintf(lp, sizeof lp, "%s/lp", tmp);
-    btf *src = fx_material(BTF_GEN_TILES, 64, rings, 3);
+    lossy_levels t;
     btf_rd_result rr;
-    compress_lossy(src, 4, 1, out, &rr);
-    btf_lod_options lo = {0}, lpng = {0};
-    lo.levels = lpng.levels = 3;
-    lpng.png_only = 1; /* every level a PNG: the coarse levels exactly their quantised box means */
+    btf *src = lossy_with_levels(&t, 3, &rr);
+    const char *lv = t.lv, *lp = t.lp, *tmp = t.tmp;
     btf_error err = {0};
-    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(btf_lod_build(out, lp, &lpng, NULL, &err), BTF_OK, "%s", err.msg);
     btf_package *b = fx_package(lv, NULL, 0), *c = fx_package(lp, NULL, 0);
     int lossy_files = 0, aw = b->atlas_cols * b->width, ah = b->atlas_rows * b->height;
     double e_all = 0.0;
@@ -1305,20 +1322,10 @@ Test(rd, coarse_levels_of_a_lossy_component_are_lossy_at_its_quality)
  * byte) unless its residual is smaller; under png_only it is the PNG of its decode. */
 Test(rd, levels_over_lossy_textures_keep_the_decoded_values)
 {
-    char tmp[256], out[512], lv[512], lp[512];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(out, sizeof out, "%s/m", tmp);
-    snprintf(lv, sizeof lv, "%s/lv", tmp);
-    snprintf(lp, sizeof lp, "%s/lp", tmp);
-    btf *src = fx_material(BTF_GEN_TILES, 64, rings, 3);
+    lossy_levels t;
     btf_rd_result rr;
-    compress_lossy(src, 4, 1, out, &rr);
-    btf_lod_options lo = {0}, lpng = {0};
-    lo.levels = lpng.levels = 2;
-    lpng.png_only = 1;
-    btf_error err = {0};
-    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(btf_lod_build(out, lp, &lpng, NULL, &err), BTF_OK, "%s", err.msg);
+    btf *src = lossy_with_levels(&t, 2, &rr);
+    const char *out = t.out, *lv = t.lv, *lp = t.lp, *tmp = t.tmp;
     btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0), *c = fx_package(lp, NULL, 0);
     cr_assert(b->version == 4 && c->version == 4);
     expect_same_values(a, b);
