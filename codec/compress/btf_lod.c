@@ -807,11 +807,9 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->isres = calloc(n, 1), s->iswebp = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
     s->quality = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t));
-    if (!s->quality || !s->lossy || !s->lossy_n)
+    if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->lossy || !s->lossy_n)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     btf__coarse_quality(s, in_dir);
-    if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step)
-        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     return BTF_OK;
 }
 

@@ -51,7 +51,6 @@ typedef struct btf_rd_ladder {
     long long *rt, *rw;
 } btf_rd_ladder;
 
-/* Inputs of one allocation; plain value, its pointers are borrowed for the call. */
 /* Lossy rates under spatial levels (btf_package_options.levels): a lossy component's
  * coarse levels are lossy at its quality, the three of a 4-level pyramid costing
  * 0.45-0.55 of its level 0 (tiles 64 and 128), while a lossless component's levels
@@ -60,6 +59,7 @@ typedef struct btf_rd_ladder {
  * the lossless steps (doc/package-format.md section 10.7). */
 #define BTF_RD_LOSSY_LEVELS 1.25
 
+/* Inputs of one allocation; plain value, its pointers are borrowed for the call. */
 typedef struct btf_rd_params {
     const btf_pca_model *model; /* the float PCA of the package */
     int atlas_cols, atlas_rows; /* the package's atlas grid */

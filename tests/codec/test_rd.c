@@ -1068,6 +1068,17 @@ static void compress_lossy(const btf *src, int C, int lossy, const char *out, bt
     cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, out, NULL, &err), BTF_OK, "%s", err.msg);
 }
 
+/* The bytes of the file at path (malloc'd into *data; the caller frees it), or 0 and
+ * NULL when there is none. */
+static size_t maybe_file(const char *path, uint8_t **data)
+{
+    char *buf = NULL;
+    size_t n = 0;
+    btf_error err = {0};
+    *data = btf_fs_read(path, (size_t)1 << 26, &buf, &n, &err) == BTF_OK ? (uint8_t *)buf : NULL;
+    return *data ? n : 0;
+}
+
 /* The texture file of component j in dir, read whole (malloc'd into *data). */
 static size_t texture_file(const btf_package *p, const char *dir, int j, uint8_t **data)
 {
@@ -1075,11 +1086,8 @@ static size_t texture_file(const btf_package *p, const char *dir, int j, uint8_t
         if (p->chunk[i].component == j) {
             char path[1024];
             snprintf(path, sizeof path, "%s/%s", dir, p->chunk[i].files[0]);
-            char *buf = NULL;
-            size_t n = 0;
-            btf_error err = {0};
-            cr_assert_eq(btf_fs_read(path, (size_t)1 << 26, &buf, &n, &err), BTF_OK, "%s", err.msg);
-            *data = (uint8_t *)buf;
+            size_t n = maybe_file(path, data);
+            cr_assert_not_null(*data, "cannot read %s", path);
             return n;
         }
     cr_assert_fail("component %d has no chunk", j);
@@ -1217,17 +1225,6 @@ Test(rd, reader_refuses_a_malformed_lossy_texture)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
-/* The bytes of the file at path (malloc'd into *data; the caller frees it), or 0 and
- * NULL when there is none. */
-static size_t maybe_file(const char *path, uint8_t **data)
-{
-    char *buf = NULL;
-    size_t n = 0;
-    btf_error err = {0};
-    *data = btf_fs_read(path, (size_t)1 << 26, &buf, &n, &err) == BTF_OK ? (uint8_t *)buf : NULL;
-    return *data ? n : 0;
-}
-
 /* Chunk index of component j's level l in p (version 2 or 4); fails the test when none. */
 static int level_chunk(const btf_package *p, int j, int l)
 {
@@ -1339,8 +1336,8 @@ Test(rd, levels_over_lossy_textures_keep_the_decoded_values)
         size_t n = texture_file(a, out, j, &f), m = 0;
         snprintf(name, sizeof name, "tex-%02d.webp", j);
         snprintf(path, sizeof path, "%s/%s", lv, name);
-        btf_error e2 = {0};
-        if (btf_fs_read(path, (size_t)1 << 26, (char **)&g, &m, &e2) == BTF_OK) {
+        m = maybe_file(path, &g);
+        if (g) {
             cr_assert(m == n && !memcmp(f, g, n), "%s: the lossy file copied byte for byte", name);
             copied++;
         }

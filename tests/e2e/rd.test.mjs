@@ -15,6 +15,9 @@ import {BTF, assertClean, capture, launch, makeLibrary, meanAbsDiff, newPage, re
 
 let lib, server, desktop;
 
+// 1 when file f of package dir is a lossy WebP (its first chunk "VP8 ", package-format.md 4.1).
+const isLossy = (dir, f) => fs.readFileSync(path.join(dir, f)).subarray(12, 16).toString('latin1') === 'VP8 ';
+
 before(async () => {
   requireBuild();
   lib = makeLibrary({tiles: ['tiles', 4, 0, ['--plain']], 'tiles-rd': ['tiles', 4, 0, ['--lossless']],
@@ -74,7 +77,7 @@ describe('version 3 (wt-JJ.z weights)', () => {
     // times the default's noise per component).
     const dir = path.join(lib.lib, 'tiles-lossyl');
     const coarse = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8')).chunks
-      .filter((c) => c.level > 0 && fs.readFileSync(path.join(dir, c.files[0])).subarray(12, 16).toString('latin1') === 'VP8 ');
+      .filter((c) => c.level > 0 && isLossy(dir, c.files[0]));
     assert.ok(coarse.length >= 1, 'the package has lossy coarse levels (the test covers them)');
     const dll = meanAbsDiff(shots.tiles, shots['tiles-lossyl']);
     console.log(`# ${coarse.length} lossy coarse levels: mean |difference| ${dll.toFixed(3)} of 255 from version 1`);
@@ -88,7 +91,7 @@ describe('lossy WebP textures', () => {
     const dir = path.join(lib.lib, 'tiles-lossy');
     const m = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
     const lossy = m.chunks.map((c) => c.files[0])
-      .filter((f) => fs.readFileSync(path.join(dir, f)).subarray(12, 16).toString('latin1') === 'VP8 ');
+      .filter((f) => isLossy(dir, f));
     assert.ok(lossy.length >= 1, 'the package has lossy textures (the test covers them)');
     // The C reader's values: `btf lod --levels 1 --png` reads the package through
     // btf_package_read and writes each level-0 atlas as the PNG of its decoded bytes.
