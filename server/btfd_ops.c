@@ -1,5 +1,7 @@
 /* btfd_ops.c - signals, draining, library rescans, /metrics and the log of btfd; see btfd_ops.h. */
+#define _GNU_SOURCE /* accept4 */
 #include <dirent.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -105,20 +107,41 @@ static void drain_timer(lws_sorted_usec_list_t *sul)
     lws_sul_schedule(srv->ctx, 0, &srv->sul_drain, drain_timer, DRAIN_GRACE_US);
 }
 
-/* Stops accepting: every listening socket of the process (btfd has one, lws's)
- * is shut down, so the kernel refuses new connections at once while the ones
- * accepted stay. Found through /proc/self/fd and SO_ACCEPTCONN: lws 4.1 has no
- * call that closes a vhost's listener and keeps the context (its
- * lws_context_deprecate reads the listener after freeing it). */
-static int stop_listening(void)
+/* Takes every connection already waiting in a listener's queue and hands it to lws
+ * as if lws had accepted it; returns how many. Shutting a listener down resets
+ * what is in its queue, and a client (or proxy) sees that as a reset of an
+ * established connection, which no proxy retries by default. */
+static int adopt_pending(struct lws_vhost *vh, int fd)
 {
+    int n = 0, flags = fcntl(fd, F_GETFL);
+    if (!vh || flags < 0 || fcntl(fd, F_SETFL, flags | O_NONBLOCK) < 0)
+        return 0;
+    for (int c; (c = accept4(fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC)) >= 0;) {
+        if (lws_adopt_socket_vhost(vh, c))
+            n++; /* on failure lws has closed it */
+    }
+    return n;
+}
+
+/* Stops accepting: every listening socket of the process (btfd has one, lws's)
+ * is emptied (adopt_pending), then shut down, so the kernel refuses new
+ * connections at once while the ones accepted stay. Found through /proc/self/fd
+ * and SO_ACCEPTCONN: lws 4.1 has no call that closes a vhost's listener and keeps
+ * the context (its lws_context_deprecate reads the listener after freeing it).
+ * Returns the listeners shut; *adopted counts the connections taken from them. */
+static int stop_listening(btfd_server *srv, int *adopted)
+{
+    struct lws_vhost *vh = lws_get_vhost_by_name(srv->ctx, BTFD_VHOST);
     DIR *d = opendir("/proc/self/fd");
     int n = 0;
+    *adopted = 0;
     for (struct dirent *e; d && (e = readdir(d));) {
         int fd = atoi(e->d_name), on = 0;
         socklen_t len = sizeof on;
-        if (e->d_name[0] != '.' && getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &on, &len) == 0 && on)
-            n += shutdown(fd, SHUT_RDWR) == 0;
+        if (e->d_name[0] == '.' || getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &on, &len) != 0 || !on)
+            continue;
+        *adopted += adopt_pending(vh, fd);
+        n += shutdown(fd, SHUT_RDWR) == 0;
     }
     if (d)
         closedir(d);
@@ -132,9 +155,10 @@ void btfd_ops_drain(btfd_server *srv)
     srv->draining = 1;
     /* the listening socket closes: a new connection is refused, the failure every
      * proxy retries on another server by default; what is already accepted is served */
-    int closed = stop_listening();
-    btfd_log(srv, BTFD_LOG_INFO, "draining: %s; %d connections, up to %d s",
-             closed ? "stopped listening" : "could not stop listening", srv->stats.connections, srv->opt.drain_s);
+    int adopted, closed = stop_listening(srv, &adopted);
+    btfd_log(srv, BTFD_LOG_INFO, "draining: %s; %d connections (%d taken from the queue), up to %d s",
+             closed ? "stopped listening" : "could not stop listening", srv->stats.connections, adopted,
+             srv->opt.drain_s);
     lws_sul_schedule(srv->ctx, 0, &srv->sul_drain, drain_timer, (lws_usec_t)srv->opt.drain_s * 1000000);
     wake_streams(srv); /* idle ones go now */
 }

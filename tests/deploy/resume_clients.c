@@ -334,6 +334,15 @@ static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *use
         return 0;
     switch (reason) {
     case LWS_CALLBACK_CLIENT_CONNECTION_ERROR:
+        if (g_raw) /* a raw client fails here for good: say why (lws's reason, or the proxy's reply) */
+            fprintf(stderr, "resume_clients: client %d: connection error: %.*s\n", c->idx, in ? (int)len : 4,
+                    in ? (const char *)in : "none");
+        lost(c);
+        break;
+    case LWS_CALLBACK_CLIENT_CLOSED:
+        if (g_raw && !c->done)
+            fprintf(stderr, "resume_clients: client %d: closed after %d of %d chunks\n", c->idx, c->held,
+                    g_pkg.n_chunks);
         lost(c);
         break;
     case LWS_CALLBACK_CLIENT_ESTABLISHED:
@@ -348,9 +357,6 @@ static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *use
         break;
     case LWS_CALLBACK_CLIENT_WRITEABLE:
         return on_writeable(c, wsi);
-    case LWS_CALLBACK_CLIENT_CLOSED:
-        lost(c);
-        break;
     default:
         break;
     }

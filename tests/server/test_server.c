@@ -1777,6 +1777,12 @@ Test(server, healthz_and_metrics_follow_streams_and_scans)
  * end: a finished stream goes away with 1001, a busy one completes first, one that
  * subscribes during the drain is served, and an HTTP request or a WebSocket
  * handshake arriving on a connection accepted before is answered. */
+/* A WebSocket handshake asking for the stream subprotocol, as a browser sends it. */
+static const char UPGRADE_REQ[] =
+    "GET /stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+    "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+    "Sec-WebSocket-Protocol: btf-stream.v1\r\n\r\n";
+
 Test(server, sigterm_stops_listening_and_serves_what_was_accepted)
 {
     size_t sizes[4] = {3u << 20, 3u << 20, 3u << 20, 3u << 20};
@@ -1817,11 +1823,7 @@ Test(server, sigterm_stops_listening_and_serves_what_was_accepted)
                           "draining\n", &rn);
     cr_expect(strstr(r, " 503 ") && strstr(r, "draining"), "healthz during the drain: %s", r);
     free(r), close(http);
-    r = fd_exchange(upgrade,
-                    "GET /stream HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                    "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
-                    "Sec-WebSocket-Protocol: btf-stream.v1\r\n\r\n",
-                    TMO, "\r\n\r\n", &rn);
+    r = fd_exchange(upgrade, UPGRADE_REQ, TMO, "\r\n\r\n", &rn);
     cr_expect(!strncmp(r, "HTTP/1.1 101", 12), "a handshake on an accepted connection: %s", r);
     free(r), close(upgrade);
     /* a stream that subscribes during the drain is served to its end */
@@ -1839,6 +1841,64 @@ Test(server, sigterm_stops_listening_and_serves_what_was_accepted)
     stream_free(&sq);
     wsc_close(&busy);
     cr_expect_eq(srv_wait_exit(&s, TMO), 0, "btfd exits once the last stream is gone");
+}
+
+/* Waits until the kernel reports pid stopped (state T), so nothing it does races what follows. */
+static void wait_stopped(pid_t pid)
+{
+    char path[64], st[512];
+    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+    for (int k = 0; k < 500; k++) {
+        FILE *f = fopen(path, "r");
+        size_t n = f ? fread(st, 1, sizeof st - 1, f) : 0;
+        if (f)
+            fclose(f);
+        st[n] = 0;
+        const char *paren = strrchr(st, ')');
+        if (paren && paren[1] == ' ' && paren[2] == 'T')
+            return;
+        usleep(2000);
+    }
+    cr_assert_fail("btfd (pid %d) did not stop on SIGSTOP", (int)pid);
+}
+
+/* Connections the kernel completed but btfd had not accepted yet when SIGTERM came:
+ * shutting the listener down would reset them (a proxy sees an established
+ * connection reset, which it does not retry), so the drain takes them first. btfd
+ * is stopped while they connect, so the drain runs before its loop could accept. */
+Test(server, sigterm_serves_connections_still_in_the_listen_queue)
+{
+    make_simple(g_lib, "small", 2, 1000);
+    srv s;
+    const char *extra[] = {"--drain-seconds", "5", NULL};
+    srv_start(&s, g_lib, extra);
+    enum { N = 6 };
+    int fd[N + 1];
+    kill(s.pid, SIGSTOP);
+    wait_stopped(s.pid);
+    for (int i = 0; i <= N; i++) { /* the handshakes complete in the kernel; btfd sleeps */
+        fd[i] = tcp_connect(s.port);
+        cr_assert_geq(fd[i], 0);
+    }
+    kill(s.pid, SIGTERM);
+    kill(s.pid, SIGCONT);
+    size_t rn;
+    for (int i = 0; i < N; i++) {
+        char *r = fd_exchange(fd[i], UPGRADE_REQ, TMO, "\r\n\r\n", &rn);
+        cr_expect(!strncmp(r, "HTTP/1.1 101", 12), "queued connection %d: \"%s\"", i, r);
+        free(r);
+    }
+    char *r = fd_exchange(fd[N], "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n",
+                          TMO, "draining\n", &rn);
+    cr_expect(strstr(r, " 503 ") && strstr(r, "draining"), "healthz on a queued connection: \"%s\"", r);
+    free(r);
+    int late = tcp_connect(s.port);
+    cr_expect_lt(late, 0, "btfd still accepts connections while draining");
+    if (late >= 0)
+        close(late);
+    for (int i = 0; i <= N; i++)
+        close(fd[i]);
+    cr_expect_eq(srv_wait_exit(&s, TMO), 0, "btfd exits once the queued connections are gone");
 }
 
 Test(server, drain_deadline_closes_streams_that_do_not_finish)
