@@ -308,11 +308,13 @@ export class BtfStream {
   }
 
   // Sends the subscription's merged budget when it changed (e.g. a viewer resized); a
-  // stream closed because everything had arrived reconnects for it.
+  // stream closed because everything had arrived reconnects for it, unless the
+  // subscription holds its whole package (no budget can ask for more).
   updateBudget(sub) {
     const wire = JSON.stringify(wireBudget(sub.budget()));
     if (wire === sub.sentBudget) return;
     if (!this.ws) {
+      if (sub.holdsAll()) return;
       sub.complete = false;
       return this.wake(); // the subscribe on open carries the new budget
     }

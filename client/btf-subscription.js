@@ -70,6 +70,11 @@ export class Subscription {
     return h;
   }
 
+  // Every chunk of its manifest is here: no budget can ask for more.
+  holdsAll() {
+    return !!this.manifest && this.have().length >= this.manifest.chunks.length;
+  }
+
   budget() {
     return mergeBudgets([...this.listeners].map((l) => l.budget()));
   }

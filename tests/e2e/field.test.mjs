@@ -9,7 +9,8 @@
 // a reload streams at most 5% of the chunk bytes and takes at most 5% of the link's,
 // nothing below the viewer moves (layout shift), and each failure (server down at page
 // load, link dropped mid-stream, shader files failing, server stopped after complete)
-// ends in an `error` event and, once the server is back, in a complete picture. Run: node --test tests/e2e/
+// ends in an `error` event and, once the server is back, in a complete picture, while a
+// page holding the whole package tries no connection when its budget grows. Run: node --test tests/e2e/
 import assert from 'node:assert/strict';
 import {after, before, describe, it} from 'node:test';
 import path from 'node:path';
@@ -284,6 +285,28 @@ describe('failures a page owner can handle', () => {
       own = await startServer(lib.lib, [], port);
       await assertComplete(page);
       assert.deepEqual(ctx.problems.filter((p) => !refused(p)), []);
+    } finally {
+      await ctx.close();
+      await own?.stop();
+    }
+  });
+
+  it('btfd stopped after the whole package arrived: a larger budget asks nothing, no error', async () => {
+    const port = await freePort();
+    let own = await startServer(lib.lib, [], port);
+    const ctx = await launch(PHONE);
+    try {
+      const page = await staticVisit(ctx, `ws://127.0.0.1:${port}/stream`, `${pages.url}shaders/`);
+      await assertComplete(page); // every chunk of the manifest drawn
+      await own.stop();
+      own = null;
+      await page.evaluate(() => { document.querySelector('btf-viewer').budgetChunks = 2000; });
+      await new Promise((r) => setTimeout(r, 2000)); // a reconnect would be tried at once
+      const s = (await page.evaluate(() => window.__btf.streams()))[0];
+      assert.equal(s.attempts, 1, 'no connection for a budget that cannot bring anything');
+      assert.equal((await events(page, 'error')).length, 0, 'no error event');
+      assert.deepEqual(ctx.problems, [], 'no console errors');
+      assert.equal((await page.evaluate(() => window.__btf.viewers()[0])).message, null, 'no message');
     } finally {
       await ctx.close();
       await own?.stop();
