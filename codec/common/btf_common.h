@@ -41,6 +41,12 @@ void btf_views_put_u8(const uint8_t *px, size_t texels, float *cols);
 /* Monotonic clock in seconds (CLOCK_MONOTONIC): for durations only. */
 double btf_seconds(void);
 
+/* Gives this thread's list interpolation (btf_interp.c) t, the table of list set d
+ * that btf_dirset_make_list has just built and checked, so that the first
+ * btf_dirset_interp of d does not build the same table again. Takes t over. */
+struct btf_dirtab;
+void btf_interp_keep_list(const btf_dirset *d, struct btf_dirtab *t);
+
 #ifdef __cplusplus
 }
 #endif

@@ -47,8 +47,8 @@ btf_result btf_dirset_make_list(const float (*dirs)[2], int n, btf_dirset *out, 
     btf_dirtab *t = NULL;
     btf_error inner = {{0}};
     btf_result r = btf_dirtab_build(out, &t, &inner);
-    btf_dirtab_free(t);
     if (r != BTF_OK)
         return btf_fail(err, r, "dirset: %d listed directions do not triangulate: %s", n, inner.msg);
+    btf_interp_keep_list(out, t); /* the table the set's first interpolation needs */
     return BTF_OK;
 }

@@ -19,6 +19,7 @@
  */
 #include "btf.h"
 #include "btf_dirtab.h"
+#include "btf_common.h"
 
 #include <math.h>
 #include <string.h>
@@ -172,6 +173,14 @@ static _Thread_local struct {
     float list[BTF_MAX_LIST_DIRS][2];
     btf_dirtab *tab;
 } btf__last_list;
+
+void btf_interp_keep_list(const btf_dirset *d, btf_dirtab *t)
+{
+    btf_dirtab_free(btf__last_list.tab);
+    btf__last_list.tab = t;
+    btf__last_list.n = d->n_dirs;
+    memcpy(btf__last_list.list, d->list, sizeof(float[2]) * (size_t)d->n_dirs);
+}
 
 /* A list set: through its table, kept for the next query on the same list. */
 static btf_interp btf__list_interp(const btf_dirset *d, float theta_deg, float phi_deg)
