@@ -677,24 +677,26 @@ static int draw_once(btf_gl *gl, const scene *s, const btf_gl_target *t, const b
     return 0;
 }
 
-/* The spatial-levels package (3 levels) of the same material against version 1, all
- * chunks: the level path's cost over level 0 alone, in one run, interleaved, for the
- * run-time light path and for the fixed-light one. */
-static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const scene *s, const btf_gl_target *t)
+/* The shortest chunk prefix of g that uses C slots (0, every chunk, where C is all). */
+static int levels_prefix(const btf_gl_package *g, int C, int n_loaded)
 {
-    char dir2[1100];
-    snprintf(dir2, sizeof dir2, "%s-v2", dir1);
-    btf_error err = {{0}};
-    btf_package *p2 = NULL;
-    btf_gl_package *g1 = NULL, *g2 = NULL;
-    btf_gl_fixed *x1 = NULL, *x2 = NULL;
-    if (btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
-        btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err) ||
-        btf_gl_fixed_create(gl, g1, &x1, &err) != BTF_OK || btf_gl_fixed_create(gl, g2, &x2, &err) != BTF_OK)
-        return die("levels package", &err);
-    const char *alt = getenv("BENCH_ALT_SHADERS"); /* the fixed-light pair again, from these shaders */
-    product_ctx pc[6] = {{s, g1, 0, NULL, NULL, NULL}, {s, g2, 0, NULL, NULL, NULL}, {s, g1, 0, NULL, NULL, x1},
-                         {s, g2, 0, NULL, NULL, x2},       {s, g1, 0, NULL, NULL, x1},   {s, g2, 0, NULL, NULL, x2}};
+    if (btf_gl_package_slots(g, 0) <= C)
+        return 0;
+    int n = 1;
+    while (n < n_loaded && btf_gl_package_slots(g, n) < C)
+        n++;
+    return n;
+}
+
+/* One C of the level run: the four programs (level 0 alone and the levels package, on
+ * the run-time and the fixed-light path; with alt, the fixed-light pair again from
+ * those shaders), timed interleaved; cn: the chunk prefixes of g[0] and g[1]. */
+static int run_levels_at(btf_gl *gl, const scene *s, const btf_gl_target *t, const btf_gl_package *g[2],
+                         btf_gl_fixed *x[2], const int cn[2], int C, const char *alt)
+{
+    product_ctx pc[6] = {{s, g[0], cn[0], NULL, NULL, NULL}, {s, g[1], cn[1], NULL, NULL, NULL},
+                         {s, g[0], cn[0], NULL, NULL, x[0]}, {s, g[1], cn[1], NULL, NULL, x[1]},
+                         {s, g[0], cn[0], NULL, NULL, x[0]}, {s, g[1], cn[1], NULL, NULL, x[1]}};
     bench_case c[6];
     int rc = 0, n = alt ? 6 : 4;
     for (int i = 0; i < n; i++) {
@@ -705,16 +707,46 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     static const char *path[3] = {"", "fixed_", "alt_fixed_"};
     for (int k = 0; k < n / 2 && !rc; k++) {
         double v1 = c[2 * k].cost.cpu_ms, v2 = c[2 * k + 1].cost.cpu_ms;
-        printf("levels_%sv1_C%d_cpu_ms %.2f ms\nlevels_%sv2_C%d_cpu_ms %.2f ms\n", path[k], p1->n_loaded, v1, path[k],
-               p1->n_loaded, v2);
-        printf("levels_%sv2_over_v1_cpu_ratio %.3f x\n", path[k], v2 / v1);
+        printf("levels_%sv1_C%d_cpu_ms %.2f ms\nlevels_%sv2_C%d_cpu_ms %.2f ms\n", path[k], C, v1, path[k], C, v2);
+        printf("levels_%sv2_over_v1_C%d_cpu_ratio %.3f x\n", path[k], C, v2 / v1);
         if (c[2 * k].cost.gpu_ms > 0 && c[2 * k + 1].cost.gpu_ms > 0)
-            printf("levels_%sv2_over_v1_gpu_ratio %.3f x\n", path[k], c[2 * k + 1].cost.gpu_ms / c[2 * k].cost.gpu_ms);
+            printf("levels_%sv2_over_v1_C%d_gpu_ratio %.3f x\n", path[k], C,
+                   c[2 * k + 1].cost.gpu_ms / c[2 * k].cost.gpu_ms);
     }
+    fflush(stdout);
     for (int i = 0; i < n; i++)
         btf_shader_program_free(gl, pc[i].prog);
-    btf_gl_fixed_free(gl, x1);
-    btf_gl_fixed_free(gl, x2);
+    return rc;
+}
+
+/* The spatial-levels package (3 levels) of the same material against version 1: the
+ * level path's cost over level 0 alone at C = 1, 4, 8, 16 slots (the levels package's
+ * shortest chunk prefix with C slots: the same program, every level filled), each C in
+ * one run, interleaved, for the run-time light path and for the fixed-light one. */
+static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const scene *s, const btf_gl_target *t)
+{
+    char dir2[1100];
+    snprintf(dir2, sizeof dir2, "%s-v2", dir1);
+    btf_error err = {{0}};
+    btf_package *p2 = NULL;
+    btf_gl_package *g1 = NULL, *g2 = NULL;
+    btf_gl_fixed *x[2] = {NULL, NULL};
+    if (btf_package_read(dir2, 0, &p2, &err) != BTF_OK ||
+        btf_gl_package_upload(gl, p1, dir1, &g1, &err) != BTF_OK || btf_gl_package_upload(gl, p2, dir2, &g2, &err) ||
+        btf_gl_fixed_create(gl, g1, &x[0], &err) != BTF_OK || btf_gl_fixed_create(gl, g2, &x[1], &err) != BTF_OK)
+        return die("levels package", &err);
+    const char *alt = getenv("BENCH_ALT_SHADERS"); /* the fixed-light pair again, from these shaders */
+    const char *only = getenv("BENCH_LEVELS_C");   /* one C alone */
+    const btf_gl_package *g[2] = {g1, g2};
+    static const int Cs[4] = {1, 4, 8, 16};
+    int rc = 0;
+    for (int k = 0; k < 4 && !rc; k++) {
+        int C = Cs[k], cn[2] = {C, levels_prefix(g2, C, p2->n_loaded)};
+        if (C <= p1->n_loaded && (!only || atoi(only) == C))
+            rc = run_levels_at(gl, s, t, g, x, cn, C, alt);
+    }
+    btf_gl_fixed_free(gl, x[0]);
+    btf_gl_fixed_free(gl, x[1]);
     btf_gl_package_free(gl, g1);
     btf_gl_package_free(gl, g2);
     btf_package_free(p2);
