@@ -586,8 +586,8 @@ static int textured_setup(btf_gl *gl, void *ctx)
 /* Texture fetches per fragment, from the sources:
  *   shader: 2 direction-table texels (one per set; a walk step, rare, adds one) +
  *           per (view a of 3, layer h of 4 slots): 1 texel of 4 slots (nearest) +
- *           3 weights texels (one per light) = 2 + 12 ceil(C/4); with levels, 1 more
- *           texel per (view, layer) for the second level: 2 + 15 ceil(C/4);
+ *           3 weights texels (one per light) = 2 + 12 ceil(C/4); with levels the
+ *           same (nearest: one texel holds both levels, shaders/README.md "GPU layout");
  *   thesis: 4 map fetches + per (view a, group g of 4 components): 1 L fetch + per
  *           light e: 3 R fetches (one per channel) = 4 + 30 ceil(C/4);
  *   textured: 1.

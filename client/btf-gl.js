@@ -254,8 +254,9 @@ export class GlStore {
   }
 
   // New layered textures for `layers` layers of 4 slots (the old ones are dropped; the
-  // package puts every layer again): u_btf_tex RGBA16UI atlas x levels, u_btf_wt
-  // RGBA32UI lights x views, u_btf_env_w RGBA32UI 9 x views.
+  // package puts every layer again): u_btf_tex RGBA16UI atlas x levels (RGBA32UI with
+  // levels: each level paired with the next coarser one), u_btf_wt RGBA32UI lights x
+  // views, u_btf_env_w RGBA32UI 9 x views.
   allocate({levels, width, height, lights, views, layers}) {
     const gl = this.gl;
     const tex = gl.createTexture(), wt = gl.createTexture(), envW = gl.createTexture();
@@ -265,7 +266,8 @@ export class GlStore {
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
       gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, levels - 1);
     }
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, levels, gl.RGBA16UI, width, height, layers);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, levels, levels > 1 ? gl.RGBA32UI : gl.RGBA16UI, width, height, layers);
+    this.texType = levels > 1 ? gl.UNSIGNED_INT : gl.UNSIGNED_SHORT;
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, wt);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
     gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, lights, views, layers);
@@ -280,7 +282,7 @@ export class GlStore {
 
   // Layer h (at mip level l, width x height texels) of u_btf_tex, u_btf_wt, u_btf_env_w.
   putTex(h, l, width, height, data) {
-    this.put(this.tex, l, h, width, height, this.gl.UNSIGNED_SHORT, data);
+    this.put(this.tex, l, h, width, height, this.texType, data);
   }
 
   putWt(h, width, height, data) {
@@ -308,7 +310,9 @@ export class GlStore {
 
 // A package's GPU layout (shaders/README.md, "GPU layout"; the C host's
 // shaders/host/btf_gl_package.c): u_btf_tex RGBA16UI layers of 4 slots at 16 bits on
-// one grid per component, N mip levels; u_btf_wt RGBA32UI layers of 4 slots as
+// one grid per component, N mip levels (N > 1: RGBA32UI, each texel's value in the low
+// 16 bits, that of texel (x/2, y/2) of the next coarser level in the high 16, so the
+// shader's nearest taps read one texel for two levels); u_btf_wt RGBA32UI layers of 4 slots as
 // 11/11/10-bit RGB; u_btf_env_w RGBA32UI layers of 4 slots, the environment light's G_j
 // (doc/lighting.md section 3) made from the same dequantised weights, 9 x views as signed
 // 11/11/10-bit RGB codes on one scale per slot (u_btf_env_s; shaders/btf_light.glsl); the
@@ -334,7 +338,7 @@ export class GpuPackage {
     this.q16 = [];           // per slot, per level: Uint16Array of the atlas on the slot's grid (or null)
     this.q8 = [];            // version 4: per slot, per level, the reconstructed atlas bytes (residuals are over them)
     this.w8q = new Map();    // version 4: component -> its 8-bit weights (wt-JJ-r.z is a residual over them)
-    this.texCopy = [];       // per layer, per level: Uint16Array RGBA
+    this.texCopy = [];       // per layer, per level: Uint16Array RGBA (levels: Uint32Array, paired)
     this.wtCopy = [];        // per layer: Uint32Array RGBA
     this.envCopy = [];       // per layer: Uint32Array RGBA, 9 x views
     this.tq = new Float32Array(0);
@@ -396,7 +400,8 @@ export class GpuPackage {
     const pkg = this.pkg;
     while (this.texCopy.length <= h) {
       const lv = [];
-      for (let l = 0; l < this.levels; l++) lv.push(new Uint16Array(4 * (pkg.atlas.width >> l) * (pkg.atlas.height >> l)));
+      const Texels = this.levels > 1 ? Uint32Array : Uint16Array;
+      for (let l = 0; l < this.levels; l++) lv.push(new Texels(4 * (pkg.atlas.width >> l) * (pkg.atlas.height >> l)));
       this.texCopy.push(lv);
       this.wtCopy.push(new Uint32Array(4 * pkg.lights.dirs * pkg.views.dirs));
       this.envCopy.push(new Uint32Array(4 * 9 * pkg.views.dirs));
@@ -451,23 +456,42 @@ export class GpuPackage {
   }
 
   // Slot s into every level of its layer: each level takes the slot's nearest loaded
-  // one, texel by texel (btf_lod_texel_of), then the changed levels are uploaded.
+  // one, texel by texel (btf_lod_texel_of), and with levels also goes into the high
+  // halves of the next finer level (btf__pair_levels); then its levels are uploaded.
   fillSlot(s) {
     const pkg = this.pkg, {fine, coarse} = this.loaded[s], h = s >> 2, c = s & 3;
     const map = (x, l, from) => (from >= l ? x >> (from - l) : (x << (l - from)) + (1 << (l - from - 1)));
     for (let l = 0; l < this.levels; l++) {
-      const lam = l < fine ? fine : l > coarse ? coarse : l, src = this.q16[s][lam], dst = this.texCopy[h][l];
+      const lam = l < fine ? fine : l > coarse ? coarse : l, src = this.q16[s][lam];
       const wl = pkg.width >> l, hl = pkg.height >> l, aw = wl * pkg.atlas.cols, ah = hl * pkg.atlas.rows;
       const wm = pkg.width >> lam, hm = pkg.height >> lam, am = wm * pkg.atlas.cols;
       for (let y = 0; y < ah; y++) {
         const ty = Math.floor(y / hl), ym = ty * hm + map(y % hl, l, lam);
         for (let x = 0; x < aw; x++) {
           const tx = Math.floor(x / wl);
-          dst[4 * (y * aw + x) + c] = src[ym * am + tx * wm + map(x % wl, l, lam)];
+          this.putValue(h, l, aw, x, y, c, src[ym * am + tx * wm + map(x % wl, l, lam)]);
         }
       }
-      this.putTex(h, l);
     }
+    for (let l = 0; l < this.levels; l++) this.putTex(h, l);
+  }
+
+  // Value v of channel c at texel (x, y) of level l (aw texels wide) of layer h's copy;
+  // with levels also the high half of the four texels of level l - 1 it covers.
+  putValue(h, l, aw, x, y, c, v) {
+    const lv = this.texCopy[h];
+    if (this.levels <= 1) {
+      lv[l][4 * (y * aw + x) + c] = v;
+      return;
+    }
+    const i = 4 * (y * aw + x) + c;
+    lv[l][i] = (lv[l][i] & 0xffff0000) | v;
+    if (l === 0) return;
+    const fine = lv[l - 1], hi = v << 16, k0 = 8 * (2 * y * aw + x) + c, k1 = k0 + 8 * aw; // rows 2y, 2y + 1
+    fine[k0] = (fine[k0] & 0xffff) | hi;
+    fine[k0 + 4] = (fine[k0 + 4] & 0xffff) | hi;
+    fine[k1] = (fine[k1] & 0xffff) | hi;
+    fine[k1 + 4] = (fine[k1 + 4] & 0xffff) | hi;
   }
 
   // Weights of slot s on their own grid per channel (btf__pack_weights_slot).

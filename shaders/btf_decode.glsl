@@ -15,14 +15,16 @@
 //              channel c = slot 4h+c as a 16-bit value q;
 //              T_s = u_btf_tq[2h].[s-4h] + u_btf_tq[2h+1].[s-4h] * q (h = s / 4). A level a
 //              slot has not loaded holds its nearest loaded level (finer levels: the
-//              coarse texel repeated; coarser: the finer texel at the centre)
+//              coarse texel repeated; coarser: the finer texel at the centre). With
+//              levels (u_btf_levels > 1) RGBA32UI: q in bits 0..15, and in bits 16..31
+//              the q of texel p / 2 of level l + 1 (0 at the top level N - 1)
 //   u_btf_wt   RGBA32UI array, layer h = slots 4h..4h+3, texel (light, view): channel c =
 //              slot 4h+c as R (bits 0..10) | G (11..21) | B (22..31);
 //              W = u_btf_wq[6h + ch] + u_btf_wq[6h + 3 + ch] * q per colour channel ch
 //   The view's block: btf_interp.blk (bits 12.. of the view vertex's .w in btf_dirs_block).
 // Per fragment: 2 direction texels, then per view sample (3): one u_btf_tex texel per
-// 4 slots (4 bilinear, twice between two levels) and per light sample (3) one
-// u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/4) + 3 ceil(C/4)) = 2 + 12 ceil(C/4) texels, nearest;
+// 4 slots (4 bilinear, twice between two levels; nearest: one for both levels) and per
+// light sample (3) one u_btf_wt texel per 4 slots: 2 + 3 * (ceil(C/4) + 3 ceil(C/4)) = 2 + 12 ceil(C/4) texels, nearest;
 // with BTF_FIXED_LIGHT (below) no light lookup and one u_btf_lw texel per view sample
 // and 4 slots: 1 + 6 ceil(C/4).
 
@@ -114,15 +116,16 @@ ivec4 btf_texel_taps(vec2 uv, int level, out vec2 a)
                  btf_wrap_or_clamp(y0 + 1, isize.y));
 }
 
-// 16-bit values of slots 4h..4h+3 at texel p of level l.
+// 16-bit values of slots 4h..4h+3 at texel p of level l (with levels, the low halves:
+// the high ones hold the next coarser level, btf_tex_quad).
 vec4 btf_tex4(int h, int l, ivec2 p)
 {
-    return vec4(texelFetch(u_btf_tex, ivec3(p, h), l));
+    uvec4 u = texelFetch(u_btf_tex, ivec3(p, h), l);
+    return vec4(BTF__LEVELS ? u & 65535u : u);
 }
 
-// Filtered values of slots 4h..4h+3 on the tile of block origin `tile` (level 0):
-// level l0 with weight 1 - f and level l1 with weight f.
-// One level's filtered value (nearest: tap 0 only).
+// One level's filtered value of slots 4h..4h+3 on the tile of block origin `tile`
+// (level 0) (nearest: tap 0 only).
 vec4 btf_tex_level(int h, int l, ivec2 tile, ivec4 xy, vec2 a)
 {
     ivec2 t = tile >> l;
@@ -133,8 +136,18 @@ vec4 btf_tex_level(int h, int l, ivec2 tile, ivec4 xy, vec2 a)
     return q;
 }
 
+// Filtered values of slots 4h..4h+3 on the tile of block origin `tile` (level 0):
+// level l0 with weight 1 - f and level l1 = l0 + 1 (l0 at the top, f = 0) with weight
+// f. With levels, texel p of level l holds in its high halves texel p / 2 of level
+// l + 1, the nearest tap of l1 where p is that of l0 (2^(N-1) divides the tile's
+// sides), so nearest taps read one texel for both levels; bilinear taps read each
+// level's own four.
 vec4 btf_tex_quad(int h, ivec2 tile, int l0, ivec4 xy0, vec2 a0, int l1, ivec4 xy1, vec2 a1, float f)
 {
+    if (BTF__LEVELS && !BTF__BILINEAR) {
+        uvec4 u = texelFetch(u_btf_tex, ivec3((tile >> l0) + xy0.xz, h), l0);
+        return mix(vec4(u & 65535u), vec4(u >> 16), f);
+    }
     vec4 q = btf_tex_level(h, l0, tile, xy0, a0);
     if (BTF__LEVELS)
         q = mix(q, btf_tex_level(h, l1, tile, xy1, a1), f);

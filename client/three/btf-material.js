@@ -63,11 +63,12 @@ function intTexture(data, width, height, depth, type, layers) {
 
 // A package's GPU layout (btf-gl.js GpuPackage) in three.js objects: the direction block as
 // a UniformsGroup named btf_dirs_block (one Uniform: 1024 Vector4), the tables as RGBA32UI
-// DataTextures, the layers as DataArrayTextures (RGBA16UI with the package's levels as
-// mip levels; RGBA32UI). Layer updates go into the textures' data and are flagged
-// (addLayerUpdate, needsUpdate); three uploads them at the next render. three uploads only
-// level 0 of a DataArrayTexture, so the levels above it are written at the next render by
-// flush(renderer) with renderer.copyTextureToTexture.
+// DataTextures, the layers as DataArrayTextures (RGBA16UI, or RGBA32UI with the package's
+// levels as mip levels, each paired with the next coarser one; RGBA32UI). Layer updates
+// go into the textures' data and are flagged (addLayerUpdate, needsUpdate); three
+// uploads them at the next render. three uploads only level 0 of a DataArrayTexture, so
+// the levels above it are written at the next render by flush(renderer) with
+// renderer.copyTextureToTexture.
 export class ThreeStore {
   constructor() {
     this.packageStore = true; // GpuPackage takes it in place of a WebGL context
@@ -89,7 +90,9 @@ export class ThreeStore {
   allocate({levels, width, height, lights, views, layers}) {
     this.dropped.push(this.tex, this.wt, this.envW);
     this.levelPuts.clear();
-    this.tex = intTexture(new Uint16Array(4 * width * height * layers), width, height, layers, THREE.UnsignedShortType, true);
+    this.texType = levels > 1 ? THREE.UnsignedIntType : THREE.UnsignedShortType;
+    const Texels = levels > 1 ? Uint32Array : Uint16Array;
+    this.tex = intTexture(new Texels(4 * width * height * layers), width, height, layers, this.texType, true);
     if (levels > 1) {
       this.tex.minFilter = THREE.NearestMipmapNearestFilter;
       // the mip levels three allocates (texStorage3D); their data comes by flush()
@@ -126,7 +129,7 @@ export class ThreeStore {
     if (!this.levelPuts.size) return;
     const at = new THREE.Vector3();
     for (const {h, l, width, height, data} of this.levelPuts.values()) {
-      const src = new THREE.DataTexture(data, width, height, THREE.RGBAIntegerFormat, THREE.UnsignedShortType);
+      const src = new THREE.DataTexture(data, width, height, THREE.RGBAIntegerFormat, this.texType);
       renderer.copyTextureToTexture(src, this.tex, null, at.set(0, 0, h), 0, l);
     }
     this.levelPuts.clear();

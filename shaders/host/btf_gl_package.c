@@ -103,29 +103,61 @@ static void btf__pack_slot(const btf_gl_package *g, const btf_package *p, int n,
         }
 }
 
-/* u_btf_tex for the first n loaded chunks: every layer (4 slots), every level. */
+/* Layer k of u_btf_tex at level l for the first n loaded chunks: its 4 slots' 16-bit
+ * values into buf (RGBA, the level's atlas). */
+static void btf__pack_layer(const btf_gl_package *g, const btf_package *p, int n, int k, int l, uint16_t *buf)
+{
+    size_t texels = (size_t)(g->width >> l) * g->atlas_cols * (g->height >> l) * g->atlas_rows;
+    memset(buf, 0, texels * 4 * sizeof(uint16_t));
+    for (int s = 4 * k; s < 4 * k + 4 && s < g->n_chunks; s++)
+        btf__pack_slot(g, p, n, s, l, buf);
+}
+
+/* The RGBA32UI texels of a level with levels (shaders/README.md, "GPU layout"): level
+ * l's values q (aw x ah) in bits 0..15, those of texel (x / 2, y / 2) of level l + 1
+ * (next, aw / 2 wide; NULL at the top level: 0) in bits 16..31. */
+static void btf__pair_levels(const uint16_t *q, const uint16_t *next, int aw, int ah, uint32_t *out)
+{
+    for (int y = 0; y < ah; y++)
+        for (int x = 0; x < aw; x++)
+            for (int c = 0; c < 4; c++) {
+                size_t i = ((size_t)y * aw + x) * 4 + c;
+                uint32_t hi = next ? next[((size_t)(y / 2) * (aw / 2) + x / 2) * 4 + c] : 0;
+                out[i] = q[i] | hi << 16;
+            }
+}
+
+/* u_btf_tex for the first n loaded chunks: every layer (4 slots), every level; with
+ * levels each level paired with the next coarser one, coarsest first. */
 static btf_result btf__pack_textures(btf_gl *gl, btf_gl_package *g, const btf_package *p, int n, btf_error *err)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    int quads = btf__quads(g->n_chunks);
+    int quads = btf__quads(g->n_chunks), paired = g->n_levels > 1;
     size_t texels = (size_t)g->width * g->atlas_cols * g->height * g->atlas_rows;
-    uint16_t *buf = malloc(texels * 4 * sizeof(uint16_t));
-    if (!buf)
+    uint16_t *buf = malloc(texels * 4 * sizeof(uint16_t) * (paired ? 2 : 1)); /* paired: the level above next */
+    uint32_t *pair = paired ? malloc(texels * 4 * sizeof(uint32_t)) : NULL;
+    if (!buf || (paired && !pair)) {
+        free(buf), free(pair);
         return btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
+    }
+    uint16_t *next = paired ? buf + texels * 4 : NULL;
     GLint was = 0; /* the caller's binding on the active unit (a bound sampler's) is kept */
     f->GetIntegerv(GL_TEXTURE_BINDING_2D_ARRAY, &was);
     f->BindTexture(GL_TEXTURE_2D_ARRAY, g->tex);
     f->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    for (int l = 0; l < g->n_levels; l++)
-        for (int k = 0; k < quads; k++) {
+    for (int k = 0; k < quads; k++)
+        for (int l = g->n_levels - 1; l >= 0; l--) {
             int aw = (g->width >> l) * g->atlas_cols, ah = (g->height >> l) * g->atlas_rows;
-            memset(buf, 0, (size_t)aw * ah * 4 * sizeof(uint16_t));
-            for (int s = 4 * k; s < 4 * k + 4 && s < g->n_chunks; s++)
-                btf__pack_slot(g, p, n, s, l, buf);
-            f->TexSubImage3D(GL_TEXTURE_2D_ARRAY, l, 0, 0, k, aw, ah, 1, GL_RGBA_INTEGER, GL_UNSIGNED_SHORT, buf);
+            btf__pack_layer(g, p, n, k, l, buf);
+            if (paired) {
+                btf__pair_levels(buf, l < g->n_levels - 1 ? next : NULL, aw, ah, pair);
+                memcpy(next, buf, (size_t)aw * ah * 4 * sizeof(uint16_t));
+            }
+            f->TexSubImage3D(GL_TEXTURE_2D_ARRAY, l, 0, 0, k, aw, ah, 1, GL_RGBA_INTEGER,
+                             paired ? GL_UNSIGNED_INT : GL_UNSIGNED_SHORT, paired ? (void *)pair : (void *)buf);
         }
     f->BindTexture(GL_TEXTURE_2D_ARRAY, (GLuint)was);
-    free(buf);
+    free(buf), free(pair);
     return btf_gl_check(gl, "uploading the packed textures", err);
 }
 
@@ -140,9 +172,10 @@ static btf_result btf__upload_atlas(btf_gl *gl, btf_gl_package *g, const btf_pac
         btf__tex_grid(g, p, s, &g->tq[(s / 4) * 8 + s % 4], &g->tq[(s / 4) * 8 + 4 + s % 4]);
     f->GenTextures(1, &g->tex);
     f->BindTexture(GL_TEXTURE_2D_ARRAY, g->tex);
+    int paired = g->n_levels > 1; /* RGBA32UI: each level with the next coarser one */
     for (int l = 0; l < g->n_levels; l++)
-        f->TexImage3D(GL_TEXTURE_2D_ARRAY, l, GL_RGBA16UI, aw >> l, ah >> l, quads, 0, GL_RGBA_INTEGER,
-                      GL_UNSIGNED_SHORT, NULL);
+        f->TexImage3D(GL_TEXTURE_2D_ARRAY, l, paired ? GL_RGBA32UI : GL_RGBA16UI, aw >> l, ah >> l, quads, 0,
+                      GL_RGBA_INTEGER, paired ? GL_UNSIGNED_INT : GL_UNSIGNED_SHORT, NULL);
     btf__nearest_params(f, GL_TEXTURE_2D_ARRAY);
     if (g->n_levels > 1) { /* mipmap complete: texelFetch may read levels 0..N-1 */
         f->TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST_MIPMAP_NEAREST);

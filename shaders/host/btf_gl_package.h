@@ -12,7 +12,9 @@
  * the s-th distinct component of the loaded chunks (version 1: chunk s); N levels:
  *   u_btf_tex   RGBA16UI array, layer h = slots 4h..4h+3 (channel c = slot 4h+c), mip level l;
  *               values requantised on one grid per component (its manifest ranges over
- *               every block and level), a level a slot lacks filled from its nearest one
+ *               every block and level), a level a slot lacks filled from its nearest one;
+ *               with N > 1 RGBA32UI: each texel's value in bits 0..15, that of its
+ *               texel (x/2, y/2) on level l+1 in bits 16..31 (one read, both levels)
  *   u_btf_wt    RGBA32UI array, layer h = slots 4h..4h+3 as 11/11/10-bit RGB, texel
  *               (light, view), one grid per (slot, channel)
  *   u_btf_tq, u_btf_wq  the grids (uniform arrays); slots not in use get zero weights

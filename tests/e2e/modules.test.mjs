@@ -258,6 +258,48 @@ describe('btf-gl.js shader assembly', () => {
   });
 });
 
+// The texture layer with levels (shaders/README.md, "GPU layout"; the C host's
+// btf__pair_levels): texel (x, y) of level l holds the slot's value there in its low 16
+// bits and that of texel (x/2, y/2) of level l + 1 in its high 16 (0 at the top level),
+// each level the slot's nearest loaded one; without levels the 16-bit values alone.
+describe('btf-gl.js texture layers', () => {
+  const fill = glMod.GpuPackage.prototype.fillSlot, putValue = glMod.GpuPackage.prototype.putValue;
+  const pkg = {width: 8, height: 4, atlas: {cols: 2, rows: 1}}, size = (l) => [(8 >> l) * 2, 4 >> l];
+  let seed = 99;
+  const rnd16 = () => ((seed = (seed * 1103515245 + 12345) >>> 0) >>> 16);
+  const atlas = (l) => Uint16Array.from({length: size(l)[0] * size(l)[1]}, rnd16);
+  // slot s's value at texel (x, y) of level l when levels fine..N-1 are loaded: level
+  // max(l, fine)'s texel at the same place in the tile
+  const want = (q16, fine, l, x, y) => {
+    const m = Math.max(l, fine), d = m - l, wl = 8 >> l, wm = 8 >> m;
+    return q16[m][(y >> d) * size(m)[0] + Math.floor(x / wl) * wm + ((x % wl) >> d)];
+  };
+
+  it('pairs each level with the next coarser one, slot by slot, unloaded levels filled', () => {
+    const N = 3, loaded = [{fine: 0, coarse: 2}, {fine: 1, coarse: 2}];
+    const q16 = loaded.map(() => Array.from({length: N}, (_, l) => atlas(l)));
+    const texCopy = [Array.from({length: N}, (_, l) => new Uint32Array(4 * size(l)[0] * size(l)[1]))];
+    const gpu = {pkg, levels: N, loaded, q16, texCopy, putTex() {}, putValue};
+    fill.call(gpu, 0);
+    fill.call(gpu, 1);
+    for (let l = 0; l < N; l++)
+      for (let y = 0; y < size(l)[1]; y++)
+        for (let x = 0; x < size(l)[0]; x++)
+          for (let c = 0; c < 4; c++) {
+            const u = texCopy[0][l][4 * (y * size(l)[0] + x) + c], at = `level ${l} (${x}, ${y}) channel ${c}`;
+            const lo = c < 2 ? want(q16[c], loaded[c].fine, l, x, y) : 0;
+            const hi = c < 2 && l < N - 1 ? want(q16[c], loaded[c].fine, l + 1, x >> 1, y >> 1) : 0;
+            assert.deepEqual([u & 0xffff, u >>> 16], [lo, hi], at);
+          }
+  });
+
+  it('keeps 16-bit values alone without levels', () => {
+    const q16 = [[atlas(0)]], texCopy = [[new Uint16Array(4 * size(0)[0] * size(0)[1])]];
+    fill.call({pkg, levels: 1, loaded: [{fine: 0, coarse: 0}], q16, texCopy, putTex() {}, putValue}, 0);
+    for (let i = 0; i < q16[0][0].length; i++) assert.equal(texCopy[0][0][4 * i], q16[0][0][i], `texel ${i}`);
+  });
+});
+
 describe('btf-stream.js budgets', () => {
   it('merges viewer budgets into the largest, unlimited when any is', () => {
     const m = streamMod.mergeBudgets;

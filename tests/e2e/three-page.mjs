@@ -102,7 +102,7 @@ window.__three = {
     const rep = s.repeat ?? 1, base = s.geometry === 'sphere' ? [2, 1] : [1, 1];
     mat = new BTFMaterial({src: s.src, material: s.material, budgetChunks: s.chunks, up: 'z',
       repeat: [base[0] * rep, base[1] * rep], wrap: s.geometry !== 'plane' || rep !== 1,
-      light: s.light ? dir(...s.light) : null,
+      light: s.light ? dir(...s.light) : null, filter: s.filter ?? 'bilinear',
       ...('environment' in s ? {environment: s.environment} : {}),
       environmentRotation: s.environmentRotation ?? 0, exposure: s.exposure ?? 1, toneMapping: s.toneMapping ?? 'auto'});
     mat.addEventListener('change', () => { changes++; renderer.render(scene, camera); });
