@@ -165,12 +165,6 @@ static btf_result btf__adjacency(btf_dirtab *t, btf_error *err)
     return BTF_OK;
 }
 
-/* The vertex with the smallest of three volumes. */
-static int btf__least(const float w[3])
-{
-    return w[0] <= w[1] && w[0] <= w[2] ? 0 : w[1] <= w[2] ? 1 : 2;
-}
-
 /* One triangle as the walk reads it: its corners and the neighbours across the edges
  * opposite them, by value. The table build copies every triangle into an array of
  * these once and walks that (one load per step instead of one per coordinate). */
@@ -203,7 +197,7 @@ static btf__vol btf__volumes(btf__rec r, btf__v3 p)
     return v;
 }
 
-/* The corner with the smallest volume (btf__least of the three). */
+/* The corner with the smallest volume (the first of equal ones). */
 static int btf__vol_least(btf__vol v)
 {
     return v.w0 <= v.w1 && v.w0 <= v.w2 ? 0 : v.w1 <= v.w2 ? 1 : 2;
@@ -214,18 +208,29 @@ static void btf__vol_put(btf__vol v, float w[3])
     w[0] = v.w0, w[1] = v.w1, w[2] = v.w2;
 }
 
+/* Volume v of corner k (0..2). */
+static float btf__vol_at(btf__vol v, int k)
+{
+    return k == 0 ? v.w0 : k == 1 ? v.w1 : v.w2;
+}
+
+/* One step of the walk in triangle r: -1 when p is inside it (the smallest volume
+ * >= 0), else the neighbour across the edge facing p (-1 too at a border). */
+static int btf__step(btf__rec r, btf__vol v, int k)
+{
+    return btf__vol_at(v, k) >= 0.0f ? -1 : k == 0 ? r.adj[0] : k == 1 ? r.adj[1] : r.adj[2];
+}
+
 /* From triangle i, steps across the edge facing p until p is inside (all volumes
  * >= 0), a border is met or `steps` run out; returns the last triangle, its volumes
  * in w. */
-static int btf__walk(const btf_dirtab *t, const btf__rec *recs, int i, btf__v3 p, int steps, float w[3])
+static int btf__walk(const btf_dirtab *t, int i, btf__v3 p, int steps, float w[3])
 {
     for (int s = 0;; s++) {
-        btf__rec r = btf__rec_at(t, recs, i);
+        btf__rec r = btf__rec_of(t, i);
         btf__vol v = btf__volumes(r, p);
-        int k = btf__vol_least(v);
-        float least = k == 0 ? v.w0 : k == 1 ? v.w1 : v.w2;
-        int next = k == 0 ? r.adj[0] : k == 1 ? r.adj[1] : r.adj[2];
-        if (least >= 0.0f || s >= steps || next < 0) {
+        int next = btf__step(r, v, btf__vol_least(v));
+        if (next < 0 || s >= steps) {
             btf__vol_put(v, w);
             return i;
         }
@@ -234,12 +239,13 @@ static int btf__walk(const btf_dirtab *t, const btf__rec *recs, int i, btf__v3 p
 }
 
 /* Unit direction at the centre of cell (i, j) of the octahedral hemisphere map. */
-static void btf__cell_centre(int i, int j, float p[3])
+static btf__v3 btf__cell_centre(int i, int j)
 {
     float u = ((float)i + 0.5f) / (float)BTF__N * 2.0f - 1.0f, v = ((float)j + 0.5f) / (float)BTF__N * 2.0f - 1.0f;
     float a = 0.5f * (u + v), b = 0.5f * (u - v), z = 1.0f - fmaxf(fabsf(u), fabsf(v));
     float n = sqrtf(a * a + b * b + z * z);
-    p[0] = a / n, p[1] = b / n, p[2] = z / n;
+    btf__v3 p = {a / n, b / n, z / n};
+    return p;
 }
 
 /* Each cell's triangle: walked from the previous cell's, else searched (triangles
@@ -250,18 +256,25 @@ static void btf__cell_centre(int i, int j, float p[3])
 static int btf__cells_from(btf_dirtab *t, const btf__rec *recs, int stop)
 {
     int prev = 0, covered = 1;
+    btf__rec r = btf__rec_at(t, recs, 0); /* triangle prev's, kept from cell to cell */
     for (int j = 0; j < BTF__N; j++)
         for (int i = 0; i < BTF__N; i++) {
-            float q[3], w[3];
-            btf__cell_centre(i, j, q);
-            btf__v3 p = btf__v3_of(q);
-            int c = btf__walk(t, recs, prev, p, 4 * BTF__N, w), k = btf__least(w); /* w: c's volumes */
-            float least = w[k]; /* the smallest volume of the cell's triangle */
-            for (int s = 0; s < t->n_tris && w[k] < 0.0f; s++) {
-                btf__vol v = btf__volumes(btf__rec_at(t, recs, s), p);
-                btf__vol_put(v, w);
-                if (w[k = btf__vol_least(v)] >= 0.0f)
-                    c = s, least = w[k];
+            btf__v3 p = btf__cell_centre(i, j);
+            int c = prev, k; /* btf__walk from prev (4 BTF__N steps), r following c */
+            btf__vol v;
+            for (int s = 0;; s++) {
+                v = btf__volumes(r, p);
+                int next = btf__step(r, v, k = btf__vol_least(v));
+                if (next < 0 || s >= 4 * BTF__N)
+                    break;
+                r = btf__rec_at(t, recs, c = next);
+            }
+            float least = btf__vol_at(v, k); /* the smallest volume of the cell's triangle */
+            for (int s = 0; s < t->n_tris && btf__vol_at(v, k) < 0.0f; s++) {
+                btf__rec q = btf__rec_at(t, recs, s);
+                v = btf__volumes(q, p);
+                if (btf__vol_at(v, k = btf__vol_least(v)) >= 0.0f)
+                    c = s, least = btf__vol_at(v, k), r = q;
             }
             t->cell[j * BTF__N + i] = prev = c;
             if (least < -1e-6f) {
@@ -599,7 +612,7 @@ btf_interp btf_dirtab_interp_vec(const btf_dirtab *t, const float v[3])
         return r;
     float p[3], w[3];
     btf__query(v, p);
-    int i = btf__walk(t, NULL, t->cell[btf_dirtab_cell_of(p)], btf__v3_of(p), BTF_DIRTAB_MAX_STEPS, w);
+    int i = btf__walk(t, t->cell[btf_dirtab_cell_of(p)], btf__v3_of(p), BTF_DIRTAB_MAX_STEPS, w);
     int first = -1;
     float s = 0.0f;
     for (int k = 0; k < 3; k++) {
