@@ -248,24 +248,48 @@ static btf__v3 btf__cell_centre(int i, int j)
     return p;
 }
 
-/* Each cell's triangle: walked from the previous cell's, else searched (triangles
- * from recs, or from t where recs is NULL). Returns 1
+#define BTF__CELL_STEPS (4 * BTF__N) /* longest walk from one cell's triangle to the next's */
+
+/* What the cell walk reads and marks, made once per table (all NULL where there was
+ * no memory: then the triangles come from t and every walk runs its steps). */
+typedef struct btf__walker {
+    btf__rec *recs; /* n_tris walk records */
+    int *seen, *at; /* per triangle: the cell (+1) whose walk last entered it, at which step */
+    int *path;      /* BTF__CELL_STEPS + 1: the triangle of each step of the current walk */
+} btf__walker;
+
+/* Each cell's triangle: walked from the previous cell's, else searched. Returns 1
  * when every cell centre lies in its cell's triangle (no volume below -1e-6: the
  * hemisphere is covered), else 0; with stop, at the first cell that does not (the
- * caller refuses the table, the other cells left unset). */
-static int btf__cells_from(btf_dirtab *t, const btf__rec *recs, int stop)
+ * caller refuses the table, the other cells left unset).
+ * A step depends on its triangle alone, so a walk that comes back to a triangle
+ * goes round that loop until its steps run out (flat or folded triangles of a
+ * degenerate ring set do this, in every cell): the walk goes straight to the
+ * triangle it would end in, the same table at a fraction of the steps. */
+static int btf__cells_from(btf_dirtab *t, const btf__walker *wk, int stop)
 {
+    const btf__rec *recs = wk->recs;
     int prev = 0, covered = 1;
     btf__rec r = btf__rec_at(t, recs, 0); /* triangle prev's, kept from cell to cell */
     for (int j = 0; j < BTF__N; j++)
         for (int i = 0; i < BTF__N; i++) {
             btf__v3 p = btf__cell_centre(i, j);
-            int c = prev, k; /* btf__walk from prev (4 BTF__N steps), r following c */
+            int c = prev, k, cell = j * BTF__N + i + 1; /* btf__walk from prev, r following c */
             btf__vol v;
             for (int s = 0;; s++) {
+                if (wk->seen && wk->seen[c] == cell) { /* round a loop: its triangle at the last step */
+                    int s0 = wk->at[c];
+                    c = wk->path[s0 + (BTF__CELL_STEPS - s0) % (s - s0)];
+                    r = btf__rec_at(t, recs, c);
+                    v = btf__volumes(r, p);
+                    k = btf__vol_least(v);
+                    break;
+                }
+                if (wk->seen)
+                    wk->seen[c] = cell, wk->at[c] = s, wk->path[s] = c;
                 v = btf__volumes(r, p);
                 int next = btf__step(r, v, k = btf__vol_least(v));
-                if (next < 0 || s >= 4 * BTF__N)
+                if (next < 0 || s >= BTF__CELL_STEPS)
                     break;
                 r = btf__rec_at(t, recs, c = next);
             }
@@ -286,14 +310,20 @@ static int btf__cells_from(btf_dirtab *t, const btf__rec *recs, int stop)
     return covered;
 }
 
-/* btf__cells_from on a copy of t's triangles as walk records. */
+/* btf__cells_from with a walker for t. */
 static int btf__cells(btf_dirtab *t, int stop)
 {
-    btf__rec *recs = malloc(sizeof *recs * (size_t)t->n_tris); /* NULL: read from t instead */
-    for (int s = 0; recs && s < t->n_tris; s++)
-        recs[s] = btf__rec_of(t, s);
-    int covered = btf__cells_from(t, recs, stop);
-    free(recs);
+    size_t n = (size_t)t->n_tris;
+    btf__walker w = {malloc(sizeof *w.recs * n), calloc(n, sizeof(int)), malloc(sizeof(int) * n),
+                     malloc(sizeof(int) * (BTF__CELL_STEPS + 1))};
+    if (!w.recs || !w.seen || !w.at || !w.path) {
+        free(w.recs), free(w.seen), free(w.at), free(w.path);
+        w.recs = NULL, w.seen = w.at = w.path = NULL;
+    }
+    for (size_t s = 0; w.recs && s < n; s++)
+        w.recs[s] = btf__rec_of(t, (int)s);
+    int covered = btf__cells_from(t, &w, stop);
+    free(w.recs), free(w.seen), free(w.at), free(w.path);
     return covered;
 }
 
