@@ -467,15 +467,27 @@ static int btf__list_vertices(const btf_dirset *d, const int (*tris)[3], int n_t
     return nv;
 }
 
-/* 1 when vertex v lies more than BTF__CONVEX_EPS outside the plane of triangle i. */
-static int btf__outside(const btf_dirtab *t, int i, int v)
+/* The plane of triangle i: its first corner a, its normal n and |n| (double). */
+typedef struct btf__plane {
+    btf__v3 a;
+    double nx, ny, nz, len;
+} btf__plane;
+
+static btf__plane btf__plane_of(const btf_dirtab *t, int i)
 {
-    const float *a = t->vert[t->tri[i][0]], *b = t->vert[t->tri[i][1]], *c = t->vert[t->tri[i][2]], *p = t->vert[v];
-    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    double nx = u[1] * w[2] - u[2] * w[1], ny = u[2] * w[0] - u[0] * w[2], nz = u[0] * w[1] - u[1] * w[0];
-    double len = sqrt(nx * nx + ny * ny + nz * nz);
-    double h = nx * (p[0] - a[0]) + ny * (p[1] - a[1]) + nz * (p[2] - a[2]);
-    return h > BTF__CONVEX_EPS * len;
+    btf__v3 a = btf__v3_of(t->vert[t->tri[i][0]]), b = btf__v3_of(t->vert[t->tri[i][1]]),
+            c = btf__v3_of(t->vert[t->tri[i][2]]);
+    double u[3] = {b.x - a.x, b.y - a.y, b.z - a.z}, w[3] = {c.x - a.x, c.y - a.y, c.z - a.z};
+    btf__plane e = {a, u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0], 0.0};
+    e.len = sqrt(e.nx * e.nx + e.ny * e.ny + e.nz * e.nz);
+    return e;
+}
+
+/* 1 when point p lies more than BTF__CONVEX_EPS outside plane e. */
+static int btf__outside(btf__plane e, btf__v3 p)
+{
+    double h = e.nx * (p.x - e.a.x) + e.ny * (p.y - e.a.y) + e.nz * (p.z - e.a.z);
+    return h > BTF__CONVEX_EPS * e.len;
 }
 
 /* The first triangle before i holding one of i's directed edges, -1 when none does
@@ -504,8 +516,9 @@ static btf_result btf__list_shape_ok(const btf_dirtab *t, btf_error *err)
         int j = -1;
         if (!(btf__det3(t->vert[a[0]], t->vert[a[1]], t->vert[a[2]]) > 0.0f))
             r = btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangle %d is flat or clockwise seen from outside", i);
+        btf__plane pl = btf__plane_of(t, i);
         for (int v = 0; v < t->n_verts && r == BTF_OK; v++)
-            if (btf__outside(t, i, v))
+            if (btf__outside(pl, btf__v3_of(t->vert[v])))
                 r = btf_fail(err, BTF_ERR_FORMAT, "dirtab: triangle %d is not on the convex hull (vertex %d outside)",
                              i, v);
         if (r == BTF_OK && (j = btf__shared_edge(t, e, i)) >= 0)
