@@ -254,30 +254,37 @@ export class GlStore {
   }
 
   // New layered textures for `layers` layers of 4 slots (the old ones are dropped; the
-  // package puts every layer again): u_btf_tex RGBA16UI atlas x levels (RGBA32UI with
-  // levels: each level paired with the next coarser one), u_btf_wt RGBA32UI lights x
+  // package puts every layer again): u_btf_tex (allocateTex), u_btf_wt RGBA32UI lights x
   // views, u_btf_env_w RGBA32UI 9 x views.
-  allocate({levels, width, height, lights, views, layers}) {
-    const gl = this.gl;
-    const tex = gl.createTexture(), wt = gl.createTexture(), envW = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
-    nearest(gl, gl.TEXTURE_2D_ARRAY);
-    if (levels > 1) {
-      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
-      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, levels - 1);
-    }
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, levels, levels > 1 ? gl.RGBA32UI : gl.RGBA16UI, width, height, layers);
-    this.texType = levels > 1 ? gl.UNSIGNED_INT : gl.UNSIGNED_SHORT;
+  allocate({levels, paired, width, height, lights, views, layers}) {
+    const gl = this.gl, wt = gl.createTexture(), envW = gl.createTexture();
+    this.allocateTex({levels, paired, width, height, layers});
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, wt);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
     gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, lights, views, layers);
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, envW);
     nearest(gl, gl.TEXTURE_2D_ARRAY);
     gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA32UI, 9, views, layers);
-    for (const t of [this.tex, this.wt, this.envW]) if (t) gl.deleteTexture(t);
-    this.tex = tex;
+    for (const t of [this.wt, this.envW]) if (t) gl.deleteTexture(t);
     this.wt = wt;
     this.envW = envW;
+  }
+
+  // A new u_btf_tex alone (the old one is dropped; the package puts its layers again):
+  // RGBA16UI atlas x levels, or paired RGBA32UI (each level's texel with the next coarser
+  // level's beside it).
+  allocateTex({levels, paired, width, height, layers}) {
+    const gl = this.gl, tex = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
+    nearest(gl, gl.TEXTURE_2D_ARRAY);
+    if (levels > 1) {
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.NEAREST_MIPMAP_NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, levels - 1);
+    }
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, levels, paired ? gl.RGBA32UI : gl.RGBA16UI, width, height, layers);
+    this.texType = paired ? gl.UNSIGNED_INT : gl.UNSIGNED_SHORT;
+    if (this.tex) gl.deleteTexture(this.tex);
+    this.tex = tex;
   }
 
   // Layer h (at mip level l, width x height texels) of u_btf_tex, u_btf_wt, u_btf_env_w.
@@ -308,15 +315,30 @@ export class GlStore {
   }
 }
 
+// The paired texels of a level (shaders/README.md, "GPU layout"; the C host's
+// btf__pair_levels): the level's RGBA values q (aw x ah texels) in bits 0..15, those of
+// texel (x/2, y/2) of next, the next coarser level (aw/2 wide; null at the top: 0), in
+// bits 16..31.
+export function pairLevel(q, next, aw, ah) {
+  const out = new Uint32Array(q.length);
+  for (let y = 0; y < ah; y++)
+    for (let x = 0; x < aw; x++) {
+      const i = 4 * (y * aw + x), k = 4 * ((y >> 1) * (aw >> 1) + (x >> 1));
+      for (let c = 0; c < 4; c++) out[i + c] = q[i + c] + (next ? next[k + c] * 65536 : 0);
+    }
+  return out;
+}
+
 // A package's GPU layout (shaders/README.md, "GPU layout"; the C host's
 // shaders/host/btf_gl_package.c): u_btf_tex RGBA16UI layers of 4 slots at 16 bits on
-// one grid per component, N mip levels (N > 1: RGBA32UI, each texel's value in the low
-// 16 bits, that of texel (x/2, y/2) of the next coarser level in the high 16, so the
-// shader's nearest taps read one texel for two levels); u_btf_wt RGBA32UI layers of 4 slots as
-// 11/11/10-bit RGB; u_btf_env_w RGBA32UI layers of 4 slots, the environment light's G_j
-// (doc/lighting.md section 3) made from the same dequantised weights, 9 x views as signed
-// 11/11/10-bit RGB codes on one scale per slot (u_btf_env_s; shaders/btf_light.glsl); the
-// direction tables (btf-dirtab.js). Slot s: version 1 chunk s;
+// one grid per component, N mip levels (paired, N > 1 drawn with nearest taps: RGBA32UI,
+// each texel's value in the low 16 bits, that of texel (x/2, y/2) of the next coarser
+// level in the high 16, so one texel read serves two levels; setFilter); u_btf_wt
+// RGBA32UI layers of 4 slots as 11/11/10-bit RGB; u_btf_env_w RGBA32UI layers of 4
+// slots, the environment light's G_j (doc/lighting.md section 3) made from the same
+// dequantised weights, 9 x views as signed 11/11/10-bit RGB codes on one scale per slot
+// (u_btf_env_s; shaders/btf_light.glsl); the direction tables (btf-dirtab.js). Slot s:
+// version 1 chunk s;
 // version 2 the s-th component to arrive, whose chunks are its levels. Keeps a CPU
 // copy of every layer it uploaded, so a new chunk rewrites only its slot's channel
 // (and, in version 2, the levels it fills) and growing the layer count re-uploads
@@ -338,7 +360,8 @@ export class GpuPackage {
     this.q16 = [];           // per slot, per level: Uint16Array of the atlas on the slot's grid (or null)
     this.q8 = [];            // version 4: per slot, per level, the reconstructed atlas bytes (residuals are over them)
     this.w8q = new Map();    // version 4: component -> its 8-bit weights (wt-JJ-r.z is a residual over them)
-    this.texCopy = [];       // per layer, per level: Uint16Array RGBA (levels: Uint32Array, paired)
+    this.paired = false;     // u_btf_tex paired (RGBA32UI), see setFilter; bilinear first, the viewer's default
+    this.texCopy = [];       // per layer, per level: Uint16Array RGBA
     this.wtCopy = [];        // per layer: Uint32Array RGBA
     this.envCopy = [];       // per layer: Uint32Array RGBA, 9 x views
     this.tq = new Float32Array(0);
@@ -364,8 +387,7 @@ export class GpuPackage {
     n = pkg.version >= 2 ? pkg.components.length : Math.max(1, Math.min(n, pkg.chunks.length));
     if (n <= this.capacity) return;
     const layers = Math.ceil(n / 4);
-    this.store.allocate({levels: this.levels, width: pkg.atlas.width, height: pkg.atlas.height, lights: pkg.lights.dirs,
-      views: pkg.views.dirs, layers});
+    this.store.allocate({...this.texShape(layers), lights: pkg.lights.dirs, views: pkg.views.dirs});
     const tq = new Float32Array(8 * layers), wq = new Float32Array(24 * layers);
     const envS = new Float32Array(4 * layers);
     tq.set(this.tq);
@@ -382,9 +404,29 @@ export class GpuPackage {
     this.capacity = layers * 4;
   }
 
-  putTex(h, l) {
+  // u_btf_tex's shape for `layers` layers, paired or not (store.allocateTex).
+  texShape(layers) {
     const pkg = this.pkg;
-    this.store.putTex(h, l, pkg.atlas.width >> l, pkg.atlas.height >> l, this.texCopy[h][l]);
+    return {levels: this.levels, paired: this.paired, width: pkg.atlas.width, height: pkg.atlas.height, layers};
+  }
+
+  // The layout of u_btf_tex for draws with `filter` (0 nearest, 1 bilinear), as the
+  // program's BTF_FILTER and BTF_LEVELS have it: paired only for levels on nearest taps
+  // (one texel read for two levels); bilinear taps read each level's own texels, so
+  // there RGBA16UI, half the memory. A change makes u_btf_tex anew from the copies.
+  setFilter(filter) {
+    const paired = this.levels > 1 && filter === 0;
+    if (paired === this.paired) return;
+    this.paired = paired;
+    this.store.allocateTex(this.texShape(this.capacity / 4));
+    for (let h = 0; h < this.texCopy.length; h++) for (let l = 0; l < this.levels; l++) this.putTex(h, l);
+  }
+
+  // Level l of layer h into u_btf_tex (paired: with level l + 1 beside it).
+  putTex(h, l) {
+    const pkg = this.pkg, aw = pkg.atlas.width >> l, ah = pkg.atlas.height >> l, lv = this.texCopy[h];
+    const data = this.paired ? pairLevel(lv[l], l + 1 < this.levels ? lv[l + 1] : null, aw, ah) : lv[l];
+    this.store.putTex(h, l, aw, ah, data);
   }
 
   putWt(h) {
@@ -400,8 +442,7 @@ export class GpuPackage {
     const pkg = this.pkg;
     while (this.texCopy.length <= h) {
       const lv = [];
-      const Texels = this.levels > 1 ? Uint32Array : Uint16Array;
-      for (let l = 0; l < this.levels; l++) lv.push(new Texels(4 * (pkg.atlas.width >> l) * (pkg.atlas.height >> l)));
+      for (let l = 0; l < this.levels; l++) lv.push(new Uint16Array(4 * (pkg.atlas.width >> l) * (pkg.atlas.height >> l)));
       this.texCopy.push(lv);
       this.wtCopy.push(new Uint32Array(4 * pkg.lights.dirs * pkg.views.dirs));
       this.envCopy.push(new Uint32Array(4 * 9 * pkg.views.dirs));
@@ -456,42 +497,24 @@ export class GpuPackage {
   }
 
   // Slot s into every level of its layer: each level takes the slot's nearest loaded
-  // one, texel by texel (btf_lod_texel_of), and with levels also goes into the high
-  // halves of the next finer level (btf__pair_levels); then its levels are uploaded.
+  // one, texel by texel (btf_lod_texel_of); then the layer's levels are uploaded (all
+  // filled first: a paired level carries the next coarser one).
   fillSlot(s) {
     const pkg = this.pkg, {fine, coarse} = this.loaded[s], h = s >> 2, c = s & 3;
     const map = (x, l, from) => (from >= l ? x >> (from - l) : (x << (l - from)) + (1 << (l - from - 1)));
     for (let l = 0; l < this.levels; l++) {
-      const lam = l < fine ? fine : l > coarse ? coarse : l, src = this.q16[s][lam];
+      const lam = l < fine ? fine : l > coarse ? coarse : l, src = this.q16[s][lam], dst = this.texCopy[h][l];
       const wl = pkg.width >> l, hl = pkg.height >> l, aw = wl * pkg.atlas.cols, ah = hl * pkg.atlas.rows;
       const wm = pkg.width >> lam, hm = pkg.height >> lam, am = wm * pkg.atlas.cols;
       for (let y = 0; y < ah; y++) {
         const ty = Math.floor(y / hl), ym = ty * hm + map(y % hl, l, lam);
         for (let x = 0; x < aw; x++) {
           const tx = Math.floor(x / wl);
-          this.putValue(h, l, aw, x, y, c, src[ym * am + tx * wm + map(x % wl, l, lam)]);
+          dst[4 * (y * aw + x) + c] = src[ym * am + tx * wm + map(x % wl, l, lam)];
         }
       }
     }
     for (let l = 0; l < this.levels; l++) this.putTex(h, l);
-  }
-
-  // Value v of channel c at texel (x, y) of level l (aw texels wide) of layer h's copy;
-  // with levels also the high half of the four texels of level l - 1 it covers.
-  putValue(h, l, aw, x, y, c, v) {
-    const lv = this.texCopy[h];
-    if (this.levels <= 1) {
-      lv[l][4 * (y * aw + x) + c] = v;
-      return;
-    }
-    const i = 4 * (y * aw + x) + c;
-    lv[l][i] = (lv[l][i] & 0xffff0000) | v;
-    if (l === 0) return;
-    const fine = lv[l - 1], hi = v << 16, k0 = 8 * (2 * y * aw + x) + c, k1 = k0 + 8 * aw; // rows 2y, 2y + 1
-    fine[k0] = (fine[k0] & 0xffff) | hi;
-    fine[k0 + 4] = (fine[k0 + 4] & 0xffff) | hi;
-    fine[k1] = (fine[k1] & 0xffff) | hi;
-    fine[k1 + 4] = (fine[k1 + 4] & 0xffff) | hi;
   }
 
   // Weights of slot s on their own grid per channel (btf__pack_weights_slot).
@@ -594,9 +617,11 @@ export class GpuPackage {
 
   // Binds the textures to units first..first+4 and the direction block to uniform
   // buffer binding 0, and sets the u_btf_* uniforms of prog (in use), as
-  // btf_gl_package_bind + btf_gl_package_settings do.
+  // btf_gl_package_bind + btf_gl_package_settings do; u_btf_tex laid out for
+  // settings.filter (setFilter), the filter prog must be specialised for.
   bind(prog, first, settings = {}) {
     const gl = this.gl, st = this.store;
+    this.setFilter(settings.filter ?? 1);
     const units = [[gl.TEXTURE_2D_ARRAY, st.tex, 'u_btf_tex'], [gl.TEXTURE_2D_ARRAY, st.wt, 'u_btf_wt'],
                    [gl.TEXTURE_2D, st.cells, 'u_btf_dir_cells'], [gl.TEXTURE_2D, st.tris, 'u_btf_dir_tris'],
                    [gl.TEXTURE_2D_ARRAY, st.envW, 'u_btf_env_w']];

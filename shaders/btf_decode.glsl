@@ -15,9 +15,9 @@
 //              channel c = slot 4h+c as a 16-bit value q;
 //              T_s = u_btf_tq[2h].[s-4h] + u_btf_tq[2h+1].[s-4h] * q (h = s / 4). A level a
 //              slot has not loaded holds its nearest loaded level (finer levels: the
-//              coarse texel repeated; coarser: the finer texel at the centre). With
-//              levels (u_btf_levels > 1) RGBA32UI: q in bits 0..15, and in bits 16..31
-//              the q of texel p / 2 of level l + 1 (0 at the top level N - 1)
+//              coarse texel repeated; coarser: the finer texel at the centre). Paired
+//              (levels and nearest taps, BTF__PAIRED below) RGBA32UI: q in bits 0..15,
+//              and in bits 16..31 the q of texel p / 2 of level l + 1 (0 at the top level)
 //   u_btf_wt   RGBA32UI array, layer h = slots 4h..4h+3, texel (light, view): channel c =
 //              slot 4h+c as R (bits 0..10) | G (11..21) | B (22..31);
 //              W = u_btf_wq[6h + ch] + u_btf_wq[6h + 3 + ch] * q per colour channel ch
@@ -59,6 +59,11 @@ uniform int u_btf_wrap;      // 1 tile (indices modulo the size), 0 clamp to the
 #else
 #define BTF__LEVELS (u_btf_levels > 1)
 #endif
+// Paired levels (shaders/README.md, "GPU layout"): the hosts lay u_btf_tex out as
+// RGBA32UI, each level's texel with the next coarser level's beside it, exactly where
+// the level blend runs on nearest taps (btf_tex_quad reads one texel for both levels);
+// with bilinear taps, or without levels, it stays RGBA16UI.
+#define BTF__PAIRED (BTF__LEVELS && !BTF__BILINEAR)
 
 // Host specialisation BTF_FIXED_LIGHT (1): the light has one local direction at every
 // fragment of the draw (a distant light on a flat surface), so the host blends each
@@ -116,12 +121,11 @@ ivec4 btf_texel_taps(vec2 uv, int level, out vec2 a)
                  btf_wrap_or_clamp(y0 + 1, isize.y));
 }
 
-// 16-bit values of slots 4h..4h+3 at texel p of level l (with levels, the low halves:
-// the high ones hold the next coarser level, btf_tex_quad).
+// 16-bit values of slots 4h..4h+3 at texel p of level l (not paired: btf_tex_quad reads
+// paired texels itself).
 vec4 btf_tex4(int h, int l, ivec2 p)
 {
-    uvec4 u = texelFetch(u_btf_tex, ivec3(p, h), l);
-    return vec4(BTF__LEVELS ? u & 65535u : u);
+    return vec4(texelFetch(u_btf_tex, ivec3(p, h), l));
 }
 
 // One level's filtered value of slots 4h..4h+3 on the tile of block origin `tile`
@@ -138,13 +142,12 @@ vec4 btf_tex_level(int h, int l, ivec2 tile, ivec4 xy, vec2 a)
 
 // Filtered values of slots 4h..4h+3 on the tile of block origin `tile` (level 0):
 // level l0 with weight 1 - f and level l1 = l0 + 1 (l0 at the top, f = 0) with weight
-// f. With levels, texel p of level l holds in its high halves texel p / 2 of level
-// l + 1, the nearest tap of l1 where p is that of l0 (2^(N-1) divides the tile's
-// sides), so nearest taps read one texel for both levels; bilinear taps read each
-// level's own four.
+// f. Paired, texel p of level l holds in its high halves texel p / 2 of level l + 1,
+// the nearest tap of l1 where p is that of l0 (2^(N-1) divides the tile's sides), so
+// one read serves both levels; bilinear taps read each level's own four texels.
 vec4 btf_tex_quad(int h, ivec2 tile, int l0, ivec4 xy0, vec2 a0, int l1, ivec4 xy1, vec2 a1, float f)
 {
-    if (BTF__LEVELS && !BTF__BILINEAR) {
+    if (BTF__PAIRED) {
         uvec4 u = texelFetch(u_btf_tex, ivec3((tile >> l0) + xy0.xz, h), l0);
         return mix(vec4(u & 65535u), vec4(u >> 16), f);
     }

@@ -63,12 +63,12 @@ function intTexture(data, width, height, depth, type, layers) {
 
 // A package's GPU layout (btf-gl.js GpuPackage) in three.js objects: the direction block as
 // a UniformsGroup named btf_dirs_block (one Uniform: 1024 Vector4), the tables as RGBA32UI
-// DataTextures, the layers as DataArrayTextures (RGBA16UI, or RGBA32UI with the package's
-// levels as mip levels, each paired with the next coarser one; RGBA32UI). Layer updates
-// go into the textures' data and are flagged (addLayerUpdate, needsUpdate); three
-// uploads them at the next render. three uploads only level 0 of a DataArrayTexture, so
-// the levels above it are written at the next render by flush(renderer) with
-// renderer.copyTextureToTexture.
+// DataTextures, the layers as DataArrayTextures (RGBA16UI with the package's levels as mip
+// levels, RGBA32UI where GpuPackage pairs each level with the next coarser one; RGBA32UI).
+// Layer updates go into the textures' data and are flagged (addLayerUpdate, needsUpdate);
+// three uploads them at the next render. three uploads only level 0 of a
+// DataArrayTexture, so the levels above it are written at the next render by
+// flush(renderer) with renderer.copyTextureToTexture.
 export class ThreeStore {
   constructor() {
     this.packageStore = true; // GpuPackage takes it in place of a WebGL context
@@ -87,11 +87,19 @@ export class ThreeStore {
     this.tris = intTexture(tris.data, tris.width, tris.height, 1, THREE.UnsignedIntType, false);
   }
 
-  allocate({levels, width, height, lights, views, layers}) {
-    this.dropped.push(this.tex, this.wt, this.envW);
+  allocate({levels, paired, width, height, lights, views, layers}) {
+    this.dropped.push(this.wt, this.envW);
+    this.allocateTex({levels, paired, width, height, layers});
+    this.wt = intTexture(new Uint32Array(4 * lights * views * layers), lights, views, layers, THREE.UnsignedIntType, true);
+    this.envW = intTexture(new Uint32Array(4 * 9 * views * layers), 9, views, layers, THREE.UnsignedIntType, true);
+  }
+
+  // u_btf_tex alone, anew (GlStore.allocateTex): RGBA16UI, paired RGBA32UI.
+  allocateTex({levels, paired, width, height, layers}) {
+    this.dropped.push(this.tex);
     this.levelPuts.clear();
-    this.texType = levels > 1 ? THREE.UnsignedIntType : THREE.UnsignedShortType;
-    const Texels = levels > 1 ? Uint32Array : Uint16Array;
+    this.texType = paired ? THREE.UnsignedIntType : THREE.UnsignedShortType;
+    const Texels = paired ? Uint32Array : Uint16Array;
     this.tex = intTexture(new Texels(4 * width * height * layers), width, height, layers, this.texType, true);
     if (levels > 1) {
       this.tex.minFilter = THREE.NearestMipmapNearestFilter;
@@ -99,8 +107,6 @@ export class ThreeStore {
       this.tex.mipmaps = Array.from({length: levels}, (_, l) => ({data: null, width: width >> l, height: height >> l,
         depth: layers}));
     }
-    this.wt = intTexture(new Uint32Array(4 * lights * views * layers), lights, views, layers, THREE.UnsignedIntType, true);
-    this.envW = intTexture(new Uint32Array(4 * 9 * views * layers), 9, views, layers, THREE.UnsignedIntType, true);
   }
 
   putLayer(t, h, width, height, data) {
@@ -111,7 +117,7 @@ export class ThreeStore {
 
   putTex(h, l, width, height, data) {
     if (l === 0) this.putLayer(this.tex, h, width, height, data);
-    else this.levelPuts.set(`${h},${l}`, {h, l, width, height, data}); // the package's copy: its latest state at flush
+    else this.levelPuts.set(`${h},${l}`, {h, l, width, height, data}); // the level's latest state at flush
   }
 
   putWt(h, width, height, data) {
@@ -195,6 +201,7 @@ export class BTFMaterial extends THREE.RawShaderMaterial {
     this.loaded = false;
     this.completeFor = null;
     this.variantKey = null;
+    this.variantFilter = null; // the filter of the program variant (program())
     this.store = null;
     this.shaders = null; // {manifest, files} once loaded
     this.env = {key: null, quad: null, state: 'none', error: null};
@@ -322,6 +329,7 @@ export class BTFMaterial extends THREE.RawShaderMaterial {
     const defines = decodeDefines(gpu.pkg, filter, Math.max(gpu.capacity, 1), {point: !!o.light, env: !!this.envQuad()});
     const key = defines.map((d) => d.join('=')).join(',');
     if (key === this.variantKey) return true;
+    this.variantFilter = filter; // the draws lay u_btf_tex out for it (onBeforeRender)
     const version = this.shaders.manifest.prefix[0];
     if (version !== '#version 300 es') throw new Error(`BTFMaterial: the shaders' prefix starts with '${version}'`);
     const stage = (s) => assemble(this.shaders, PROGRAM, s, defines).text.slice(version.length + 1); // three adds #version
@@ -359,9 +367,11 @@ export class BTFMaterial extends THREE.RawShaderMaterial {
   onBeforeRender(renderer, scene, camera) {
     const gpu = this.feed.gpu;
     if (!gpu || !this.store) return;
+    const filter = this.variantFilter ?? 1; // the program's: u_btf_tex paired only for nearest levels
+    gpu.setFilter(filter);
     this.store.flush(renderer);
     const o = this.options, un = this.uniforms, chunks = this.feed.drawableChunks();
-    for (const [name, , v] of gpu.uniforms({chunks, filter: o.filter === 'nearest' ? 0 : 1, wrap: o.wrap ? 1 : 0}))
+    for (const [name, , v] of gpu.uniforms({chunks, filter, wrap: o.wrap ? 1 : 0}))
       un[name].value = v;
     un.u_btf_tex.value = this.store.tex;
     un.u_btf_wt.value = this.store.wt;

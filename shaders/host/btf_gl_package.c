@@ -23,6 +23,11 @@ static void btf__nearest_params(const btf_gl_api *f, GLenum target)
 
 static int btf__quads(int slots) { return (slots + 3) / 4; }
 
+/* Whether u_btf_tex is paired for g drawn with `filter` (shaders/README.md, "GPU layout"):
+ * levels on nearest taps, where one texel read serves two levels; bilinear taps read each
+ * level's own texels, so there and without levels RGBA16UI, half the memory. */
+static int btf__paired(const btf_gl_package *g, int filter) { return g->n_levels > 1 && filter != 1; }
+
 /* Chunks a prefix of n_chunks draws (0 or more than loaded: all loaded). */
 static int btf__prefix(const btf_gl_package *g, int n_chunks)
 {
@@ -127,12 +132,12 @@ static void btf__pair_levels(const uint16_t *q, const uint16_t *next, int aw, in
             }
 }
 
-/* u_btf_tex for the first n loaded chunks: every layer (4 slots), every level; with
- * levels each level paired with the next coarser one, coarsest first. */
-static btf_result btf__pack_textures(btf_gl *gl, btf_gl_package *g, const btf_package *p, int n, btf_error *err)
+/* u_btf_tex for the first n loaded chunks: every layer (4 slots), every level; paired
+ * (g->paired), each level with the next coarser one, coarsest first. */
+static btf_result btf__pack_textures(btf_gl *gl, const btf_gl_package *g, const btf_package *p, int n, btf_error *err)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    int quads = btf__quads(g->n_chunks), paired = g->n_levels > 1;
+    int quads = btf__quads(g->n_chunks), paired = g->paired;
     size_t texels = (size_t)g->width * g->atlas_cols * g->height * g->atlas_rows;
     uint16_t *buf = malloc(texels * 4 * sizeof(uint16_t) * (paired ? 2 : 1)); /* paired: the level above next */
     uint32_t *pair = paired ? malloc(texels * 4 * sizeof(uint32_t)) : NULL;
@@ -161,10 +166,25 @@ static btf_result btf__pack_textures(btf_gl *gl, btf_gl_package *g, const btf_pa
     return btf_gl_check(gl, "uploading the packed textures", err);
 }
 
+/* Every level of u_btf_tex (re)specified empty, paired (RGBA32UI) or not (RGBA16UI):
+ * the texture keeps its name, its parameters and the caller's binding. */
+static void btf__tex_storage(const btf_gl_api *f, btf_gl_package *g, int paired)
+{
+    int aw = g->atlas_cols * g->width, ah = g->atlas_rows * g->height, quads = btf__quads(g->n_chunks);
+    GLint was = 0;
+    f->GetIntegerv(GL_TEXTURE_BINDING_2D_ARRAY, &was);
+    f->BindTexture(GL_TEXTURE_2D_ARRAY, g->tex);
+    for (int l = 0; l < g->n_levels; l++)
+        f->TexImage3D(GL_TEXTURE_2D_ARRAY, l, paired ? GL_RGBA32UI : GL_RGBA16UI, aw >> l, ah >> l, quads, 0,
+                      GL_RGBA_INTEGER, paired ? GL_UNSIGNED_INT : GL_UNSIGNED_SHORT, NULL);
+    f->BindTexture(GL_TEXTURE_2D_ARRAY, (GLuint)was);
+    g->paired = paired;
+}
+
+/* u_btf_tex, laid out for the default settings (nearest: paired where there are levels). */
 static btf_result btf__upload_atlas(btf_gl *gl, btf_gl_package *g, const btf_package *p, btf_error *err)
 {
     const btf_gl_api *f = btf_gl_fn(gl);
-    int aw = p->atlas_cols * p->width, ah = p->atlas_rows * p->height, quads = btf__quads(g->n_chunks);
     g->tq = calloc((size_t)btf__quads(g->n_chunks) * 8, sizeof(float));
     if (!g->tq)
         return btf_fail(err, BTF_ERR_NOMEM, "gl package: out of memory");
@@ -172,10 +192,7 @@ static btf_result btf__upload_atlas(btf_gl *gl, btf_gl_package *g, const btf_pac
         btf__tex_grid(g, p, s, &g->tq[(s / 4) * 8 + s % 4], &g->tq[(s / 4) * 8 + 4 + s % 4]);
     f->GenTextures(1, &g->tex);
     f->BindTexture(GL_TEXTURE_2D_ARRAY, g->tex);
-    int paired = g->n_levels > 1; /* RGBA32UI: each level with the next coarser one */
-    for (int l = 0; l < g->n_levels; l++)
-        f->TexImage3D(GL_TEXTURE_2D_ARRAY, l, paired ? GL_RGBA32UI : GL_RGBA16UI, aw >> l, ah >> l, quads, 0,
-                      GL_RGBA_INTEGER, paired ? GL_UNSIGNED_INT : GL_UNSIGNED_SHORT, NULL);
+    btf__tex_storage(f, g, btf__paired(g, 0));
     btf__nearest_params(f, GL_TEXTURE_2D_ARRAY);
     if (g->n_levels > 1) { /* mipmap complete: texelFetch may read levels 0..N-1 */
         f->TexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST_MIPMAP_NEAREST);
@@ -467,7 +484,7 @@ btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_sh
             f->Uniform4fv(es, btf__quads(g->n_chunks), g->env_s);
     }
     btf__set_int(f, prog, "u_btf_linear", g->src->linear);
-    btf_gl_decode_settings s = {0};
+    btf_gl_decode_settings s = {g->n_levels > 1 && !g->paired, 0, 0}; /* the filter u_btf_tex is laid out for */
     btf_gl_package_settings(gl, g, prog, &s);
     btf_gl_package_lod(gl, prog, 0, 0.0f);
     btf_result r = btf_gl_dirs_bind(gl, &g->dirs, prog, first_unit + 2, err);
@@ -481,9 +498,11 @@ void btf_gl_package_settings(btf_gl *gl, const btf_gl_package *g, const btf_shad
 {
     const btf_gl_api *f = btf_gl_fn(gl);
     int n = btf__prefix(g, s->n_chunks), used = btf__slots_used(g, n);
-    if (g->n_levels > 1) { /* the prefix's loaded levels decide each slot's fill */
+    if (g->n_levels > 1) { /* the layout follows the filter; the prefix's loaded levels decide each slot's fill */
         btf_error err = {{0}};
-        btf__pack_textures(gl, (btf_gl_package *)g, g->src, n, &err);
+        if (btf__paired(g, s->filter) != g->paired) /* the package's GPU state, not its contents */
+            btf__tex_storage(f, (btf_gl_package *)g, btf__paired(g, s->filter));
+        btf__pack_textures(gl, g, g->src, n, &err);
     }
     int quads = btf__quads(g->n_chunks);
     float *wq = malloc((size_t)quads * 24 * sizeof(float));

@@ -13,8 +13,9 @@
  *   u_btf_tex   RGBA16UI array, layer h = slots 4h..4h+3 (channel c = slot 4h+c), mip level l;
  *               values requantised on one grid per component (its manifest ranges over
  *               every block and level), a level a slot lacks filled from its nearest one;
- *               with N > 1 RGBA32UI: each texel's value in bits 0..15, that of its
- *               texel (x/2, y/2) on level l+1 in bits 16..31 (one read, both levels)
+ *               paired (N > 1 drawn with nearest taps) RGBA32UI: each texel's value in
+ *               bits 0..15, that of its texel (x/2, y/2) on level l+1 in bits 16..31
+ *               (one read, both levels); bilinear keeps RGBA16UI (btf_gl_package_settings)
  *   u_btf_wt    RGBA32UI array, layer h = slots 4h..4h+3 as 11/11/10-bit RGB, texel
  *               (light, view), one grid per (slot, channel)
  *   u_btf_tq, u_btf_wq  the grids (uniform arrays); slots not in use get zero weights
@@ -47,6 +48,8 @@ typedef struct btf_gl_package {
     float *env_s;      /* 4 per 4 slots: u_btf_env_s, the scale of each slot's G (malloc'd) */
     btf_gl_dirs dirs;  /* direction tables */
     int n_levels;      /* spatial levels N (1 in version 1) */
+    int paired;        /* u_btf_tex is paired RGBA32UI (levels, nearest), else RGBA16UI; the
+                          filter of the last btf_gl_package_settings decides (upload: nearest) */
     int n_loaded;      /* chunks of the package that were uploaded */
     int *chunk_slot;   /* n_loaded: slot of each loaded chunk (malloc'd) */
     int *chunk_level;  /* n_loaded: level of each loaded chunk (malloc'd) */
@@ -68,7 +71,8 @@ void btf_gl_package_free(btf_gl *gl, btf_gl_package *g);
 /* Binds the 4 textures to units first_unit..first_unit+3 (u_btf_env_w, where the
  * program has it, to first_unit+4; a BTF_FIXED_LIGHT program has no u_btf_wt, its
  * u_btf_lw is btf_gl_fixed_bind's) and sets every u_btf_*
- * uniform of prog (in use): chunks used = all uploaded. */
+ * uniform of prog (in use): chunks used = all uploaded, the filter u_btf_tex is laid
+ * out for (bilinear where g->paired is 0 on a package with levels, else nearest). */
 btf_result btf_gl_package_bind(btf_gl *gl, const btf_gl_package *g, const btf_shader_program *prog, int first_unit,
                                btf_error *err);
 
@@ -80,7 +84,9 @@ typedef struct btf_gl_decode_settings {
 } btf_gl_decode_settings;
 
 /* Sets u_btf_filter, u_btf_wrap, u_btf_chunks of prog (in use); version 2: also
- * repacks u_btf_tex for the prefix's loaded levels. */
+ * repacks u_btf_tex for the prefix's loaded levels, with levels laid out anew (same
+ * texture name) when the filter asks for the other layout (g->paired): a program drawn
+ * with g must be specialised for (or set to) the filter of its last settings. */
 void btf_gl_package_settings(btf_gl *gl, const btf_gl_package *g, const btf_shader_program *prog,
                              const btf_gl_decode_settings *s);
 

@@ -259,12 +259,13 @@ describe('btf-gl.js shader assembly', () => {
 });
 
 // The texture layer with levels (shaders/README.md, "GPU layout"; the C host's
-// btf__pair_levels): texel (x, y) of level l holds the slot's value there in its low 16
-// bits and that of texel (x/2, y/2) of level l + 1 in its high 16 (0 at the top level),
-// each level the slot's nearest loaded one; without levels the 16-bit values alone.
+// btf__pack_slot, btf__pair_levels): each level holds the slot's nearest loaded one;
+// paired, texel (x, y) of level l is uploaded with the slot's value there in its low 16
+// bits and that of texel (x/2, y/2) of level l + 1 in its high 16 (0 at the top level);
+// not paired, the 16-bit values alone.
 describe('btf-gl.js texture layers', () => {
-  const fill = glMod.GpuPackage.prototype.fillSlot, putValue = glMod.GpuPackage.prototype.putValue;
-  const pkg = {width: 8, height: 4, atlas: {cols: 2, rows: 1}}, size = (l) => [(8 >> l) * 2, 4 >> l];
+  const {fillSlot, putTex} = glMod.GpuPackage.prototype;
+  const pkg = {width: 8, height: 4, atlas: {cols: 2, rows: 1, width: 16, height: 4}}, size = (l) => [16 >> l, 4 >> l];
   let seed = 99;
   const rnd16 = () => ((seed = (seed * 1103515245 + 12345) >>> 0) >>> 16);
   const atlas = (l) => Uint16Array.from({length: size(l)[0] * size(l)[1]}, rnd16);
@@ -274,29 +275,88 @@ describe('btf-gl.js texture layers', () => {
     const m = Math.max(l, fine), d = m - l, wl = 8 >> l, wm = 8 >> m;
     return q16[m][(y >> d) * size(m)[0] + Math.floor(x / wl) * wm + ((x % wl) >> d)];
   };
+  // A package's layer 0 with two slots filled (levels fine..N-1 loaded), as uploaded.
+  const upload = (N, paired, loaded) => {
+    const q16 = loaded.map(() => Array.from({length: N}, (_, l) => atlas(l)));
+    const texCopy = [Array.from({length: N}, (_, l) => new Uint16Array(4 * size(l)[0] * size(l)[1]))];
+    const put = [];
+    const gpu = {pkg, levels: N, paired, loaded, q16, texCopy, putTex, store: {putTex: (h, l, w, ht, data) => (put[l] = data)}};
+    loaded.forEach((_, s) => fillSlot.call(gpu, s));
+    return {q16, put};
+  };
 
   it('pairs each level with the next coarser one, slot by slot, unloaded levels filled', () => {
-    const N = 3, loaded = [{fine: 0, coarse: 2}, {fine: 1, coarse: 2}];
-    const q16 = loaded.map(() => Array.from({length: N}, (_, l) => atlas(l)));
-    const texCopy = [Array.from({length: N}, (_, l) => new Uint32Array(4 * size(l)[0] * size(l)[1]))];
-    const gpu = {pkg, levels: N, loaded, q16, texCopy, putTex() {}, putValue};
-    fill.call(gpu, 0);
-    fill.call(gpu, 1);
-    for (let l = 0; l < N; l++)
+    const N = 3, loaded = [{fine: 0, coarse: 2}, {fine: 1, coarse: 2}], {q16, put} = upload(N, true, loaded);
+    for (let l = 0; l < N; l++) {
+      assert.ok(put[l] instanceof Uint32Array, `level ${l} uploaded as 32-bit texels`);
       for (let y = 0; y < size(l)[1]; y++)
         for (let x = 0; x < size(l)[0]; x++)
           for (let c = 0; c < 4; c++) {
-            const u = texCopy[0][l][4 * (y * size(l)[0] + x) + c], at = `level ${l} (${x}, ${y}) channel ${c}`;
+            const u = put[l][4 * (y * size(l)[0] + x) + c], at = `level ${l} (${x}, ${y}) channel ${c}`;
             const lo = c < 2 ? want(q16[c], loaded[c].fine, l, x, y) : 0;
             const hi = c < 2 && l < N - 1 ? want(q16[c], loaded[c].fine, l + 1, x >> 1, y >> 1) : 0;
             assert.deepEqual([u & 0xffff, u >>> 16], [lo, hi], at);
           }
+    }
   });
 
-  it('keeps 16-bit values alone without levels', () => {
-    const q16 = [[atlas(0)]], texCopy = [[new Uint16Array(4 * size(0)[0] * size(0)[1])]];
-    fill.call({pkg, levels: 1, loaded: [{fine: 0, coarse: 0}], q16, texCopy, putTex() {}, putValue}, 0);
-    for (let i = 0; i < q16[0][0].length; i++) assert.equal(texCopy[0][0][4 * i], q16[0][0][i], `texel ${i}`);
+  it('uploads the 16-bit values alone where not paired (bilinear, or no levels)', () => {
+    for (const N of [1, 3]) {
+      const loaded = [{fine: 0, coarse: N - 1}], {q16, put} = upload(N, false, loaded);
+      for (let l = 0; l < N; l++) {
+        assert.ok(put[l] instanceof Uint16Array, `${N} levels: level ${l} uploaded as 16-bit texels`);
+        for (let i = 0; i < q16[0][l].length; i++) assert.equal(put[l][4 * i], q16[0][l][i], `level ${l} texel ${i}`);
+      }
+    }
+  });
+});
+
+// Where u_btf_tex is paired (shaders/README.md, "GPU layout"): only for a package with
+// levels drawn with nearest taps (one texel read for two levels); bilinear taps read each
+// level's own texels, so there (the viewer's default) and without levels it stays
+// RGBA16UI, half the GPU memory. A GpuPackage on a recording WebGL2 stand-in: the
+// internal format and bytes of the u_btf_tex that bind() hands the program, as the
+// filter changes both ways.
+describe('btf-gl.js paired layout', () => {
+  const BYTES = {RGBA16UI: 8, RGBA32UI: 16};
+  // A WebGL2 stand-in: enums are their names, textures records of their storage.
+  const fakeGl = () => {
+    const st = {bound: null, sampled: null}; // the bound texture, that of the u_btf_tex unit
+    const calls = {
+      createTexture: () => ({storage: null, deleted: false}), deleteTexture: (t) => { t.deleted = true; },
+      bindTexture: (target, t) => { st.bound = t; },
+      texStorage3D: (target, levels, format, w, h, layers) => { st.bound.storage = {levels, format, w, h, layers}; },
+      texSubImage3D: (...a) => { assert.equal(a[8] === 'UNSIGNED_INT', st.bound.storage.format === 'RGBA32UI', 'type'); },
+      uniform1i: (loc) => { if (loc === 'u_btf_tex') st.sampled = st.bound; }, // bind(): a unit's texture, its sampler
+    };
+    calls.packageStore = false; // a context, not a store
+    const gl = new Proxy({}, {get: (_, k) => (k in calls ? calls[k] : /^[A-Z0-9_]+$/.test(k) ? k : () => ({}))});
+    return {gl, st};
+  };
+  // The texture bind() gave u_btf_tex: its format and bytes (every level and layer).
+  const texOf = (gpu, st, filter) => {
+    gpu.bind({program: {}, loc: (name) => name}, 0, {filter});
+    const t = st.sampled, {levels, format, w, h, layers} = t.storage;
+    assert.ok(!t.deleted && t === gpu.store.tex, 'the store\'s live texture is bound');
+    let texels = 0;
+    for (let l = 0; l < levels; l++) texels += (w >> l) * (h >> l) * layers;
+    return [format, BYTES[format] * texels];
+  };
+
+  it('pairs a package with levels for nearest taps only, both ways', () => {
+    const {gl, st} = fakeGl(), pkg = pkgMod.parseManifest(manifestV2()), gpu = new glMod.GpuPackage(gl, pkg, 0);
+    const texels = (24 * 20 + 12 * 10) * 1; // 2 levels of the 24 x 20 atlas, one layer of 4 slots
+    assert.deepEqual(texOf(gpu, st, 1), ['RGBA16UI', 8 * texels], 'bilinear');
+    assert.deepEqual(texOf(gpu, st, 0), ['RGBA32UI', 16 * texels], 'nearest');
+    assert.deepEqual(texOf(gpu, st, 0), ['RGBA32UI', 16 * texels], 'nearest again');
+    assert.deepEqual(texOf(gpu, st, 1), ['RGBA16UI', 8 * texels], 'bilinear after nearest');
+    gpu.free();
+  });
+
+  it('keeps RGBA16UI without levels, whatever the filter', () => {
+    const {gl, st} = fakeGl(), gpu = new glMod.GpuPackage(gl, pkgMod.parseManifest(manifest()), 2);
+    for (const f of [0, 1, 0]) assert.deepEqual(texOf(gpu, st, f), ['RGBA16UI', 8 * 24 * 20], `filter ${f}`);
+    gpu.free();
   });
 });
 

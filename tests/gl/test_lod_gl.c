@@ -195,6 +195,57 @@ Test(lod_gl, decode_levels_specialised)
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
+/* The program specialised for g, drawn with `filter` at prefix n, against btf_decode. */
+static void compare_specialised(btf_gl *gl, const btf_package *p, btf_gl_package *g, int filter, int n,
+                                const char *what)
+{
+    btf_shader_define defs[BTF_GL_PACKAGE_DEFINES];
+    char vals[BTF_GL_PACKAGE_DEFINES][16];
+    btf_shader_desc sd = {.program = "decode_probe", .defines = defs,
+                          .n_defines = btf_gl_package_defines(g, filter, n, defs, vals)};
+    btf_shader_program *prog = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_shader_build(gl, &sd, &prog, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_gl_decode_settings s = {filter, 1, n};
+    compare_lod(gl, prog, p, g, &s, 0.6f, what);
+    btf_shader_program_free(gl, prog);
+}
+
+/* u_btf_tex is paired (RGBA32UI, 16 bytes a texel and layer) only where it pays: a
+ * package with levels drawn with nearest taps; bilinear taps and a package without
+ * levels keep RGBA16UI (8 bytes). The layout follows the filter both ways, and each
+ * draw after a change decodes as btf_decode does. */
+Test(lod_gl, paired_only_for_nearest_levels)
+{
+    char dir[256], v1[300], v2[300];
+    make_packages(dir, sizeof dir, 8);
+    snprintf(v1, sizeof v1, "%s/v1", dir);
+    snprintf(v2, sizeof v2, "%s/v2", dir);
+    btf_package *p1 = fx_package(dir, "v1", 0), *p2 = fx_package(dir, "v2", 0);
+    btf_gl *gl = fx_gl_open(BTF_GL_EGL);
+    btf_gl_package *g1 = NULL, *g2 = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_gl_package_upload(gl, p1, v1, &g1, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_gl_package_upload(gl, p2, v2, &g2, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(g2->paired, 1, "uploaded for the default settings: nearest");
+    static const int filters[5] = {1, 1, 0, 1, 0};
+    for (int i = 0; i < 5; i++) {
+        char what[64];
+        snprintf(what, sizeof what, "step %d filter=%d", i, filters[i]);
+        compare_specialised(gl, p2, g2, filters[i], i == 3 ? p2->n_chunks / 2 : 0, what);
+        cr_assert_eq(g2->paired, filters[i] == 0, "%s: levels %s", what,
+                     filters[i] ? "bilinear paired" : "nearest not paired");
+        compare_specialised(gl, p1, g1, filters[i], 0, what);
+        cr_assert_eq(g1->paired, 0, "%s: a package without levels paired", what);
+    }
+    btf_gl_package_free(gl, g1);
+    btf_gl_package_free(gl, g2);
+    btf_gl_free(gl);
+    btf_package_free(p1);
+    btf_package_free(p2);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
 Test(lod_gl, decode_levels_match_cpu_egl) { check_levels(BTF_GL_EGL, 8); }
 Test(lod_gl, decode_levels_match_cpu_osmesa) { check_levels(BTF_GL_OSMESA, 8); }
 Test(lod_gl, decode_levels_match_cpu_16bit) { check_levels(BTF_GL_EGL, 16); }
