@@ -587,7 +587,8 @@ static int textured_setup(btf_gl *gl, void *ctx)
  *   shader: 2 direction-table texels (one per set; a walk step, rare, adds one) +
  *           per (view a of 3, layer h of 4 slots): 1 texel of 4 slots (nearest) +
  *           3 weights texels (one per light) = 2 + 12 ceil(C/4); with levels the
- *           same (nearest: one texel holds both levels, shaders/README.md "GPU layout");
+ *           same (nearest: one paired texel holds both levels, shaders/README.md "GPU
+ *           layout"; bilinear: 4 texels a level, 8 between two);
  *   thesis: 4 map fetches + per (view a, group g of 4 components): 1 L fetch + per
  *           light e: 3 R fetches (one per channel) = 4 + 30 ceil(C/4);
  *   textured: 1.
@@ -611,8 +612,9 @@ static int thesis_fetches(int C) { return 4 + 30 * ((C + 3) / 4); }
 static int thesis_alu(int C) { return 84 + 582 * ((C + 3) / 4); }
 
 /* The product program specialised for package g at C chunks (C = 0: all), as btf
- * render builds it (btf_gl_package_defines): nearest texels, lod from derivatives.
- * Owned by the run that made it, which frees prog (btf_shader_program_free). */
+ * render builds it (btf_gl_package_defines): nearest texels (the level run: also
+ * bilinear), lod from derivatives. Owned by the run that made it, which frees prog
+ * (btf_shader_program_free). */
 typedef struct product_ctx {
     const scene *s;
     const btf_gl_package *g;
@@ -620,6 +622,7 @@ typedef struct product_ctx {
     btf_shader_program *prog;
     const btf_env_quad *env; /* NULL: the point light; else the environment alone (doc/lighting.md) */
     btf_gl_fixed *fixed;     /* non-NULL: BTF_FIXED_LIGHT with these per-draw weights (not owned) */
+    int filter;              /* 0 nearest, 1 bilinear (a package with levels: u_btf_tex laid out for it) */
 } product_ctx;
 
 /* Builds pc->prog from the shaders in dir (NULL: the usual place, btf_shader_desc). */
@@ -629,7 +632,7 @@ static int product_build(btf_gl *gl, product_ctx *pc, const char *dir)
     btf_shader_define defs[BTF_GL_PACKAGE_DEFINES + 3];
     char vals[BTF_GL_PACKAGE_DEFINES][16];
     btf_shader_desc sd = {.dir = dir, .program = "render", .defines = defs};
-    sd.n_defines = btf_gl_package_defines(pc->g, 0, pc->C, defs, vals);
+    sd.n_defines = btf_gl_package_defines(pc->g, pc->filter, pc->C, defs, vals);
     defs[sd.n_defines++] = (btf_shader_define){"BTF_POINT", pc->env ? "0" : "1"};
     defs[sd.n_defines++] = (btf_shader_define){"BTF_ENV", pc->env ? "1" : "0"};
     if (pc->fixed)
@@ -648,7 +651,7 @@ static int product_setup(btf_gl *gl, void *ctx)
     btf_gl_fn(gl)->UseProgram(pc->prog->id);
     if (btf_gl_package_bind(gl, pc->g, pc->prog, 0, &err) != BTF_OK)
         return die("bind", &err);
-    btf_gl_decode_settings ds = {0, 1, pc->C};
+    btf_gl_decode_settings ds = {pc->filter, 1, pc->C};
     btf_gl_package_settings(gl, pc->g, pc->prog, &ds);
     if (pc->fixed) { /* the plane's local frame is the world's: the local light is the world light */
         if (btf_gl_fixed_update(gl, pc->fixed, pc->g, pc->s->cam.light, pc->C, &err) != BTF_OK)
@@ -688,15 +691,16 @@ static int levels_prefix(const btf_gl_package *g, int C, int n_loaded)
     return n;
 }
 
-/* One C of the level run: the four programs (level 0 alone and the levels package, on
- * the run-time and the fixed-light path; with alt, the fixed-light pair again from
- * those shaders), timed interleaved; cn: the chunk prefixes of g[0] and g[1]. */
+/* One C and filter of the level run: the four programs (level 0 alone and the levels
+ * package, on the run-time and the fixed-light path; with alt, the fixed-light pair
+ * again from those shaders), timed interleaved; cn: the chunk prefixes of g[0] and
+ * g[1]. Bilinear lines are named levels_bilinear_*. */
 static int run_levels_at(btf_gl *gl, const scene *s, const btf_gl_target *t, const btf_gl_package *g[2],
-                         btf_gl_fixed *x[2], const int cn[2], int C, const char *alt)
+                         btf_gl_fixed *x[2], const int cn[2], int C, const char *alt, int filter)
 {
-    product_ctx pc[6] = {{s, g[0], cn[0], NULL, NULL, NULL}, {s, g[1], cn[1], NULL, NULL, NULL},
-                         {s, g[0], cn[0], NULL, NULL, x[0]}, {s, g[1], cn[1], NULL, NULL, x[1]},
-                         {s, g[0], cn[0], NULL, NULL, x[0]}, {s, g[1], cn[1], NULL, NULL, x[1]}};
+    product_ctx pc[6] = {{s, g[0], cn[0], NULL, NULL, NULL, filter}, {s, g[1], cn[1], NULL, NULL, NULL, filter},
+                         {s, g[0], cn[0], NULL, NULL, x[0], filter}, {s, g[1], cn[1], NULL, NULL, x[1], filter},
+                         {s, g[0], cn[0], NULL, NULL, x[0], filter}, {s, g[1], cn[1], NULL, NULL, x[1], filter}};
     bench_case c[6];
     int rc = 0, n = alt ? 6 : 4;
     for (int i = 0; i < n; i++) {
@@ -704,13 +708,15 @@ static int run_levels_at(btf_gl *gl, const scene *s, const btf_gl_target *t, con
         rc = rc || product_build(gl, &pc[i], i < 4 ? NULL : alt);
     }
     rc = rc || time_frames(gl, s, t, c, n);
-    static const char *path[3] = {"", "fixed_", "alt_fixed_"};
+    static const char *path[2][3] = {{"", "fixed_", "alt_fixed_"},
+                                     {"bilinear_", "bilinear_fixed_", "bilinear_alt_fixed_"}};
     for (int k = 0; k < n / 2 && !rc; k++) {
         double v1 = c[2 * k].cost.cpu_ms, v2 = c[2 * k + 1].cost.cpu_ms;
-        printf("levels_%sv1_C%d_cpu_ms %.2f ms\nlevels_%sv2_C%d_cpu_ms %.2f ms\n", path[k], C, v1, path[k], C, v2);
-        printf("levels_%sv2_over_v1_C%d_cpu_ratio %.3f x\n", path[k], C, v2 / v1);
+        const char *pk = path[filter == 1][k];
+        printf("levels_%sv1_C%d_cpu_ms %.2f ms\nlevels_%sv2_C%d_cpu_ms %.2f ms\n", pk, C, v1, pk, C, v2);
+        printf("levels_%sv2_over_v1_C%d_cpu_ratio %.3f x\n", pk, C, v2 / v1);
         if (c[2 * k].cost.gpu_ms > 0 && c[2 * k + 1].cost.gpu_ms > 0)
-            printf("levels_%sv2_over_v1_C%d_gpu_ratio %.3f x\n", path[k], C,
+            printf("levels_%sv2_over_v1_C%d_gpu_ratio %.3f x\n", pk, C,
                    c[2 * k + 1].cost.gpu_ms / c[2 * k].cost.gpu_ms);
     }
     fflush(stdout);
@@ -722,7 +728,10 @@ static int run_levels_at(btf_gl *gl, const scene *s, const btf_gl_target *t, con
 /* The spatial-levels package (3 levels) of the same material against version 1: the
  * level path's cost over level 0 alone at C = 1, 4, 8, 16 slots (the levels package's
  * shortest chunk prefix with C slots: the same program, every level filled), each C in
- * one run, interleaved, for the run-time light path and for the fixed-light one. */
+ * one run, interleaved, for the run-time light path and for the fixed-light one; with
+ * nearest texels (the levels package's texture paired) and then bilinear (not paired:
+ * shaders/README.md, "GPU layout"), each against level 0 with the same filter.
+ * BENCH_LEVELS_FILTER=0 or 1: one filter alone. */
 static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const scene *s, const btf_gl_target *t)
 {
     char dir2[1100];
@@ -737,13 +746,15 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
         return die("levels package", &err);
     const char *alt = getenv("BENCH_ALT_SHADERS"); /* the fixed-light pair again, from these shaders */
     const char *only = getenv("BENCH_LEVELS_C");   /* one C alone */
+    const char *fo = getenv("BENCH_LEVELS_FILTER"); /* one filter alone */
     const btf_gl_package *g[2] = {g1, g2};
     static const int Cs[4] = {1, 4, 8, 16};
     int rc = 0;
     for (int k = 0; k < 4 && !rc; k++) {
         int C = Cs[k], cn[2] = {C, levels_prefix(g2, C, p2->n_loaded)};
-        if (C <= p1->n_loaded && (!only || atoi(only) == C))
-            rc = run_levels_at(gl, s, t, g, x, cn, C, alt);
+        for (int filter = 0; filter < 2 && !rc; filter++)
+            if (C <= p1->n_loaded && (!only || atoi(only) == C) && (!fo || atoi(fo) == filter))
+                rc = run_levels_at(gl, s, t, g, x, cn, C, alt, filter);
     }
     btf_gl_fixed_free(gl, x[0]);
     btf_gl_fixed_free(gl, x[1]);
@@ -957,8 +968,8 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
         ref_decode(p, &ref, C);
         /* product: the program specialised for the package (no levels), the filter
          * (nearest) and C, as btf render builds it (btf_gl_package_defines) */
-        product_ctx pc = {&s, g, C, prog, NULL, NULL}, pe = {&s, g, C, NULL, &studio, NULL},
-                    px = {&s, g, C, NULL, NULL, fixed}, pa = {&s, g, C, NULL, NULL, alt_fixed ? fixed : NULL};
+        product_ctx pc = {&s, g, C, prog, NULL, NULL, 0}, pe = {&s, g, C, NULL, &studio, NULL, 0},
+                    px = {&s, g, C, NULL, NULL, fixed, 0}, pa = {&s, g, C, NULL, NULL, alt_fixed ? fixed : NULL, 0};
         thesis_ctx tc = {.s = &s, .p = p, .prog = thesis};
         bench_case c[5] = {{.setup = product_setup, .ctx = &pc}, {.setup = thesis_setup, .ctx = &tc},
                            {.setup = product_setup, .ctx = &pe}, {.setup = product_setup, .ctx = &px},
