@@ -11,20 +11,23 @@
 #                               build-fuzz/fuzz/log/NAME.txt
 #     FUZZ_SECONDS=N            each target's time bound (default 60)
 #     FUZZ_RUNS=N               and an execution bound: -runs=N, whichever comes first (0: none)
-#     FUZZ_TARGETS='a b'        only these targets (default: all, request included)
+#     FUZZ_TARGETS='a b'        only these targets, in this order (default: all, request
+#                               included, the quickest first: FUZZ_ORDER)
 #     FUZZ_TMPDIR=DIR           the disk targets' scratch (default /dev/shm where it exists)
 #     FUZZ_CORPUS=DIR           the corpora's root instead of fuzz/corpus (a copy: measure
 #                               without growing the saved corpora)
 #     FUZZ_FLAGS=...            more libFuzzer flags for every target (e.g. -entropic=0)
 #     FUZZ_THREADS=N            OpenMP and OpenBLAS threads of each target (default 1)
 #     FUZZ_NICE=N               run each target under nice -n N (default: not)
+#     FUZZ_JOBS=N               N targets at a time (fuzz/parallel.sh; default 1, fuzz-deep:
+#                               every core), each on one core
 #     FUZZ_ASAN_OPTIONS=...     ASan's options (fast_unwind_on_malloc=0: full allocation
 #                               stacks, at a 30th of the speed; fuzz/run.sh's header)
 #     (per target)              -max_len (the largest input its format needs) and its own
 #                               libFuzzer flags and environment: fuzz/run.sh, target_settings
 #   make fuzz-deep              the deep run: every target to FUZZ_DEEP_RUNS (default 10 M)
 #                               executions or FUZZ_DEEP_SECONDS (default 3600) each, whichever
-#                               comes first, under nice -n 19, on a copy
+#                               comes first, under nice -n 19, one target per core, on a copy
 #                               of the corpora in $(FUZZ_BUILD)/deep-corpus (made from
 #                               fuzz/corpus on the first run, kept and grown by later ones):
 #                               the saved corpora stay small, as `make test` replays them
@@ -77,7 +80,10 @@ fuzz-codec:
 	        $(FUZZ_LINK) || exit 1; \
 	done
 
-FUZZ_TARGETS ?= $(FUZZ_CODEC) request
+# the order targets run in: the quickest to 10 M executions first (so a deep run cut
+# short has the most targets done), then any target not named here
+FUZZ_ORDER   := ubo2003_name request thesis_mem thesis hdr dirset package_mem dfmf package manifest gltf roundtrip
+FUZZ_TARGETS ?= $(FUZZ_ORDER) $(filter-out $(FUZZ_ORDER),$(FUZZ_CODEC) request)
 FUZZ_RUNS    ?= 0
 FUZZ_TMPDIR  ?= $(if $(wildcard /dev/shm/.),/dev/shm,/tmp)
 FUZZ_CORPUS  ?= fuzz/corpus
@@ -86,14 +92,17 @@ FUZZ_THREADS ?= 1
 FUZZ_NICE    ?=
 FUZZ_DEEP_RUNS    ?= 10000000
 FUZZ_DEEP_SECONDS ?= 3600
+FUZZ_JOBS         ?=
 
 fuzz: fuzz-codec fuzz-request
 	FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_RUNS=$(FUZZ_RUNS) FUZZ_RSS_MB=$(FUZZ_RSS_MB) FUZZ_TMPDIR=$(FUZZ_TMPDIR) \
 	    FUZZ_ASAN_OPTIONS='$(FUZZ_ASAN_OPTIONS)' FUZZ_FLAGS='$(FUZZ_FLAGS)' FUZZ_CORPUS=$(FUZZ_CORPUS) \
-	    FUZZ_THREADS=$(FUZZ_THREADS) FUZZ_NICE=$(FUZZ_NICE) FUZZ_SUMMARY=$(FUZZ_SUMMARY) bash fuzz/run.sh $(FUZZ_BUILD) $(FUZZ_TARGETS)
+	    FUZZ_THREADS=$(FUZZ_THREADS) FUZZ_NICE=$(FUZZ_NICE) FUZZ_SUMMARY=$(FUZZ_SUMMARY) FUZZ_JOBS=$(FUZZ_JOBS) \
+	    bash fuzz/$(if $(filter-out 0 1,$(FUZZ_JOBS)),parallel.sh,run.sh) $(FUZZ_BUILD) $(FUZZ_TARGETS)
 
 # The deep run: make fuzz with other defaults, on a copy of the corpora.
 fuzz-deep:
 	@test -d $(FUZZ_BUILD)/deep-corpus || { mkdir -p $(FUZZ_BUILD) && cp -r fuzz/corpus $(FUZZ_BUILD)/deep-corpus; }
 	$(MAKE) fuzz FUZZ_RUNS=$(FUZZ_DEEP_RUNS) FUZZ_SECONDS=$(FUZZ_DEEP_SECONDS) FUZZ_NICE=$(or $(FUZZ_NICE),19) \
+	    FUZZ_JOBS=$(or $(FUZZ_JOBS),$(shell nproc)) \
 	    FUZZ_CORPUS=$(FUZZ_BUILD)/deep-corpus FUZZ_SUMMARY=$(FUZZ_BUILD)/fuzz/summary-deep.txt
