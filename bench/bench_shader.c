@@ -696,7 +696,7 @@ static int levels_prefix(const btf_gl_package *g, int C, int n_loaded)
  * again from those shaders), timed interleaved; cn: the chunk prefixes of g[0] and
  * g[1]. Bilinear lines are named levels_bilinear_*. */
 static int run_levels_at(btf_gl *gl, const scene *s, const btf_gl_target *t, const btf_gl_package *g[2],
-                         btf_gl_fixed *x[2], const int cn[2], int C, const char *alt, int filter)
+                         btf_gl_fixed *x[2], const int cn[2], int C, const char *alt, int filter, double row[4])
 {
     product_ctx pc[6] = {{s, g[0], cn[0], NULL, NULL, NULL, filter}, {s, g[1], cn[1], NULL, NULL, NULL, filter},
                          {s, g[0], cn[0], NULL, NULL, x[0], filter}, {s, g[1], cn[1], NULL, NULL, x[1], filter},
@@ -715,6 +715,7 @@ static int run_levels_at(btf_gl *gl, const scene *s, const btf_gl_target *t, con
         const char *pk = path[filter == 1][k];
         printf("levels_%sv1_C%d_cpu_ms %.2f ms\nlevels_%sv2_C%d_cpu_ms %.2f ms\n", pk, C, v1, pk, C, v2);
         printf("levels_%sv2_over_v1_C%d_cpu_ratio %.3f x\n", pk, C, v2 / v1);
+        row[2 * k] = v1, row[2 * k + 1] = v2 / v1; /* the table's (run-time, fixed) pairs */
         if (c[2 * k].cost.gpu_ms > 0 && c[2 * k + 1].cost.gpu_ms > 0)
             printf("levels_%sv2_over_v1_C%d_gpu_ratio %.3f x\n", pk, C,
                    c[2 * k + 1].cost.gpu_ms / c[2 * k].cost.gpu_ms);
@@ -723,6 +724,22 @@ static int run_levels_at(btf_gl *gl, const scene *s, const btf_gl_target *t, con
     for (int i = 0; i < n; i++)
         btf_shader_program_free(gl, pc[i].prog);
     return rc;
+}
+
+/* The level run's table (as comment lines): per C, level 0's CPU ms and the levels
+ * package's ratio over it, nearest then bilinear, each for the run-time and the fixed
+ * light; a C or filter not run is left out (0). */
+static void print_levels_table(const int Cs[4], double tab[4][2][4])
+{
+    printf("# | C | level 0 ms, nearest (run-time / fixed light) | levels / level 0, nearest | "
+           "level 0 ms, bilinear | levels / level 0, bilinear |\n# |---|---|---|---|---|\n");
+    for (int k = 0; k < 4; k++) {
+        const double *n = tab[k][0], *b = tab[k][1];
+        if (n[0] > 0 || b[0] > 0)
+            printf("# | %d | %.1f / %.1f | %.3f / %.3f | %.1f / %.1f | %.3f / %.3f |\n", Cs[k], n[0], n[2], n[1], n[3],
+                   b[0], b[2], b[1], b[3]);
+    }
+    fflush(stdout);
 }
 
 /* The spatial-levels package (3 levels) of the same material against version 1: the
@@ -749,13 +766,16 @@ static int run_levels(btf_gl *gl, const btf_package *p1, const char *dir1, const
     const char *fo = getenv("BENCH_LEVELS_FILTER"); /* one filter alone */
     const btf_gl_package *g[2] = {g1, g2};
     static const int Cs[4] = {1, 4, 8, 16};
+    double tab[4][2][4] = {{{0}}}; /* per C and filter: level-0 ms and ratio, run-time then fixed light */
     int rc = 0;
     for (int k = 0; k < 4 && !rc; k++) {
         int C = Cs[k], cn[2] = {C, levels_prefix(g2, C, p2->n_loaded)};
         for (int filter = 0; filter < 2 && !rc; filter++)
             if (C <= p1->n_loaded && (!only || atoi(only) == C) && (!fo || atoi(fo) == filter))
-                rc = run_levels_at(gl, s, t, g, x, cn, C, alt, filter);
+                rc = run_levels_at(gl, s, t, g, x, cn, C, alt, filter, tab[k][filter]);
     }
+    if (!rc)
+        print_levels_table(Cs, tab);
     btf_gl_fixed_free(gl, x[0]);
     btf_gl_fixed_free(gl, x[1]);
     btf_gl_package_free(gl, g1);
