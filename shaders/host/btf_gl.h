@@ -242,6 +242,12 @@ typedef struct btf__gl_backend_vt {
 extern const btf__gl_backend_vt btf__gl_egl_vt;    /* btf_gl_egl.c */
 extern const btf__gl_backend_vt btf__gl_osmesa_vt; /* btf_gl_osmesa.c */
 
+/* The EGL backend's choice among the devices of EGL_EXT_platform_device (btf_gl_egl.c):
+ * tries devices 0..n-1 in order with try_dev (0: it gave a GLES 3 context, which the
+ * caller keeps) and returns the first that did, without trying the rest; -1 when none
+ * did or n < 1. Separate so that the choice is tested on a stub list. */
+int btf__gl_pick_device(int n, int (*try_dev)(void *ctx, int i), void *ctx);
+
 #ifdef __cplusplus
 }
 #endif

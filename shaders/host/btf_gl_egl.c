@@ -124,6 +124,34 @@ static int btf__egl_try(btf__egl *e, EGLDisplay dpy, btf_error *err)
     return -1;
 }
 
+int btf__gl_pick_device(int n, int (*try_dev)(void *ctx, int i), void *ctx)
+{
+    for (int i = 0; i < n; i++)
+        if (try_dev(ctx, i) == 0)
+            return i;
+    return -1;
+}
+
+/* The devices EGL lists, for btf__egl_try_device; lives for one btf__egl_devices call. */
+typedef struct btf__egl_devlist {
+    btf__egl *e;
+    const EGLDeviceEXT *devs;
+    int n;
+    btf_error *err;
+} btf__egl_devlist;
+
+/* btf__gl_pick_device's try: a GLES 3 context on device i (e->platform names it). */
+static int btf__egl_try_device(void *ctx, int i)
+{
+    btf__egl_devlist *l = ctx;
+    char what[48];
+    snprintf(what, sizeof what, "device %d of %d", i, l->n);
+    if (btf__egl_try(l->e, btf__egl_display(EGL_PLATFORM_DEVICE_EXT, l->devs[i], what, l->err), l->err) != 0)
+        return -1;
+    snprintf(l->e->platform, sizeof l->e->platform, "EGL %s", what);
+    return 0;
+}
+
 /* EGL_EXT_platform_device: the first device with a GLES 3 context; 0 or -1. */
 static int btf__egl_devices(btf__egl *e, btf_error *err)
 {
@@ -134,15 +162,8 @@ static int btf__egl_devices(btf__egl *e, btf_error *err)
         btf_fail(err, BTF_ERR_UNSUPPORTED, "gl egl: no EGL device (EGL_EXT_device_enumeration)");
         return -1;
     }
-    for (EGLint i = 0; i < n; i++) {
-        char what[48];
-        snprintf(what, sizeof what, "device %d of %d", (int)i, (int)n);
-        if (btf__egl_try(e, btf__egl_display(EGL_PLATFORM_DEVICE_EXT, devs[i], what, err), err) == 0) {
-            snprintf(e->platform, sizeof e->platform, "EGL %s", what);
-            return 0;
-        }
-    }
-    return -1;
+    btf__egl_devlist l = {e, devs, (int)n, err};
+    return btf__gl_pick_device((int)n, btf__egl_try_device, &l) >= 0 ? 0 : -1;
 }
 
 static btf_result btf__egl_open(void **native, btf_error *err)

@@ -1143,6 +1143,43 @@ Test(gl, render_plane_matches_decoder_both_backends)
     check_render_plane(BTF_GL_OSMESA, 1, 2.0f); /* bilinear, tiled twice */
 }
 
+/* A stub device list for btf__gl_pick_device: device i opens when ok[i]; the tries are
+ * recorded in order. Lives for one test. */
+typedef struct stub_devices {
+    const int *ok;
+    int tried[8], n_tried;
+} stub_devices;
+
+static int stub_try(void *ctx, int i)
+{
+    stub_devices *d = ctx;
+    d->tried[d->n_tried++] = i;
+    return d->ok[i] ? 0 : -1;
+}
+
+/* The EGL backend takes the first device that gives a GLES 3 context (a GPU driver may
+ * list devices that cannot, e.g. a display-only one before the GPU), tries none after
+ * it, and fails cleanly when none does: on stub lists, since this machine's Mesa lists
+ * one device that always works. */
+Test(gl, egl_device_pick_takes_the_first_device_that_opens)
+{
+    static const int later[4] = {0, 0, 1, 1}, first[3] = {1, 0, 1}, none[3] = {0, 0, 0};
+    stub_devices d = {later, {0}, 0};
+    cr_expect_eq(btf__gl_pick_device(4, stub_try, &d), 2);
+    cr_expect_eq(d.n_tried, 3, "tried %d devices", d.n_tried);
+    for (int i = 0; i < d.n_tried; i++)
+        cr_expect_eq(d.tried[i], i, "try %d was device %d", i, d.tried[i]);
+    d = (stub_devices){first, {0}, 0};
+    cr_expect_eq(btf__gl_pick_device(3, stub_try, &d), 0);
+    cr_expect_eq(d.n_tried, 1);
+    d = (stub_devices){none, {0}, 0};
+    cr_expect_eq(btf__gl_pick_device(3, stub_try, &d), -1);
+    cr_expect_eq(d.n_tried, 3);
+    d = (stub_devices){none, {0}, 0};
+    cr_expect_eq(btf__gl_pick_device(0, stub_try, &d), -1);
+    cr_expect_eq(d.n_tried, 0);
+}
+
 /* The EGL backend finds its display on the surfaceless Mesa platform, or through
  * EGL_EXT_platform_device (how an NVIDIA or AMD driver offers a headless GPU; Mesa
  * lists its software device there too): BTF_EGL_PLATFORM picks one, and either
