@@ -24,9 +24,7 @@ mats=(tiles64=gen:tiles:64:3661 knit64=gen:knit:64:3662 stone128=gen:stone:128:3
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_entropy.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 
-# Bytes of a package's chunk files and manifest.
-bytes() { jq -r '[.chunks[].files[]] | unique | .[]' "$1/manifest.json" |
-    (cd "$1" && xargs stat -c %s manifest.json) | awk '{ s += $1 } END { print s }'; }
+source bench/lib.sh
 size() { stat -c %s "$1"; }
 # weights DIR: stored zlib bytes, then zstd -19, zstd -22, xz -9e of the inflated files
 weights() {
@@ -65,7 +63,7 @@ for m in "${mats[@]}"; do
         "$BTF" compress "$src" "$tmp/p" --no-thumbnail --quiet "${flags[@]}"
         read -r z a b x <<<"$(weights "$tmp/p")"
         read -r ls lr <<<"$(levels "$tmp/p")"
-        total=$(bytes "$tmp/p")
+        total=$(package_bytes "$tmp/p")
         best=$(printf '%s\n' "$a" "$b" "$x" | sort -n | head -1)
         saved=$((z - best))
         ((lr < ls)) && saved=$((saved + ls - lr))

@@ -27,9 +27,7 @@ mats=(tiles128=gen:tiles:128:3641 knit128=gen:knit:128:3642)
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_lossylevels.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 
-# Bytes of a package's chunk files and manifest.
-bytes() { jq -r '[.chunks[].files[]] | unique | .[]' "$1/manifest.json" |
-    (cd "$1" && xargs stat -c %s manifest.json) | awk '{ s += $1 } END { print s }'; }
+source bench/lib.sh
 # Bytes of its coarse levels' texture files (level >= 1).
 coarse() { jq -r '[.chunks[] | select((.level // 0) >= 1) | .files[] | select(startswith("tex-"))] | unique | .[]' \
     "$1/manifest.json" | (cd "$1" && xargs -r stat -c %s) | awk '{ s += $1 } END { print s + 0 }'; }
@@ -44,7 +42,7 @@ for m in "${mats[@]}"; do
         echo "bench_lossylevels: $name $mode" >&2
         "$BTF" compress "$src" "$tmp/a" --no-thumbnail --quiet "${flags[@]}"
         "$BTF" compress "$src" "$tmp/b" --no-thumbnail --quiet --levels 4 "${flags[@]}"
-        ba=$(bytes "$tmp/a") bb=$(bytes "$tmp/b") cb=$(coarse "$tmp/b")
+        ba=$(package_bytes "$tmp/a") bb=$(package_bytes "$tmp/b") cb=$(coarse "$tmp/b")
         la=$("$BTF" eval "$src" "$tmp/a" --json --no-curve | jq -r .lab_mae)
         lb=$("$BTF" eval "$src" "$tmp/b" --json --no-curve | jq -r .lab_mae)
         lossy=0 # coarse texture files that are lossy WebPs ("VP8 " chunk at byte 12)
