@@ -1,4 +1,4 @@
-// btf-decode.js - image files of a chunk (PNG, WebP lossless or lossy) to their 8-bit samples,
+// btf-decode.js - image files of a chunk (PNG, WebP lossless or lossy, AVIF) to their 8-bit samples,
 // off the main thread: a worker decodes with createImageBitmap (no colour conversion, no
 // premultiplication) and reads the pixels back from an OffscreenCanvas 2D context, so the
 // page's main thread never waits on a decode or a GPU readback. Every file these
@@ -76,8 +76,16 @@ function startWorker() {
   return worker;
 }
 
-// Decodes an image file's bytes (Uint8Array) of MIME type `type` ('image/png' or
-// 'image/webp'): a Promise of {width, height, rgba: Uint8Array (4 bytes a pixel, rows top-down)}.
+// The MIME type of a chunk's image file by its name's extension (doc/package-format.md
+// section 4.1): '.webp' and '.avif' their own, any other a PNG.
+export function imageType(name) {
+  const ext = /\.(webp|avif)$/.exec(name);
+  return ext ? `image/${ext[1]}` : 'image/png';
+}
+
+// Decodes an image file's bytes (Uint8Array) of MIME type `type` (imageType's): a Promise
+// of {width, height, rgba: Uint8Array (4 bytes a pixel, rows top-down)}; it rejects where
+// the browser cannot decode the file (an AVIF in a browser without AVIF).
 export function decodeImage(bytes, type) {
   const w = startWorker();
   const job = {buf: bytes, type}; // copied into the worker: the stream keeps its files (cache, replays)

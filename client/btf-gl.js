@@ -641,7 +641,7 @@ export class GpuPackage {
   }
 
   // Pixels of a grey image decoded by the browser (a PNG such as wt-JJ-8.png, or a WebP
-  // texture): R of each pixel, the file's grey bytes (a lossy WebP's G may differ from
+  // or AVIF texture): R of each pixel, the file's grey bytes (a lossy WebP's G may differ from
   // its R by one: package-format.md 4.1 reads R).
   readGrey(bitmap) {
     const n = bitmap.width * bitmap.height, px = this.pixels(bitmap), out = new Uint8Array(n);

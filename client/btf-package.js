@@ -155,14 +155,14 @@ function parseChunk(name, c, i, nb, lv, version) {
 }
 
 // Version 4 (section 12): each (component, level) once, and a residual level (a
-// texture named ...-dL.png or ...-dL.webp, L its level, below the coarsest) only after the same
+// texture named ...-dL.png, .webp or .avif, L its level, below the coarsest) only after the same
 // component's next coarser level. Marks the chunks (.residual).
 function residualOrder(name, chunks, levels) {
   const seen = new Set();
   chunks.forEach((c, i) => {
     const key = (l) => `${c.component}/${l}`;
     if (seen.has(key(c.level))) fail(name, `chunk ${i}: level ${c.level} of component ${c.component} twice`);
-    c.residual = c.level < levels - 1 && /-d(\d+)\.(png|webp)$/.exec(c.tex)?.[1] === String(c.level);
+    c.residual = c.level < levels - 1 && /-d(\d+)\.(png|webp|avif)$/.exec(c.tex)?.[1] === String(c.level);
     const pr = c.predictor;
     if (pr !== undefined && (!c.residual || !Array.isArray(pr) || pr.length !== 3 * PRED_N ||
         !pr.every((v) => isInt(v, -PRED_MAX, PRED_MAX))))

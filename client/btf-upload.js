@@ -2,7 +2,7 @@
 // decoded off the main thread (btf-decode.js: its image files; btf-package.js: its
 // weights), queued, and uploaded by the next frame (btf-session.js drives it).
 import {GpuPackage} from './btf-gl.js';
-import {decodeImage} from './btf-decode.js';
+import {decodeImage, imageType} from './btf-decode.js';
 import {decodeWeights, dequantWeights8} from './btf-package.js';
 
 // Owned by a session; one per GPU package (made for a manifest, again after a context
@@ -36,13 +36,13 @@ export class ChunkUploads {
     }
   }
 
-  // Decodes chunk j (a texture is a PNG or, versions 3 and 4, a WebP, lossless or lossy:
-  // doc/package-format.md) and queues it.
+  // Decodes chunk j (a texture is a PNG or, versions 3 and 4, a WebP, lossless or lossy,
+  // or a lossy AVIF: doc/package-format.md) and queues it.
   async decode(j) {
     if (this.freed || j < this.gpu.uploaded) return;
     const chunk = this.pkg.chunks[j], files = this.sub.chunks[j];
     const data = (name) => files[chunk.files.indexOf(name)];
-    const img = await decodeImage(data(chunk.tex), chunk.tex.endsWith('.webp') ? 'image/webp' : 'image/png');
+    const img = await decodeImage(data(chunk.tex), imageType(chunk.tex));
     if (this.freed) return;
     const wt = await this.weights(chunk, data);
     if (this.freed) return;

@@ -171,9 +171,10 @@ static const struct lws_protocol_vhost_options mime_extra[] = {
     {&mime_extra[5], NULL, ".json", "application/json"},
     {&mime_extra[6], NULL, ".svg", "image/svg+xml"},
     {&mime_extra[7], NULL, ".webp", "image/webp"},
-    {&mime_extra[8], NULL, ".glb", "model/gltf-binary"},
-    {&mime_extra[9], NULL, ".gltf", "model/gltf+json"},
-    {&mime_extra[10], NULL, ".bin", "application/octet-stream"}, /* a .gltf's buffers */
+    {&mime_extra[8], NULL, ".avif", "image/avif"},
+    {&mime_extra[9], NULL, ".glb", "model/gltf-binary"},
+    {&mime_extra[10], NULL, ".gltf", "model/gltf+json"},
+    {&mime_extra[11], NULL, ".bin", "application/octet-stream"}, /* a .gltf's buffers */
     {NULL, NULL, ".wasm", "application/wasm"},
 };
 

@@ -174,7 +174,8 @@ error_log ${prefix}/error.log;
 events { worker_connections 256; }
 http {
   access_log off;
-  types { text/html html; text/javascript js; application/json json; image/png png; image/webp webp; }
+  types { text/html html; text/javascript js; application/json json; image/png png; image/webp webp;
+    image/avif avif; }
   default_type application/octet-stream;
   client_body_temp_path ${prefix}/body; proxy_temp_path ${prefix}/proxy; fastcgi_temp_path ${prefix}/fcgi;
   uwsgi_temp_path ${prefix}/uwsgi; scgi_temp_path ${prefix}/scgi;
