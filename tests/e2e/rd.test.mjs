@@ -1,10 +1,11 @@
 // rd.test.mjs - a version-3 package (doc/package-format.md section 9.3: wt-JJ.z
 // weights, inflated by the browser's DecompressionStream; what `btf compress` writes
 // by default), the same with lossy WebP textures (section 4.1: the default where they
-// win) and the version-4 package with levels over it in headless Chromium against a
-// real btfd: each streams completely and draws the image its version-1 twin (the same
-// source, equal-noise steps, raw weights: --plain) draws, up to quantisation; the
-// client's decode of each lossy texture is the C reader's, byte for byte.
+// win) or lossy AVIF ones (--avif), and the version-4 package with levels over it in
+// headless Chromium against a real btfd: each streams completely and draws the image
+// its version-1 twin (the same source, equal-noise steps, raw weights: --plain) draws,
+// up to quantisation; the client's decode of each lossy texture is the C reader's,
+// byte for byte.
 import assert from 'node:assert/strict';
 import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
@@ -17,6 +18,15 @@ let lib, server, desktop;
 
 // 1 when file f of package dir is a lossy WebP (its first chunk "VP8 ", package-format.md 4.1).
 const isLossy = (dir, f) => fs.readFileSync(path.join(dir, f)).subarray(12, 16).toString('latin1') === 'VP8 ';
+// 1 when it is an AVIF: named .avif, its first box an 'ftyp' of major brand 'avif' (section 4.1).
+const isAvif = (dir, f) => f.endsWith('.avif') &&
+  fs.readFileSync(path.join(dir, f)).subarray(4, 12).toString('latin1') === 'ftypavif';
+// The chunks' texture files of package `name` in the library that pass test(dir, f).
+function textures(name, test) {
+  const dir = path.join(lib.lib, name);
+  const m = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
+  return m.chunks.map((c) => ({file: c.files[0], level: c.level ?? 0})).filter((t) => test(dir, t.file));
+}
 
 before(async () => {
   requireBuild();
@@ -25,7 +35,10 @@ before(async () => {
     'tiles-rdl': ['tiles', 4, 2], 'tiles-lossy': ['tiles', 4, 0, ['--tex-noise', '1']],
     // and with levels: a lossy component's coarse levels lossy too (package-format.md
     // 10.7); the choice weighs lossy textures with their levels, so a coarser noise
-    'tiles-lossyl': ['tiles', 4, 2, ['--tex-noise', '1.5']]});
+    'tiles-lossyl': ['tiles', 4, 2, ['--tex-noise', '1.5']],
+    // the same two with AVIF for every lossy texture
+    'tiles-avif': ['tiles', 4, 0, ['--tex-noise', '1', '--avif']],
+    'tiles-avifl': ['tiles', 4, 2, ['--tex-noise', '1.5', '--avif']]});
   server = await startServer(lib.lib);
   desktop = await launch();
   await desktop.addInitScript(() => { window.__btfCache = false; });
@@ -37,25 +50,69 @@ after(async () => {
   lib?.remove();
 });
 
+// Each package of `names` streamed completely and drawn (a plane under a fixed light,
+// 256 x 256): name -> its capture. `levels`: those with levels (more than 4 chunks).
+async function drawAll(names, levels) {
+  const page = await newPage(desktop);
+  await page.setViewportSize({width: 400, height: 400});
+  const shots = {};
+  for (const m of names) {
+    await page.goto(`${server.pagesUrl}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
+      '&light-phi=-60&camera-theta=30&width=256&height=256&max-dpr=1');
+    await waitFor(page, () => {
+      const v = window.__btf && window.__btf.viewers()[0];
+      return v && v.complete && v.drawnChunks === v.ownLimit && v.drawnChunks === v.manifestChunks && v.frames > 0;
+    }, null, `${m} drawn completely`);
+    const v = (await viewers(page))[0];
+    assert.equal(v.error, null);
+    assert.equal(v.drawnChunks, levels.includes(m) ? v.manifestChunks : 4);
+    if (levels.includes(m)) assert.ok(v.manifestChunks > 4, 'levels add chunks');
+    shots[m] = await capture(page, 0);
+  }
+  return shots;
+}
+
+// The client's own decoder (client/btf-decode.js, its worker, the type its imageType
+// gives) on each of `files` of package `name`, R as btf-gl.js readGrey takes it, against
+// the C reader's bytes: `btf lod --levels 1 --png` reads the package through
+// btf_package_read and writes each level-0 atlas as the PNG of its decoded bytes.
+// Returns the MIME types used and at how many texels G differs from R.
+async function decodesAsReader(name, files) {
+  const dir = path.join(lib.lib, name), ref = path.join(lib.dir, `${name}-ref`);
+  const r = spawnSync(BTF, ['lod', dir, ref, '--levels', '1', '--png', '--quiet'], {encoding: 'utf8'});
+  assert.equal(r.status, 0, `btf lod: ${r.stderr}`);
+  const page = await newPage(desktop);
+  await page.goto(`${server.pagesUrl}viewer.html?material=tiles&width=64&height=64`);
+  let g = 0;
+  const types = new Set();
+  for (const f of files) {
+    const got = await page.evaluate(async ([url, file, b64]) => {
+      const {decodeImage, imageType} = await import(url);
+      const type = imageType(file);
+      const d = await decodeImage(Uint8Array.from(atob(b64), (c) => c.charCodeAt(0)), type);
+      const q = new Array(d.width * d.height);
+      let rg = 0;
+      for (let i = 0; i < q.length; i++) {
+        q[i] = d.rgba[4 * i];
+        rg += d.rgba[4 * i + 1] !== q[i];
+      }
+      return {type, width: d.width, height: d.height, q, rg};
+    }, [`${server.url}btf-decode.js`, f, fs.readFileSync(path.join(dir, f)).toString('base64')]);
+    const png = readPng(path.join(ref, f.replace(/\.(webp|avif)$/, '.png')));
+    assert.deepEqual([got.width, got.height], [png.width, png.height], f);
+    let differ = 0;
+    for (let i = 0; i < got.q.length; i++) differ += got.q[i] !== png.data[4 * i];
+    assert.equal(differ, 0, `${f}: ${differ} texels differ from the C reader's`);
+    g += got.rg;
+    types.add(got.type);
+  }
+  return {types: [...types], g};
+}
+
 describe('version 3 (wt-JJ.z weights)', () => {
   it('streams, decodes and draws as its version-1 twin does, with levels too', async () => {
-    const page = await newPage(desktop);
-    await page.setViewportSize({width: 400, height: 400});
-    const shots = {};
-    for (const m of ['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl']) {
-      await page.goto(`${server.pagesUrl}viewer.html?material=${m}&geometry=plane&light=fixed&light-theta=40` +
-        '&light-phi=-60&camera-theta=30&width=256&height=256&max-dpr=1');
-      await waitFor(page, () => {
-        const v = window.__btf && window.__btf.viewers()[0];
-        return v && v.complete && v.drawnChunks === v.ownLimit && v.drawnChunks === v.manifestChunks && v.frames > 0;
-      }, null, `${m} drawn completely`);
-      const v = (await viewers(page))[0];
-      assert.equal(v.error, null);
-      const levels = m === 'tiles-rdl' || m === 'tiles-lossyl';
-      assert.equal(v.drawnChunks, levels ? v.manifestChunks : 4);
-      if (levels) assert.ok(v.manifestChunks > 4, 'levels add chunks');
-      shots[m] = await capture(page, 0);
-    }
+    const shots = await drawAll(['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl'],
+      ['tiles-rdl', 'tiles-lossyl']);
     // The packages differ only in their quantisation steps (each adds about 0.5 RMS
     // on the 0..255 scale per component, 4 components): their images differ by about
     // a level; a weight file decoded wrongly (a wrong byte plane, prediction or
@@ -75,9 +132,7 @@ describe('version 3 (wt-JJ.z weights)', () => {
     assert.ok(dl < 3, `lossy version-3 image within 3 levels of version 1 (${dl})`);
     // Lossy coarse levels: every chunk drawn, within the bound of the others (1.5
     // times the default's noise per component).
-    const dir = path.join(lib.lib, 'tiles-lossyl');
-    const coarse = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8')).chunks
-      .filter((c) => c.level > 0 && isLossy(dir, c.files[0]));
+    const coarse = textures('tiles-lossyl', isLossy).filter((t) => t.level > 0);
     assert.ok(coarse.length >= 1, 'the package has lossy coarse levels (the test covers them)');
     const dll = meanAbsDiff(shots.tiles, shots['tiles-lossyl']);
     console.log(`# ${coarse.length} lossy coarse levels: mean |difference| ${dll.toFixed(3)} of 255 from version 1`);
@@ -88,40 +143,45 @@ describe('version 3 (wt-JJ.z weights)', () => {
 
 describe('lossy WebP textures', () => {
   it('the client decodes each lossy texture to the C reader\'s bytes', async () => {
-    const dir = path.join(lib.lib, 'tiles-lossy');
-    const m = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
-    const lossy = m.chunks.map((c) => c.files[0])
-      .filter((f) => isLossy(dir, f));
+    const lossy = textures('tiles-lossy', isLossy).map((t) => t.file);
     assert.ok(lossy.length >= 1, 'the package has lossy textures (the test covers them)');
-    // The C reader's values: `btf lod --levels 1 --png` reads the package through
-    // btf_package_read and writes each level-0 atlas as the PNG of its decoded bytes.
-    const ref = path.join(lib.dir, 'lossy-ref');
-    const r = spawnSync(BTF, ['lod', dir, ref, '--levels', '1', '--png', '--quiet'], {encoding: 'utf8'});
-    assert.equal(r.status, 0, `btf lod: ${r.stderr}`);
-    const page = await newPage(desktop);
-    await page.goto(`${server.pagesUrl}viewer.html?material=tiles&width=64&height=64`);
-    let g = 0;
-    for (const f of lossy) {
-      // the client's own decoder (client/btf-decode.js, its worker), R as btf-gl.js readAtlas takes it
-      const got = await page.evaluate(async ([url, b64]) => {
-        const {decodeImage} = await import(url);
-        const d = await decodeImage(Uint8Array.from(atob(b64), (c) => c.charCodeAt(0)), 'image/webp');
-        const q = new Array(d.width * d.height);
-        let rg = 0;
-        for (let i = 0; i < q.length; i++) {
-          q[i] = d.rgba[4 * i];
-          rg += d.rgba[4 * i + 1] !== q[i];
-        }
-        return {width: d.width, height: d.height, q, rg};
-      }, [`${server.url}btf-decode.js`, fs.readFileSync(path.join(dir, f)).toString('base64')]);
-      const png = readPng(path.join(ref, f.replace(/\.webp$/, '.png')));
-      assert.deepEqual([got.width, got.height], [png.width, png.height], f);
-      let differ = 0;
-      for (let i = 0; i < got.q.length; i++) differ += got.q[i] !== png.data[4 * i];
-      assert.equal(differ, 0, `${f}: ${differ} texels differ from the C reader's`);
-      g += got.rg;
-    }
+    const {types, g} = await decodesAsReader('tiles-lossy', lossy);
+    assert.deepEqual(types, ['image/webp']);
     console.log(`# ${lossy.length} lossy textures decoded as the C reader does; G differs from R at ${g} texels`);
+    assertClean(desktop);
+  });
+});
+
+describe('lossy AVIF textures (--avif)', () => {
+  // Each lossy texture of `name` an AVIF (level 0 and, with levels, coarse levels), no
+  // lossy WebP: the AVIF files of the package.
+  function avifOnly(name) {
+    const avif = textures(name, isAvif);
+    assert.ok(avif.some((t) => t.level === 0), `${name} has AVIF level-0 textures (the test covers them)`);
+    assert.deepEqual(textures(name, isLossy), [], `${name} has no lossy WebP`);
+    return avif;
+  }
+
+  it('the client decodes each AVIF texture to the C reader\'s bytes (G = R)', async () => {
+    const avif = avifOnly('tiles-avif').map((t) => t.file);
+    const {types, g} = await decodesAsReader('tiles-avif', avif);
+    assert.deepEqual(types, ['image/avif']);
+    assert.equal(g, 0, 'a monochrome AVIF decodes to R = G = B');
+    console.log(`# ${avif.length} AVIF textures decoded as the C reader does`);
+    assertClean(desktop);
+  });
+
+  it('streams and draws within 3 levels of version 1, with lossy AVIF coarse levels too', async () => {
+    avifOnly('tiles-avif');
+    const coarse = avifOnly('tiles-avifl').filter((t) => t.level > 0);
+    assert.ok(coarse.length >= 1, 'the package has AVIF coarse levels (the test covers them)');
+    const shots = await drawAll(['tiles', 'tiles-avif', 'tiles-avifl'], ['tiles-avifl']);
+    for (const m of ['tiles-avif', 'tiles-avifl']) {
+      const d = meanAbsDiff(shots.tiles, shots[m]);
+      console.log(`# ${m} vs version 1: mean |difference| ${d.toFixed(3)} of 255` +
+        (m === 'tiles-avifl' ? ` (${coarse.length} AVIF coarse levels)` : ''));
+      assert.ok(d < 3, `${m} image within 3 levels of version 1 (${d})`);
+    }
     assertClean(desktop);
   });
 });
