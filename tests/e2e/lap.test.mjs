@@ -95,6 +95,10 @@ describe('version 4 (residual levels)', () => {
     assert.ok(webp >= 1, 'the default package has WebP textures (the test covers them)');
     assert.equal(await rebuildsExactly('tiles-lap-png'), 0, '--png: every texture a PNG');
     const p4 = pkgMod.parseManifest(manifestOf('tiles-lap'));
+    // a residual's name in any texture encoding (section 4.3): -dL.avif as -dL.png and -dL.webp
+    const ma = manifestOf('tiles-lap');
+    for (const c of ma.chunks) c.files = c.files.map((f) => (f.startsWith('tex-') ? f.replace(/\.\w+$/, '.avif') : f));
+    assert.deepEqual(pkgMod.parseManifest(ma).chunks.map((c) => c.residual), p4.chunks.map((c) => c.residual));
     // a residual before its coarser level, a residual weight file without the 8-bit weights
     const m = manifestOf('tiles-lap');
     m.chunks[0].level = 0;
