@@ -42,12 +42,20 @@ export class ChunkUploads {
     if (this.freed || j < this.gpu.uploaded) return;
     const chunk = this.pkg.chunks[j], files = this.sub.chunks[j];
     const data = (name) => files[chunk.files.indexOf(name)];
-    const img = await decodeImage(data(chunk.tex), imageType(chunk.tex));
+    const img = await this.image(chunk.tex, data);
     if (this.freed) return;
     const wt = await this.weights(chunk, data);
     if (this.freed) return;
     this.ready.push({j, img, wt});
     this.on.decoded();
+  }
+
+  // Image file `name` of a chunk decoded (btf-decode.js); one the browser cannot decode (an
+  // AVIF where it has no AVIF decoder, a damaged file) fails naming the package and file.
+  image(name, data) {
+    return decodeImage(data(name), imageType(name)).catch((e) => {
+      throw new Error(`package ${this.pkg.name}: ${name}: ${e && e.message ? e.message : e}`);
+    });
   }
 
   // Dequantised weights of a chunk, all by btf-package.js: decodeWeights for the 16-bit
@@ -62,7 +70,7 @@ export class ChunkUploads {
       return w;
     }
     if (!chunk.wt8) return null;
-    const img = await decodeImage(data(chunk.wt8), 'image/png');
+    const img = await this.image(chunk.wt8, data);
     const L = pkg.lights.dirs, V = pkg.views.dirs;
     if (img.width !== 3 * L || img.height !== V)
       throw new Error(`package ${pkg.name}: ${chunk.wt8} is ${img.width}x${img.height}, expected ${3 * L}x${V}`);

@@ -39,6 +39,11 @@ before(async () => {
     // the same two with AVIF for every lossy texture
     'tiles-avif': ['tiles', 4, 0, ['--tex-noise', '1', '--avif']],
     'tiles-avifl': ['tiles', 4, 2, ['--tex-noise', '1.5', '--avif']]});
+  // tiles-avif with a second texture no browser decodes (its boxes zeroed after 'ftyp avif'),
+  // as an AVIF is to a browser without an AVIF decoder
+  const cut = path.join(lib.lib, 'tiles-avifcut'), file = path.join(cut, 'tex-01.avif');
+  fs.cpSync(path.join(lib.lib, 'tiles-avif'), cut, {recursive: true});
+  fs.writeFileSync(file, fs.readFileSync(file).fill(0, 28));
   server = await startServer(lib.lib);
   desktop = await launch();
   await desktop.addInitScript(() => { window.__btfCache = false; });
@@ -182,6 +187,30 @@ describe('lossy AVIF textures (--avif)', () => {
         (m === 'tiles-avifl' ? ` (${coarse.length} AVIF coarse levels)` : ''));
       assert.ok(d < 3, `${m} image within 3 levels of version 1 (${d})`);
     }
+    assertClean(desktop);
+  });
+
+  it('a texture the browser cannot decode: one final error event naming it, the chunks before it drawn', async () => {
+    const page = await desktop.newPage();
+    await page.addInitScript(() => {
+      window.__events = [];
+      for (const t of ['load', 'complete', 'error'])
+        document.addEventListener(t, (e) => window.__events.push({type: t, detail: e.detail}));
+    });
+    await page.goto(`${server.pagesUrl}viewer.html?material=tiles-avifcut&geometry=plane&light=fixed&width=256&height=256`);
+    await waitFor(page, () => window.__events.some((e) => e.type === 'error') && window.__btf.viewers()[0].frames > 0,
+      null, 'the error and a frame');
+    await new Promise((r) => setTimeout(r, 1000)); // nothing follows it
+    const ev = await page.evaluate(() => window.__events), v = (await viewers(page))[0];
+    const errors = ev.filter((e) => e.type === 'error');
+    assert.equal(errors.length, 1, JSON.stringify(ev));
+    assert.match(errors[0].detail.reason, /^package tiles-avif: tex-01\.avif: /);
+    assert.equal(errors[0].detail.retrying, undefined, 'final, not retried');
+    assert.equal(v.error, errors[0].detail.reason);
+    assert.equal(v.message, v.error, 'the reason shows over the viewer');
+    assert.equal(v.drawnChunks, 1, 'chunk 0 (tex-00.avif) drawn, nothing after the one that failed');
+    console.log(`# an undecodable AVIF: error "${v.error}", ${v.drawnChunks} chunk drawn`);
+    await page.close();
     assertClean(desktop);
   });
 });
