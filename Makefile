@@ -40,7 +40,7 @@ pkg__or_stop = $(if $(filter PKG-CONFIG-FAILED,$(1)),$(error pkg-config $(2): $(
 #   input/      readers of measured BTFs; btf_input.c the one dispatcher
 #   decompress/ package reader, decoder, level selection
 #   compress/   PCA, rate control, budget search, writer, level builder, thumbnail
-CODEC_PKGS  := OpenImageIO libcjson lapacke openblas zlib qhull_r libwebp
+CODEC_PKGS  := OpenImageIO libcjson lapacke openblas zlib qhull_r libwebp libavif
 CODEC_ROOMS := common image format input decompress compress
 CODEC_OBJ   := $(foreach r,$(CODEC_ROOMS),$(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/$(r)/*.c)) \
                  $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/$(r)/*.cpp)))

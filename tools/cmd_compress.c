@@ -12,6 +12,7 @@
 #include "btf_package.h"
 #include "btf_budget.h"
 #include "btf_lod.h"
+#include "btf_lossy.h"
 #include "btf_output.h"
 #include "btf_common.h"
 
@@ -30,6 +31,7 @@ typedef struct compress_opts {
     int in_memory;     /* --in-memory: load the whole input first (the baseline of the view-by-view read) */
     int plain;         /* --plain: equal-noise steps (version 1, 2 or 4), not rate-distortion (version 3 or 4) */
     int lossless;      /* --lossless: no lossy WebP textures in a rate-distortion package */
+    int avif;          /* --avif: lossy textures as AVIF, not lossy WebP */
     btf_budget budget; /* --max-bytes / --max-error (codec/include/btf_budget.h); both 0 = none */
     btf_lod_options lod; /* levels > 0: package version 2 (4 with residual) with spatial levels (codec/include/btf_lod.h) */
 } compress_opts;
@@ -41,7 +43,7 @@ static void compress_usage(FILE *f)
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
-            "                           [--max-bytes N | --max-error E] [--full-search] [--plain] [--lossless]\n"
+            "                           [--max-bytes N | --max-error E] [--full-search] [--plain] [--lossless] [--avif]\n"
             "                           [--png] [--tex-noise X] [--linear] [--in-memory]\n"
             "                           [--no-thumbnail] [--quiet] [--json]\n"
             "\n"
@@ -97,6 +99,9 @@ static void compress_usage(FILE *f)
             "                   (2 or 4 with --levels)\n"
             "  --rd             the default (kept for scripts that name it)\n"
             "  --lossless       rate-distortion steps with lossless textures only (no lossy WebP)\n"
+            "  --avif           lossy textures as AVIF (AV1, 8-bit monochrome) instead of lossy\n"
+            "                   WebP, where the same rate-distortion choice finds them cheaper for\n"
+            "                   their error (readers: package-format.md section 4.1)\n"
             "  --png            every texture a PNG (default: a lossless WebP; with levels each\n"
             "                   level the smaller of a PNG and a WebP)\n"
             "  --tex-noise X    RMS quantisation noise per component of the textures\n"
@@ -117,7 +122,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A lossless!O png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A lossless!O avif!V png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -147,6 +152,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'R': o->pkg.rd = 1; break;
     case 'A': o->plain = 1; break;
     case 'O': o->lossless = 1; break;
+    case 'V': o->avif = 1; break;
     case 'L': o->pkg.linear = 1; break;
     case 'S': o->budget.full_search = 1; break;
     case 'P': o->pkg.png_only = o->lod.png_only = 1; break;
@@ -176,7 +182,13 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
     o->pkg.rd = !o->plain; /* rate-distortion steps unless asked otherwise */
     /* lossy textures where they win, unless asked otherwise (with levels, a lossy
      * component's coarse levels get its quality: btf_lod_build) */
-    o->pkg.lossy = o->pkg.rd && !o->lossless && o->pkg.bits == 8 && !o->pkg.png_only;
+    o->pkg.lossy = o->pkg.rd && !o->lossless && o->pkg.bits == 8 && !o->pkg.png_only
+                       ? (o->avif ? BTF_LOSSY_AVIF : BTF_LOSSY_WEBP)
+                       : BTF_LOSSY_NONE;
+    if (rc == 0 && o->avif && !o->pkg.lossy) {
+        fprintf(stderr, "btf compress: --avif needs lossy textures (not --plain, --lossless, --png or --bits 16)\n");
+        rc = 2;
+    }
     if (rc == 0 && o->pkg.rd && o->pkg.bits != 8 && o->lod.levels > 0) {
         fprintf(stderr, "btf compress: levels over 16-bit textures need --plain (version 2)\n");
         rc = 2;

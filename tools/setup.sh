@@ -9,7 +9,7 @@ PKGS=(build-essential pkg-config clang
       libosmesa6-dev libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri libgbm-dev
       libwebsockets-dev liblapacke-dev libopenblas-dev libcjson-dev libcriterion-dev
       libgsl-dev gnuplot-nox chromium nginx-light zlib1g-dev libomp-14-dev time
-      libqhull-dev libwebp-dev libtinygltf-dev haproxy python3 jq zstd xz-utils)
+      libqhull-dev libwebp-dev libavif-dev libtinygltf-dev haproxy python3 jq zstd xz-utils)
 
 missing=()
 for p in "${PKGS[@]}"; do

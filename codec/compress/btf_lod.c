@@ -17,7 +17,8 @@
 #include "btf_lap.h"
 #include "btf_manifest.h"
 #include "btf_png.h"
-#include "btf_webp.h"
+#include "btf_avif.h"
+#include "btf_lossy.h"
 #include "btf_wtz.h"
 #include "btf_common.h"
 #include "btf_read.h"
@@ -33,12 +34,14 @@ typedef struct btf__lod {
     int nl, nb, C, W, H, ch, qmax;
     int resid;       /* 1: version 4, levels < nl-1 may be stored as residuals */
     char *isres;     /* [a*nl+l] version 4: 1 when that level's file is a residual (the smaller coding) */
-    char *iswebp;    /* [a*nl+l] version 4: 1 when that level's file is a WebP (lossless and smaller than the
-                      * PNG, or level 0's lossy file copied from a version-3 source) */
+    char *kind;      /* [a*nl+l] version 4: that level file's encoding: 0 PNG, 1 (BTF_LOSSY_WEBP) a WebP (lossless
+                      * and smaller than the PNG, or lossy), 2 (BTF_LOSSY_AVIF) an AVIF (lossy); level 0's lossy
+                      * file is copied from a version-3 source */
     int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
-    int *quality;    /* [a] version 4 from a version-3 source whose level 0 is a lossy WebP: that file's quality
-                      * (the source's "rd" record), which the coarse levels get too; -1: lossless levels */
-    uint8_t **lossy; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's lossy WebP file (its decode is
+    int *quality;    /* [a] version 4 from a version-3 source whose level 0 is a lossy WebP or AVIF: that file's
+                      * level (the source's "rd" record), which the coarse levels get too; -1: lossless levels */
+    int *codec;      /* [a] with quality[a] >= 0: level 0's encoding (BTF_LOSSY_WEBP or BTF_LOSSY_AVIF) */
+    uint8_t **lossy; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's lossy file (its decode is
                       * the level's atlas and texels), NULL otherwise */
     size_t *lossy_n; /* [a*nl+l] bytes of lossy[a*nl+l] */
     btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
@@ -66,11 +69,11 @@ static void btf__lod_free(btf__lod *s)
     }
     for (int i = 0; s->lossy && i < s->C * s->nl; i++)
         free(s->lossy[i]);
-    free(s->lossy), free(s->lossy_n), free(s->quality);
+    free(s->lossy), free(s->lossy_n), free(s->quality), free(s->codec);
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
-    free(s->w8bytes), free(s->w8step), free(s->w8q), free(s->isres), free(s->iswebp), free(s->w16res), free(s->pred);
+    free(s->w8bytes), free(s->w8step), free(s->w8q), free(s->isres), free(s->kind), free(s->w16res), free(s->pred);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -139,7 +142,7 @@ static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
     btf__dequant_level(s, a, l);
 }
 
-/* Level l of component a coded as a lossy WebP at quality[a] (kept in s->lossy), and
+/* Level l of component a coded as a lossy file of codec[a] at quality[a] (kept in s->lossy), and
  * its atlas and texels replaced by the decode, which is what a reader gets. */
 static btf_result btf__lossy_level(btf__lod *s, int a, int l, btf_error *err)
 {
@@ -147,9 +150,9 @@ static btf_result btf__lossy_level(btf__lod *s, int a, int l, btf_error *err)
     int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
     size_t k = (size_t)a * s->nl + l;
     uint8_t *px = s->atlas[k];
-    btf_result r = btf_webp_encode_grey_lossy(px, aw, ah, s->quality[a], &s->lossy[k], &s->lossy_n[k], err);
+    btf_result r = btf_lossy_encode(s->codec[a], px, aw, ah, s->quality[a], &s->lossy[k], &s->lossy_n[k], err);
     if (r == BTF_OK)
-        r = btf_webp_decode_grey(s->lossy[k], s->lossy_n[k], "lod: lossy level", aw, ah, px, err);
+        r = btf_lossy_decode(s->lossy[k], s->lossy_n[k], "lod: lossy level", aw, ah, px, err);
     if (r == BTF_OK)
         btf__dequant_level(s, a, l);
     return r;
@@ -363,13 +366,19 @@ static void btf__level_stem(const btf__lod *s, int a, int l, int residual, char 
         snprintf(name, n, "%.*s-l%d", btf__stem_len(t), t, l);
 }
 
+/* The extension of a level file of encoding kind (btf__lod.kind). */
+static const char *btf__kind_ext(int kind)
+{
+    return kind ? btf_lossy_ext(kind) : ".png";
+}
+
 /* The name of the file that holds level l of component a, as written. */
 static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t n)
 {
     size_t k = (size_t)a * s->nl + l;
     btf__level_stem(s, a, l, s->isres[k], name, n);
     size_t e = strlen(name);
-    snprintf(name + e, n - e, "%s", s->iswebp[k] ? ".webp" : ".png");
+    snprintf(name + e, n - e, "%s", btf__kind_ext(s->kind[k]));
 }
 
 /* Name of component a's 8-bit weights: "wt-JJ.bin" (or "wt-JJ.z") -> "wt-JJ-8.png". */
@@ -589,7 +598,8 @@ static btf_result btf__keep_smaller(const char *plain, const char *alt, char *ch
     return BTF_OK;
 }
 
-/* 1 when the file at path is a lossy WebP (btf_webp_is_lossy on its first bytes). */
+/* The lossy encoding of the file at path (btf_lossy_codec_of on its first bytes):
+ * BTF_LOSSY_WEBP, BTF_LOSSY_AVIF, or BTF_LOSSY_NONE. */
 static int btf__lossy_file(const char *path)
 {
     uint8_t head[16];
@@ -597,29 +607,29 @@ static int btf__lossy_file(const char *path)
     size_t n = f ? fread(head, 1, sizeof head, f) : 0;
     if (f)
         fclose(f);
-    return btf_webp_is_lossy(head, n);
+    return btf_lossy_codec_of(head, n);
 }
 
-/* Level k's lossy file (s->lossy[k]) in place of the lossless one at path (stem
- * bytes of it before the extension): written as stem.webp, the PNG removed; path
- * becomes the file kept. */
-static btf_result btf__keep_lossy(btf__lod *s, size_t k, char *path, size_t stem, btf_error *err)
+/* Level k's lossy file (s->lossy[k], of component a) in place of the lossless one at
+ * path (stem bytes of it before the extension): written as stem.webp or stem.avif,
+ * the lossless file removed; path becomes the file kept. */
+static btf_result btf__keep_lossy(btf__lod *s, int a, size_t k, char *path, size_t stem, btf_error *err)
 {
-    char webp[BTF__LOD_PATH];
-    snprintf(webp, sizeof webp, "%.*s.webp", (int)stem, path);
-    btf_result r = btf_fs_write_atomic(webp, s->lossy[k], s->lossy_n[k], err);
-    if (r == BTF_OK && strcmp(webp, path) != 0 && remove(path) != 0)
+    char lossy[BTF__LOD_PATH];
+    snprintf(lossy, sizeof lossy, "%.*s%s", (int)stem, path, btf_lossy_ext(s->codec[a]));
+    btf_result r = btf_fs_write_atomic(lossy, s->lossy[k], s->lossy_n[k], err);
+    if (r == BTF_OK && strcmp(lossy, path) != 0 && remove(path) != 0)
         r = btf_fail(err, BTF_ERR_IO, "%s: cannot remove (%s)", path, strerror(errno));
     if (r == BTF_OK) {
-        snprintf(path, BTF__LOD_PATH, "%s", webp);
-        s->iswebp[k] = 1, s->tbytes[k] = (long long)s->lossy_n[k];
+        snprintf(path, BTF__LOD_PATH, "%s", lossy);
+        s->kind[k] = (char)s->codec[a], s->tbytes[k] = (long long)s->lossy_n[k];
     }
     return r;
 }
 
-/* Fills s->quality: for each component whose level-0 file in in_dir is a lossy WebP,
- * the quality the source's "rd" record gives it (tex_quality, by component), so that
- * its coarse levels get the same quality; -1 for the others, and for all of them
+/* Fills s->quality and s->codec: for each component whose level-0 file in in_dir is a
+ * lossy WebP or an AVIF, the level the source's "rd" record gives it (tex_quality, by
+ * component) and the file's encoding, so that its coarse levels get the same; -1 for the others, and for all of them
  * when the levels are not 8-bit WebP-allowed (--png) or the record says nothing. */
 static void btf__coarse_quality(btf__lod *s, const char *in_dir)
 {
@@ -630,9 +640,10 @@ static void btf__coarse_quality(btf__lod *s, const char *in_dir)
         const cJSON *q = cJSON_IsArray(tq) ? cJSON_GetArrayItem(tq, p->chunk[a].component) : NULL;
         char path[BTF__LOD_PATH];
         snprintf(path, sizeof path, "%s/%s", in_dir, btf__src_file(&p->chunk[a], 0));
-        s->quality[a] = cJSON_IsNumber(q) && q->valuedouble >= 0 && q->valuedouble <= 100 && btf__lossy_file(path)
-                            ? (int)q->valuedouble
-                            : -1;
+        int codec = btf__lossy_file(path), top = codec == BTF_LOSSY_AVIF ? BTF_AVIF_MAX_QUANTIZER : 100;
+        s->codec[a] = codec;
+        s->quality[a] = cJSON_IsNumber(q) && q->valuedouble >= 0 && q->valuedouble <= top && codec ? (int)q->valuedouble
+                                                                                                    : -1;
     }
     cJSON_Delete(rd);
 }
@@ -642,7 +653,7 @@ static void btf__coarse_quality(btf__lod *s, const char *in_dir)
  * a PNG: its decode is the level's atlas, and coded again losslessly it would cost
  * more) and, for
  * version 4 below the coarsest level, the residual, the smaller kept; fills tbytes,
- * isres, iswebp. */
+ * isres, kind. */
 static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir, const char *tmp, btf_error *err)
 {
     const btf_package *p = s->p;
@@ -655,18 +666,18 @@ static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir
     const char *t = btf__src_file(&p->chunk[a], 0);
     char from[8400];
     snprintf(from, sizeof from, "%s/%s", in_dir, t);
-    int lossy = l == 0 && s->webp && btf__lossy_file(from); /* --png: its decode as a PNG, as every texture */
+    int lossy = l == 0 && s->webp ? btf__lossy_file(from) : 0; /* --png: its decode as a PNG, as every texture */
     if (lossy || (l == 0 && !s->webp && !strcmp(t + btf__stem_len(t), ".png"))) { /* the source's own file */
-        snprintf(to, sizeof to, "%s/%s%s", tmp, name, lossy ? ".webp" : ".png");
+        snprintf(to, sizeof to, "%s/%s%s", tmp, name, btf__kind_ext(lossy));
         r = btf__copy_file(from, to, err);
         s->tbytes[k] = btf_fs_size(to);
-        s->iswebp[k] = (char)lossy;
+        s->kind[k] = (char)lossy;
     } else if (s->ch == 1) {
         size_t stem = strlen(to);
-        r = btf__write_level_file(s, to, aw, ah, s->atlas[k], &s->iswebp[k], &s->tbytes[k], err);
-        snprintf(to + stem, sizeof to - stem, "%s", s->iswebp[k] ? ".webp" : ".png");
+        r = btf__write_level_file(s, to, aw, ah, s->atlas[k], &s->kind[k], &s->tbytes[k], err);
+        snprintf(to + stem, sizeof to - stem, "%s", btf__kind_ext(s->kind[k]));
         if (r == BTF_OK && s->lossy[k] && (long long)s->lossy_n[k] < s->tbytes[k])
-            r = btf__keep_lossy(s, k, to, stem, err);
+            r = btf__keep_lossy(s, a, k, to, stem, err);
     } else {
         snprintf(to + strlen(to), sizeof to - strlen(to), ".png");
         r = btf_image_write_flags(to, aw, ah, s->ch, 8, s->atlas[k], BTF_IMAGE_PNG_SMALLEST, err);
@@ -682,7 +693,7 @@ static btf_result btf__write_level(btf__lod *s, int a, int l, const char *in_dir
     snprintf(g + strlen(g), sizeof g - strlen(g), "%s", rwebp ? ".webp" : ".png");
     r = r == BTF_OK ? btf__keep_smaller(to, g, &s->isres[k], &s->tbytes[k], err) : r;
     if (r == BTF_OK && s->isres[k])
-        s->iswebp[k] = rwebp;
+        s->kind[k] = rwebp;
     return r;
 }
 
@@ -804,10 +815,10 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
     s->w8step = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
-    s->isres = calloc(n, 1), s->iswebp = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
-    s->quality = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
+    s->isres = calloc(n, 1), s->kind = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
+    s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t));
-    if (!s->w8q || !s->isres || !s->iswebp || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->lossy || !s->lossy_n)
+    if (!s->w8q || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     btf__coarse_quality(s, in_dir);
     return BTF_OK;

@@ -17,7 +17,7 @@
 #include "btf_manifest.h"
 #include "btf_metrics.h"
 #include "btf_rd.h"
-#include "btf_webp.h"
+#include "btf_lossy.h"
 #include "btf_wtz.h"
 #include "btf_color.h"
 #include "btf_common.h"
@@ -65,10 +65,11 @@ typedef struct btf__writer {
     char *rd_json;        /* version 3: the manifest's "rd" record (malloc'd), NULL otherwise */
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
-    const char **tex_ext; /* C: ".png" or ".webp", the extension of component j's texture file once written */
-    int *quality;         /* C: -1, or the lossy WebP quality of component j's texture (version 3, btf_rd_result) */
-    uint8_t **lossy;      /* C: component j's lossy WebP file (malloc'd, lossy_n[j] bytes; its atlas holds its
-                           * decode), NULL for a lossless texture */
+    const char **tex_ext; /* C: ".png", ".webp" or ".avif", the extension of component j's texture file once written */
+    int codec;            /* the lossy textures' encoding (btf_package_options.lossy, btf_lossy.h) */
+    int *quality;         /* C: -1, or the lossy level of component j's texture (version 3, btf_rd_result) */
+    uint8_t **lossy;      /* C: component j's lossy WebP or AVIF file (malloc'd, lossy_n[j] bytes; its atlas
+                           * holds its decode), NULL for a lossless texture */
     size_t *lossy_n;
     const btf_package_channel *chan; /* the caller's channel (btf_compress.h), all zero when none */
     long long *est_bytes; /* C, with btf_package_channel.estimate: component j's estimated file bytes; else NULL */
@@ -469,7 +470,7 @@ static btf_result btf__write_texture(btf__writer *w, const btf_package_options *
     char path[8192];
     snprintf(path, sizeof path, "%s/tex-%02d", tmp, j);
     int webp = w->version == 3 && w->ch == 1 && !o->png_only;
-    w->tex_ext[j] = webp || w->lossy[j] ? ".webp" : ".png";
+    w->tex_ext[j] = w->lossy[j] ? btf_lossy_ext(w->codec) : webp ? ".webp" : ".png";
     size_t n = strlen(path);
     snprintf(path + n, sizeof path - n, "%s", w->tex_ext[j]);
     btf_result r = w->lossy[j] ? btf_fs_write_atomic(path, w->lossy[j], w->lossy_n[j], err)
@@ -586,7 +587,7 @@ done:
 
 
 /* The manifest's "rd" record (doc/package-format.md section 10.8), malloc'd; NULL when out of memory. */
-static char *btf__rd_json(const btf_rd_result *rr)
+static char *btf__rd_json(const btf_rd_result *rr, int codec)
 {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddNumberToObject(o, "lambda", rr->lambda);
@@ -603,6 +604,8 @@ static char *btf__rd_json(const btf_rd_result *rr)
     cJSON *q = lossy ? cJSON_AddArrayToObject(o, "tex_quality") : NULL;
     for (int j = 0; q && j < rr->n_comp; j++)
         cJSON_AddItemToArray(q, cJSON_CreateNumber(rr->tex_quality[j]));
+    if (q && codec == BTF_LOSSY_AVIF) /* WebP qualities have no name: older readers know only them */
+        cJSON_AddStringToObject(o, "tex_codec", btf_lossy_name(codec));
     char *s = cJSON_PrintUnformatted(o);
     cJSON_Delete(o);
     return s;
@@ -619,13 +622,13 @@ static int btf__model_fits(const btf_pca_model *m, const btf_views *src, const b
 }
 
 
-/* Component j's atlas (its full-range codes) as a lossy WebP at its quality into
+/* Component j's atlas (its full-range codes) as a lossy WebP or AVIF at its level into
  * w->lossy[j], and the atlas replaced by its decode, as every reader sees it. */
 static btf_result btf__lossy_atlas(btf__writer *w, int j, btf_error *err)
 {
-    btf_result r = btf_webp_encode_grey_lossy(w->atlas[j], w->aw, w->ah, w->quality[j], &w->lossy[j], &w->lossy_n[j], err);
+    btf_result r = btf_lossy_encode(w->codec, w->atlas[j], w->aw, w->ah, w->quality[j], &w->lossy[j], &w->lossy_n[j], err);
     if (r == BTF_OK)
-        r = btf_webp_decode_grey(w->lossy[j], w->lossy_n[j], "package: lossy texture", w->aw, w->ah, w->atlas[j], err);
+        r = btf_lossy_decode(w->lossy[j], w->lossy_n[j], "package: lossy texture", w->aw, w->ah, w->atlas[j], err);
     return r;
 }
 
@@ -676,7 +679,8 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
     memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
     memcpy(w->quality, rr.tex_quality, (size_t)w->C * sizeof(int));
-    w->rd_json = btf__rd_json(&rr);
+    w->codec = o->lossy;
+    w->rd_json = btf__rd_json(&rr, o->lossy);
     if (c->estimate && (w->est_bytes = malloc((size_t)w->C * sizeof(long long))) != NULL)
         memcpy(w->est_bytes, rr.comp_bytes, (size_t)w->C * sizeof(long long));
     if (c->estimate && !w->est_bytes)

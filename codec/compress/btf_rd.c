@@ -13,6 +13,7 @@
 
 #include "btf_fs.h"
 #include "btf_image.h"
+#include "btf_lossy.h"
 #include "btf_webp.h"
 #include "btf_wtz.h"
 #include "btf_common.h"
@@ -28,10 +29,10 @@
 _Static_assert(BTF__RD_TEX_LO % 2 == 0 && BTF__RD_NT % 2 == 1, "texture ladder: even equal-noise index and ends");
 #define BTF__RD_NW (BTF__RD_WT_HI - BTF__RD_WT_LO + 2)
 #define BTF__RD_RATE_TILES 9 /* texture rates measured on whole atlas rows holding about this many tiles */
-/* Lossy WebP qualities beside the lossless steps (btf_rd_params.lossy): the candidates
- * NT .. NT + NQ - 1 of each component's texture ladder, full-range 8-bit codes. */
-static const int btf__rd_quality[] = {0, 10, 20, 35, 50, 60, 70, 78, 85, 90, 94, 97, 100};
-#define BTF__RD_NQ ((int)(sizeof btf__rd_quality / sizeof btf__rd_quality[0]))
+/* Lossy levels beside the lossless steps (btf_rd_params.lossy: btf_lossy_ladder of its
+ * encoding): the candidates NT .. NT + NQ - 1 of each component's texture ladder,
+ * full-range 8-bit codes. */
+#define BTF__RD_NQ BTF_LOSSY_LADDER
 
 /* Measured candidates of one allocation; lives for one btf_rd_allocate call. */
 typedef struct btf__rd {
@@ -180,20 +181,22 @@ static double btf__rd_lossy_dist(const btf__rd *r, int j, const uint8_t *atlas, 
     return d;
 }
 
-/* Lossy candidate n (component j, quality index i - NT): the rate sample's full-range
- * atlas as a lossy WebP, decoded as a reader decodes it; its bytes times rate_scale and
+/* Lossy candidate n (component j, ladder index i - NT): the rate sample's full-range
+ * atlas as a lossy WebP or AVIF (par->lossy), decoded as a reader decodes it; its bytes times rate_scale and
  * its error into r->rt, r->dt. buf: the thread's atlas-sized scratch for the decode,
  * eb its nb doubles. */
 static btf_result btf__rd_lossy_candidate(btf__rd *r, int n, uint8_t *atlas, uint8_t *buf, double *eb, btf_error *err)
 {
     int j = n / r->nt, ah = r->sub_rows * r->H;
     btf__rd_tex(r, j, 0.0f, atlas, eb);
-    uint8_t *webp = NULL;
+    uint8_t *file = NULL;
     size_t nw = 0;
-    btf_result res = btf_webp_encode_grey_lossy(atlas, r->aw, ah, btf__rd_quality[n % r->nt - BTF__RD_NT], &webp, &nw, err);
+    int codec = r->par->lossy;
+    btf_result res = btf_lossy_encode(codec, atlas, r->aw, ah, btf_lossy_ladder(codec, n % r->nt - BTF__RD_NT), &file,
+                                      &nw, err);
     if (res == BTF_OK)
-        res = btf_webp_decode_grey(webp, nw, "rate-distortion: lossy candidate", r->aw, ah, buf, err);
-    free(webp);
+        res = btf_lossy_decode(file, nw, "rate-distortion: lossy candidate", r->aw, ah, buf, err);
+    free(file);
     if (res != BTF_OK)
         return res;
     r->dt[n] = btf__rd_lossy_dist(r, j, atlas, buf, eb);
@@ -482,8 +485,8 @@ static int btf__rd_nearest(const float *g, int n, float v)
 static void btf__rd_near_lossy(btf__rd *r, int j, int q)
 {
     int a = -1;
-    for (int i = 0; q >= 0 && i < BTF__RD_NQ; i++)
-        a = a < 0 || abs(btf__rd_quality[i] - q) < abs(btf__rd_quality[a] - q) ? i : a;
+    for (int i = 0, c = r->par->lossy; q >= 0 && i < BTF__RD_NQ; i++)
+        a = a < 0 || abs(btf_lossy_ladder(c, i) - q) < abs(btf_lossy_ladder(c, a) - q) ? i : a;
     for (int i = 0; i < r->nt - BTF__RD_NT; i++)
         r->mt[(size_t)j * r->nt + BTF__RD_NT + i] = a >= 0 && abs(i - a) <= BTF_RD_NEAR_NOTCHES;
 }
@@ -674,7 +677,7 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         for (int j = 0; j < r.C; j++) {
             int lossy = it[j] >= BTF__RD_NT; /* full-range codes, a lossy WebP */
             out->tex_noise[j] = lossy ? 0.0f : r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
-            out->tex_quality[j] = lossy ? btf__rd_quality[it[j] - BTF__RD_NT] : -1;
+            out->tex_quality[j] = lossy ? btf_lossy_ladder(par->lossy, it[j] - BTF__RD_NT) : -1;
             out->tex_bytes[j] = r.rt[(size_t)j * r.nt + it[j]];
             out->comp_bytes[j] = out->tex_bytes[j] + r.rw[(size_t)j * BTF__RD_NW + iw[j]];
         }

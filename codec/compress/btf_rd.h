@@ -5,7 +5,7 @@
  * section 4 with fewer bytes. Used by the package writer (btf_package_options.rd).
  * Texture rates of atlases over 9 tiles are measured on a sample of whole tile rows
  * and scaled (section 11), so bytes_equal and bytes_rd are estimates there. With
- * lossy, a component's texture may instead be a lossy WebP of its full-range codes
+ * lossy, a component's texture may instead be a lossy WebP or AVIF of its full-range codes
  * (btf_rd_result.tex_quality), its error then estimated from that sample too.
  *
  *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0};  // equal-noise error, lossless WebP, every step measured
@@ -89,8 +89,9 @@ typedef struct btf_rd_params {
     const double *tex_rate_fix;
     int bits; /* texture codes: 8 (or 0), or 16: steps may go down to 1/65535 of a block's range, the
                * atlas then a PNG of (high byte, low byte, 0) pixels, as the writer stores 16 bits */
-    /* 1 (8 bits, not png_only): each component's texture may also be its full-range
-     * atlas as a lossy WebP at one of 13 qualities (0 .. 100), a candidate beside the
+    /* BTF_LOSSY_WEBP or BTF_LOSSY_AVIF (btf_lossy.h; 8 bits, not png_only): each
+     * component's texture may also be its full-range atlas as a lossy WebP or AVIF at
+     * one of the BTF_LOSSY_LADDER levels of btf_lossy_ladder, a candidate beside the
      * lossless steps chosen by the same lambda; its error measured on the rate
      * sample's decode (the blocks outside it: their rounding error plus the sample's
      * mean lossy error per texel) */
@@ -112,7 +113,8 @@ typedef struct btf_rd_result {
     int n_kept;             /* components worth their bytes at lambda (all without max_bytes) */
     long long *comp_bytes;  /* n_comp: component j's files at its chosen steps (counted as bytes_rd is) */
     long long *tex_bytes;   /* n_comp: the texture atlas's share of comp_bytes */
-    int *tex_quality;       /* n_comp: -1, or the lossy WebP quality 0..100 of component j's texture
+    int *tex_quality;       /* n_comp: -1, or the lossy level of component j's texture (WebP quality
+                             * 0..100, AVIF quantiser 0..63: btf_rd_params.lossy's encoding)
                              * (full-range codes: its tex_noise is 0) */
 } btf_rd_result;
 

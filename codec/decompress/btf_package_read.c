@@ -227,14 +227,16 @@ static btf_result btf__load_chunk(btf_package *p, const btf_files *fs, const cha
     const btf_chunk_info *ci = &p->chunk[i];
     const char *tf = btf__chunk_file(ci, ".png", 0);
     if (!tf)
-        tf = btf__chunk_file(ci, ".webp", 0); /* versions 3 and 4: a lossless WebP (section 4) */
+        tf = btf__chunk_file(ci, ".webp", 0); /* versions 3 and 4: a WebP (section 4) */
+    if (!tf)
+        tf = btf__chunk_file(ci, ".avif", 0); /* versions 3 and 4: an AVIF (section 4) */
     const char *wf = p->version == 3 ? btf__chunk_file(ci, ".z", 1) : btf__chunk_file(ci, ".bin", -1);
     if (!wf && p->version == 4)
         wf = btf__chunk_file(ci, ".z", 1);
     const char *w8 = btf_package_has_levels(p) && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
     char path[4200];
     if (!tf || (!wf && !btf_package_has_levels(p)))
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png or .webp texture or no %s weights", dir, i,
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png, .webp or .avif texture or no %s weights", dir, i,
                         p->version == 3 ? "wt-*.z" : ".bin");
     int nb = p->blocks->n_blocks, W = p->width >> ci->level, H = p->height >> ci->level;
     int ch = p->bits == 16 ? 3 : 1, w = p->atlas_cols * W;

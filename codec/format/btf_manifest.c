@@ -337,11 +337,12 @@ int btf_package_chunk_residual(const btf_package *p, int i)
     const btf_chunk_info *ci = &p->chunk[i];
     if (p->version != 4 || ci->level >= p->n_levels - 1)
         return 0;
-    char end[2][24];
+    char end[3][24];
     snprintf(end[0], sizeof end[0], "-d%d.png", ci->level);
-    snprintf(end[1], sizeof end[1], "-d%d.webp", ci->level); /* section 4: either encoding */
+    snprintf(end[1], sizeof end[1], "-d%d.webp", ci->level); /* section 4: any encoding */
+    snprintf(end[2], sizeof end[2], "-d%d.avif", ci->level);
     for (int f = 0; f < ci->n_files; f++)
-        for (int x = 0; x < 2; x++) {
+        for (int x = 0; x < 3; x++) {
             size_t n = strlen(ci->files[f]), e = strlen(end[x]);
             if (strncmp(ci->files[f], "wt-", 3) && n > e && !strcmp(ci->files[f] + n - e, end[x]))
                 return 1;

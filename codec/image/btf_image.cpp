@@ -2,6 +2,7 @@
 #include "btf_image.h"
 #include "btf_fs.h"
 #include "btf_png.h"
+#include "btf_avif.h"
 #include "btf_webp.h"
 #include "btf_common.h"
 
@@ -21,7 +22,7 @@
 using namespace OIIO;
 
 static const int kMaxSide = 1 << 15;
-static const size_t kMaxFileBytes = (size_t)1 << 30; // a larger PNG or WebP is refused unread
+static const size_t kMaxFileBytes = (size_t)1 << 30; // a larger PNG, WebP or AVIF is refused unread
 
 // OpenImageIO's message on one line (its errors may span several).
 static std::string one_line(std::string e)
@@ -34,16 +35,16 @@ static std::string one_line(std::string e)
     return e;
 }
 
-// One image being read: its name in messages and, for a PNG or a WebP, its bytes
-// (read from the file, or the caller's), which OpenImageIO decodes from memory;
-// a file of another format OpenImageIO opens by name. A stack value of one read,
+// One image being read: its name in messages and, for a PNG, a WebP or an AVIF, its
+// bytes (read from the file, or the caller's), which OpenImageIO (an AVIF: libavif)
+// decodes from memory; a file of another format OpenImageIO opens by name. A stack value of one read,
 // owning the bytes it read and the memory reader; declared before the ImageInput
 // that reads through it.
 struct source {
     const char *what = nullptr;
     const uint8_t *data = nullptr;
     size_t n = 0;
-    const char *format = nullptr; // "png" or "webp" once checked; nullptr: another format, from the file
+    const char *format = nullptr; // "png", "webp" or "avif" once checked; nullptr: another format, from the file
     char *file = nullptr;         // the bytes read from the file (malloc'd)
     std::unique_ptr<Filesystem::IOMemReader> mem;
     ~source() { free(file); }
@@ -56,28 +57,39 @@ static int has_ext(const char *name, const char *ext)
     return len > e && !strcasecmp(name + len - e, ext);
 }
 
-// 1 for a PNG (*png set) or a WebP, by its first n bytes or by its name.
-static int png_or_webp(const uint8_t *head, size_t n, const char *name, int *png)
+// "png", "webp" or "avif" by the first n bytes or by the name; nullptr for another format.
+static const char *own_format(const uint8_t *head, size_t n, const char *name)
 {
-    *png = (n >= 4 && !memcmp(head, "\x89PNG", 4)) || has_ext(name, ".png");
-    return *png || (n >= 4 && !memcmp(head, "RIFF", 4)) || has_ext(name, ".webp");
+    if ((n >= 4 && !memcmp(head, "\x89PNG", 4)) || has_ext(name, ".png"))
+        return "png";
+    if ((n >= 4 && !memcmp(head, "RIFF", 4)) || has_ext(name, ".webp"))
+        return "webp";
+    return btf_avif_is_avif(head, n) || has_ext(name, ".avif") ? "avif" : nullptr;
+}
+
+// 1 for a file read as grey through btf_webp or btf_avif, not OpenImageIO: a lossy
+// WebP or an AVIF (checked in s).
+static int lossy_file(const source &s)
+{
+    return s.format && (!strcmp(s.format, "avif") || (!strcmp(s.format, "webp") && btf_webp_is_lossy(s.data, s.n)));
 }
 
 // A PNG must pass btf_png_check before OpenImageIO sees it (no decoder messages on
-// stderr, one clear error), a WebP btf_webp_check; a ".png" holding another format
-// is refused as not a PNG.
+// stderr, one clear error), a WebP btf_webp_check, an AVIF btf_avif_check; a ".png"
+// holding another format is refused as not a PNG.
 static btf_result check_bytes(source &s, int header_only, btf_error *err)
 {
-    int png = 0;
-    if (!png_or_webp(s.data, s.n, s.what, &png))
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: not a PNG or WebP image", s.what);
-    s.format = png ? "png" : "webp";
-    if (!png)
+    s.format = own_format(s.data, s.n, s.what);
+    if (!s.format)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: not a PNG, WebP or AVIF image", s.what);
+    if (!strcmp(s.format, "webp"))
         return btf_webp_check(s.data, s.n, s.what, nullptr, nullptr, err);
+    if (!strcmp(s.format, "avif"))
+        return btf_avif_check(s.data, s.n, s.what, nullptr, nullptr, err);
     return header_only ? btf_png_check_header(s.data, s.n, s.what, err) : btf_png_check(s.data, s.n, s.what, err);
 }
 
-// The bytes of the PNG or WebP at path, read through files (NULL: the disk), into s
+// The bytes of the PNG, WebP or AVIF at path, read through files (NULL: the disk), into s
 // and checked (the header only, or the whole file).
 static btf_result load_with(const btf_files *files, const char *path, int header_only, source &s, btf_error *err)
 {
@@ -87,19 +99,18 @@ static btf_result load_with(const btf_files *files, const char *path, int header
     return r == BTF_OK ? check_bytes(s, header_only, err) : r;
 }
 
-// The file at path into s: a PNG or WebP (by its magic or its name) read and checked,
+// The file at path into s: a PNG, WebP or AVIF (by its magic or its name) read and checked,
 // any other format left for OpenImageIO to open by name.
 static btf_result load_file(const char *path, int header_only, source &s, btf_error *err)
 {
-    uint8_t head[8];
+    uint8_t head[12];
     s.what = path;
     FILE *f = std::fopen(path, "rb");
     if (!f)
         return btf_fail(err, BTF_ERR_IO, "%s: cannot open image", path);
     size_t n = std::fread(head, 1, sizeof head, f);
     std::fclose(f);
-    int png = 0;
-    if (!png_or_webp(head, n, path, &png))
+    if (!own_format(head, n, path))
         return BTF_OK;
     btf_result r = load_with(nullptr, path, header_only, s, err);
     return r == BTF_ERR_MISSING ? BTF_ERR_IO : r; // gone since it was opened
@@ -111,6 +122,10 @@ static std::unique_ptr<ImageInput> open_input(source &s, btf_result *r, btf_erro
 {
     ImageSpec config, spec;
     config.attribute("oiio:UnassociatedAlpha", 1);
+    if (s.format && !strcmp(s.format, "avif")) {
+        *r = btf_fail(err, BTF_ERR_FORMAT, "%s: an AVIF is read only as a grey texture", s.what);
+        return nullptr;
+    }
     if (!s.format) {
         auto in = ImageInput::open(s.what, &config);
         if (!in)
@@ -128,10 +143,14 @@ static std::unique_ptr<ImageInput> open_input(source &s, btf_result *r, btf_erro
     return nullptr;
 }
 
-// The header of s: size and channel count.
+// The header of s: size and channel count (an AVIF: grey, from its own check).
 static btf_result info(source &s, int *w, int *h, int *channels, btf_error *err)
 {
     btf_result r = BTF_OK;
+    if (s.format && !strcmp(s.format, "avif")) {
+        *channels = 1;
+        return btf_avif_check(s.data, s.n, s.what, w, h, err);
+    }
     auto in = open_input(s, &r, err);
     if (!in)
         return r;
@@ -497,22 +516,33 @@ static btf_result to_grey(const char *what, int w, int h, int ch, uint8_t **pixe
     return BTF_OK;
 }
 
-// A lossy WebP (checked in s) as grey: R of libwebp's RGB decode (btf_webp_decode_grey),
-// its header size in *w, *h; refused before allocating when the header claims more
-// pixels than the ratios of btf_image.h allow.
+// The header size of a lossy WebP or an AVIF (checked in s) and its name in messages.
+static btf_result lossy_size(const source &s, int *w, int *h, const char **kind, btf_error *err)
+{
+    int avif = !strcmp(s.format, "avif");
+    *kind = avif ? "AVIF" : "lossy WebP";
+    return avif ? btf_avif_check(s.data, s.n, s.what, w, h, err) : btf_webp_check(s.data, s.n, s.what, w, h, err);
+}
+
+// A lossy WebP or an AVIF (checked in s) as grey: R of libwebp's RGB decode
+// (btf_webp_decode_grey), an AVIF's Y plane (btf_avif_decode_grey), its header size in
+// *w, *h; refused before allocating when the header claims more pixels than the
+// ratios of btf_image.h allow.
 static btf_result lossy_grey(const source &s, int *w, int *h, uint8_t **pixels, btf_error *err)
 {
     int fw = 0, fh = 0;
-    btf_result r = btf_webp_check(s.data, s.n, s.what, &fw, &fh, err);
+    const char *kind = nullptr;
+    btf_result r = lossy_size(s, &fw, &fh, &kind, err);
     size_t n = (size_t)fw * (size_t)fh * 3;
     if (r == BTF_OK && (double)n > (double)s.n * BTF_IMAGE_MAX_PNG_RATIO && n > BTF_IMAGE_MAX_WEBP_FLOOR)
-        r = btf_fail(err, BTF_ERR_FORMAT, "%s: a %zu-byte lossy WebP claims %dx%d pixels (over %dx its size and %d MiB)",
-                     s.what, s.n, fw, fh, BTF_IMAGE_MAX_PNG_RATIO, BTF_IMAGE_MAX_WEBP_FLOOR >> 20);
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: a %zu-byte %s claims %dx%d pixels (over %dx its size and %d MiB)",
+                     s.what, s.n, kind, fw, fh, BTF_IMAGE_MAX_PNG_RATIO, BTF_IMAGE_MAX_WEBP_FLOOR >> 20);
     uint8_t *px = r == BTF_OK ? (uint8_t *)malloc((size_t)fw * (size_t)fh) : nullptr;
     if (r == BTF_OK && !px)
         r = btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %dx%d pixels", s.what, fw, fh);
     if (r == BTF_OK)
-        r = btf_webp_decode_grey(s.data, s.n, s.what, fw, fh, px, err);
+        r = !strcmp(s.format, "avif") ? btf_avif_decode_grey(s.data, s.n, s.what, fw, fh, px, err)
+                                      : btf_webp_decode_grey(s.data, s.n, s.what, fw, fh, px, err);
     if (r != BTF_OK) {
         free(px);
         return r;
@@ -527,21 +557,22 @@ extern "C" btf_result btf_image_read_grey(const char *path, int *w, int *h, uint
     int ch = 0;
     *pixels = nullptr;
     btf_result r = load_file(path, 0, s, err);
-    if (r == BTF_OK && s.format && btf_webp_is_lossy(s.data, s.n))
+    if (r == BTF_OK && lossy_file(s))
         return lossy_grey(s, w, h, pixels, err);
     r = r == BTF_OK ? read_u8(s, w, h, &ch, pixels, err) : r;
     return r == BTF_OK ? to_grey(path, *w, *h, ch, pixels, err) : r;
 }
 
-// btf_image_read_with for a lossy WebP (checked in s): only as one grey channel of
-// the expected size, compared before anything is allocated.
+// btf_image_read_with for a lossy WebP or an AVIF (checked in s): only as one grey
+// channel of the expected size, compared before anything is allocated.
 static btf_result read_lossy_with(const source &s, int w, int h, int channels, int grey, uint8_t **pixels,
                                   btf_error *err)
 {
     int fw = 0, fh = 0;
+    const char *kind = !strcmp(s.format, "avif") ? "an AVIF" : "a lossy WebP";
     if (!grey || channels != 1)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: a lossy WebP is read only as a grey texture", s.what);
-    btf_result r = btf_webp_check(s.data, s.n, s.what, &fw, &fh, err);
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %s is read only as a grey texture", s.what, kind);
+    btf_result r = lossy_size(s, &fw, &fh, &kind, err);
     if (r == BTF_OK && (fw != w || fh != h))
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: %dx%d with 1 channels, expected %dx%d with 1", s.what, fw, fh, w, h);
     return r == BTF_OK ? lossy_grey(s, &fw, &fh, pixels, err) : r;
@@ -553,7 +584,7 @@ extern "C" btf_result btf_image_read_with(const btf_files *files, const char *pa
     source s;
     *pixels = nullptr;
     btf_result r = load_with(files, path, 1, s, err); // the header first: no decode of a wrong size
-    if (r == BTF_OK && !strcmp(s.format, "webp") && btf_webp_is_lossy(s.data, s.n))
+    if (r == BTF_OK && lossy_file(s))
         return read_lossy_with(s, w, h, channels, grey, pixels, err);
     auto in = r == BTF_OK ? open_image(s, kMaxSide, &r, err) : nullptr;
     if (!in)

@@ -55,10 +55,11 @@ typedef struct btf_package_options {
     /* With rd: 1 = every texture a PNG; 0 = every texture a lossless WebP
      * (doc/package-format.md section 4). */
     int png_only;
-    /* With rd (8 bits, not png_only): 1 = a component's texture may also be a lossy
-     * WebP of its full-range codes, at the quality the same rate-distortion choice
-     * picks where it costs fewer bytes for its error than the lossless steps
-     * (doc/package-format.md sections 4.1 and 10.8); 0 = lossless textures only. */
+    /* With rd (8 bits, not png_only): 1 (BTF_LOSSY_WEBP) = a component's texture may
+     * also be a lossy WebP of its full-range codes, 2 (BTF_LOSSY_AVIF) an AVIF, at the
+     * level the same rate-distortion choice picks where it costs fewer bytes for its
+     * error than the lossless steps (doc/package-format.md sections 4.1 and 10.8;
+     * codec/image/btf_lossy.h); 0 = lossless textures only. */
     int lossy;
     /* 1: spatial levels will be added to the package (btf_lod_compress): with lossy, a
      * lossy texture's rate is weighed with its coarse levels (BTF_RD_LOSSY_LEVELS). */

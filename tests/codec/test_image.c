@@ -14,9 +14,11 @@
 
 #include "btf_fs.h"
 #include "btf_image.h"
+#include "btf_avif.h"
 #include "btf_webp.h"
 #include "fixtures.h"
 
+#include <avif/avif.h>
 #include <math.h>
 #include <webp/decode.h>
 #include <webp/encode.h>
@@ -395,5 +397,135 @@ Test(image, lossy_webp_malformed_refused)
     put(dir, "anim.webp", anim, sizeof anim, path, sizeof path);
     refused(path, w, h, "'VP8X'", "animation");
     free(px), free(f), free(g), free(rgba);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* An AVIF made here with libavif itself (not btf_avif): w x h, depth bits, format fmt,
+ * range, every sample of every plane from px (8 bits) or px * 4 (10 bits); *n bytes,
+ * malloc'd. */
+static uint8_t *avif_made(const uint8_t *px, int w, int h, int depth, avifPixelFormat fmt, avifRange range,
+                          size_t *n)
+{
+    avifImage *im = avifImageCreate((uint32_t)w, (uint32_t)h, (uint32_t)depth, fmt);
+    cr_assert_not_null(im);
+    im->yuvRange = range;
+    cr_assert_eq(avifImageAllocatePlanes(im, AVIF_PLANES_YUV), AVIF_RESULT_OK);
+    for (int c = 0; c < (fmt == AVIF_PIXEL_FORMAT_YUV400 ? 1 : 3); c++) {
+        int pw = c ? (w + 1) / 2 : w, ph = c ? (h + 1) / 2 : h;
+        for (int y = 0; y < ph; y++)
+            for (int x = 0; x < pw; x++) {
+                uint8_t v = c ? 128 : px[y * w + x];
+                if (depth > 8)
+                    ((uint16_t *)(im->yuvPlanes[c] + (size_t)y * im->yuvRowBytes[c]))[x] = (uint16_t)(v * 4);
+                else
+                    im->yuvPlanes[c][(size_t)y * im->yuvRowBytes[c] + x] = v;
+            }
+    }
+    avifEncoder *e = avifEncoderCreate();
+    e->minQuantizer = e->maxQuantizer = 10, e->speed = 8;
+    avifRWData o = AVIF_DATA_EMPTY;
+    cr_assert_eq(avifEncoderWrite(e, im, &o), AVIF_RESULT_OK);
+    uint8_t *f = malloc(o.size);
+    memcpy(f, o.data, o.size), *n = o.size;
+    avifRWDataFree(&o), avifEncoderDestroy(e), avifImageDestroy(im);
+    return f;
+}
+
+/* A grey AVIF decodes to its Y plane: through btf_avif_decode_grey and both file
+ * readers, equal to libavif's own decode (avifDecoderReadMemory, called here) and to
+ * R = G = B of libavif's RGB conversion, the rule a browser's decode follows for a
+ * full-range monochrome file (doc/package-format.md section 4.1); at quantiser 4 within
+ * 1.5 levels RMS of the source (AV1's finest steps; a file read with limited range
+ * would be off by up to 16 levels near black), and coarser at 40 (the quantiser is used). */
+Test(image, avif_is_the_y_plane)
+{
+    char dir[256], path[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 21;
+    int w = 96, h = 64, quant[2] = {4, 40};
+    uint8_t *px = grey_image(w, h, 0, &seed), *back = malloc((size_t)w * h);
+    double rms[2];
+    for (int k = 0; k < 2; k++) {
+        uint8_t *f = NULL;
+        size_t n = 0;
+        btf_error err = {0};
+        cr_assert_eq(btf_avif_encode_grey(px, w, h, quant[k], &f, &n, &err), BTF_OK, "%s", err.msg);
+        int fw = 0, fh = 0;
+        cr_assert(btf_avif_is_avif(f, n));
+        cr_assert_eq(btf_avif_check(f, n, "avif", &fw, &fh, &err), BTF_OK, "%s", err.msg);
+        cr_assert(fw == w && fh == h);
+        cr_assert_eq(btf_avif_decode_grey(f, n, "avif", w, h, back, &err), BTF_OK, "%s", err.msg);
+        avifDecoder *d = avifDecoderCreate();
+        avifImage *im = avifImageCreateEmpty();
+        cr_assert_eq(avifDecoderReadMemory(d, im, f, n), AVIF_RESULT_OK);
+        cr_assert(im->yuvFormat == AVIF_PIXEL_FORMAT_YUV400 && im->depth == 8 && im->yuvRange == AVIF_RANGE_FULL);
+        avifRGBImage rgb;
+        avifRGBImageSetDefaults(&rgb, im);
+        rgb.format = AVIF_RGB_FORMAT_RGB, rgb.depth = 8;
+        avifRGBImageAllocatePixels(&rgb);
+        cr_assert_eq(avifImageYUVToRGB(im, &rgb), AVIF_RESULT_OK);
+        double e2 = 0.0;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                uint8_t b = back[y * w + x], *c = rgb.pixels + (size_t)y * rgb.rowBytes + 3 * x;
+                cr_assert_eq(b, im->yuvPlanes[0][(size_t)y * im->yuvRowBytes[0] + x], "Y at %d,%d", x, y);
+                cr_assert(c[0] == b && c[1] == b && c[2] == b, "RGB %d %d %d vs %d at %d,%d", c[0], c[1], c[2], b, x, y);
+                e2 += ((double)b - px[y * w + x]) * ((double)b - px[y * w + x]);
+            }
+        rms[k] = sqrt(e2 / (w * h));
+        avifRGBImageFreePixels(&rgb), avifImageDestroy(im), avifDecoderDestroy(d);
+        put(dir, "t.avif", f, n, path, sizeof path);
+        uint8_t *g = NULL, *gw = NULL;
+        int bw = 0, bh = 0;
+        cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &g, &err), BTF_OK, "%s", err.msg);
+        cr_assert(bw == w && bh == h && !memcmp(g, back, (size_t)w * h));
+        cr_assert_eq(btf_image_read_with(NULL, path, w, h, 1, 1, &gw, &err), BTF_OK, "%s", err.msg);
+        cr_assert(!memcmp(gw, back, (size_t)w * h));
+        free(g), free(gw), free(f);
+    }
+    cr_assert_lt(rms[0], 1.5, "RMS %.3f at quantiser 4", rms[0]);
+    cr_assert_gt(rms[1], rms[0], "RMS %.3f at 40, %.3f at 4", rms[1], rms[0]);
+    free(px), free(back);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* An AVIF the format does not allow is refused with a clear message before any pixel
+ * is decoded: cut short, another brand, colour (4:2:0), 10 bits, limited range, the
+ * wrong size, and any AVIF where a reader wants colour. */
+Test(image, avif_malformed_refused)
+{
+    char dir[256], path[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    unsigned seed = 22;
+    int w = 64, h = 48;
+    uint8_t *px = grey_image(w, h, 0, &seed), *f = NULL;
+    size_t n = 0;
+    btf_error err = {0};
+    cr_assert_eq(btf_avif_encode_grey(px, w, h, 20, &f, &n, &err), BTF_OK, "%s", err.msg);
+    put(dir, "cut.avif", f, n * 2 / 3, path, sizeof path);
+    refused(path, w, h, "not a valid AVIF", "truncated");
+    f[11] = 's'; /* the major brand "avis": an image sequence */
+    put(dir, "avis.avif", f, n, path, sizeof path);
+    refused(path, w, h, "not an AVIF", "brand");
+    f[11] = 'f';
+    put(dir, "ok.avif", f, n, path, sizeof path);
+    refused(path, w + 16, h, "expected", "wrong size");
+    uint8_t *rgb = NULL;
+    cr_assert_eq(btf_image_read_with(NULL, path, w, h, 3, 0, &rgb, &err), BTF_ERR_FORMAT);
+    cr_assert_not_null(strstr(err.msg, "only as a grey texture"), "%s", err.msg);
+    cr_assert_null(rgb);
+    struct { int depth; avifPixelFormat fmt; avifRange range; const char *want; } c[] = {
+        {8, AVIF_PIXEL_FORMAT_YUV420, AVIF_RANGE_FULL, "format YUV420"},
+        {10, AVIF_PIXEL_FORMAT_YUV400, AVIF_RANGE_FULL, "depth 10"},
+        {8, AVIF_PIXEL_FORMAT_YUV400, AVIF_RANGE_LIMITED, "limited range"},
+    };
+    for (size_t k = 0; k < sizeof c / sizeof c[0]; k++) {
+        size_t m = 0;
+        uint8_t *g = avif_made(px, w, h, c[k].depth, c[k].fmt, c[k].range, &m);
+        put(dir, "bad.avif", g, m, path, sizeof path);
+        refused(path, w, h, c[k].want, c[k].want);
+        free(g);
+    }
+    free(px), free(f);
     cr_assert_eq(fx_rmtree(dir), 0);
 }

@@ -21,6 +21,7 @@
 #include "btf_manifest.h"
 #include "btf_package.h"
 #include "btf_rd.h"
+#include "btf_lossy.h"
 #include "btf_webp.h"
 #include "btf_wtz.h"
 #include "fixtures.h"
@@ -1094,13 +1095,13 @@ static size_t texture_file(const btf_package *p, const char *dir, int j, uint8_t
     return 0;
 }
 
-/* Lossy WebP textures (doc/package-format.md section 10.8): on a material where the
- * allocation picks some, the package costs fewer bytes than the lossless one at the
- * same target error; each lossy component's file is the very one the allocation
- * encoded (5 blocks in a 3 x 2 grid: every tile row is in the rate sample, so its
- * bytes are exact), and the error the C reader's decode adds equals what the
- * allocation predicted. */
-Test(rd, lossy_textures_where_they_win_and_the_error_as_predicted)
+/* Lossy textures of encoding codec (BTF_LOSSY_WEBP or BTF_LOSSY_AVIF; doc/package-format.md
+ * section 10.8): on a material where the allocation picks some, the package costs
+ * fewer bytes than the lossless one at the same target error; each lossy component's
+ * file is the very one the allocation encoded, of that encoding (5 blocks in a 3 x 2
+ * grid: every tile row is in the rate sample, so its bytes are exact), and the error
+ * the C reader's decode adds equals what the allocation predicted. */
+static void lossy_where_they_win(int codec)
 {
     char tmp[256], a[512], b[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
@@ -1109,14 +1110,15 @@ Test(rd, lossy_textures_where_they_win_and_the_error_as_predicted)
     btf *src = fx_material(BTF_GEN_TILES, 64, rings, 3);
     btf_rd_result r0, r1;
     compress_lossy(src, 6, 0, a, &r0);
-    compress_lossy(src, 6, 1, b, &r1);
+    compress_lossy(src, 6, codec, b, &r1);
     btf_package *pa = fx_package(a, NULL, 0), *pb = fx_package(b, NULL, 0);
     int lossy = 0;
     for (int j = 0; j < r1.n_comp; j++) {
         cr_assert_eq(r0.tex_quality[j], -1, "without lossy every texture is lossless");
         uint8_t *f = NULL;
         size_t n = texture_file(pb, b, j, &f);
-        cr_assert_eq(btf_webp_is_lossy(f, n), r1.tex_quality[j] >= 0, "component %d: the file is what was chosen", j);
+        cr_assert_eq(btf_lossy_codec_of(f, n), r1.tex_quality[j] >= 0 ? codec : BTF_LOSSY_NONE,
+                     "component %d: the file is what was chosen", j);
         if (r1.tex_quality[j] >= 0) {
             lossy++;
             cr_assert_eq(r1.tex_noise[j], 0.0f, "a lossy texture codes the full range");
@@ -1138,8 +1140,8 @@ Test(rd, lossy_textures_where_they_win_and_the_error_as_predicted)
     double n_samples = (double)src->views.n_dirs * src->lights.n_dirs * src->width * src->height * 3;
     double eb = direct_rmse(pb, src), ef = pb->chunk[pb->n_chunks - 1].rmse_float;
     double added = (eb * eb - ef * ef) / (255.0 * 255.0) * n_samples;
-    cr_log_info("lossy: %d of %d components, %lld vs %lld bytes, added error %.6g measured vs %.6g predicted", lossy,
-                r1.n_comp, bb, ba, added, r1.d_rd);
+    cr_log_info("lossy %s: %d of %d components, %lld vs %lld bytes, added error %.6g measured vs %.6g predicted",
+                btf_lossy_name(codec), lossy, r1.n_comp, bb, ba, added, r1.d_rd);
     cr_assert(fabs(added - r1.d_rd) <= 0.02 * r1.d_rd, "added error %.6g, predicted %.6g", added, r1.d_rd);
     cr_assert_leq(r1.d_rd, r1.d_target * (1.0 + 1e-12));
     cr_assert_leq(eb, direct_rmse(pa, src) * 1.01);
@@ -1147,6 +1149,16 @@ Test(rd, lossy_textures_where_they_win_and_the_error_as_predicted)
     btf_package_free(pa), btf_package_free(pb);
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
+Test(rd, lossy_textures_where_they_win_and_the_error_as_predicted)
+{
+    lossy_where_they_win(BTF_LOSSY_WEBP);
+}
+
+Test(rd, avif_textures_where_they_win_and_the_error_as_predicted)
+{
+    lossy_where_they_win(BTF_LOSSY_AVIF);
 }
 
 /* Budgets with lossy textures: --max-bytes fits (manifest and chunk files) and has
@@ -1241,17 +1253,17 @@ typedef struct lossy_levels {
     char tmp[256], out[512], lv[512], lp[512];
 } lossy_levels;
 
-/* The tiles 64x64 compressed with lossy textures (k 3, 4 components; its allocation
- * in rr) into t->out, then `levels` levels over it into t->lv, and into t->lp with
- * every level a PNG (the coarse levels exactly their quantised box means). */
-static btf *lossy_with_levels(lossy_levels *t, int levels, btf_rd_result *rr)
+/* The tiles 64x64 compressed with lossy textures of encoding codec (k 3, 4 components;
+ * its allocation in rr) into t->out, then `levels` levels over it into t->lv, and into
+ * t->lp with every level a PNG (the coarse levels exactly their quantised box means). */
+static btf *lossy_with_levels(lossy_levels *t, int levels, int codec, btf_rd_result *rr)
 {
     cr_assert(fx_tmpdir(t->tmp, sizeof t->tmp));
     snprintf(t->out, sizeof t->out, "%s/m", t->tmp);
     snprintf(t->lv, sizeof t->lv, "%s/lv", t->tmp);
     snprintf(t->lp, sizeof t->lp, "%s/lp", t->tmp);
     btf *src = fx_material(BTF_GEN_TILES, 64, rings, 3);
-    compress_lossy(src, 4, 1, t->out, rr);
+    compress_lossy(src, 4, codec, t->out, rr);
     btf_lod_options lo = {0}, lpng = {0};
     lo.levels = lpng.levels = levels;
     lpng.png_only = 1;
@@ -1263,15 +1275,16 @@ static btf *lossy_with_levels(lossy_levels *t, int levels, btf_rd_result *rr)
 
 /* Coarse levels of a lossy component are lossy too (btf_lod_build from a version-3
  * package, doc/package-format.md section 10.7): each coarse level's file is either
- * the lossy WebP of the level's quantised box means at the quality the source's
- * record gives level 0 (the same bytes libwebp makes of the all-PNG build's level as
- * its reader rebuilds it), or a lossless file smaller than that; the reader's coarse
- * texels are within a few codes of the lossless ones; and the package is smaller. */
-Test(rd, coarse_levels_of_a_lossy_component_are_lossy_at_its_quality)
+ * the lossy file (level 0's encoding, codec) of the level's quantised box means at the
+ * level the source's record gives level 0 (the same bytes the encoder makes of the
+ * all-PNG build's level as its reader rebuilds it), or a lossless file smaller than
+ * that; the reader's coarse texels are within a few codes of the lossless ones; and
+ * the package is smaller. */
+static void coarse_levels_lossy(int codec)
 {
     lossy_levels t;
     btf_rd_result rr;
-    btf *src = lossy_with_levels(&t, 3, &rr);
+    btf *src = lossy_with_levels(&t, 3, codec, &rr);
     const char *lv = t.lv, *lp = t.lp, *tmp = t.tmp;
     btf_error err = {0};
     btf_package *b = fx_package(lv, NULL, 0), *c = fx_package(lp, NULL, 0);
@@ -1284,24 +1297,26 @@ Test(rd, coarse_levels_of_a_lossy_component_are_lossy_at_its_quality)
             char path[1024];
             uint8_t *f = NULL, *mine = NULL;
             size_t n = 0;
-            cr_assert_eq(btf_webp_encode_grey_lossy(exact, w, h, rr.tex_quality[j], &mine, &n, &err), BTF_OK);
+            cr_assert_eq(btf_lossy_encode(codec, exact, w, h, rr.tex_quality[j], &mine, &n, &err), BTF_OK);
             snprintf(path, sizeof path, "%s/%s", lv, b->chunk[ib].files[0]);
             size_t m = maybe_file(path, &f);
             cr_assert_not_null(f, "%s", path);
-            if (btf_webp_is_lossy(f, m)) {
+            if (btf_lossy_codec_of(f, m)) {
+                cr_assert_eq(btf_lossy_codec_of(f, m), codec, "component %d level %d: another encoding", j, l);
                 cr_assert(m == n && !memcmp(f, mine, n), "component %d level %d: not the lossy file of the level", j, l);
                 lossy_files++;
             } else /* kept lossless (direct or residual): only where that is smaller */
                 cr_assert_leq(m, n, "component %d level %d: %zu bytes kept, lossy %zu", j, l, m, n);
             /* what the reader rebuilt against the exact level: VP8 at the qualities the
-             * allocation picks here (70-90) adds about 1-2 codes RMS on these tiles; 4
-             * codes RMS would be a level coded from other values or at another quality */
+             * allocation picks here (70-90) adds about 1-2 codes RMS on these tiles, AV1
+             * at its quantisers (10-27) about as much; 4 codes RMS would be a level
+             * coded from other values or at another level */
             double e = 0.0;
             for (size_t i = 0; i < (size_t)w * h; i++)
                 e += ((double)got[i] - exact[i]) * ((double)got[i] - exact[i]);
             e_all += e;
             cr_log_info("component %d level %d: %zu bytes (%s), %.2f codes RMS", j, l, m,
-                        btf_webp_is_lossy(f, m) ? "lossy" : "lossless", sqrt(e / w / h));
+                        btf_lossy_codec_of(f, m) ? btf_lossy_name(codec) : "lossless", sqrt(e / w / h));
             cr_assert_leq(sqrt(e / w / h), 4.0, "component %d level %d", j, l);
             free(f), free(mine);
         }
@@ -1314,6 +1329,16 @@ Test(rd, coarse_levels_of_a_lossy_component_are_lossy_at_its_quality)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
+Test(rd, coarse_levels_of_a_lossy_component_are_lossy_at_its_quality)
+{
+    coarse_levels_lossy(BTF_LOSSY_WEBP);
+}
+
+Test(rd, coarse_levels_of_an_avif_component_are_avif_at_its_quantiser)
+{
+    coarse_levels_lossy(BTF_LOSSY_AVIF);
+}
+
 /* Levels over a package with lossy textures (btf_lod_build, version 4): level 0 keeps
  * every decoded value, and a lossy level 0 stays its lossy file (copied, byte for
  * byte) unless its residual is smaller; under png_only it is the PNG of its decode. */
@@ -1321,7 +1346,7 @@ Test(rd, levels_over_lossy_textures_keep_the_decoded_values)
 {
     lossy_levels t;
     btf_rd_result rr;
-    btf *src = lossy_with_levels(&t, 2, &rr);
+    btf *src = lossy_with_levels(&t, 2, BTF_LOSSY_WEBP, &rr);
     const char *out = t.out, *lv = t.lv, *lp = t.lp, *tmp = t.tmp;
     btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0), *c = fx_package(lp, NULL, 0);
     cr_assert(b->version == 4 && c->version == 4);
