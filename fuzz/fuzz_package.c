@@ -1,6 +1,6 @@
 /* fuzz_package.c - libFuzzer target for the package reader's files on disk
  * (btf_package_read, codec/decompress/btf_package_read.c). Small valid packages
- * (v1, v2, v4, v3 with lossy textures) are made once (fuzz_pkg.h); each input replaces one of their files
+ * (v1, v2, v4, v3 with lossy WebP textures, va with AVIF ones) are made once (fuzz_pkg.h); each input replaces one of their files
  * in the directory (first byte: fuzz_package_file), with PNG checksums repaired so
  * mutations reach the decoder. An accepted package must decode to finite values;
  * the original file is put back after. fuzz_package_mem.c: the same without the disk. */
@@ -15,7 +15,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     const fuzz_pkgs *pk = fuzz_packages();
     int v;
     const char *name = fuzz_package_file(pk, data[0], &v);
-    const char *dir = v == 4 ? pk->v4 : v == 3 ? pk->v3 : v == 2 ? pk->v2 : pk->v1;
+    const char *dir = v == 5 ? pk->va : v == 4 ? pk->v4 : v == 3 ? pk->v3 : v == 2 ? pk->v2 : pk->v1;
     char path[2048], *orig = NULL;
     size_t n = 0;
     snprintf(path, sizeof path, "%s/%s", dir, name);

@@ -9,22 +9,69 @@
 #define BTF_FUZZ_PKG_H
 
 #include <math.h>
+#include <sys/stat.h>
 
+#include "btf_common.h"
 #include "btf_decode.h"
+#include "btf_fs.h"
+#include "btf_image.h"
 #include "btf_gen.h"
 #include "btf_lod.h"
+#include "btf_lossy.h"
 #include "btf_package.h"
 #include "btf_thesis.h"
 #include "fuzz_util.h"
 
 /* ---------------------------------------------------------------- packages */
 
-/* The packages (v1, v2, v4, and v3 with lossy WebP textures allowed) every package
- * input starts from; made once per process. */
+/* The packages (v1, v2, v4, v3 with lossy WebP textures allowed, and va: v3 with AVIF
+ * textures allowed) every package input starts from; made once per process. */
 typedef struct fuzz_pkgs {
-    char v1[300], v2[300], v4[300], v3[300];
+    char v1[300], v2[300], v4[300], v3[300], va[300];
     char residual[64]; /* v4's residual level file, or "manifest.json" when the writer kept none */
+    char avif[64];     /* va's first AVIF texture file */
 } fuzz_pkgs;
+
+/* va: v3 with tex-00 as an AVIF of its decoded atlas (quantiser 20) under that name in
+ * the manifest; a package this tiny never gets one from the writer (lossy does not win
+ * on a 32 x 32 atlas), and any encoding is allowed for any texture. */
+static inline btf_result fuzz__avif_package(fuzz_pkgs *p, btf_error *err)
+{
+    char from[400], to[400], *man = NULL;
+    uint8_t *px = NULL, *f = NULL;
+    size_t n = 0, mn = 0;
+    int w = 0, h = 0;
+    snprintf(from, sizeof from, "%s/tex-00.webp", p->v3);
+    btf_result r = mkdir(p->va, 0700) == 0 ? BTF_OK : btf_fail(err, BTF_ERR_IO, "%s: cannot make", p->va);
+    if (r == BTF_OK)
+        r = btf_image_read_grey(from, &w, &h, &px, err);
+    if (r == BTF_OK)
+        r = btf_lossy_encode(BTF_LOSSY_AVIF, px, w, h, 20, &f, &n, err);
+    snprintf(to, sizeof to, "%s/tex-00.avif", p->va);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(to, f, n, err);
+    const char *copy[3] = {"tex-01.webp", "wt-00.z", "wt-01.z"};
+    for (int i = 0; r == BTF_OK && i < 3; i++) {
+        char *data = NULL;
+        snprintf(from, sizeof from, "%s/%s", p->v3, copy[i]);
+        snprintf(to, sizeof to, "%s/%s", p->va, copy[i]);
+        r = btf_fs_read(from, (size_t)1 << 24, &data, &n, err);
+        if (r == BTF_OK)
+            r = btf_fs_write_atomic(to, data, n, err);
+        free(data);
+    }
+    snprintf(from, sizeof from, "%s/manifest.json", p->v3);
+    snprintf(to, sizeof to, "%s/manifest.json", p->va);
+    if (r == BTF_OK)
+        r = btf_fs_read(from, (size_t)1 << 24, &man, &mn, err);
+    char *at = r == BTF_OK ? strstr(man, "tex-00.webp") : NULL;
+    if (at)
+        memcpy(at, "tex-00.avif", 11);
+    if (r == BTF_OK)
+        r = at ? btf_fs_write_atomic(to, man, mn, err) : btf_fail(err, BTF_ERR_FORMAT, "v3 names no tex-00.webp");
+    free(px), free(f), free(man);
+    return r;
+}
 
 static inline void fuzz__pkgs_make(fuzz_pkgs *p)
 {
@@ -39,11 +86,11 @@ static inline void fuzz__pkgs_make(fuzz_pkgs *p)
     lo.levels = lr.levels = 2;
     lr.residual = 1;
     btf_package_options ro = {0};
-    ro.rd = 1, ro.lossy = 1;
+    ro.rd = 1, ro.lossy = BTF_LOSSY_WEBP;
     if (btf_dirset_make(r, 2, &d, &err) != BTF_OK || btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &b, &err) != BTF_OK ||
         btf_package_compress(b, &po, NULL, p->v1, NULL, &err) != BTF_OK ||
         btf_lod_build(p->v1, p->v2, &lo, NULL, &err) != BTF_OK || btf_lod_build(p->v1, p->v4, &lr, NULL, &err) != BTF_OK ||
-        btf_package_compress(b, &po, &ro, p->v3, NULL, &err) != BTF_OK) {
+        btf_package_compress(b, &po, &ro, p->v3, NULL, &err) != BTF_OK || fuzz__avif_package(p, &err) != BTF_OK) {
         fprintf(stderr, "fuzz: package setup failed: %s\n", err.msg);
         abort();
     }
@@ -59,6 +106,7 @@ static inline const fuzz_pkgs *fuzz_packages(void)
     snprintf(p.v2, sizeof p.v2, "%s/v2", fuzz_dir());
     snprintf(p.v4, sizeof p.v4, "%s/v4", fuzz_dir());
     snprintf(p.v3, sizeof p.v3, "%s/v3", fuzz_dir());
+    snprintf(p.va, sizeof p.va, "%s/va", fuzz_dir());
     fuzz__pkgs_make(&p);
     snprintf(p.residual, sizeof p.residual, "manifest.json");
     char path[400];
@@ -68,16 +116,29 @@ static inline const fuzz_pkgs *fuzz_packages(void)
         if (btf_fs_size(path) > 0)
             snprintf(p.residual, sizeof p.residual, "tex-%02d-d0.%s", j % 2, ext);
     }
+    for (int j = 0; j < 2 && !p.avif[0]; j++) {
+        snprintf(path, sizeof path, "%s/tex-%02d.avif", p.va, j);
+        if (btf_fs_size(path) > 0)
+            snprintf(p.avif, sizeof p.avif, "tex-%02d.avif", j);
+    }
+    if (!p.avif[0]) {
+        fprintf(stderr, "fuzz: the AVIF package has no AVIF texture (the setup no longer covers them)\n");
+        abort();
+    }
     return &p;
 }
 
 /* The file an input replaces (first byte below 0xf8, modulo 6: 0 texture PNG, 1
  * weights .bin, 2 manifest.json of v1, 3 an 8-bit weights PNG of v2, 4 the manifest
- * and 5 a residual level of v4; 0xf8 and above: v3's WebP texture tex-00.webp, lossy
- * or lossless, 32 x 32); *pkg gets 1, 2, 3 or 4. */
+ * and 5 a residual level of v4; 0xf8..0xfb: v3's WebP texture tex-00.webp, lossy
+ * or lossless, 32 x 32; 0xfc and above: va's AVIF texture); *pkg gets 1, 2, 3, 4 or 5. */
 static inline const char *fuzz_package_file(const fuzz_pkgs *pk, uint8_t first, int *pkg)
 {
     const char *names[6] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png", "manifest.json", pk->residual};
+    if (first >= 0xfc) {
+        *pkg = 5;
+        return pk->avif;
+    }
     if (first >= 0xf8) {
         *pkg = 3;
         return "tex-00.webp";
