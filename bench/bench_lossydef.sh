@@ -6,8 +6,10 @@
 # without a thumbnail: CPU seconds (user + system of the process), bytes (chunk files +
 # manifest) and `btf eval`'s CIELab (every texel and pair); then `--max-error E` (the
 # thesis format's error at k 3, C 8, from section 11's first table) lossless and
-# default. Ratios are default over lossless. Tiles and knit at 64x64 (about 6
-# minutes), tiles at 256x256 unless LOSSYDEF_LARGE=0 (about 15 minutes more).
+# default. Ratios are default over lossless. Then the same two with `--avif` (lossy
+# textures as AVIF instead of lossy WebP: doc/performance.md section 11, "AVIF"),
+# ratios over the default. Tiles and knit at 64x64 (about 10 minutes), tiles at
+# 256x256 unless LOSSYDEF_LARGE=0 (about 25 minutes more).
 # Run by bench/run.sh (results: bench/results/lossydef.txt); needs `make build`, jq
 # and GNU time.
 set -euo pipefail
@@ -53,9 +55,17 @@ for m in $mats; do
     echo "lossydef_${name}_bytes_ratio $(ratio "$bytes" "$lb") x"
     echo "lossydef_${name}_cpu_over_plain $(ratio "$cpu" "$pc") x"
     echo "# $name: plain $pb B, $pc s | lossless $lb B, Lab $ll, $lc s | default $bytes B, Lab $lab, $cpu s, $lossy lossy | $(ratio "$bytes" "$lb")x bytes, $(ratio "$cpu" "$pc")x plain's CPU"
+    db=$bytes dl=$lab dc=$cpu
+    one "$name" avif "$src" --avif
+    echo "lossydef_${name}_avif_bytes_ratio $(ratio "$bytes" "$db") x"
+    echo "# $name --avif: $bytes B, Lab $lab, $cpu s, $lossy lossy | $(ratio "$bytes" "$db")x the default's bytes (Lab $dl), $(ratio "$cpu" "$dc")x its CPU"
     one "$name" budget_lossless "$src" --max-error "$err" --lossless
     lb=$bytes lc=$cpu ll=$lab
     one "$name" budget_default "$src" --max-error "$err"
     echo "lossydef_${name}_budget_bytes_ratio $(ratio "$bytes" "$lb") x"
     echo "# $name --max-error $err: lossless $lb B (Lab $ll), $lc s | default $bytes B (Lab $lab), $cpu s, $lossy lossy | $(ratio "$bytes" "$lb")x bytes"
+    db=$bytes dl=$lab dc=$cpu
+    one "$name" budget_avif "$src" --max-error "$err" --avif
+    echo "lossydef_${name}_budget_avif_bytes_ratio $(ratio "$bytes" "$db") x"
+    echo "# $name --max-error $err --avif: $bytes B (Lab $lab), $cpu s, $lossy lossy | $(ratio "$bytes" "$db")x the default's bytes, $(ratio "$cpu" "$dc")x its CPU"
 done
