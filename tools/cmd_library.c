@@ -27,6 +27,7 @@
 #include "btf_cli.h"
 #include "btf_fs.h"
 #include "btf_lod.h"
+#include "btf_lossy.h"
 #include "btf_output.h"
 #include "btf_package.h"
 #include "btf_source.h"
@@ -55,6 +56,7 @@ typedef struct library_opts {
     int downsample, levels, jobs, force, quiet;
     int plain;         /* --plain: equal-noise steps (version 1, or 2 with levels), not rate-distortion */
     int lossless;      /* --lossless: rate-distortion steps without lossy WebP textures */
+    int avif;          /* --avif: lossy textures as AVIF, as `btf compress --avif` */
     btf_budget budget; /* --max-bytes / --max-error per material; both 0 = none */
 } library_opts;
 
@@ -71,7 +73,7 @@ static void library_usage(FILE *f)
     fprintf(f,
             "usage: btf library build SRC... --out LIB [-j N] [--k K] [--components C] [--bits 8|16]\n"
             "                         [--method M] [--downsample F] [--levels N] [--sampling S]\n"
-            "                         [--max-bytes N | --max-error E] [--plain] [--lossless] [--linear]\n"
+            "                         [--max-bytes N | --max-error E] [--plain] [--lossless] [--avif] [--linear]\n"
             "                         [--force] [--quiet]\n"
             "\n"
             "Builds one package per SRC into the library directory LIB (what btfd serves), one job\n"
@@ -95,6 +97,7 @@ static void library_usage(FILE *f)
             "                   default rate-distortion steps (version 3, 4 with --levels)\n"
             "  --lossless       lossless textures only, as `btf compress --lossless` (default:\n"
             "                   a lossy WebP texture where it wins, as `btf compress`)\n"
+            "  --avif           lossy textures as AVIF, as `btf compress --avif`\n"
             "  --linear         packages of linear light, as `btf compress --linear` (for\n"
             "                   environment light: doc/lighting.md)\n"
             "  --force          rebuild even when up to date\n"
@@ -113,7 +116,7 @@ static void library_usage(FILE *f)
 
 static const btf_args_spec library_spec = {
     "library build", "out:o jobs:j j:j k:k components:C method:m downsample:d bits:b levels:l sampling:S linear!L "
-    "max-bytes:B max-error:E plain!A lossless!O force!f quiet!q",
+    "max-bytes:B max-error:E plain!A lossless!O avif!V force!f quiet!q",
     library_usage, -1};
 
 /* One option or positional of `btf library build` (btf_args_fn). */
@@ -132,6 +135,7 @@ static int library_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'L': o->pkg.linear = 1; return 0;
     case 'A': o->plain = 1; return 0;
     case 'O': o->lossless = 1; return 0;
+    case 'V': o->avif = 1; return 0;
     case 'B': return btf_args_long(a, v, 1, (long)1 << 40, &o->budget.max_bytes);
     case 'E': return btf_args_double(a, v, 1e-6, 1e6, &o->budget.max_error);
     case 'f': o->force = 1; return 0;
@@ -368,7 +372,12 @@ static int library_build(int argc, char **argv)
     }
     o.pkg.rd = !o.plain && (o.pkg.bits == 8 || o.levels == 0); /* rate-distortion steps unless asked otherwise
                                                                  * (16-bit levels: version 2 only) */
-    o.pkg.lossy = o.pkg.rd && !o.lossless && o.pkg.bits == 8; /* as btf compress */
+    o.pkg.lossy = o.pkg.rd && !o.lossless && o.pkg.bits == 8 ? (o.avif ? BTF_LOSSY_AVIF : BTF_LOSSY_WEBP)
+                                                              : BTF_LOSSY_NONE; /* as btf compress */
+    if (rc == 0 && o.avif && !o.pkg.lossy) {
+        fprintf(stderr, "btf library build: --avif needs lossy textures (not --plain, --lossless or --bits 16)\n");
+        rc = 2;
+    }
     if (rc == 0 && (!o.out || !o.n_src)) {
         fprintf(stderr, "btf library build: %s\n", o.out ? "no SRC given" : "--out LIB is required");
         rc = 2;
