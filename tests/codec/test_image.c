@@ -276,6 +276,20 @@ Test(image, webp_damaged_or_not_grey_refused)
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
+/* Both file readers (btf_image_read_grey, btf_image_read_with as a w x h grey texture)
+ * give exactly back's w*h bytes for the file at path. */
+static void file_reads_as(const char *path, int w, int h, const uint8_t *back)
+{
+    uint8_t *g = NULL, *gw = NULL;
+    int bw = 0, bh = 0;
+    btf_error err = {0};
+    cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &g, &err), BTF_OK, "%s", err.msg);
+    cr_assert(bw == w && bh == h && !memcmp(g, back, (size_t)w * h));
+    cr_assert_eq(btf_image_read_with(NULL, path, w, h, 1, 1, &gw, &err), BTF_OK, "%s", err.msg);
+    cr_assert(!memcmp(gw, back, (size_t)w * h));
+    free(g), free(gw);
+}
+
 /* A lossy grey WebP decodes to R of libwebp's own RGB decode (WebPDecodeRGB, called
  * here directly), through btf_webp_decode_grey and through the file readers; at
  * quality 100 it stays within the mapping's and VP8's finest quantiser's error. */
@@ -324,13 +338,8 @@ Test(image, lossy_webp_is_r_of_the_rgb_decode)
         if (quality[k] == 100)
             cr_assert_lt(sqrt(e2 / (w * h)), 1.5, "RMS %.3f at quality 100", sqrt(e2 / (w * h)));
         put(dir, "lossy.webp", f, n, path, sizeof path);
-        uint8_t *g = NULL, *gw = NULL;
-        int bw = 0, bh = 0;
-        cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &g, &err), BTF_OK, "%s", err.msg);
-        cr_assert(bw == w && bh == h && !memcmp(g, back, (size_t)w * h));
-        cr_assert_eq(btf_image_read_with(NULL, path, w, h, 1, 1, &gw, &err), BTF_OK, "%s", err.msg);
-        cr_assert(!memcmp(gw, back, (size_t)w * h));
-        free(g), free(gw), free(f);
+        file_reads_as(path, w, h, back);
+        free(f);
     }
     free(px), free(back);
     cr_assert_eq(fx_rmtree(dir), 0);
@@ -475,13 +484,8 @@ Test(image, avif_is_the_y_plane)
         rms[k] = sqrt(e2 / (w * h));
         avifRGBImageFreePixels(&rgb), avifImageDestroy(im), avifDecoderDestroy(d);
         put(dir, "t.avif", f, n, path, sizeof path);
-        uint8_t *g = NULL, *gw = NULL;
-        int bw = 0, bh = 0;
-        cr_assert_eq(btf_image_read_grey(path, &bw, &bh, &g, &err), BTF_OK, "%s", err.msg);
-        cr_assert(bw == w && bh == h && !memcmp(g, back, (size_t)w * h));
-        cr_assert_eq(btf_image_read_with(NULL, path, w, h, 1, 1, &gw, &err), BTF_OK, "%s", err.msg);
-        cr_assert(!memcmp(gw, back, (size_t)w * h));
-        free(g), free(gw), free(f);
+        file_reads_as(path, w, h, back);
+        free(f);
     }
     cr_assert_lt(rms[0], 1.5, "RMS %.3f at quantiser 4", rms[0]);
     cr_assert_gt(rms[1], rms[0], "RMS %.3f at 40, %.3f at 4", rms[1], rms[0]);
