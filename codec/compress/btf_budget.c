@@ -72,6 +72,8 @@ static char *btf__budget_json(const btf_budget *b, const btf_budget_result *res)
     cJSON_AddNumberToObject(o, "components", res->components);
     if (res->rd_fit)
         cJSON_AddStringToObject(o, "rd_steps", "fitted");
+    if (res->tex_noise > 0.0f) /* an error target the default steps did not reach: finer ones */
+        cJSON_AddNumberToObject(o, "tex_noise", res->tex_noise);
     if (res->center == BTF_CENTER_ROW)
         cJSON_AddStringToObject(o, "center", "row");
     cJSON_AddNumberToObject(o, "chunks", res->n_chunks);
@@ -525,9 +527,10 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     return btf_budget_compress_with(src, pca, opt, NULL, budget, out, res, err);
 }
 
-btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
-                                    const btf_package_channel *hook, const btf_budget *budget, const char *out,
-                                    btf_budget_result *res, btf_error *err)
+/* One search at opt's steps (btf_budget_compress_with does one or more). */
+static btf_result btf__budget_search_once(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                                          const btf_package_channel *hook, const btf_budget *budget, const char *out,
+                                          btf_budget_result *res, btf_error *err)
 {
     btf_budget_result rs;
     memset(&rs, 0, sizeof rs);
@@ -582,6 +585,7 @@ btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, 
         rs.k = c->k, rs.components = c->components, rs.rd_fit = c->rd_fit, rs.center = c->center;
         rs.n_chunks = c->n_chunks, rs.bytes = c->bytes;
         rs.lab = c->lab, rs.rmse = c->rmse, rs.met = best_met;
+        rs.tex_noise = opt->tex_noise > 0.0f && budget->max_error > 0 ? opt->tex_noise : 0.0f;
         r = btf__budget_finish(sr->dir[best], budget, &rs, err);
         if (r == BTF_OK && thumbnail > 0)
             r = btf_package_thumbnail(sr->dir[best], thumbnail, err);
@@ -596,6 +600,28 @@ btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, 
     if (sr->screen != src)
         btf_free((btf *)sr->screen);
     free(sr);
+    if (res)
+        *res = rs;
+    return r;
+}
+
+btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
+                                    const btf_package_channel *hook, const btf_budget *budget, const char *out,
+                                    btf_budget_result *res, btf_error *err)
+{
+    btf_budget_result rs;
+    btf_package_options po = opt ? *opt : (btf_package_options){0};
+    btf_result r = btf__budget_search_once(src, pca, &po, hook, budget, out, &rs, err);
+    /* An error target below what the default steps reach at any k and component
+     * count: the search again with finer steps (half the texture noise each time),
+     * each written over the last, until one meets it (BTF_BUDGET_FINER rounds). */
+    float noise = po.tex_noise > 0.0f ? po.tex_noise : BTF_PACKAGE_TEX_NOISE;
+    for (int i = 0; r == BTF_OK && budget && budget->max_error > 0 && !rs.met && po.tex_noise >= 0.0f &&
+                    i < BTF_BUDGET_FINER;
+         i++) {
+        po.tex_noise = noise /= 2.0f;
+        r = btf__budget_search_once(src, pca, &po, hook, budget, out, &rs, err);
+    }
     if (res)
         *res = rs;
     return r;

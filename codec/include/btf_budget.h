@@ -32,8 +32,11 @@
  * read off the files as written (fitted again once when the chunks its allocation
  * kept came out over the budget, each texture's rates scaled by its atlas as
  * written over its estimate), cut to the chosen prefix, and it replaces OUT like
- * btf_package_compress. What the search costs and wins is measured by
- * bench/bench_search.sh and bench/bench_rd.sh.
+ * btf_package_compress. With max_error, steps are the equal-noise ones of
+ * opt->tex_noise: when no candidate meets the error with them, the whole search runs
+ * again with half the noise (finer steps), at most BTF_BUDGET_FINER times, each result
+ * replacing the last; the record says which noise ("tex_noise"). What the search
+ * costs and wins is measured by bench/bench_search.sh and bench/bench_rd.sh.
  */
 #ifndef BTF_BUDGET_H
 #define BTF_BUDGET_H
@@ -52,6 +55,7 @@ extern "C" {
  * fewer bytes): a small edge on the window can be a loss on the whole material,
  * and where centring pays it wins by much more. */
 #define BTF_BUDGET_SCREEN_EDGE 0.03
+#define BTF_BUDGET_FINER 2 /* max_error out of the default steps' reach: searches again at 1/2, 1/4 the noise */
 #define BTF_BUDGET_MAX_GROW 4        /* growth rounds: 16 -> 24 -> 36 -> 56 -> 64 */
 /* each k, one centred, the growth rounds */
 #define BTF_BUDGET_MAX_CANDIDATES (BTF_BUDGET_MAX_K + 1 + BTF_BUDGET_MAX_GROW)
@@ -83,6 +87,8 @@ typedef struct btf_budget_result {
     long long bytes;
     double lab, rmse;
     int met;         /* 1: the budget is met (0 with max_error: the lowest error reached is reported) */
+    float tex_noise; /* with max_error: the texture noise of the steps that met it, or of the last try (the
+                      * default steps did not reach it: halved up to BTF_BUDGET_FINER times); else 0 */
     int screen_width, screen_height; /* the window the candidates were measured on (with rd) */
     int n_candidates;
     btf_budget_choice candidate[BTF_BUDGET_MAX_CANDIDATES];

@@ -103,6 +103,48 @@ Test(budget, max_error_is_reached_with_the_fewest_chunks)
     fx_rmtree(dir);
 }
 
+/* An error target below what the default steps reach (the least error of any prefix
+ * of the reference, every component compressed at the same steps) is met
+ * by searching again with finer steps; the record says which; a target nothing can
+ * reach still ends, reported unmet at the finest steps tried. */
+Test(budget, max_error_below_the_default_steps_is_met_with_finer_ones)
+{
+    char dir[64], out[128], ref[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    snprintf(ref, sizeof ref, "%s/ref", dir);
+    btf *src = material();
+    btf_pca_options po = {0};
+    po.k = 1, po.components = 45, po.center = BTF_CENTER_NONE; /* 15 lights x 3: every component */
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, NULL, ref, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read(ref, 1, &p, &err), BTF_OK, "%s", err.msg);
+    double floor = p->chunk[0].lab; /* each component adds its steps' noise: the least error of any prefix */
+    for (int i = 1; i < p->n_chunks; i++)
+        floor = p->chunk[i].lab < floor ? p->chunk[i].lab : floor;
+    btf_budget b = {0};
+    b.max_error = 0.8 * floor, b.k[0] = 1, b.n_k = 1, b.max_components = 45;
+    btf_budget_result res;
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_log_info("floor %.4f at the default steps; target %.4f met %d at tex_noise %.3f, Lab %.4f, %d chunks", floor,
+                b.max_error, res.met, res.tex_noise, res.lab, res.n_chunks);
+    cr_expect(res.met, "Lab %.4f, target %.4f", res.lab, b.max_error);
+    cr_expect_leq(res.lab, b.max_error);
+    cr_expect(res.tex_noise > 0.0f && res.tex_noise < BTF_PACKAGE_TEX_NOISE, "tex_noise %.3f", res.tex_noise);
+    btf_package *got = NULL;
+    cr_assert_eq(btf_package_read(out, 0, &got, &err), BTF_OK, "%s", err.msg);
+    cr_expect(got->budget && strstr(got->budget, "\"tex_noise\""), "%s", got->budget ? got->budget : "none");
+    btf_package_free(got);
+    b.max_error = 1e-4; /* out of reach: the search ends */
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect(!res.met);
+    cr_expect_float_eq(res.tex_noise, BTF_PACKAGE_TEX_NOISE / (1 << BTF_BUDGET_FINER), 1e-6);
+    btf_package_free(p);
+    btf_free(src);
+    fx_rmtree(dir);
+}
+
 Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
 {
     char dir[64], out[128];
