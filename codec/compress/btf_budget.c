@@ -527,6 +527,15 @@ btf_result btf_budget_compress(const btf *src, const btf_pca_options *pca, const
     return btf_budget_compress_with(src, pca, opt, NULL, budget, out, res, err);
 }
 
+/* 1 when a answers an error target better than b: it meets it and b does not, both
+ * meet it and a with fewer bytes, or neither does and a with less error. */
+static int btf__budget_better(const btf_budget_result *a, const btf_budget_result *b)
+{
+    if (a->met != b->met)
+        return a->met;
+    return a->met ? a->bytes < b->bytes : a->lab < b->lab;
+}
+
 /* One search at opt's steps (btf_budget_compress_with does one or more). */
 static btf_result btf__budget_search_once(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
                                           const btf_package_channel *hook, const btf_budget *budget, const char *out,
@@ -540,12 +549,6 @@ static btf_result btf__budget_search_once(const btf *src, const btf_pca_options 
     btf_package_options po = opt ? *opt : (btf_package_options){0};
     int thumbnail = po.thumbnail; /* of the chosen package once it is cut, not of every candidate */
     po.thumbnail = 0;
-    char name[BTF_PACKAGE_NAME_MAX];
-    if (!po.name) { /* the material is OUT's, not its temporaries' */
-        const char *slash = strrchr(out, '/');
-        snprintf(name, sizeof name, "%s", slash && slash[1] ? slash + 1 : out);
-        po.name = name;
-    }
     btf__search *sr = calloc(1, sizeof *sr);
     if (!sr)
         return btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
@@ -609,18 +612,30 @@ btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, 
                                     const btf_package_channel *hook, const btf_budget *budget, const char *out,
                                     btf_budget_result *res, btf_error *err)
 {
-    btf_budget_result rs;
+    btf_budget_result rs, alt;
+    memset(&rs, 0, sizeof rs);
     btf_package_options po = opt ? *opt : (btf_package_options){0};
+    char name[BTF_PACKAGE_NAME_MAX], tmp[BTF_FS_PATH_MAX];
+    if (!po.name && out) { /* the material is OUT's, not its temporaries' */
+        const char *slash = strrchr(out, '/');
+        snprintf(name, sizeof name, "%s", slash && slash[1] ? slash + 1 : out);
+        po.name = name;
+    }
     btf_result r = btf__budget_search_once(src, pca, &po, hook, budget, out, &rs, err);
     /* An error target below what the default steps reach at any k and component
-     * count: the search again with finer steps (half the texture noise each time),
-     * each written over the last, until one meets it (BTF_BUDGET_FINER rounds). */
+     * count: the search again at half and a quarter of the texture noise (finer steps),
+     * each into OUT.finer-PID, which replaces OUT when it does better (btf__budget_better). */
     float noise = po.tex_noise > 0.0f ? po.tex_noise : BTF_PACKAGE_TEX_NOISE;
-    for (int i = 0; r == BTF_OK && budget && budget->max_error > 0 && !rs.met && po.tex_noise >= 0.0f &&
-                    i < BTF_BUDGET_FINER;
-         i++) {
+    int finer = r == BTF_OK && budget->max_error > 0 && !rs.met && po.tex_noise >= 0.0f;
+    if (finer)
+        snprintf(tmp, sizeof tmp, "%s.finer-%ld", out, (long)getpid());
+    for (int i = 0; finer && r == BTF_OK && i < BTF_BUDGET_FINER; i++) {
         po.tex_noise = noise /= 2.0f;
-        r = btf__budget_search_once(src, pca, &po, hook, budget, out, &rs, err);
+        r = btf__budget_search_once(src, pca, &po, hook, budget, tmp, &alt, err);
+        if (r == BTF_OK && btf__budget_better(&alt, &rs) &&
+            (r = btf_fs_replace_dir(tmp, out, btf_manifest_owns_dir, NULL, err)) == BTF_OK)
+            rs = alt;
+        btf_fs_rmtree(tmp, NULL);
     }
     if (res)
         *res = rs;

@@ -34,8 +34,9 @@
  * written over its estimate), cut to the chosen prefix, and it replaces OUT like
  * btf_package_compress. With max_error, steps are the equal-noise ones of
  * opt->tex_noise: when no candidate meets the error with them, the whole search runs
- * again with half the noise (finer steps), at most BTF_BUDGET_FINER times, each result
- * replacing the last; the record says which noise ("tex_noise"). What the search
+ * again with half, then a quarter of the noise (finer steps; BTF_BUDGET_FINER rounds),
+ * each into OUT.finer-PID, replacing OUT when it meets the error with fewer bytes (or
+ * misses it by less); the record says which noise ("tex_noise"). What the search
  * costs and wins is measured by bench/bench_search.sh and bench/bench_rd.sh.
  */
 #ifndef BTF_BUDGET_H

@@ -104,9 +104,10 @@ Test(budget, max_error_is_reached_with_the_fewest_chunks)
 }
 
 /* An error target below what the default steps reach (the least error of any prefix
- * of the reference, every component compressed at the same steps) is met
- * by searching again with finer steps; the record says which; a target nothing can
- * reach still ends, reported unmet at the finest steps tried. */
+ * of the reference, every component compressed at the same steps) is met by searching
+ * again with finer steps, no temporary left behind; the record says which steps; a
+ * target nothing can reach still ends, reported unmet with the least error tried (the
+ * finest steps). */
 Test(budget, max_error_below_the_default_steps_is_met_with_finer_ones)
 {
     char dir[64], out[128], ref[128];
@@ -136,6 +137,13 @@ Test(budget, max_error_below_the_default_steps_is_met_with_finer_ones)
     cr_assert_eq(btf_package_read(out, 0, &got, &err), BTF_OK, "%s", err.msg);
     cr_expect(got->budget && strstr(got->budget, "\"tex_noise\""), "%s", got->budget ? got->budget : "none");
     btf_package_free(got);
+    DIR *d = opendir(dir); /* the finer searches' packages are gone: only p and ref */
+    int entries = 0;
+    for (struct dirent *e; d && (e = readdir(d));)
+        entries += e->d_name[0] != '.';
+    if (d)
+        closedir(d);
+    cr_expect_eq(entries, 2, "%d entries in the test directory", entries);
     b.max_error = 1e-4; /* out of reach: the search ends */
     cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     cr_expect(!res.met);
