@@ -536,10 +536,11 @@ static int btf__budget_better(const btf_budget_result *a, const btf_budget_resul
     return a->met ? a->bytes < b->bytes : a->lab < b->lab;
 }
 
-/* One search at opt's steps (btf_budget_compress_with does one or more). */
+/* One search at opt's steps (btf_budget_compress_with does one or more); finer: 0,
+ * or the texture noise of a finer search, which the result and its record state. */
 static btf_result btf__budget_search_once(const btf *src, const btf_pca_options *pca, const btf_package_options *opt,
-                                          const btf_package_channel *hook, const btf_budget *budget, const char *out,
-                                          btf_budget_result *res, btf_error *err)
+                                          const btf_package_channel *hook, const btf_budget *budget, float finer,
+                                          const char *out, btf_budget_result *res, btf_error *err)
 {
     btf_budget_result rs;
     memset(&rs, 0, sizeof rs);
@@ -588,7 +589,7 @@ static btf_result btf__budget_search_once(const btf *src, const btf_pca_options 
         rs.k = c->k, rs.components = c->components, rs.rd_fit = c->rd_fit, rs.center = c->center;
         rs.n_chunks = c->n_chunks, rs.bytes = c->bytes;
         rs.lab = c->lab, rs.rmse = c->rmse, rs.met = best_met;
-        rs.tex_noise = opt->tex_noise > 0.0f && budget->max_error > 0 ? opt->tex_noise : 0.0f;
+        rs.tex_noise = finer;
         r = btf__budget_finish(sr->dir[best], budget, &rs, err);
         if (r == BTF_OK && thumbnail > 0)
             r = btf_package_thumbnail(sr->dir[best], thumbnail, err);
@@ -621,7 +622,7 @@ btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, 
         snprintf(name, sizeof name, "%s", slash && slash[1] ? slash + 1 : out);
         po.name = name;
     }
-    btf_result r = btf__budget_search_once(src, pca, &po, hook, budget, out, &rs, err);
+    btf_result r = btf__budget_search_once(src, pca, &po, hook, budget, 0.0f, out, &rs, err);
     /* An error target below what the default steps reach at any k and component
      * count: the search again at half and a quarter of the texture noise (finer steps),
      * each into OUT.finer-PID, which replaces OUT when it does better (btf__budget_better). */
@@ -631,7 +632,7 @@ btf_result btf_budget_compress_with(const btf *src, const btf_pca_options *pca, 
         snprintf(tmp, sizeof tmp, "%s.finer-%ld", out, (long)getpid());
     for (int i = 0; finer && r == BTF_OK && i < BTF_BUDGET_FINER; i++) {
         po.tex_noise = noise /= 2.0f;
-        r = btf__budget_search_once(src, pca, &po, hook, budget, tmp, &alt, err);
+        r = btf__budget_search_once(src, pca, &po, hook, budget, noise, tmp, &alt, err);
         if (r == BTF_OK && btf__budget_better(&alt, &rs) &&
             (r = btf_fs_replace_dir(tmp, out, btf_manifest_owns_dir, NULL, err)) == BTF_OK)
             rs = alt;

@@ -17,7 +17,6 @@
 #include "btf_lap.h"
 #include "btf_manifest.h"
 #include "btf_png.h"
-#include "btf_avif.h"
 #include "btf_lossy.h"
 #include "btf_wtz.h"
 #include "btf_common.h"
@@ -640,7 +639,7 @@ static void btf__coarse_quality(btf__lod *s, const char *in_dir)
         const cJSON *q = cJSON_IsArray(tq) ? cJSON_GetArrayItem(tq, p->chunk[a].component) : NULL;
         char path[BTF__LOD_PATH];
         snprintf(path, sizeof path, "%s/%s", in_dir, btf__src_file(&p->chunk[a], 0));
-        int codec = btf__lossy_file(path), top = codec == BTF_LOSSY_AVIF ? BTF_AVIF_MAX_QUANTIZER : 100;
+        int codec = btf__lossy_file(path), top = btf_lossy_max_level(codec);
         s->codec[a] = codec;
         s->quality[a] = cJSON_IsNumber(q) && q->valuedouble >= 0 && q->valuedouble <= top && codec ? (int)q->valuedouble
                                                                                                     : -1;

@@ -460,6 +460,15 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
     return s;
 }
 
+/* The extension of component j's texture file: its lossy encoding's when it is lossy,
+ * a lossless WebP's for version 3 (8 bits) unless o->png_only, else ".png". */
+static const char *btf__tex_ext(const btf__writer *w, const btf_package_options *o, int j)
+{
+    if (w->lossy[j])
+        return btf_lossy_ext(w->codec);
+    return w->version == 3 && w->ch == 1 && !o->png_only ? ".webp" : ".png";
+}
+
 /* Component j's atlas as tmp/tex-JJ.png, or for version 3 (8 bits) as a lossless
  * tmp/tex-JJ.webp unless o->png_only: the smaller of the two on nearly every atlas,
  * as the allocation's ladder assumes (doc/package-format.md section 11.4 has the
@@ -469,8 +478,7 @@ static btf_result btf__write_texture(btf__writer *w, const btf_package_options *
 {
     char path[8192];
     snprintf(path, sizeof path, "%s/tex-%02d", tmp, j);
-    int webp = w->version == 3 && w->ch == 1 && !o->png_only;
-    w->tex_ext[j] = w->lossy[j] ? btf_lossy_ext(w->codec) : webp ? ".webp" : ".png";
+    w->tex_ext[j] = btf__tex_ext(w, o, j);
     size_t n = strlen(path);
     snprintf(path + n, sizeof path - n, "%s", w->tex_ext[j]);
     btf_result r = w->lossy[j] ? btf_fs_write_atomic(path, w->lossy[j], w->lossy_n[j], err)
@@ -545,7 +553,7 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
     }
     if (w->chan->estimate) /* nothing written: the allocation's estimates (version 3 only) */
         for (int j = 0; j < C; j++)
-            bytes[j] = w->est_bytes[j], w->tex_ext[j] = o->png_only ? ".png" : ".webp";
+            bytes[j] = w->est_bytes[j], w->tex_ext[j] = btf__tex_ext(w, o, j);
     else if ((r = btf__write_components(w, o, tmp, bytes, err)) != BTF_OK)
         goto done;
     btf__order(w, bytes, order);

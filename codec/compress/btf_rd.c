@@ -675,7 +675,7 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         }
         out->n_comp = r.C;
         for (int j = 0; j < r.C; j++) {
-            int lossy = it[j] >= BTF__RD_NT; /* full-range codes, a lossy WebP */
+            int lossy = it[j] >= BTF__RD_NT; /* full-range codes, a lossy file */
             out->tex_noise[j] = lossy ? 0.0f : r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
             out->tex_quality[j] = lossy ? btf_lossy_ladder(par->lossy, it[j] - BTF__RD_NT) : -1;
             out->tex_bytes[j] = r.rt[(size_t)j * r.nt + it[j]];

@@ -3,6 +3,7 @@
 #include "btf_fs.h"
 #include "btf_png.h"
 #include "btf_avif.h"
+#include "btf_lossy.h"
 #include "btf_webp.h"
 #include "btf_common.h"
 
@@ -71,7 +72,7 @@ static const char *own_format(const uint8_t *head, size_t n, const char *name)
 // WebP or an AVIF (checked in s).
 static int lossy_file(const source &s)
 {
-    return s.format && (!strcmp(s.format, "avif") || (!strcmp(s.format, "webp") && btf_webp_is_lossy(s.data, s.n)));
+    return s.format && btf_lossy_codec_of(s.data, s.n) != BTF_LOSSY_NONE;
 }
 
 // A PNG must pass btf_png_check before OpenImageIO sees it (no decoder messages on
@@ -541,8 +542,7 @@ static btf_result lossy_grey(const source &s, int *w, int *h, uint8_t **pixels, 
     if (r == BTF_OK && !px)
         r = btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %dx%d pixels", s.what, fw, fh);
     if (r == BTF_OK)
-        r = !strcmp(s.format, "avif") ? btf_avif_decode_grey(s.data, s.n, s.what, fw, fh, px, err)
-                                      : btf_webp_decode_grey(s.data, s.n, s.what, fw, fh, px, err);
+        r = btf_lossy_decode(s.data, s.n, s.what, fw, fh, px, err);
     if (r != BTF_OK) {
         free(px);
         return r;

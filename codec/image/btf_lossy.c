@@ -25,6 +25,11 @@ const char *btf_lossy_name(int codec)
     return codec == BTF_LOSSY_AVIF ? "avif" : "webp";
 }
 
+int btf_lossy_max_level(int codec)
+{
+    return codec == BTF_LOSSY_AVIF ? BTF_AVIF_MAX_QUANTIZER : 100;
+}
+
 int btf_lossy_ladder(int codec, int i)
 {
     i = i < 0 ? 0 : i >= BTF_LOSSY_LADDER ? BTF_LOSSY_LADDER - 1 : i;

@@ -30,6 +30,8 @@ int btf_lossy_codec_of(const uint8_t *data, size_t n);
 const char *btf_lossy_ext(int codec);
 /* The name of codec in messages and manifests: "webp" or "avif" (static strings). */
 const char *btf_lossy_name(int codec);
+/* The largest level codec takes: 100 (a WebP quality), 63 (an AV1 quantiser); the least is 0. */
+int btf_lossy_max_level(int codec);
 /* Level i (0 coarsest .. BTF_LOSSY_LADDER - 1 finest) of codec's ladder. */
 int btf_lossy_ladder(int codec, int i);
 /* w x h grey bytes as a file of codec at level (btf_webp_encode_grey_lossy,
