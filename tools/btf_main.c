@@ -3,7 +3,9 @@
 #include "btf_cli.h"
 #include "btf_version.h"
 
+#include <cblas.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* One row per subcommand; static table, lives for the program. */
@@ -47,6 +49,14 @@ int main(int argc, char **argv)
         printf("btf %s\n", BTF_VERSION);
         return 0;
     }
+    /* One thread pool: the codec shares its work out on OpenMP's threads; OpenBLAS's
+     * own pool beside them (a thread per core, waiting by yielding) took 1.15-1.2x
+     * the wall time of a compress beside one busy process and 3.6-4.7x beside
+     * low-priority ones, and won 7% only on an idle machine at 256x256
+     * (doc/performance.md section 4, "BLAS threads"). OPENBLAS_NUM_THREADS, when
+     * set, decides instead. */
+    if (!getenv("OPENBLAS_NUM_THREADS"))
+        openblas_set_num_threads(1);
     for (const btf_command *c = commands; c->name; c++)
         if (!strcmp(c->name, argv[1]))
             return c->run(argc - 1, argv + 1);
