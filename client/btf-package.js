@@ -265,7 +265,8 @@ export function parseManifest(m) {
     fail(name, `needs 1..${MAX_CHUNKS} chunks`);
   const lv = parseLevels(name, m, nb);
   const chunks = m.chunks.map((c, i) => parseChunk(name, c, i, nb, lv, layout));
-  if (m.version === 3 && !chunks.every((c) => c.wt.endsWith('.z'))) fail(name, 'version 3 needs a wt-*.z file per chunk');
+  if (m.version === 3 && !chunks.every((c) => c.wt.endsWith('.z') || c.wt.endsWith('.pz')))
+    fail(name, 'version 3 needs a wt-*.z or wt-*.pz file per chunk');
   if (m.version === 4) residualOrder(name, chunks, lv.levels);
   const comps = [...new Set(chunks.map((c) => c.component))];
   return {
@@ -345,6 +346,35 @@ export async function dequantWeightsZ(pkg, chunk, buf) {
   return dequantQ(pkg, chunk, (i) => q[i]);
 }
 
+// wt-JJ.pz (section 5.4), versions 3 and 4: zlib of two byte planes of zigzag
+// residuals; the prediction adds to the previous light's value the change of the
+// view before in the same block (prev) from its previous light to this one, and
+// channels 0 and 2 store their residual less channel 1's.
+export async function dequantWeightsP(pkg, chunk, buf) {
+  const L = pkg.lights.dirs, V = pkg.views.dirs, n = V * L * 3;
+  if (buf.byteLength < 1 || buf.byteLength > 2 * n + 1024)
+    fail(pkg.name, `${chunk.wt} has ${buf.byteLength} bytes, expected 1..${2 * n + 1024}`);
+  const raw = await inflateExactly(pkg.name, chunk.wt, buf, 2 * n);
+  const q = new Uint16Array(n), r = new Int32Array(3);
+  for (let v = 0; v < V; v++) {
+    let u = v - 1;
+    while (u >= 0 && pkg.viewBlock[u] !== pkg.viewBlock[v]) u--;
+    for (let l = 0; l < L; l++) {
+      const i = (v * L + l) * 3;
+      for (let c = 0; c < 3; c++) {
+        const z = raw[i + c] | (raw[n + i + c] << 8);
+        r[c] = (z >>> 1) ^ -(z & 1);
+      }
+      for (let c = 0; c < 3; c++) {
+        const a = l > 0 ? q[i - 3 + c] : 0;
+        const p = u < 0 ? a : l > 0 ? a + q[(u * L + l) * 3 + c] - q[(u * L + l - 1) * 3 + c] : q[u * L * 3 + c];
+        q[i + c] = p + r[c] + (c !== 1 ? r[1] : 0); // Uint16Array wraps mod 65536
+      }
+    }
+  }
+  return dequantQ(pkg, chunk, (i) => q[i]);
+}
+
 // Version 4 wt-JJ-r.z (section 12): zlib of two byte planes of the zigzag codes of
 // r = (q16 - s_c q8) mod 65536 (no prediction along the lights), over q8, the
 // component's 8-bit weights (wt-JJ-8.png pixels) -> the same Float32Array as dequantWeights.
@@ -365,6 +395,7 @@ export async function dequantWeightsR(pkg, chunk, buf, q8) {
 // Float32Array (q8: version 4's 8-bit weights of the component, for wt-JJ-r.z).
 export async function decodeWeights(pkg, chunk, buf, q8) {
   if (pkg.manifestVersion === 4 && chunk.wt.endsWith('-r.z')) return dequantWeightsR(pkg, chunk, buf, q8);
+  if (pkg.manifestVersion >= 3 && chunk.wt.endsWith('.pz')) return dequantWeightsP(pkg, chunk, buf);
   return chunk.wt.endsWith('.z') ? dequantWeightsZ(pkg, chunk, buf) : dequantWeights(pkg, chunk, buf);
 }
 

@@ -30,6 +30,7 @@ typedef struct fuzz_pkgs {
     char v1[300], v2[300], v4[300], v3[300], va[300];
     char residual[64]; /* v4's residual level file, or "manifest.json" when the writer kept none */
     char avif[64];     /* va's first AVIF texture file */
+    char wt3[64];      /* v3's weights file of component 0: wt-00.z or wt-00.pz, as the writer chose */
 } fuzz_pkgs;
 
 /* va: v3 with tex-00 as an AVIF of its decoded atlas (quantiser 20) under that name in
@@ -50,10 +51,12 @@ static inline btf_result fuzz__avif_package(fuzz_pkgs *p, btf_error *err)
     snprintf(to, sizeof to, "%s/tex-00.avif", p->va);
     if (r == BTF_OK)
         r = btf_fs_write_atomic(to, f, n, err);
-    const char *copy[3] = {"tex-01.webp", "wt-00.z", "wt-01.z"};
-    for (int i = 0; r == BTF_OK && i < 3; i++) {
+    const char *copy[5] = {"tex-01.webp", "wt-00.z", "wt-01.z", "wt-00.pz", "wt-01.pz"};
+    for (int i = 0; r == BTF_OK && i < 5; i++) {
         char *data = NULL;
         snprintf(from, sizeof from, "%s/%s", p->v3, copy[i]);
+        if (i > 0 && btf_fs_size(from) < 0)
+            continue; /* each component has one of its two weights codings */
         snprintf(to, sizeof to, "%s/%s", p->va, copy[i]);
         r = btf_fs_read(from, (size_t)1 << 24, &data, &n, err);
         if (r == BTF_OK)
@@ -121,6 +124,10 @@ static inline const fuzz_pkgs *fuzz_packages(void)
         if (btf_fs_size(path) > 0)
             snprintf(p.avif, sizeof p.avif, "tex-%02d.avif", j);
     }
+    snprintf(p.wt3, sizeof p.wt3, "wt-00.pz");
+    snprintf(path, sizeof path, "%s/%s", p.v3, p.wt3);
+    if (btf_fs_size(path) < 0)
+        snprintf(p.wt3, sizeof p.wt3, "wt-00.z");
     if (!p.avif[0]) {
         fprintf(stderr, "fuzz: the AVIF package has no AVIF texture (the setup no longer covers them)\n");
         abort();
@@ -130,8 +137,9 @@ static inline const fuzz_pkgs *fuzz_packages(void)
 
 /* The file an input replaces (first byte below 0xf8, modulo 6: 0 texture PNG, 1
  * weights .bin, 2 manifest.json of v1, 3 an 8-bit weights PNG of v2, 4 the manifest
- * and 5 a residual level of v4; 0xf8..0xfb: v3's WebP texture tex-00.webp, lossy
- * or lossless, 32 x 32; 0xfc and above: va's AVIF texture); *pkg gets 1, 2, 3, 4 or 5. */
+ * and 5 a residual level of v4; 0xf8, 0xf9: v3's WebP texture tex-00.webp, lossy
+ * or lossless, 32 x 32; 0xfa, 0xfb: v3's weights of component 0, wt-00.pz or wt-00.z;
+ * 0xfc and above: va's AVIF texture); *pkg gets 1, 2, 3, 4 or 5. */
 static inline const char *fuzz_package_file(const fuzz_pkgs *pk, uint8_t first, int *pkg)
 {
     const char *names[6] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png", "manifest.json", pk->residual};
@@ -141,7 +149,7 @@ static inline const char *fuzz_package_file(const fuzz_pkgs *pk, uint8_t first, 
     }
     if (first >= 0xf8) {
         *pkg = 3;
-        return "tex-00.webp";
+        return first >= 0xfa ? pk->wt3 : "tex-00.webp";
     }
     int which = first % 6;
     *pkg = which >= 4 ? 4 : which == 3 ? 2 : 1;

@@ -45,6 +45,7 @@ typedef struct btf__lod {
     size_t *lossy_n; /* [a*nl+l] bytes of lossy[a*nl+l] */
     btf_lap_pred *pred; /* [a*nl+l] version 4: the residual's predictor (btf_lap_pred_fit) */
     char *w16res;    /* [a] version 4: the 16-bit weights' coding (BTF__W16_*, the smallest kept) */
+    int *prev_view;  /* [v] each view's predecessor in its block (btf_wtz_prev_views), for wt-JJ.pz */
     double thr;
     float **lev;     /* [a*nl+l] dequantised texels, nb * Wl * Hl; level 0 borrowed from p->tex */
     uint8_t **atlas; /* [a*nl+l] atlas pixels for l >= 1 */
@@ -73,6 +74,7 @@ static void btf__lod_free(btf__lod *s)
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
     free(s->w8bytes), free(s->w8step), free(s->w8q), free(s->isres), free(s->kind), free(s->w16res), free(s->pred);
+    free(s->prev_view);
     free(s->rmse_full);
     btf_package_free(s->p);
 }
@@ -320,8 +322,8 @@ static btf_result btf__errors(btf__lod *s, btf_error *err)
 }
 
 
-/* Codings of a component's 16-bit weights (doc/package-format.md sections 5.1, 5.3, 9.3). */
-enum { BTF__W16_BIN, BTF__W16_RES, BTF__W16_Z };
+/* Codings of a component's 16-bit weights (doc/package-format.md sections 5.1, 5.3, 9.3, 5.4). */
+enum { BTF__W16_BIN, BTF__W16_RES, BTF__W16_Z, BTF__W16_PZ };
 
 static btf_result btf__copy_file(const char *from, const char *to, btf_error *err)
 {
@@ -447,22 +449,22 @@ static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error 
 }
 
 /* Name of component a's 16-bit weights in the coding c (BTF__W16_*): "wt-JJ.bin",
- * "wt-JJ-r.z" (over the 8-bit weights, version 4) or "wt-JJ.z" (version 3's coding). */
+ * "wt-JJ-r.z" (over the 8-bit weights, version 4), "wt-JJ.z" or "wt-JJ.pz". */
 static void btf__w16_name(const btf__lod *s, int a, int c, char *name, size_t n)
 {
-    static const char *const ext[] = {".bin", "-r.z", ".z"};
+    static const char *const ext[] = {".bin", "-r.z", ".z", ".pz"};
     const char *w = btf__src_file(&s->p->chunk[a], 1);
     snprintf(name, n, "%.*s%s", btf__stem_len(w), w, ext[c]);
 }
 
 /* Component a's 16-bit weight codes q16 (V*L*3, malloc'd into *q) from the source
- * package's file path: wt-JJ.bin (little-endian) or version 3's wt-JJ.z. */
+ * package's file path: wt-JJ.bin (little-endian) or version 3's wt-JJ.z or wt-JJ.pz. */
 static btf_result btf__read_q16(const btf__lod *s, const char *path, uint16_t **q, btf_error *err)
 {
     const btf_package *p = s->p;
     int V = p->views.n_dirs, L = p->lights.n_dirs;
-    size_t n = (size_t)V * L * 3, nd = 0;
-    int z = p->version == 3;
+    size_t n = (size_t)V * L * 3, nd = 0, np = strlen(path);
+    int z = p->version == 3, pz = z && np > 3 && !strcmp(path + np - 3, ".pz");
     char *raw = NULL;
     btf_result r = btf_fs_read(path, z ? btf_wtz_max_bytes(V, L) : 2 * n, &raw, &nd, err);
     if (r == BTF_OK && !z && nd != 2 * n)
@@ -471,7 +473,7 @@ static btf_result btf__read_q16(const btf__lod *s, const char *path, uint16_t **
     if (r == BTF_OK && !*q)
         r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     if (r == BTF_OK && z)
-        r = btf_wtz_decode((const uint8_t *)raw, nd, V, L, *q, path, err);
+        r = btf_wtz_decode_pred((const uint8_t *)raw, nd, V, L, pz ? s->prev_view : NULL, *q, path, err);
     for (size_t k = 0; r == BTF_OK && !z && k < n; k++)
         (*q)[k] = (uint16_t)((unsigned)(uint8_t)raw[2 * k] | (unsigned)(uint8_t)raw[2 * k + 1] << 8);
     free(raw);
@@ -485,8 +487,8 @@ static btf_result btf__encode_w16(const btf__lod *s, int a, const uint16_t *q, i
     const btf_package *p = s->p;
     int V = p->views.n_dirs, L = p->lights.n_dirs;
     size_t n = (size_t)V * L * 3;
-    if (c == BTF__W16_Z)
-        return btf_wtz_encode(q, V, L, out, len, err);
+    if (c == BTF__W16_Z || c == BTF__W16_PZ)
+        return btf_wtz_encode_pred(q, V, L, c == BTF__W16_PZ ? s->prev_view : NULL, out, len, err);
     uint16_t *d = malloc(n * sizeof *d);
     if (!d)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
@@ -507,7 +509,7 @@ static btf_result btf__encode_w16(const btf__lod *s, int a, const uint16_t *q, i
 }
 
 /* Component a's 16-bit weights into tmp in the smallest coding a version allows:
- * version 2 wt-JJ.bin; version 4 also wt-JJ-r.z (with 8-bit weights) and wt-JJ.z.
+ * version 2 wt-JJ.bin; version 4 also wt-JJ-r.z (with 8-bit weights), wt-JJ.z and wt-JJ.pz.
  * Fills w16res[a] and wbytes[a]. */
 static btf_result btf__write_w16(btf__lod *s, int a, const char *in_dir, const char *tmp, btf_error *err)
 {
@@ -517,7 +519,7 @@ static btf_result btf__write_w16(btf__lod *s, int a, const char *in_dir, const c
     size_t nbest = 0;
     snprintf(from, sizeof from, "%s/%s", in_dir, btf__src_file(&s->p->chunk[a], 1));
     btf_result r = btf__read_q16(s, from, &q, err);
-    for (int c = BTF__W16_BIN; r == BTF_OK && c <= (s->resid ? BTF__W16_Z : BTF__W16_BIN); c++) {
+    for (int c = BTF__W16_BIN; r == BTF_OK && c <= (s->resid ? BTF__W16_PZ : BTF__W16_BIN); c++) {
         uint8_t *z = NULL;
         size_t nz = 0;
         if (c == BTF__W16_RES && !s->w8q[a])
@@ -817,7 +819,10 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->isres = calloc(n, 1), s->kind = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
     s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t));
-    if (!s->w8q || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n)
+    s->prev_view = malloc((size_t)p->views.n_dirs * sizeof *s->prev_view);
+    if (s->prev_view)
+        btf_wtz_prev_views(p->blocks->block_of_view, p->views.n_dirs, s->prev_view);
+    if (!s->prev_view || !s->w8q || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     btf__coarse_quality(s, in_dir);
     return BTF_OK;

@@ -66,6 +66,8 @@ typedef struct btf__writer {
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
     const char **tex_ext; /* C: ".png", ".webp" or ".avif", the extension of component j's texture file once written */
+    const char **wt_ext;  /* C: ".bin" (version 1), ".z" or ".pz" (version 3), its weights file's, once written */
+    int *prev_view;       /* V: each view's predecessor in its block (btf_wtz_prev_views), for wt-JJ.pz */
     int codec;            /* the lossy textures' encoding (btf_package_options.lossy, btf_lossy.h) */
     int *quality;         /* C: -1, or the lossy level of component j's texture (version 3, btf_rd_result) */
     uint8_t **lossy;      /* C: component j's lossy WebP or AVIF file (malloc'd, lossy_n[j] bytes; its atlas
@@ -102,7 +104,7 @@ static void btf__writer_free(btf__writer *w)
     free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise), free(w->rd_json);
     for (int j = 0; w->lossy && j < w->C; j++)
         free(w->lossy[j]);
-    free(w->tex_ext), free(w->est_bytes), free(w->quality), free(w->lossy), free(w->lossy_n);
+    free(w->tex_ext), free(w->wt_ext), free(w->prev_view), free(w->est_bytes), free(w->quality), free(w->lossy), free(w->lossy_n);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
     free(w->ref);
@@ -131,6 +133,8 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->wt_range = calloc((size_t)C, sizeof *w->wt_range);
     w->tnoise = calloc((size_t)C, sizeof(float)), w->wnoise = calloc((size_t)C, sizeof(float));
     w->tex_ext = calloc((size_t)C, sizeof *w->tex_ext);
+    w->wt_ext = calloc((size_t)C, sizeof *w->wt_ext);
+    w->prev_view = malloc((size_t)w->V * sizeof *w->prev_view);
     w->quality = malloc((size_t)C * sizeof(int));
     w->lossy = calloc((size_t)C, sizeof *w->lossy), w->lossy_n = calloc((size_t)C, sizeof(size_t));
     for (int j = 0; w->quality && j < C; j++)
@@ -146,7 +150,7 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
     w->ref = malloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
-    int ok = w->ref && w->tnoise && w->tex_ext && w->quality && w->lossy && w->lossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
+    int ok = w->ref && w->tnoise && w->tex_ext && w->wt_ext && w->prev_view && w->quality && w->lossy && w->lossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
              w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
     for (int j = 0; ok && j < C; j++) {
@@ -156,6 +160,8 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
         w->wt_range[j] = calloc((size_t)bl->n_blocks * 2, sizeof(float));
         ok = w->atlas[j] && w->qwt[j] && w->tex_range[j] && w->wt_range[j];
     }
+    if (ok)
+        btf_wtz_prev_views(bl->block_of_view, w->V, w->prev_view);
     return ok ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (%d components)", C);
 }
 
@@ -390,26 +396,48 @@ static btf_result btf__hook(const btf__writer *w, int i, const char *file, btf_e
 
 
 
-static btf_result btf__write_weights(const char *path, const uint16_t *q, int V, int L, int version, btf_error *err)
+/* Version 3's weights of component j: the smaller of wt-JJ.z and wt-JJ.pz (ties:
+ * .z), into *z (malloc'd, *nz bytes), its extension into w->wt_ext[j]. */
+static btf_result btf__encode_weights(btf__writer *w, int j, uint8_t **z, size_t *nz, btf_error *err)
 {
-    size_t n = (size_t)V * L * 3;
-    if (version == 3) { /* wt-JJ.z */
-        uint8_t *z = NULL;
-        size_t nz = 0;
-        btf_result r = btf_wtz_encode(q, V, L, &z, &nz, err);
-        if (r == BTF_OK)
-            r = btf_fs_write_atomic(path, z, nz, err);
-        free(z);
-        return r;
+    uint8_t *zp = NULL;
+    size_t np = 0;
+    btf_result r = btf_wtz_encode(w->qwt[j], w->V, w->L, z, nz, err);
+    if (r == BTF_OK)
+        r = btf_wtz_encode_pred(w->qwt[j], w->V, w->L, w->prev_view, &zp, &np, err);
+    w->wt_ext[j] = ".z";
+    if (r == BTF_OK && np < *nz) {
+        free(*z);
+        *z = zp, *nz = np, zp = NULL, w->wt_ext[j] = ".pz";
     }
-    uint8_t *buf = malloc(2 * n);
-    if (!buf)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
-    for (size_t i = 0; i < n; i++) {
-        buf[2 * i] = (uint8_t)(q[i] & 255u);
-        buf[2 * i + 1] = (uint8_t)(q[i] >> 8);
-    }
-    btf_result r = btf_fs_write_atomic(path, buf, 2 * n, err);
+    free(zp);
+    return r;
+}
+
+/* Component j's 16-bit weights as tmp/wt-JJ.bin (version 1) or the smaller of
+ * wt-JJ.z and wt-JJ.pz (version 3); file: its name once known. */
+static btf_result btf__write_weights(btf__writer *w, const char *tmp, int j, char *file, size_t nfile, btf_error *err)
+{
+    size_t n = (size_t)w->V * w->L * 3;
+    const uint16_t *q = w->qwt[j];
+    uint8_t *buf = NULL;
+    size_t nb = 2 * n;
+    btf_result r = BTF_OK;
+    if (w->version == 3)
+        r = btf__encode_weights(w, j, &buf, &nb, err);
+    else if ((buf = malloc(2 * n)) != NULL) {
+        w->wt_ext[j] = ".bin";
+        for (size_t i = 0; i < n; i++)
+            buf[2 * i] = (uint8_t)(q[i] & 255u), buf[2 * i + 1] = (uint8_t)(q[i] >> 8);
+    } else
+        r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", tmp);
+    snprintf(file, nfile, "wt-%02d%s", j, w->wt_ext[j] ? w->wt_ext[j] : ".bin");
+    char path[8192];
+    snprintf(path, sizeof path, "%s/%s", tmp, file);
+    if (r == BTF_OK)
+        r = btf__hook(w, 2 * j + 1, file, err);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(path, buf, nb, err);
     free(buf);
     return r;
 }
@@ -450,7 +478,7 @@ static char *btf__manifest(const btf__writer *w, const btf_pca_options *po, cons
         int j = order[a];
         c->component = j, c->n_files = 2, c->bytes = bytes[j];
         snprintf(c->files[0], BTF_PACKAGE_NAME_MAX, "tex-%02d%s", j, w->tex_ext[j]);
-        snprintf(c->files[1], BTF_PACKAGE_NAME_MAX, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
+        snprintf(c->files[1], BTF_PACKAGE_NAME_MAX, "wt-%02d%s", j, w->wt_ext[j]);
         c->rmse = rmse[a], c->lab = lab[a].lab_thesis, c->delta_e76 = lab[a].delta_e76, c->rmse_float = rmse_float[a];
         c->psnr = rmse[a] > 0 ? 20.0 * log10(255.0 / rmse[a]) : 999.0;
         c->tex_range = w->tex_range[j], c->wt_range = w->wt_range[j]; /* borrowed */
@@ -497,12 +525,9 @@ static btf_result btf__write_component(btf__writer *w, const btf_package_options
     long long s1 = -1;
     if (r == BTF_OK)
         r = btf__write_texture(w, o, tmp, j, &s1, err);
-    snprintf(file, sizeof file, w->version == 3 ? "wt-%02d.z" : "wt-%02d.bin", j);
+    if (r == BTF_OK)
+        r = btf__write_weights(w, tmp, j, file, sizeof file, err);
     snprintf(path, sizeof path, "%s/%s", tmp, file);
-    if (r == BTF_OK)
-        r = btf__hook(w, 2 * j + 1, file, err);
-    if (r == BTF_OK)
-        r = btf__write_weights(path, w->qwt[j], w->V, w->L, w->version, err);
     long long s2 = btf_fs_size(path);
     if (r == BTF_OK && (s1 < 0 || s2 < 0))
         r = btf_fail(err, BTF_ERR_IO, "%s: written file vanished", tmp);
@@ -551,10 +576,17 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         r = btf_fail(err, BTF_ERR_NOMEM, "package: out of memory");
         goto done;
     }
-    if (w->chan->estimate) /* nothing written: the allocation's estimates (version 3 only) */
-        for (int j = 0; j < C; j++)
+    if (w->chan->estimate) /* nothing written: the allocation's estimates (version 3 only), the files named as written */
+        for (int j = 0; r == BTF_OK && j < C; j++) {
+            uint8_t *z = NULL;
+            size_t nz = 0;
             bytes[j] = w->est_bytes[j], w->tex_ext[j] = btf__tex_ext(w, o, j);
-    else if ((r = btf__write_components(w, o, tmp, bytes, err)) != BTF_OK)
+            r = btf__encode_weights(w, j, &z, &nz, err);
+            free(z);
+        }
+    else
+        r = btf__write_components(w, o, tmp, bytes, err);
+    if (r != BTF_OK)
         goto done;
     btf__order(w, bytes, order);
     double n_samples = (double)w->rows * w->V * w->L * 3.0;

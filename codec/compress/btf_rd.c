@@ -324,6 +324,10 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
     btf_result res = btf__rd_measure_tex(r, err);
     if (res != BTF_OK)
         return res;
+    int *prev = malloc((size_t)r->V * sizeof *prev); /* the writer keeps the smaller of wt-JJ.z and wt-JJ.pz */
+    if (!prev)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (weights)");
+    btf_wtz_prev_views(r->m->blocks->block_of_view, r->V, prev);
 #pragma omp parallel if (btf__rd_threaded(r))
     { /* one component's weight steps per thread at a time: energy[j] has one writer */
         uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
@@ -337,16 +341,19 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
                     continue;
                 }
                 r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i], q);
-                uint8_t *z = NULL;
-                size_t nz = 0;
+                uint8_t *z = NULL, *zp = NULL;
+                size_t nz = 0, np = 0;
                 mine = btf_wtz_encode(q, r->V, r->L, &z, &nz, &e);
-                free(z);
-                r->rw[(size_t)j * BTF__RD_NW + i] = (long long)nz;
+                if (mine == BTF_OK)
+                    mine = btf_wtz_encode_pred(q, r->V, r->L, prev, &zp, &np, &e);
+                free(z), free(zp);
+                r->rw[(size_t)j * BTF__RD_NW + i] = (long long)(np < nz ? np : nz);
             }
 #pragma omp critical(btf__rd_result)
         btf__rd_first_error(mine, &e, &res, err);
         free(q);
     }
+    free(prev);
     return res;
 }
 

@@ -1,4 +1,5 @@
-/* btf_wtz.c - wt-JJ.z weights coding (doc/package-format.md section 9.3). */
+/* btf_wtz.c - the zlib weights codings wt-JJ.z and wt-JJ.pz (doc/package-format.md
+ * sections 9.3 and 5.4). */
 #include "btf_wtz.h"
 #include "btf_common.h"
 
@@ -15,23 +16,87 @@ size_t btf_wtz_max_bytes(int V, int L)
     return 2 * (size_t)V * L * 3 + 1024;
 }
 
+void btf_wtz_prev_views(const int *block_of_view, int V, int *prev)
+{
+    for (int v = 0; v < V; v++) {
+        prev[v] = -1;
+        for (int u = v - 1; u >= 0 && prev[v] < 0; u--)
+            if (block_of_view[u] == block_of_view[v])
+                prev[v] = u;
+    }
+}
+
+/* The prediction of q[(v*L + l)*3 + c] from values before it (mod 65536): the
+ * previous light of view v, plus with a predecessor u the change from u's previous
+ * light to its light l (u's light 0 alone at l = 0). */
+static unsigned btf__wtz_pred(const uint16_t *q, int L, int v, int u, int l, int c)
+{
+    const uint16_t *a = q + (size_t)v * L * 3, *b = u >= 0 ? q + (size_t)u * L * 3 : NULL;
+    if (!b)
+        return l > 0 ? a[(l - 1) * 3 + c] : 0u;
+    if (l == 0)
+        return b[c];
+    return (unsigned)a[(l - 1) * 3 + c] + b[l * 3 + c] - b[(l - 1) * 3 + c];
+}
+
+static uint16_t btf__zigzag(unsigned e)
+{
+    int d = (int16_t)(uint16_t)e; /* wrapped to -32768..32767 */
+    return (uint16_t)((unsigned)(d * 2) ^ (unsigned)(d < 0 ? -1 : 0));
+}
+
+/* The zigzag codes of q (n = V*L*3) into zz: prev NULL, differences along the
+ * lights (wt-JJ.z); else the prediction's residuals, channels 0 and 2 less
+ * channel 1's (wt-JJ.pz). */
+static void btf__wtz_codes(const uint16_t *q, int V, int L, const int *prev, uint16_t *zz)
+{
+    for (int v = 0; v < V; v++)
+        for (int l = 0; l < L; l++) {
+            size_t i = ((size_t)v * L + l) * 3;
+            unsigned r[3];
+            for (int c = 0; c < 3; c++)
+                r[c] = q[i + c] - btf__wtz_pred(q, L, v, prev ? prev[v] : -1, l, c);
+            for (int c = 0; c < 3; c++)
+                zz[i + c] = btf__zigzag(prev && c != 1 ? r[c] - r[1] : r[c]);
+        }
+}
+
+/* The inverse of btf__wtz_codes: q from the codes zz. */
+static void btf__wtz_rebuild(const uint16_t *zz, int V, int L, const int *prev, uint16_t *q)
+{
+    for (int v = 0; v < V; v++)
+        for (int l = 0; l < L; l++) {
+            size_t i = ((size_t)v * L + l) * 3;
+            unsigned r[3];
+            for (int c = 0; c < 3; c++)
+                r[c] = ((unsigned)zz[i + c] >> 1) ^ (0u - ((unsigned)zz[i + c] & 1u));
+            for (int c = 0; c < 3; c++)
+                q[i + c] = (uint16_t)(btf__wtz_pred(q, L, v, prev ? prev[v] : -1, l, c) + r[c] +
+                                      (prev && c != 1 ? r[1] : 0u));
+        }
+}
+
 btf_result btf_wtz_encode(const uint16_t *q, int V, int L, uint8_t **out, size_t *len, btf_error *err)
+{
+    return btf_wtz_encode_pred(q, V, L, NULL, out, len, err);
+}
+
+btf_result btf_wtz_encode_pred(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
+                               btf_error *err)
 {
     size_t n = (size_t)V * L * 3;
     uLong bound = compressBound((uLong)(2 * n));
     uint8_t *raw = malloc(2 * n), *z = malloc(bound);
+    uint16_t *zz = malloc(n * sizeof *zz);
     *out = NULL, *len = 0;
-    if (!raw || !z) {
-        free(raw), free(z);
+    if (!raw || !z || !zz) {
+        free(raw), free(z), free(zz);
         return btf_fail(err, BTF_ERR_NOMEM, "weights: out of memory");
     }
-    for (size_t i = 0; i < n; i++) {
-        size_t l = (i / 3) % (size_t)L;
-        int d = (int16_t)(uint16_t)(q[i] - (l > 0 ? q[i - 3] : 0)); /* wrapped to -32768..32767 */
-        uint16_t zz = (uint16_t)((unsigned)(d * 2) ^ (unsigned)(d < 0 ? -1 : 0));
-        raw[i] = (uint8_t)(zz & 255u);
-        raw[n + i] = (uint8_t)(zz >> 8);
-    }
+    btf__wtz_codes(q, V, L, prev, zz);
+    for (size_t i = 0; i < n; i++)
+        raw[i] = (uint8_t)(zz[i] & 255u), raw[n + i] = (uint8_t)(zz[i] >> 8);
+    free(zz);
     uLongf zl = bound;
     int zr = compress2(z, &zl, raw, (uLong)(2 * n), BTF_WTZ_LEVEL);
     free(raw);
@@ -45,6 +110,12 @@ btf_result btf_wtz_encode(const uint16_t *q, int V, int L, uint8_t **out, size_t
 
 btf_result btf_wtz_decode(const uint8_t *z, size_t len, int V, int L, uint16_t *q, const char *name,
                           btf_error *err)
+{
+    return btf_wtz_decode_pred(z, len, V, L, NULL, q, name, err);
+}
+
+btf_result btf_wtz_decode_pred(const uint8_t *z, size_t len, int V, int L, const int *prev, uint16_t *q,
+                               const char *name, btf_error *err)
 {
     size_t n = (size_t)V * L * 3;
     if (len < 1 || len > btf_wtz_max_bytes(V, L))
@@ -70,12 +141,13 @@ btf_result btf_wtz_decode(const uint8_t *z, size_t len, int V, int L, uint16_t *
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: inflates to %zu bytes, expected %zu", name, got, 2 * n);
     else if (s.avail_in != 0)
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: %u bytes after the zlib stream", name, s.avail_in);
-    for (size_t i = 0; r == BTF_OK && i < n; i++) {
-        unsigned zz = (unsigned)raw[i] | ((unsigned)raw[n + i] << 8);
-        unsigned d = (zz >> 1) ^ (0u - (zz & 1u));
-        size_t l = (i / 3) % (size_t)L;
-        q[i] = (uint16_t)((l > 0 ? q[i - 3] : 0u) + d);
-    }
-    free(raw);
+    uint16_t *zz = r == BTF_OK ? malloc(n * sizeof *zz) : NULL;
+    if (r == BTF_OK && !zz)
+        r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", name);
+    for (size_t i = 0; r == BTF_OK && i < n; i++)
+        zz[i] = (uint16_t)((unsigned)raw[i] | ((unsigned)raw[n + i] << 8));
+    if (r == BTF_OK)
+        btf__wtz_rebuild(zz, V, L, prev, q);
+    free(zz), free(raw);
     return r;
 }

@@ -1,11 +1,18 @@
-/* btf_wtz.h - the version-3 weights file wt-JJ.z (doc/package-format.md section 9.3):
- * 16-bit quantised weights as zigzag differences along the lights, in two byte
- * planes, in one zlib stream.
+/* btf_wtz.h - the weights files wt-JJ.z (doc/package-format.md section 9.3) and
+ * wt-JJ.pz (section 5.4): 16-bit quantised weights as zigzag residuals of a
+ * prediction, in two byte planes, in one zlib stream. wt-JJ.z predicts from the
+ * previous light; wt-JJ.pz also from the view before in the same block, and codes
+ * channels 0 and 2 less channel 1's residual.
  *
  *     uint8_t *z; size_t nz;
  *     btf_wtz_encode(q, V, L, &z, &nz, &err);       // q: V*L*3 values, (v*L + l)*3 + c
  *     btf_wtz_decode(z, nz, V, L, q_back, "wt-00.z", &err);
  *     free(z);
+ *
+ *     int prev[V];                                   // wt-JJ.pz: each view's predecessor
+ *     btf_wtz_prev_views(blocks->block_of_view, V, prev);
+ *     btf_wtz_encode_pred(q, V, L, prev, &z, &nz, &err);
+ *     btf_wtz_decode_pred(z, nz, V, L, prev, q_back, "wt-00.pz", &err);
  */
 #ifndef BTF_WTZ_H
 #define BTF_WTZ_H
@@ -27,6 +34,15 @@ btf_result btf_wtz_encode(const uint16_t *q, int V, int L, uint8_t **out, size_t
  * bytes and end there. name labels the messages. */
 btf_result btf_wtz_decode(const uint8_t *z, size_t len, int V, int L, uint16_t *q, const char *name,
                           btf_error *err);
+
+/* prev[v] (V ints) = the largest view index below v in v's block, -1 when there is none. */
+void btf_wtz_prev_views(const int *block_of_view, int V, int *prev);
+/* As btf_wtz_encode and btf_wtz_decode, with prev (btf_wtz_prev_views) the coding of
+ * wt-JJ.pz; prev NULL is wt-JJ.z's. */
+btf_result btf_wtz_encode_pred(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
+                               btf_error *err);
+btf_result btf_wtz_decode_pred(const uint8_t *z, size_t len, int V, int L, const int *prev, uint16_t *q,
+                               const char *name, btf_error *err);
 
 #ifdef __cplusplus
 }

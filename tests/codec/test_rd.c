@@ -98,7 +98,8 @@ static double direct_rmse(const btf_package *p, const btf *src)
 
 /* Bytes the allocation's reference counts for the equal-noise package pa in dir:
  * each atlas as the smaller of its PNG and the lossless WebP of the same pixels
- * (*tex), each 16-bit weights file (wt-JJ.bin) as it deflates in wt-JJ.z (*wt). */
+ * (*tex), each 16-bit weights file (wt-JJ.bin) as the smaller of wt-JJ.z and
+ * wt-JJ.pz, the writer's choice (*wt). */
 static void equal_noise_bytes(const btf_package *pa, const char *a, long long *tex, long long *wt)
 {
     *tex = 0, *wt = 0;
@@ -131,7 +132,12 @@ static void equal_noise_bytes(const btf_package *pa, const char *a, long long *t
         btf_error err = {0};
         cr_assert_eq(btf_wtz_encode(q, pa->views.n_dirs, pa->lights.n_dirs, &z, &nz, &err), BTF_OK);
         free(z);
-        *wt += (long long)nz;
+        int *prev = malloc((size_t)pa->views.n_dirs * sizeof *prev);
+        size_t np = 0;
+        btf_wtz_prev_views(pa->blocks->block_of_view, pa->views.n_dirs, prev);
+        cr_assert_eq(btf_wtz_encode_pred(q, pa->views.n_dirs, pa->lights.n_dirs, prev, &z, &np, &err), BTF_OK);
+        free(z), free(prev);
+        *wt += (long long)(np < nz ? np : nz);
     }
     free(q);
 }
@@ -163,7 +169,8 @@ Test(rd, smaller_package_at_equal_error)
     long long sum = 0;
     for (int i = 0; i < pb->n_chunks; i++) {
         cr_assert_eq(pb->chunk[i].n_files, 2);
-        cr_assert_str_eq(pb->chunk[i].files[1] + strlen(pb->chunk[i].files[1]) - 2, ".z");
+        const char *wf = pb->chunk[i].files[1], *ext = strrchr(wf, '.');
+        cr_assert(ext && (!strcmp(ext, ".z") || !strcmp(ext, ".pz")), "%s", wf);
         sum += pb->chunk[i].bytes;
     }
     cr_assert_eq(sum, bb);
@@ -415,10 +422,12 @@ Test(rd, a_model_slot_is_reused_for_the_same_settings_only)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
-/* wt-JJ.z decoded here from the text of doc/package-format.md section 9.3 alone. */
+/* wt-JJ.z (or wt-JJ.pz) decoded here from the text of doc/package-format.md section
+ * 9.3 (5.4) alone. */
 static void independent_weights(const char *path, int V, int L, const float *wt_range, const int *block_of_view,
                                 float *out)
 {
+    int pz = strlen(path) > 3 && !strcmp(path + strlen(path) - 3, ".pz");
     size_t n = (size_t)V * L * 3;
     FILE *f = fopen(path, "rb");
     cr_assert_not_null(f, "%s", path);
@@ -429,14 +438,28 @@ static void independent_weights(const char *path, int V, int L, const float *wt_
     cr_assert_eq(uncompress(raw, &len, z, (uLong)nz), Z_OK);
     cr_assert_eq(len, 2 * n);
     unsigned *q = malloc(n * sizeof *q);
+    long d[3];
     for (size_t i = 0; i < n; i++) {
         unsigned zz = raw[i] + 256u * raw[n + i];
-        long d = (zz & 1u) ? -(long)((zz + 1) / 2) : (long)(zz / 2);
-        size_t l = (i / 3) % (size_t)L;
-        long prev = l > 0 ? (long)q[i - 3] : 0;
-        q[i] = (unsigned)(((prev + d) % 65536 + 65536) % 65536);
-        const float *rg = wt_range + 2 * block_of_view[i / (3 * (size_t)L)];
-        out[i] = rg[0] + rg[1] * (float)q[i];
+        d[i % 3] = (zz & 1u) ? -(long)((zz + 1) / 2) : (long)(zz / 2);
+        if (i % 3 < 2)
+            continue; /* the whole (view, light) first: .pz adds channel 1's residual to 0 and 2 */
+        size_t v = i / (3 * (size_t)L), l = (i / 3) % (size_t)L;
+        long u = -1; /* .pz: the last view before v in its block */
+        for (size_t w = 0; pz && w < v; w++)
+            if (block_of_view[w] == block_of_view[v])
+                u = (long)w;
+        for (int c = 0; c < 3; c++) {
+            size_t k = i - 2 + (size_t)c;
+            long prev = l > 0 ? (long)q[k - 3] : 0, r = d[c] + (pz && c != 1 ? d[1] : 0);
+            if (u >= 0) {
+                const unsigned *qu = q + (size_t)u * L * 3;
+                prev = l > 0 ? prev + (long)qu[l * 3 + c] - (long)qu[(l - 1) * 3 + c] : (long)qu[c];
+            }
+            q[k] = (unsigned)(((prev + r) % 65536 + 65536) % 65536);
+            const float *rg = wt_range + 2 * block_of_view[v];
+            out[k] = rg[0] + rg[1] * (float)q[k];
+        }
     }
     free(z), free(raw), free(q);
 }
@@ -488,6 +511,65 @@ Test(rd, wtz_round_trip_with_wrapping_differences)
     cr_assert_eq(btf_wtz_decode(z, nz, V, L - 1, back, "t", &err), BTF_ERR_FORMAT);
     cr_assert(strstr(err.msg, "more than"), "%s", err.msg);
     free(z), free(z2), free(q), free(back);
+}
+
+/* wt-JJ.pz (doc/package-format.md section 5.4) by hand: two views of one block,
+ * two lights; the residuals of the previous light, of the view before and of
+ * channel 1, zigzag coded, worked out from the format text. */
+Test(rd, wtz_pred_codes_worked_by_hand)
+{
+    const uint16_t q[12] = {10, 20, 30, 12, 25, 29, /* view 0: light 0, light 1 (channels 0..2) */
+                            11, 22, 33, 15, 26, 40}; /* view 1 */
+    /* view 0 light 0: r = q, less channel 1's: -10 20 10 -> 19 40 20; light 1: r = (2 5 -1)
+     * -> -3 5 -6 -> 5 10 11; view 1 light 0 from view 0 light 0: r = (1 2 3) -> -1 2 1 ->
+     * 1 4 2; light 1: prediction 11+12-10, 22+25-20, 33+29-30 = 13 27 32, r = (2 -1 8)
+     * -> 3 -1 9 -> 6 1 18 */
+    const uint8_t want[12] = {19, 40, 20, 5, 10, 11, 1, 4, 2, 6, 1, 18};
+    const int block_of_view[2] = {0, 0};
+    int prev[2];
+    btf_wtz_prev_views(block_of_view, 2, prev);
+    cr_assert(prev[0] == -1 && prev[1] == 0);
+    uint8_t *z = NULL, raw[24];
+    size_t nz = 0;
+    btf_error err = {0};
+    cr_assert_eq(btf_wtz_encode_pred(q, 2, 2, prev, &z, &nz, &err), BTF_OK, "%s", err.msg);
+    uLongf rl = sizeof raw;
+    cr_assert_eq(uncompress(raw, &rl, z, (uLong)nz), Z_OK);
+    cr_assert_eq(rl, 24);
+    for (int i = 0; i < 12; i++)
+        cr_assert(raw[i] == want[i] && raw[12 + i] == 0, "code %d: %d (high %d), expected %d", i, raw[i], raw[12 + i],
+                  want[i]);
+    uint16_t back[12];
+    cr_assert_eq(btf_wtz_decode_pred(z, nz, 2, 2, prev, back, "t", &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(memcmp(q, back, sizeof q), 0);
+    free(z);
+}
+
+/* wt-JJ.pz round trip: views of a block not adjacent, extremes next to each other. */
+Test(rd, wtz_pred_round_trip_with_wrapping_and_spread_blocks)
+{
+    int V = 7, L = 5;
+    const int block_of_view[7] = {1, 0, 1, 0, 2, 1, 0};
+    int prev[7];
+    btf_wtz_prev_views(block_of_view, V, prev);
+    const int want_prev[7] = {-1, -1, 0, 1, -1, 2, 3};
+    cr_assert_eq(memcmp(prev, want_prev, sizeof prev), 0);
+    size_t n = (size_t)V * L * 3;
+    uint16_t *q = malloc(n * sizeof *q), *back = malloc(n * sizeof *q);
+    for (size_t i = 0; i < n; i++)
+        q[i] = (uint16_t)(i % 5 == 0 ? 0 : i % 5 == 1 ? 65535 : (i * 7919u + i * i) & 0xffffu);
+    uint8_t *z = NULL;
+    size_t nz = 0;
+    btf_error err = {0};
+    cr_assert_eq(btf_wtz_encode_pred(q, V, L, prev, &z, &nz, &err), BTF_OK, "%s", err.msg);
+    cr_assert_leq(nz, btf_wtz_max_bytes(V, L));
+    cr_assert_eq(btf_wtz_decode_pred(z, nz, V, L, prev, back, "t", &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(memcmp(q, back, n * sizeof *q), 0);
+    cr_assert_eq(btf_wtz_decode(z, nz, V, L, back, "t", &err), BTF_OK); /* read as wt-JJ.z: other values */
+    cr_assert_neq(memcmp(q, back, n * sizeof *q), 0);
+    cr_assert_eq(btf_wtz_decode_pred(z, nz - 3, V, L, prev, back, "t.pz", &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "t.pz: "), "%s", err.msg);
+    free(z), free(q), free(back);
 }
 
 Test(rd, reader_limits_of_wt_z)

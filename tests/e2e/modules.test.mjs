@@ -134,6 +134,49 @@ describe('btf-package.js version 3', () => {
     more.set(q);
     await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], encode(more, 81)), /more than/);
   });
+  // q -> wt-JJ.pz written from the format text (section 5.4): u = the largest view
+  // below v in v's block; prediction a + (b - c) from the previous light a, u's light
+  // b and u's previous light c (u's light 0 alone at l = 0, a alone without u);
+  // channels 0 and 2 less channel 1's residual; zigzag, two byte planes, zlib.
+  const encodeP = (q, L, blockOf) => {
+    const n = q.length, V = n / (3 * L), raw = new Uint8Array(2 * n), at = (v, l, c) => q[(v * L + l) * 3 + c];
+    const zig = (d) => { d = ((d % 65536) + 65536 + 32768) % 65536 - 32768; return ((d << 1) ^ (d >> 15)) & 0xffff; };
+    for (let v = 0; v < V; v++) {
+      let u = -1;
+      for (let w = 0; w < v; w++) if (blockOf(w) === blockOf(v)) u = w;
+      for (let l = 0; l < L; l++) {
+        const r = [0, 1, 2].map((c) => {
+          const pred = u < 0 ? (l ? at(v, l - 1, c) : 0) : l ? at(v, l - 1, c) + at(u, l, c) - at(u, l - 1, c) : at(u, 0, c);
+          return at(v, l, c) - pred;
+        });
+        [r[0] - r[1], r[1], r[2] - r[1]].forEach((d, c) => {
+          const i = (v * L + l) * 3 + c, z = zig(d);
+          raw[i] = z & 255;
+          raw[n + i] = z >> 8;
+        });
+      }
+    }
+    return zlib.deflateSync(raw);
+  };
+  it('decodes wt-JJ.pz (views of a block not adjacent) to the same Float32Array as the raw 16-bit file', async () => {
+    const spread = (m) => {
+      m.blocks = Array.from({length: 27}, (_, b) => [b, b + 27, b + 54]);
+      return m;
+    };
+    const m3 = spread(v3());
+    m3.chunks.forEach((c, j) => { c.files = [`tex-0${j}.png`, `wt-0${j}.pz`]; });
+    const p = pkgMod.parseManifest(m3), p1 = pkgMod.parseManifest(spread(manifest()));
+    const n = 81 * 81 * 3, q = new Uint16Array(n);
+    for (let i = 0; i < n; i++) q[i] = i % 7 === 0 ? 0 : i % 7 === 1 ? 65535 : (i * 7919 + ((i * i) % 977)) % 65536;
+    const want = pkgMod.dequantWeights(p1, p1.chunks[1], Buffer.from(q.buffer));
+    const z = encodeP(q, 81, (v) => v % 27);
+    assert.deepEqual(await pkgMod.decodeWeights(p, p.chunks[1], z), want);
+    // the same bytes read as wt-JJ.z (no view or channel prediction) decode to other weights
+    const asZ = pkgMod.parseManifest(spread(v3()));
+    assert.notDeepEqual(await pkgMod.decodeWeights(asZ, asZ.chunks[1], z), want);
+    await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], z.subarray(0, z.length - 4)), /wt-01\.pz/);
+    await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], new Uint8Array(2 * n + 1025)), /bytes, expected 1\.\./);
+  });
   it('decodes the wt-JJ.z files btf compress --rd writes, every weight within its block range', async (t) => {
     const btf = path.join(ROOT, 'build', 'btf');
     if (!fs.existsSync(btf)) return t.skip('build/btf missing');
