@@ -28,11 +28,16 @@
  * them) and interpolated between them, so both ends must be even */
 _Static_assert(BTF__RD_TEX_LO % 2 == 0 && BTF__RD_NT % 2 == 1, "texture ladder: even equal-noise index and ends");
 #define BTF__RD_NW (BTF__RD_WT_HI - BTF__RD_WT_LO + 2)
+/* weight rates are encoded at index 0 (16 bits) and the odd noise steps, interpolated
+ * at the even ones between, so the last step must be odd */
+_Static_assert(BTF__RD_NW % 2 == 0, "weight ladder: its last noise step at an odd index");
 #define BTF__RD_RATE_TILES 9 /* texture rates measured on whole atlas rows holding about this many tiles */
 /* Lossy levels beside the lossless steps (btf_rd_params.lossy: btf_lossy_ladder of its
  * encoding): the candidates NT .. NT + NQ - 1 of each component's texture ladder,
  * full-range 8-bit codes. */
 #define BTF__RD_NQ BTF_LOSSY_LADDER
+#define BTF__RD_REFINE_PASSES 8 /* choices at most, each after measuring what the last chose interpolated */
+_Static_assert(BTF__RD_NQ % 2 == 1, "lossy ladder: both ends at even levels, encoded");
 
 /* Measured candidates of one allocation; lives for one btf_rd_allocate call. */
 typedef struct btf__rd {
@@ -53,6 +58,8 @@ typedef struct btf__rd {
     /* C x nt, C x NW: 1 = the step is measured (near a previous choice, par->near);
      * NULL = every step. An unmeasured step's error is infinite: never chosen. */
     unsigned char *mt, *mw;
+    /* C x nt, C x NW: 1 = an interpolated candidate measured since (btf__rd_refine) */
+    unsigned char *exact_t, *exact_w;
 } btf__rd;
 
 /* The rate sample: whole rows of the atlas's tile grid, evenly spaced among the full
@@ -142,6 +149,19 @@ static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
     return d;
 }
 
+/* The rate of weights q (V*L*3) as the writer keeps them: the smaller of wt-JJ.z and
+ * wt-JJ.pz (prev: the views' predecessors); -1 with an error in e. */
+static long long btf__rd_wt_rate(const btf__rd *r, const uint16_t *q, const int *prev, btf_error *e)
+{
+    uint8_t *z = NULL, *zp = NULL;
+    size_t nz = 0, np = 0;
+    btf_result res = btf_wtz_encode(q, r->V, r->L, &z, &nz, e);
+    if (res == BTF_OK)
+        res = btf_wtz_encode_pred(q, r->V, r->L, prev, &zp, &np, e);
+    free(z), free(zp);
+    return res != BTF_OK ? -1 : (long long)(np < nz ? np : nz);
+}
+
 /* The squared error component j's texture adds when its full-range atlas (the rate
  * sample's in atlas, each block's rounding error in eb) decodes to dec: exact on the
  * sampled blocks; on the others their rounding error plus the sample's mean lossy
@@ -216,6 +236,8 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, uint8
         r->dt[n] = INFINITY, r->rt[n] = 0;
         return BTF_OK;
     }
+    if (n % r->nt >= BTF__RD_NT && (n % r->nt - BTF__RD_NT) % 2)
+        return BTF_OK; /* odd lossy levels: interpolated by btf__rd_measure_tex */
     if (n % r->nt >= BTF__RD_NT)
         return btf__rd_lossy_candidate(r, n, atlas, buf, eb, err);
     r->dt[n] = btf__rd_tex(r, n / r->nt, r->gt[n % r->nt], atlas, NULL);
@@ -274,9 +296,11 @@ static int btf__rd_task(const btf__rd *r, int n)
     return (n / BTF__RD_NT) * r->nt + n % BTF__RD_NT;
 }
 
-/* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
-static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
+/* What measuring a texture candidate needs: the weights' norms and the rate sample. */
+static btf_result btf__rd_prepare(btf__rd *r, btf_error *err)
 {
+    if (r->wnorm)
+        return BTF_OK;
     r->wnorm = malloc(sizeof(float) * (size_t)r->C * (size_t)r->nb);
     if (!r->wnorm)
         return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (norms)");
@@ -288,7 +312,15 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
         return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (rate sample)");
     if (r->par->tex_rate_scale > 0.0)
         r->rate_scale *= r->par->tex_rate_scale;
-    btf_result res = BTF_OK;
+    return BTF_OK;
+}
+
+/* Every texture candidate, on OpenMP's threads (PNG encoding is most of the cost). */
+static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
+{
+    btf_result res = btf__rd_prepare(r, err);
+    if (res != BTF_OK)
+        return res;
 #pragma omp parallel if (btf__rd_threaded(r))
     {
         size_t sz = (size_t)r->aw * r->sub_rows * r->H * r->ch;
@@ -314,6 +346,16 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
             long long *rt = r->rt + (size_t)j * r->nt;
             if (!r->mt || r->mt[(size_t)j * r->nt + i]) /* its neighbours are measured too */
                 rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2;
+        }
+    /* odd lossy levels: the mean of the neighbours' rates and the geometric mean of
+     * their errors (both about linear in the level, the error's logarithm too), at 7
+     * encodings of the 13 (doc/package-format.md section 10.8) */
+    for (int j = 0; res == BTF_OK && j < r->C; j++)
+        for (int i = BTF__RD_NT + 1; i < r->nt - 1; i += 2) {
+            long long *rt = r->rt + (size_t)j * r->nt;
+            double *dt = r->dt + (size_t)j * r->nt;
+            if (!r->mt || r->mt[(size_t)j * r->nt + i]) /* its neighbours are measured too */
+                rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2, dt[i] = sqrt(dt[i - 1] * dt[i + 1]);
         }
     return res;
 }
@@ -341,19 +383,26 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
                     continue;
                 }
                 r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i], q);
-                uint8_t *z = NULL, *zp = NULL;
-                size_t nz = 0, np = 0;
-                mine = btf_wtz_encode(q, r->V, r->L, &z, &nz, &e);
-                if (mine == BTF_OK)
-                    mine = btf_wtz_encode_pred(q, r->V, r->L, prev, &zp, &np, &e);
-                free(z), free(zp);
-                r->rw[(size_t)j * BTF__RD_NW + i] = (long long)(np < nz ? np : nz);
+                if (i > 1 && i < BTF__RD_NW - 1 && i % 2 == 0)
+                    continue; /* even noise steps: the rate interpolated below */
+                long long rate = btf__rd_wt_rate(r, q, prev, &e);
+                mine = rate < 0 ? BTF_ERR_NOMEM : BTF_OK;
+                r->rw[(size_t)j * BTF__RD_NW + i] = rate;
             }
 #pragma omp critical(btf__rd_result)
         btf__rd_first_error(mine, &e, &res, err);
         free(q);
     }
     free(prev);
+    /* even noise steps 2 .. NW-2: the mean of the neighbours' rates (as the texture
+     * steps', about linear in the log of the step), at 10 zlib passes (each of both
+     * codings) of the 18 */
+    for (int j = 0; res == BTF_OK && j < r->C; j++)
+        for (int i = 2; i < BTF__RD_NW - 1; i += 2) {
+            long long *rw = r->rw + (size_t)j * BTF__RD_NW;
+            if (!r->mw || r->mw[(size_t)j * BTF__RD_NW + i]) /* its neighbours are measured too */
+                rw[i] = (rw[i - 1] + rw[i + 1] + 1) / 2;
+        }
     return res;
 }
 
@@ -494,13 +543,16 @@ static void btf__rd_near_lossy(btf__rd *r, int j, int q)
     int a = -1;
     for (int i = 0, c = r->par->lossy; q >= 0 && i < BTF__RD_NQ; i++)
         a = a < 0 || abs(btf_lossy_ladder(c, i) - q) < abs(btf_lossy_ladder(c, a) - q) ? i : a;
+    int lo = a - BTF_RD_NEAR_NOTCHES, hi = a + BTF_RD_NEAR_NOTCHES; /* widened to even ends, encoded */
+    lo = lo < 0 ? 0 : lo - (lo % 2), hi = hi >= BTF__RD_NQ ? BTF__RD_NQ - 1 : hi + (hi % 2);
     for (int i = 0; i < r->nt - BTF__RD_NT; i++)
-        r->mt[(size_t)j * r->nt + BTF__RD_NT + i] = a >= 0 && abs(i - a) <= BTF_RD_NEAR_NOTCHES;
+        r->mt[(size_t)j * r->nt + BTF__RD_NT + i] = a >= 0 && i >= lo && i <= hi;
 }
 
 /* With par->near (at most as many components): the masks of the steps to measure.
- * For its components those within BTF_RD_NEAR_NOTCHES of its choices (textures:
- * widened to even ends, whose rates are encoded) and the references (the
+ * For its components those within BTF_RD_NEAR_NOTCHES of its choices (widened to
+ * ends whose rates are encoded: even texture steps and lossy levels, odd weight
+ * steps) and the references (the
  * equal-noise texture step, the 16-bit weights); every step of the others. Steps
  * outside a range stay out of btf__rd_fill's notches too. 0, or -1 without memory. */
 static int btf__rd_near(btf__rd *r)
@@ -520,8 +572,10 @@ static int btf__rd_near(btf__rd *r)
             r->mt[(size_t)j * r->nt + i] = (i >= lo && i <= hi) || i == -BTF__RD_TEX_LO;
         btf__rd_near_lossy(r, j, nr->tex_quality ? nr->tex_quality[j] : -1);
         int b = btf__rd_nearest(r->gw, BTF__RD_NW, nr->wt_noise[j]);
+        int wlo = b - BTF_RD_NEAR_NOTCHES, whi = b + BTF_RD_NEAR_NOTCHES; /* widened to encoded ends */
+        wlo = wlo < 1 ? 0 : wlo - !(wlo % 2), whi = whi >= BTF__RD_NW - 1 ? BTF__RD_NW - 1 : whi + !(whi % 2);
         for (int i = 0; i < BTF__RD_NW; i++)
-            r->mw[(size_t)j * BTF__RD_NW + i] = abs(i - b) <= BTF_RD_NEAR_NOTCHES || i == 0;
+            r->mw[(size_t)j * BTF__RD_NW + i] = (i >= wlo && i <= whi) || i == 0;
     }
     return 0;
 }
@@ -595,21 +649,93 @@ void btf_rd_result_free(btf_rd_result *r)
 static void btf__rd_free(btf__rd *r)
 {
     free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->wnorm);
-    free(r->sub_row), free(r->mt), free(r->mw);
+    free(r->sub_row), free(r->mt), free(r->mw), free(r->exact_t), free(r->exact_w);
 }
 
 /* par->tex_rate_fix and par->lossy_rate_scale applied to the texture rates in use
  * (the ladder keeps them as measured); a step not measured (negative rate) stays so. */
-static void btf__rd_fix_rates(btf__rd *r)
+static double btf__rd_rate_factor(const btf__rd *r, int j, int i)
 {
     double lossy = r->par->lossy_rate_scale > 0.0 && isfinite(r->par->lossy_rate_scale) ? r->par->lossy_rate_scale : 1.0;
-    for (int j = 0; j < r->C; j++) {
-        double f = r->par->tex_rate_fix ? r->par->tex_rate_fix[j] : 1.0;
-        f = f > 0.0 && isfinite(f) ? f : 1.0;
-        for (int i = 0; i < r->nt && (f != 1.0 || lossy != 1.0); i++) {
+    double f = r->par->tex_rate_fix ? r->par->tex_rate_fix[j] : 1.0;
+    f = f > 0.0 && isfinite(f) ? f : 1.0;
+    return f * (i >= BTF__RD_NT ? lossy : 1.0);
+}
+
+static void btf__rd_fix_rates(btf__rd *r)
+{
+    for (int j = 0; j < r->C; j++)
+        for (int i = 0; i < r->nt; i++) {
             long long *s = &r->rt[(size_t)j * r->nt + i];
-            *s = *s < 0 ? *s : llround((double)*s * f * (i >= BTF__RD_NT ? lossy : 1.0));
+            double f = btf__rd_rate_factor(r, j, i);
+            *s = *s < 0 || f == 1.0 ? *s : llround((double)*s * f);
         }
+}
+
+/* The chosen candidates (it, iw) whose rates (and a lossy level's error) were
+ * interpolated, measured now (an odd lossy level encoded and decoded, an even weight
+ * step coded both ways), so that what the allocation chooses is what the writer
+ * writes; returns how many, -1 on an error (in err). The lossless texture steps keep
+ * their interpolated odd rates, as before. */
+static int btf__rd_refine(btf__rd *r, const int *it, const int *iw, btf_error *err)
+{
+    if (btf__rd_prepare(r, err) != BTF_OK) /* a ladder reused from par->ladder measured nothing here */
+        return -1;
+    size_t sz = (size_t)r->aw * r->sub_rows * r->H * r->ch;
+    uint8_t *atlas = malloc(sz), *buf = malloc(sz);
+    double *eb = malloc(sizeof(double) * (size_t)r->nb);
+    uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
+    int *prev = malloc((size_t)r->V * sizeof *prev), n = 0;
+    if (!r->exact_t)
+        r->exact_t = calloc((size_t)r->C * r->nt, 1), r->exact_w = calloc((size_t)r->C * BTF__RD_NW, 1);
+    if (!atlas || !buf || !eb || !q || !prev || !r->exact_t || !r->exact_w)
+        n = -1, btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (refine)");
+    if (n == 0)
+        btf_wtz_prev_views(r->m->blocks->block_of_view, r->V, prev);
+    for (int j = 0; n >= 0 && j < r->C; j++) {
+        size_t t = (size_t)j * r->nt + it[j], w = (size_t)j * BTF__RD_NW + iw[j];
+        if (it[j] > BTF__RD_NT && (it[j] - BTF__RD_NT) % 2 && !r->exact_t[t]) {
+            if (btf__rd_lossy_candidate(r, (int)t, atlas, buf, eb, err) != BTF_OK)
+                n = -1;
+            else
+                r->rt[t] = llround((double)r->rt[t] * btf__rd_rate_factor(r, j, it[j])), r->exact_t[t] = 1, n++;
+        }
+        if (n >= 0 && iw[j] > 1 && iw[j] < BTF__RD_NW - 1 && iw[j] % 2 == 0 && !r->exact_w[w]) {
+            btf__rd_wt(r, j, r->gw[iw[j]], q);
+            r->rw[w] = btf__rd_wt_rate(r, q, prev, err);
+            n = r->rw[w] < 0 ? -1 : n + 1, r->exact_w[w] = 1;
+        }
+    }
+    free(atlas), free(buf), free(eb), free(q), free(prev);
+    return n;
+}
+
+/* One choice over r's candidates as measured: the Lagrange multiplier (bisection in
+ * its log) for par->max_bytes or for out->d_target, the steps it picks into it, iw
+ * and out->lambda, d_rd, bytes_rd, n_kept. */
+static void btf__rd_choose(const btf__rd *r, btf_rd_result *out, int *it, int *iw)
+{
+    const btf_rd_params *par = r->par;
+    double lo = -60.0, hi = 10.0;
+    for (int k = 0; k < 80; k++) { /* bisection in log lambda */
+        double mid = 0.5 * (lo + hi);
+        long long bytes = 0;
+        int kept = 0;
+        if (par->max_bytes > 0) { /* the smallest slope whose kept components fit */
+            btf__rd_at(r, exp(mid), NULL, NULL, &bytes, &kept);
+            *(bytes <= par->max_bytes ? &hi : &lo) = mid;
+        } else { /* the largest slope adding no more error than the reference */
+            *(btf__rd_at(r, exp(mid), NULL, NULL, NULL, NULL) <= out->d_target ? &lo : &hi) = mid;
+        }
+    }
+    out->lambda = exp(par->max_bytes > 0 ? hi : lo);
+    out->n_kept = r->C;
+    out->d_rd = btf__rd_at(r, out->lambda, it, iw, &out->bytes_rd, par->max_bytes > 0 ? &out->n_kept : NULL);
+    if (par->max_bytes > 0 && out->bytes_rd <= par->max_bytes) {
+        btf__rd_fill(r, out->lambda, par->max_bytes, it, iw, &out->bytes_rd);
+        out->d_rd = 0.0;
+        for (int j = 0; j < r->C; j++)
+            out->d_rd += r->dt[(size_t)j * r->nt + it[j]] + r->dw[(size_t)j * BTF__RD_NW + iw[j]];
     }
 }
 
@@ -659,26 +785,13 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
             out->d_target += r.dt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.dw[(size_t)j * BTF__RD_NW];
             out->bytes_equal += r.rt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.rw[(size_t)j * BTF__RD_NW];
         }
-        double lo = -60.0, hi = 10.0;
-        for (int k = 0; k < 80; k++) { /* bisection in log lambda */
-            double mid = 0.5 * (lo + hi);
-            long long bytes = 0;
-            int kept = 0;
-            if (par->max_bytes > 0) { /* the smallest slope whose kept components fit */
-                btf__rd_at(&r, exp(mid), NULL, NULL, &bytes, &kept);
-                *(bytes <= par->max_bytes ? &hi : &lo) = mid;
-            } else { /* the largest slope adding no more error than the reference */
-                *(btf__rd_at(&r, exp(mid), NULL, NULL, NULL, NULL) <= out->d_target ? &lo : &hi) = mid;
-            }
-        }
-        out->lambda = exp(par->max_bytes > 0 ? hi : lo);
-        out->n_kept = r.C;
-        out->d_rd = btf__rd_at(&r, out->lambda, it, iw, &out->bytes_rd, par->max_bytes > 0 ? &out->n_kept : NULL);
-        if (par->max_bytes > 0 && out->bytes_rd <= par->max_bytes) {
-            btf__rd_fill(&r, out->lambda, par->max_bytes, it, iw, &out->bytes_rd);
-            out->d_rd = 0.0;
-            for (int j = 0; j < r.C; j++)
-                out->d_rd += r.dt[(size_t)j * r.nt + it[j]] + r.dw[(size_t)j * BTF__RD_NW + iw[j]];
+        for (int pass = 0; res == BTF_OK && pass < BTF__RD_REFINE_PASSES; pass++) {
+            btf__rd_choose(&r, out, it, iw);
+            int n = btf__rd_refine(&r, it, iw, err);
+            if (n < 0)
+                res = BTF_ERR_NOMEM;
+            if (n <= 0)
+                break;
         }
         out->n_comp = r.C;
         for (int j = 0; j < r.C; j++) {
