@@ -2,7 +2,7 @@
 # bench/bench_entropy.sh - would a stronger general-purpose entropy coder pay for
 # itself (issue 36 item 2; doc/performance.md section 11, "Other coders")? Per
 # material, the default package (version 3) and one with `--levels 3` (version 4):
-# the zlib weight files (`wt-*.z`) inflated and coded again with zstd -19, zstd
+# the zlib weight files (`wt-*.z`, `wt-*.pz`) inflated and coded again with zstd -19, zstd
 # --ultra -22 and xz -9e; and the lossless residual level textures (`tex-*-dN.*`,
 # PNG or lossless WebP) as raw 8-bit planes (oiiotool -> PGM) through zstd --ultra
 # -22. The coding is lossless, so the error is the package's own: the question is
@@ -29,7 +29,7 @@ size() { stat -c %s "$1"; }
 # weights DIR: stored zlib bytes, then zstd -19, zstd -22, xz -9e of the inflated files
 weights() {
     local z=0 a=0 b=0 x=0 f raw=$tmp/raw
-    for f in "$1"/wt-*.z; do
+    for f in "$1"/wt-*.z "$1"/wt-*.pz; do # both zlib codings (doc/package-format.md 5.3, 5.4)
         [[ -e $f ]] || continue
         python3 -c 'import sys, zlib; sys.stdout.buffer.write(zlib.decompress(open(sys.argv[1], "rb").read()))' "$f" >"$raw"
         z=$((z + $(size "$f")))

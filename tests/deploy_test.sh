@@ -83,10 +83,15 @@ list_names_files() {
     [[ $base == /materials/knit/$etag/ ]]
 }
 health_ok() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/healthz") == 200 ]]; }
+# wt J: component J's weights file in the knit package (wt-0J.z or wt-0J.pz, whichever
+# the writer kept: doc/package-format.md section 5.4)
+wt() { (cd "$lib/knit" && compgen -G "wt-0$1.*z") | head -1; }
 cache_status() { get -o "$work/got" -D - "http://127.0.0.1:$port$base$1" | tr -d '\r' | sed -n 's/^X-Cache-Status: //ip'; }
 miss_then_hit() {
-    [[ $(cache_status wt-01.z) == MISS ]] && cmp "$work/got" "$lib/knit/wt-01.z" &&
-        [[ $(cache_status wt-01.z) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.z"
+    local w
+    w=$(wt 1)
+    [[ -n $w && $(cache_status "$w") == MISS ]] && cmp "$work/got" "$lib/knit/$w" &&
+        [[ $(cache_status "$w") == HIT ]] && cmp "$work/got" "$lib/knit/$w"
 }
 immutable_headers() {
     local h
@@ -95,8 +100,10 @@ immutable_headers() {
         grep -qi "^etag: \"$etag-manifest.json\"$" <<<"$h"
 }
 range_ok() {
-    [[ $(get -o "$work/range" -w '%{http_code}' -H 'Range: bytes=100-1099' "http://127.0.0.1:$port${base}wt-02.z") == 206 ]] &&
-        cmp "$work/range" <(tail -c +101 "$lib/knit/wt-02.z" | head -c 1000)
+    local w
+    w=$(wt 2)
+    [[ -n $w && $(get -o "$work/range" -w '%{http_code}' -H 'Range: bytes=100-1099' "http://127.0.0.1:$port${base}$w") == 206 ]] &&
+        cmp "$work/range" <(tail -c +101 "$lib/knit/$w" | head -c 1000)
 }
 bundle_gzip() { # the .gz make build writes beside it, as it is; the file itself without Accept-Encoding
     local h
@@ -106,7 +113,7 @@ bundle_gzip() { # the .gz make build writes beside it, as it is; the file itself
         cmp "$work/bundle.gz" "$BUILD/client/btf-viewer.js.gz" &&
         get -o "$work/bundle.js" "http://127.0.0.1:$port/btf-viewer.js" && cmp "$work/bundle.js" "$BUILD/client/btf-viewer.js"
 }
-cached_after_kill() { [[ $(cache_status wt-01.z) == HIT ]] && cmp "$work/got" "$lib/knit/wt-01.z"; }
+cached_after_kill() { [[ $(cache_status "$(wt 1)") == HIT ]] && cmp "$work/got" "$lib/knit/$(wt 1)"; }
 old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.z") == 404 ]]; }
 # failover SIG [MATERIAL LIB]: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
 failover() {
@@ -247,8 +254,8 @@ private_links() {
     bad=${md5:0:21}A
     [[ $bad == "$md5" ]] && bad=${md5:0:21}Q
     base=$(get "http://127.0.0.1:$nport/materials" | sed -n 's/.*"files":"\([^"]*\)".*/\1/p')
-    url="$base"wt-01.z
-    [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$exp") == 200 ]] && cmp "$work/got" "$lib/knit/wt-01.z" &&
+    url="$base$(wt 1)"
+    [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$exp") == 200 ]] && cmp "$work/got" "$lib/knit/$(wt 1)" &&
         [[ $(code_of "http://127.0.0.1:$nport$url?md5=$bad&expires=$exp") == 403 ]] &&
         [[ $(code_of "http://127.0.0.1:$nport$url?md5=$md5&expires=$((exp + 1))") == 403 ]] &&
         [[ $(code_of "http://127.0.0.1:$nport$url?md5=$(sign_md5 knit $((now - 5)))&expires=$((now - 5))") == 410 ]] &&
