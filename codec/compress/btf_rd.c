@@ -652,8 +652,8 @@ static void btf__rd_free(btf__rd *r)
     free(r->sub_row), free(r->mt), free(r->mw), free(r->exact_t), free(r->exact_w);
 }
 
-/* par->tex_rate_fix and par->lossy_rate_scale applied to the texture rates in use
- * (the ladder keeps them as measured); a step not measured (negative rate) stays so. */
+/* The factor par->tex_rate_fix and par->lossy_rate_scale put on the rate of texture
+ * candidate i of component j. */
 static double btf__rd_rate_factor(const btf__rd *r, int j, int i)
 {
     double lossy = r->par->lossy_rate_scale > 0.0 && isfinite(r->par->lossy_rate_scale) ? r->par->lossy_rate_scale : 1.0;
@@ -662,6 +662,8 @@ static double btf__rd_rate_factor(const btf__rd *r, int j, int i)
     return f * (i >= BTF__RD_NT ? lossy : 1.0);
 }
 
+/* Those factors applied to the texture rates in use (the ladder keeps them as
+ * measured); a step not measured (negative rate) stays so. */
 static void btf__rd_fix_rates(btf__rd *r)
 {
     for (int j = 0; j < r->C; j++)
