@@ -400,17 +400,9 @@ static btf_result btf__hook(const btf__writer *w, int i, const char *file, btf_e
  * .z), into *z (malloc'd, *nz bytes), its extension into w->wt_ext[j]. */
 static btf_result btf__encode_weights(btf__writer *w, int j, uint8_t **z, size_t *nz, btf_error *err)
 {
-    uint8_t *zp = NULL;
-    size_t np = 0;
-    btf_result r = btf_wtz_encode(w->qwt[j], w->V, w->L, z, nz, err);
-    if (r == BTF_OK)
-        r = btf_wtz_encode_pred(w->qwt[j], w->V, w->L, w->prev_view, &zp, &np, err);
-    w->wt_ext[j] = ".z";
-    if (r == BTF_OK && np < *nz) {
-        free(*z);
-        *z = zp, *nz = np, zp = NULL, w->wt_ext[j] = ".pz";
-    }
-    free(zp);
+    int pred = 0;
+    btf_result r = btf_wtz_encode_smaller(w->qwt[j], w->V, w->L, w->prev_view, z, nz, &pred, err);
+    w->wt_ext[j] = pred ? ".pz" : ".z";
     return r;
 }
 

@@ -60,6 +60,7 @@ typedef struct btf__rd {
     unsigned char *mt, *mw;
     /* C x nt, C x NW: 1 = an interpolated candidate measured since (btf__rd_refine) */
     unsigned char *exact_t, *exact_w;
+    int *prev_view; /* V: each view's predecessor in its block (btf_wtz_prev_views), for wt-JJ.pz */
 } btf__rd;
 
 /* The rate sample: whole rows of the atlas's tile grid, evenly spaced among the full
@@ -149,17 +150,45 @@ static double btf__rd_wt(btf__rd *r, int j, float g, uint16_t *q)
     return d;
 }
 
-/* The rate of weights q (V*L*3) as the writer keeps them: the smaller of wt-JJ.z and
- * wt-JJ.pz (prev: the views' predecessors); -1 with an error in e. */
-static long long btf__rd_wt_rate(const btf__rd *r, const uint16_t *q, const int *prev, btf_error *e)
+/* 1 when texture candidate i (0 .. nt-1) is interpolated, not encoded: an odd lossy
+ * level (its rate and error) or an odd lossless step (its rate; its error is exact). */
+static int btf__rd_tex_interpolated(int i)
 {
-    uint8_t *z = NULL, *zp = NULL;
-    size_t nz = 0, np = 0;
-    btf_result res = btf_wtz_encode(q, r->V, r->L, &z, &nz, e);
-    if (res == BTF_OK)
-        res = btf_wtz_encode_pred(q, r->V, r->L, prev, &zp, &np, e);
-    free(z), free(zp);
-    return res != BTF_OK ? -1 : (long long)(np < nz ? np : nz);
+    return (i < BTF__RD_NT ? i : i - BTF__RD_NT) % 2 == 1;
+}
+
+/* 1 when weight candidate i (0 .. NW-1) has its rate interpolated: an even noise step
+ * between the first and the last (its error is exact). */
+static int btf__rd_wt_interpolated(int i)
+{
+    return i > 1 && i < BTF__RD_NW - 1 && i % 2 == 0;
+}
+
+/* Candidates i of one component's ladder (rate, with d its error too; mask NULL or the
+ * measured ones) where interp(i), each between two encoded ones: the mean of the
+ * neighbours' rates (about linear in the log of the step, or in a lossy level), with d
+ * the geometric mean of their errors. */
+static void btf__rd_interpolate(long long *rate, double *d, const unsigned char *mask, int from, int to,
+                                int (*interp)(int))
+{
+    for (int i = from; i < to; i++)
+        if (interp(i) && (!mask || mask[i])) { /* its neighbours are measured too */
+            rate[i] = (rate[i - 1] + rate[i + 1] + 1) / 2;
+            if (d)
+                d[i] = sqrt(d[i - 1] * d[i + 1]);
+        }
+}
+
+/* The rate of weights q (V*L*3) as the writer keeps them (btf_wtz_encode_smaller);
+ * -1 with an error in e. */
+static long long btf__rd_wt_rate(const btf__rd *r, const uint16_t *q, btf_error *e)
+{
+    uint8_t *z = NULL;
+    size_t nz = 0;
+    int pred = 0;
+    btf_result res = btf_wtz_encode_smaller(q, r->V, r->L, r->prev_view, &z, &nz, &pred, e);
+    free(z);
+    return res != BTF_OK ? -1 : (long long)nz;
 }
 
 /* The squared error component j's texture adds when its full-range atlas (the rate
@@ -236,12 +265,11 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, uint8
         r->dt[n] = INFINITY, r->rt[n] = 0;
         return BTF_OK;
     }
-    if (n % r->nt >= BTF__RD_NT && (n % r->nt - BTF__RD_NT) % 2)
-        return BTF_OK; /* odd lossy levels: interpolated by btf__rd_measure_tex */
+    int interp = btf__rd_tex_interpolated(n % r->nt); /* rates from btf__rd_measure_tex */
     if (n % r->nt >= BTF__RD_NT)
-        return btf__rd_lossy_candidate(r, n, atlas, buf, eb, err);
+        return interp ? BTF_OK : btf__rd_lossy_candidate(r, n, atlas, buf, eb, err);
     r->dt[n] = btf__rd_tex(r, n / r->nt, r->gt[n % r->nt], atlas, NULL);
-    if ((n % r->nt) % 2) /* odd indices: the rate interpolated by btf__rd_measure_tex */
+    if (interp)
         return BTF_OK;
     int ah = r->sub_rows * r->H;
     long long s = -1;
@@ -296,11 +324,16 @@ static int btf__rd_task(const btf__rd *r, int n)
     return (n / BTF__RD_NT) * r->nt + n % BTF__RD_NT;
 }
 
-/* What measuring a texture candidate needs: the weights' norms and the rate sample. */
+/* What measuring a candidate needs: the weights' norms, the rate sample and the
+ * views' predecessors (the writer keeps the smaller of wt-JJ.z and wt-JJ.pz). */
 static btf_result btf__rd_prepare(btf__rd *r, btf_error *err)
 {
     if (r->wnorm)
         return BTF_OK;
+    r->prev_view = malloc((size_t)r->V * sizeof *r->prev_view);
+    if (!r->prev_view)
+        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (views)");
+    btf_wtz_prev_views(r->m->blocks->block_of_view, r->V, r->prev_view);
     r->wnorm = malloc(sizeof(float) * (size_t)r->C * (size_t)r->nb);
     if (!r->wnorm)
         return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (norms)");
@@ -338,25 +371,15 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
         btf__rd_first_error(mine, &e, &res, err);
         free(atlas), free(buf), free(eb);
     }
-    /* odd indices: the mean of the neighbours' rates (a rate is about linear in the
-     * log of the step, so the package comes out nearly as with every step encoded,
-     * at half the encodings) */
-    for (int j = 0; res == BTF_OK && j < r->C; j++)
-        for (int i = 1; i < BTF__RD_NT; i += 2) {
-            long long *rt = r->rt + (size_t)j * r->nt;
-            if (!r->mt || r->mt[(size_t)j * r->nt + i]) /* its neighbours are measured too */
-                rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2;
-        }
-    /* odd lossy levels: the mean of the neighbours' rates and the geometric mean of
-     * their errors (both about linear in the level, the error's logarithm too), at 7
+    /* odd lossless steps: their rates (the package comes out nearly as with every
+     * step encoded, at half the encodings); odd lossy levels: rates and errors, at 7
      * encodings of the 13 (doc/package-format.md section 10.8) */
-    for (int j = 0; res == BTF_OK && j < r->C; j++)
-        for (int i = BTF__RD_NT + 1; i < r->nt - 1; i += 2) {
-            long long *rt = r->rt + (size_t)j * r->nt;
-            double *dt = r->dt + (size_t)j * r->nt;
-            if (!r->mt || r->mt[(size_t)j * r->nt + i]) /* its neighbours are measured too */
-                rt[i] = (rt[i - 1] + rt[i + 1] + 1) / 2, dt[i] = sqrt(dt[i - 1] * dt[i + 1]);
-        }
+    for (int j = 0; res == BTF_OK && j < r->C; j++) {
+        size_t o = (size_t)j * r->nt;
+        const unsigned char *mask = r->mt ? r->mt + o : NULL;
+        btf__rd_interpolate(r->rt + o, NULL, mask, 1, BTF__RD_NT - 1, btf__rd_tex_interpolated);
+        btf__rd_interpolate(r->rt + o, r->dt + o, mask, BTF__RD_NT + 1, r->nt - 1, btf__rd_tex_interpolated);
+    }
     return res;
 }
 
@@ -366,10 +389,6 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
     btf_result res = btf__rd_measure_tex(r, err);
     if (res != BTF_OK)
         return res;
-    int *prev = malloc((size_t)r->V * sizeof *prev); /* the writer keeps the smaller of wt-JJ.z and wt-JJ.pz */
-    if (!prev)
-        return btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (weights)");
-    btf_wtz_prev_views(r->m->blocks->block_of_view, r->V, prev);
 #pragma omp parallel if (btf__rd_threaded(r))
     { /* one component's weight steps per thread at a time: energy[j] has one writer */
         uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
@@ -383,9 +402,9 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
                     continue;
                 }
                 r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i], q);
-                if (i > 1 && i < BTF__RD_NW - 1 && i % 2 == 0)
-                    continue; /* even noise steps: the rate interpolated below */
-                long long rate = btf__rd_wt_rate(r, q, prev, &e);
+                if (btf__rd_wt_interpolated(i))
+                    continue; /* the rate interpolated below */
+                long long rate = btf__rd_wt_rate(r, q, &e);
                 mine = rate < 0 ? BTF_ERR_NOMEM : BTF_OK;
                 r->rw[(size_t)j * BTF__RD_NW + i] = rate;
             }
@@ -393,16 +412,12 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
         btf__rd_first_error(mine, &e, &res, err);
         free(q);
     }
-    free(prev);
-    /* even noise steps 2 .. NW-2: the mean of the neighbours' rates (as the texture
-     * steps', about linear in the log of the step), at 10 zlib passes (each of both
+    /* even noise steps 2 .. NW-2: their rates, at 10 zlib passes (each of both
      * codings) of the 18 */
-    for (int j = 0; res == BTF_OK && j < r->C; j++)
-        for (int i = 2; i < BTF__RD_NW - 1; i += 2) {
-            long long *rw = r->rw + (size_t)j * BTF__RD_NW;
-            if (!r->mw || r->mw[(size_t)j * BTF__RD_NW + i]) /* its neighbours are measured too */
-                rw[i] = (rw[i - 1] + rw[i + 1] + 1) / 2;
-        }
+    for (int j = 0; res == BTF_OK && j < r->C; j++) {
+        size_t o = (size_t)j * BTF__RD_NW;
+        btf__rd_interpolate(r->rw + o, NULL, r->mw ? r->mw + o : NULL, 1, BTF__RD_NW - 1, btf__rd_wt_interpolated);
+    }
     return res;
 }
 
@@ -649,7 +664,7 @@ void btf_rd_result_free(btf_rd_result *r)
 static void btf__rd_free(btf__rd *r)
 {
     free(r->dt), free(r->dw), free(r->energy), free(r->rt), free(r->rw), free(r->gt), free(r->gw), free(r->wnorm);
-    free(r->sub_row), free(r->mt), free(r->mw), free(r->exact_t), free(r->exact_w);
+    free(r->sub_row), free(r->mt), free(r->mw), free(r->exact_t), free(r->exact_w), free(r->prev_view);
 }
 
 /* The factor par->tex_rate_fix and par->lossy_rate_scale put on the rate of texture
@@ -687,28 +702,26 @@ static int btf__rd_refine(btf__rd *r, const int *it, const int *iw, btf_error *e
     uint8_t *atlas = malloc(sz), *buf = malloc(sz);
     double *eb = malloc(sizeof(double) * (size_t)r->nb);
     uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
-    int *prev = malloc((size_t)r->V * sizeof *prev), n = 0;
+    int n = 0;
     if (!r->exact_t)
         r->exact_t = calloc((size_t)r->C * r->nt, 1), r->exact_w = calloc((size_t)r->C * BTF__RD_NW, 1);
-    if (!atlas || !buf || !eb || !q || !prev || !r->exact_t || !r->exact_w)
+    if (!atlas || !buf || !eb || !q || !r->exact_t || !r->exact_w)
         n = -1, btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (refine)");
-    if (n == 0)
-        btf_wtz_prev_views(r->m->blocks->block_of_view, r->V, prev);
     for (int j = 0; n >= 0 && j < r->C; j++) {
         size_t t = (size_t)j * r->nt + it[j], w = (size_t)j * BTF__RD_NW + iw[j];
-        if (it[j] > BTF__RD_NT && (it[j] - BTF__RD_NT) % 2 && !r->exact_t[t]) {
+        if (it[j] >= BTF__RD_NT && btf__rd_tex_interpolated(it[j]) && !r->exact_t[t]) {
             if (btf__rd_lossy_candidate(r, (int)t, atlas, buf, eb, err) != BTF_OK)
                 n = -1;
             else
                 r->rt[t] = llround((double)r->rt[t] * btf__rd_rate_factor(r, j, it[j])), r->exact_t[t] = 1, n++;
         }
-        if (n >= 0 && iw[j] > 1 && iw[j] < BTF__RD_NW - 1 && iw[j] % 2 == 0 && !r->exact_w[w]) {
+        if (n >= 0 && btf__rd_wt_interpolated(iw[j]) && !r->exact_w[w]) {
             btf__rd_wt(r, j, r->gw[iw[j]], q);
-            r->rw[w] = btf__rd_wt_rate(r, q, prev, err);
+            r->rw[w] = btf__rd_wt_rate(r, q, err);
             n = r->rw[w] < 0 ? -1 : n + 1, r->exact_w[w] = 1;
         }
     }
-    free(atlas), free(buf), free(eb), free(q), free(prev);
+    free(atlas), free(buf), free(eb), free(q);
     return n;
 }
 

@@ -108,6 +108,25 @@ btf_result btf_wtz_encode_pred(const uint16_t *q, int V, int L, const int *prev,
     return BTF_OK;
 }
 
+btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
+                                  int *pred, btf_error *err)
+{
+    uint8_t *zp = NULL;
+    size_t np = 0;
+    *pred = 0;
+    btf_result r = btf_wtz_encode(q, V, L, out, len, err);
+    if (r == BTF_OK)
+        r = btf_wtz_encode_pred(q, V, L, prev, &zp, &np, err);
+    if (r == BTF_OK && np < *len) {
+        free(*out);
+        *out = zp, *len = np, zp = NULL, *pred = 1;
+    }
+    free(zp);
+    if (r != BTF_OK)
+        free(*out), *out = NULL, *len = 0;
+    return r;
+}
+
 btf_result btf_wtz_decode(const uint8_t *z, size_t len, int V, int L, uint16_t *q, const char *name,
                           btf_error *err)
 {

@@ -43,6 +43,10 @@ btf_result btf_wtz_encode_pred(const uint16_t *q, int V, int L, const int *prev,
                                btf_error *err);
 btf_result btf_wtz_decode_pred(const uint8_t *z, size_t len, int V, int L, const int *prev, uint16_t *q,
                                const char *name, btf_error *err);
+/* q coded both ways, the smaller kept (ties: wt-JJ.z) into *out (malloc'd, *len bytes);
+ * *pred = 1 when it is wt-JJ.pz's coding. What the writers write and the allocation counts. */
+btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
+                                  int *pred, btf_error *err);
 
 #ifdef __cplusplus
 }
