@@ -6,7 +6,9 @@
 # without a thumbnail: CPU seconds (user + system of the process), bytes (chunk files +
 # manifest) and `btf eval`'s CIELab (every texel and pair); then `--max-error E` (the
 # thesis format's error at k 3, C 8, from section 11's first table) lossless and
-# default. Ratios are default over lossless. Then the same two with `--avif` (lossy
+# default, and the default with --full-search (every default k measured: what the
+# search's pruning of k saves and whether it chose the same k). Ratios are default
+# over lossless. Then the same two with `--avif` (lossy
 # textures as AVIF instead of lossy WebP: doc/performance.md section 11, "AVIF"),
 # ratios over the default. Tiles and knit at 64x64 (about 10 minutes), tiles at
 # 256x256 unless LOSSYDEF_LARGE=0 (about 25 minutes more).
@@ -35,6 +37,7 @@ one() {
         (cd "$out" && xargs stat -c %s manifest.json) | awk '{ s += $1 } END { print s }')
     lab=$(printf %.4f "$("$BTF" eval "$src" "$out" --json --no-curve | jq -r .lab_mae)")
     lossy=$(jq -r '[.rd.tex_quality // [] | .[] | select(. >= 0)] | length' "$out/manifest.json")
+    k=$(jq -r '.k' "$out/manifest.json")
     echo "lossydef_${name}_${tag}_cpu_s $cpu s"
     echo "lossydef_${name}_${tag}_bytes $bytes B"
     echo "lossydef_${name}_${tag}_lab $lab lab"
@@ -64,7 +67,11 @@ for m in $mats; do
     one "$name" budget_default "$src" --max-error "$err"
     echo "lossydef_${name}_budget_bytes_ratio $(ratio "$bytes" "$lb") x"
     echo "# $name --max-error $err: lossless $lb B (Lab $ll), $lc s | default $bytes B (Lab $lab), $cpu s, $lossy lossy | $(ratio "$bytes" "$lb")x bytes"
-    db=$bytes dl=$lab dc=$cpu
+    db=$bytes dl=$lab dc=$cpu dk=$k
+    one "$name" budget_full "$src" --max-error "$err" --full-search
+    echo "lossydef_${name}_pruned_over_full_bytes $(ratio "$db" "$bytes") x"
+    echo "lossydef_${name}_pruned_over_full_cpu $(ratio "$dc" "$cpu") x"
+    echo "# $name --max-error $err --full-search (every k): $bytes B (Lab $lab), $cpu s, k $k | the default search (k $dk) $(ratio "$db" "$bytes")x its bytes, $(ratio "$dc" "$cpu")x its CPU"
     one "$name" budget_avif "$src" --max-error "$err" --avif
     echo "lossydef_${name}_budget_avif_bytes_ratio $(ratio "$bytes" "$db") x"
     echo "# $name --max-error $err --avif: $bytes B (Lab $lab), $cpu s, $lossy lossy | $(ratio "$bytes" "$db")x the default's bytes, $(ratio "$cpu" "$dc")x its CPU"

@@ -15,16 +15,30 @@
 #include "btf_rd.h"
 #include "btf_common.h"
 
-/* The candidate k values: the budget's, else 1, 3 and 9, within 1..views. */
+/* The candidate k values: the budget's, else 9, 3 and 1 (largest first: see
+ * btf__budget_prunes), within 1..views. */
 static int btf__budget_ks(const btf_budget *b, int views, int *ks)
 {
-    static const int dflt[3] = {1, 3, 9};
+    static const int dflt[3] = {9, 3, 1};
     const int *src = b->n_k > 0 ? b->k : dflt;
     int n = 0, m = b->n_k > 0 ? b->n_k : 3;
     for (int i = 0; i < m && i < BTF_BUDGET_MAX_K; i++)
         if (src[i] >= 1 && src[i] <= views)
             ks[n++] = src[i];
     return n;
+}
+
+/* 1 when the default ks are measured largest first and the search stops at the
+ * first k that does not beat the one before it (the caller listed no ks and asked
+ * for no full search). The bytes a k needs for an error (or the error in a budget)
+ * fall and then rise as k grows: blocks of more views share their textures, but
+ * need more components. On the generated tiles, knit and stone at 64x64 under an
+ * error target k 9 won, k 3 took 1.3-1.7 times its bytes and k 1 2-3 times, so k 1
+ * was never the answer where k 3 lost to k 9; measuring it cost a third of the
+ * search (doc/performance.md section 11, "The search's k"). */
+static int btf__budget_prunes(const btf_budget *b)
+{
+    return b->n_k <= 0 && !b->full_search;
 }
 
 /* Bytes of the package made of the first n chunks of p: its manifest and files. */
@@ -569,8 +583,12 @@ static btf_result btf__budget_search_once(const btf *src, const btf_pca_options 
     int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;
     for (int i = 0; i < nk; i++)
         sr->rs.candidate[nt++] = (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
-    for (int i = 0; r == BTF_OK && i < nt; i++)
+    for (int i = 0; r == BTF_OK && i < nt; i++) {
         r = btf__budget_eval(sr, i, 0, 1.0, err);
+        if (btf__budget_prunes(budget) && i > 0 && sr->best != i)
+            break; /* a smaller k lost to a larger one: the ks below it are not measured */
+    }
+    nt = sr->rs.n_candidates;
     if (r == BTF_OK && sr->best >= 0 && sr->pca.center == BTF_CENTER_DEFAULT) { /* the best, centred */
         sr->rs.candidate[nt] = sr->rs.candidate[sr->best];
         sr->rs.candidate[nt].center = BTF_CENTER_ROW;

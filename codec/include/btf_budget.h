@@ -6,7 +6,9 @@
  *     if (btf_budget_compress(src, NULL, NULL, &b, "lib/wool", &res, &err) == BTF_OK)
  *         printf("k %d, %d chunks, %lld bytes, Lab %.3f\n", res.k, res.n_chunks, res.bytes, res.lab);
  *
- * Each candidate k is compressed once with the largest component count; its
+ * Each candidate k is compressed once with the largest component count (the
+ * default ks 9, 3, 1 largest first, stopping at the first that does not beat the
+ * one before it, unless full_search); its
  * manifest gives the bytes and the measured CIELab error of every chunk prefix
  * (the chunk order is by error drop per byte, doc/package-format.md section 10.3),
  * so every budget of that k is read off one compression. With opt->rd (version 3)
@@ -66,8 +68,12 @@ typedef struct btf_budget {
     long long max_bytes; /* > 0: the least error within this many bytes (manifest + chunk files) */
     double max_error;    /* > 0: the fewest bytes whose CIELab error (as btf eval reports) is <= this */
     int max_components;  /* components compressed per candidate; 0 = 16, then 1.5x while all are kept */
-    int k[BTF_BUDGET_MAX_K], n_k; /* candidate k; n_k = 0: 1, 3 and 9 (those the views allow) */
-    int full_search; /* with rd: 1 = candidates measured on the whole material, not on its centre window */
+    /* candidate k; n_k = 0: 9, 3 and 1 (those the views allow), the smaller ones
+     * measured only while each beats the one before it */
+    int k[BTF_BUDGET_MAX_K], n_k;
+    /* 1 = candidates measured on the whole material, not on its centre window (with
+     * rd), and every default k measured */
+    int full_search;
 } btf_budget;
 
 /* One candidate's best prefix; plain value. */
