@@ -16,7 +16,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int v;
     const char *name = fuzz_package_file(pk, data[0], &v);
     const char *dir = v == 5 ? pk->va : v == 4 ? pk->v4 : v == 3 ? pk->v3 : v == 2 ? pk->v2 : pk->v1;
-    char path[2048], *orig = NULL;
+    char path[4096], *orig = NULL;
     size_t n = 0;
     snprintf(path, sizeof path, "%s/%s", dir, name);
     if (btf_fs_read(path, (size_t)1 << 24, &orig, &n, NULL) != BTF_OK)

@@ -20,6 +20,7 @@
 #include "btf_lossy.h"
 #include "btf_package.h"
 #include "btf_thesis.h"
+#include "btf_wtz.h"
 #include "fuzz_util.h"
 
 /* ---------------------------------------------------------------- packages */
@@ -30,12 +31,14 @@ typedef struct fuzz_pkgs {
     char v1[300], v2[300], v4[300], v3[300], va[300];
     char residual[64]; /* v4's residual level file, or "manifest.json" when the writer kept none */
     char avif[64];     /* va's first AVIF texture file */
-    char wt3[64];      /* v3's weights file of component 0: wt-00.z or wt-00.pz, as the writer chose */
+    char wt3[64];      /* v3's weights file of component 0: wt-00.z, wt-00.pz or wt-00.webp, as the writer chose */
+    char wta[64];      /* va's: wt-00.webp (fuzz__webp_weights) */
 } fuzz_pkgs;
 
-/* va: v3 with tex-00 as an AVIF of its decoded atlas (quantiser 20) under that name in
- * the manifest; a package this tiny never gets one from the writer (lossy does not win
- * on a 32 x 32 atlas), and any encoding is allowed for any texture. */
+/* va: v3 with tex-00 as an AVIF of its decoded atlas (quantiser 20) and component 0's
+ * weights as wt-00.webp (fuzz__webp_weights), under those names in the manifest; a
+ * package this tiny never gets either from the writer (lossy does not win on a 32 x 32
+ * atlas, nor an image on 5 x 5 weights), and any coding is allowed for any file. */
 static inline btf_result fuzz__avif_package(fuzz_pkgs *p, btf_error *err)
 {
     char from[400], to[400], *man = NULL;
@@ -51,12 +54,12 @@ static inline btf_result fuzz__avif_package(fuzz_pkgs *p, btf_error *err)
     snprintf(to, sizeof to, "%s/tex-00.avif", p->va);
     if (r == BTF_OK)
         r = btf_fs_write_atomic(to, f, n, err);
-    const char *copy[5] = {"tex-01.webp", "wt-00.z", "wt-01.z", "wt-00.pz", "wt-01.pz"};
-    for (int i = 0; r == BTF_OK && i < 5; i++) {
+    const char *copy[7] = {"tex-01.webp", "wt-00.z", "wt-01.z", "wt-00.pz", "wt-01.pz", "wt-00.webp", "wt-01.webp"};
+    for (int i = 0; r == BTF_OK && i < 7; i++) {
         char *data = NULL;
         snprintf(from, sizeof from, "%s/%s", p->v3, copy[i]);
         if (i > 0 && btf_fs_size(from) < 0)
-            continue; /* each component has one of its two weights codings */
+            continue; /* each component has one of its three weights codings */
         snprintf(to, sizeof to, "%s/%s", p->va, copy[i]);
         r = btf_fs_read(from, (size_t)1 << 24, &data, &n, err);
         if (r == BTF_OK)
@@ -73,6 +76,51 @@ static inline btf_result fuzz__avif_package(fuzz_pkgs *p, btf_error *err)
     if (r == BTF_OK)
         r = at ? btf_fs_write_atomic(to, man, mn, err) : btf_fail(err, BTF_ERR_FORMAT, "v3 names no tex-00.webp");
     free(px), free(f), free(man);
+    return r;
+}
+
+/* Component 0's weights of the package dir replaced by a wt-00.webp of the same size
+ * (codes 0..255 in a pattern, so the package stays valid) under that name in its
+ * manifest. */
+static inline btf_result fuzz__webp_weights(const char *dir, btf_error *err)
+{
+    btf_package *p = NULL;
+    btf_result r = btf_package_read(dir, 0, &p, err);
+    if (r != BTF_OK)
+        return r;
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    char was[BTF_PACKAGE_NAME_MAX], path[400], *man = NULL;
+    snprintf(was, sizeof was, "%s", p->chunk[0].files[1]);
+    btf_package_free(p);
+    size_t n = (size_t)V * L * 3, nf = 0, mn = 0;
+    uint16_t *q = malloc(n * sizeof *q);
+    uint8_t *f = NULL;
+    for (size_t i = 0; q && i < n; i++)
+        q[i] = (uint16_t)((i * 37u + i / 3) & 255u);
+    r = q ? btf_wtz_encode_webp(q, V, L, &f, &nf, err) : btf_fail(err, BTF_ERR_NOMEM, "fuzz: out of memory");
+    snprintf(path, sizeof path, "%s/wt-00.webp", dir);
+    if (r == BTF_OK)
+        r = btf_fs_write_atomic(path, f, nf, err);
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    if (r == BTF_OK)
+        r = btf_fs_read(path, (size_t)1 << 24, &man, &mn, err);
+    char *at = r == BTF_OK && strncmp(was, "wt-00.", 6) == 0 ? strstr(man, was) : NULL;
+    if (r == BTF_OK && !at)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s names no weights file of component 0", path);
+    if (r == BTF_OK) { /* "wt-00.pz" or "wt-00.z" -> "wt-00.webp": the text grows by up to 2 */
+        size_t head = (size_t)(at - man), tail = mn - head - strlen(was);
+        char *text = malloc(mn + 8);
+        r = text ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "fuzz: out of memory");
+        if (text) {
+            memcpy(text, man, head), memcpy(text + head, "wt-00.webp", 10), memcpy(text + head + 10, at + strlen(was), tail);
+            r = btf_fs_write_atomic(path, text, head + 10 + tail, err);
+            free(text);
+        }
+        snprintf(path, sizeof path, "%s/%s", dir, was);
+        if (r == BTF_OK && strcmp(was, "wt-00.webp") != 0)
+            unlink(path); /* the copy of v3's file this one replaces */
+    }
+    free(q), free(f), free(man);
     return r;
 }
 
@@ -93,7 +141,8 @@ static inline void fuzz__pkgs_make(fuzz_pkgs *p)
     if (btf_dirset_make(r, 2, &d, &err) != BTF_OK || btf_gen_create(&gp, 16, 16, &d, &d, BTF_U8, &b, &err) != BTF_OK ||
         btf_package_compress(b, &po, NULL, p->v1, NULL, &err) != BTF_OK ||
         btf_lod_build(p->v1, p->v2, &lo, NULL, &err) != BTF_OK || btf_lod_build(p->v1, p->v4, &lr, NULL, &err) != BTF_OK ||
-        btf_package_compress(b, &po, &ro, p->v3, NULL, &err) != BTF_OK || fuzz__avif_package(p, &err) != BTF_OK) {
+        btf_package_compress(b, &po, &ro, p->v3, NULL, &err) != BTF_OK || fuzz__avif_package(p, &err) != BTF_OK ||
+        fuzz__webp_weights(p->va, &err) != BTF_OK) {
         fprintf(stderr, "fuzz: package setup failed: %s\n", err.msg);
         abort();
     }
@@ -124,12 +173,17 @@ static inline const fuzz_pkgs *fuzz_packages(void)
         if (btf_fs_size(path) > 0)
             snprintf(p.avif, sizeof p.avif, "tex-%02d.avif", j);
     }
-    snprintf(p.wt3, sizeof p.wt3, "wt-00.pz");
-    snprintf(path, sizeof path, "%s/%s", p.v3, p.wt3);
-    if (btf_fs_size(path) < 0)
-        snprintf(p.wt3, sizeof p.wt3, "wt-00.z");
-    if (!p.avif[0]) {
-        fprintf(stderr, "fuzz: the AVIF package has no AVIF texture (the setup no longer covers them)\n");
+    static const char *const wt_ext[3] = {".webp", ".pz", ".z"};
+    for (int j = 0; j < 3; j++) { /* the coding the writer chose for component 0 */
+        snprintf(p.wt3, sizeof p.wt3, "wt-00%s", wt_ext[j]);
+        snprintf(path, sizeof path, "%s/%s", p.v3, p.wt3);
+        if (btf_fs_size(path) > 0)
+            break;
+    }
+    snprintf(p.wta, sizeof p.wta, "wt-00.webp");
+    snprintf(path, sizeof path, "%s/%s", p.va, p.wta);
+    if (!p.avif[0] || btf_fs_size(path) <= 0) {
+        fprintf(stderr, "fuzz: the AVIF package has no AVIF texture or no wt-00.webp (the setup no longer covers them)\n");
         abort();
     }
     return &p;
@@ -138,18 +192,18 @@ static inline const fuzz_pkgs *fuzz_packages(void)
 /* The file an input replaces (first byte below 0xf8, modulo 6: 0 texture PNG, 1
  * weights .bin, 2 manifest.json of v1, 3 an 8-bit weights PNG of v2, 4 the manifest
  * and 5 a residual level of v4; 0xf8, 0xf9: v3's WebP texture tex-00.webp, lossy
- * or lossless, 32 x 32; 0xfa, 0xfb: v3's weights of component 0, wt-00.pz or wt-00.z;
- * 0xfc and above: va's AVIF texture); *pkg gets 1, 2, 3, 4 or 5. */
+ * or lossless, 32 x 32; 0xfa: v3's weights of component 0, wt-00.pz or wt-00.z; 0xfb:
+ * va's, wt-00.webp; 0xfc and above: va's AVIF texture); *pkg gets 1, 2, 3, 4 or 5. */
 static inline const char *fuzz_package_file(const fuzz_pkgs *pk, uint8_t first, int *pkg)
 {
     const char *names[6] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png", "manifest.json", pk->residual};
-    if (first >= 0xfc) {
+    if (first >= 0xfb) {
         *pkg = 5;
-        return pk->avif;
+        return first == 0xfb ? pk->wta : pk->avif;
     }
     if (first >= 0xf8) {
         *pkg = 3;
-        return first >= 0xfa ? pk->wt3 : "tex-00.webp";
+        return first == 0xfa ? pk->wt3 : "tex-00.webp";
     }
     int which = first % 6;
     *pkg = which >= 4 ? 4 : which == 3 ? 2 : 1;

@@ -87,7 +87,7 @@ static inline uint8_t *fuzz_png_copy(const uint8_t *data, size_t n)
 /* Writes data to dir/name, repairing PNG checksums first. */
 static inline void fuzz_write_file(const char *dir, const char *name, const uint8_t *data, size_t n)
 {
-    char path[2048];
+    char path[4096];
     uint8_t *copy = fuzz_png_copy(data, n);
     snprintf(path, sizeof path, "%s/%s", dir, name);
     fuzz_write(path, copy, n);

@@ -458,13 +458,15 @@ static void btf__w16_name(const btf__lod *s, int a, int c, char *name, size_t n)
 }
 
 /* Component a's 16-bit weight codes q16 (V*L*3, malloc'd into *q) from the source
- * package's file path: wt-JJ.bin (little-endian) or version 3's wt-JJ.z or wt-JJ.pz. */
+ * package's file path: wt-JJ.bin (little-endian) or version 3's wt-JJ.z, wt-JJ.pz or
+ * wt-JJ.webp. */
 static btf_result btf__read_q16(const btf__lod *s, const char *path, uint16_t **q, btf_error *err)
 {
     const btf_package *p = s->p;
     int V = p->views.n_dirs, L = p->lights.n_dirs;
-    size_t n = (size_t)V * L * 3, nd = 0, np = strlen(path);
-    int z = p->version == 3, pz = z && np > 3 && !strcmp(path + np - 3, ".pz");
+    size_t n = (size_t)V * L * 3, nd = 0;
+    const char *base = strrchr(path, '/');
+    int z = p->version == 3, kind = btf_wtz_kind_of(base ? base + 1 : path);
     char *raw = NULL;
     btf_result r = btf_fs_read(path, z ? btf_wtz_max_bytes(V, L) : 2 * n, &raw, &nd, err);
     if (r == BTF_OK && !z && nd != 2 * n)
@@ -473,7 +475,8 @@ static btf_result btf__read_q16(const btf__lod *s, const char *path, uint16_t **
     if (r == BTF_OK && !*q)
         r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     if (r == BTF_OK && z)
-        r = btf_wtz_decode_pred((const uint8_t *)raw, nd, V, L, pz ? s->prev_view : NULL, *q, path, err);
+        r = kind < 0 ? btf_fail(err, BTF_ERR_FORMAT, "%s: not a version-3 weights file", path)
+                     : btf_wtz_decode_kind(kind, (const uint8_t *)raw, nd, V, L, s->prev_view, *q, path, err);
     for (size_t k = 0; r == BTF_OK && !z && k < n; k++)
         (*q)[k] = (uint16_t)((unsigned)(uint8_t)raw[2 * k] | (unsigned)(uint8_t)raw[2 * k + 1] << 8);
     free(raw);

@@ -66,7 +66,7 @@ typedef struct btf__writer {
     int acols, arows, aw, ah;
     uint8_t **atlas;      /* C atlases aw*ah*ch */
     const char **tex_ext; /* C: ".png", ".webp" or ".avif", the extension of component j's texture file once written */
-    const char **wt_ext;  /* C: ".bin" (version 1), ".z" or ".pz" (version 3), its weights file's, once written */
+    const char **wt_ext;  /* C: ".bin" (version 1), ".z", ".pz" or ".webp" (version 3), its weights file's, once written */
     int *prev_view;       /* V: each view's predecessor in its block (btf_wtz_prev_views), for wt-JJ.pz */
     int codec;            /* the lossy textures' encoding (btf_package_options.lossy, btf_lossy.h) */
     int *quality;         /* C: -1, or the lossy level of component j's texture (version 3, btf_rd_result) */
@@ -396,18 +396,19 @@ static btf_result btf__hook(const btf__writer *w, int i, const char *file, btf_e
 
 
 
-/* Version 3's weights of component j: the smaller of wt-JJ.z and wt-JJ.pz (ties:
- * .z), into *z (malloc'd, *nz bytes), its extension into w->wt_ext[j]. */
+/* Version 3's weights of component j: the smallest of wt-JJ.z, wt-JJ.pz and
+ * wt-JJ.webp (btf_wtz_encode_smaller), into *z (malloc'd, *nz bytes), its extension
+ * into w->wt_ext[j]. */
 static btf_result btf__encode_weights(btf__writer *w, int j, uint8_t **z, size_t *nz, btf_error *err)
 {
-    int pred = 0;
-    btf_result r = btf_wtz_encode_smaller(w->qwt[j], w->V, w->L, w->prev_view, z, nz, &pred, err);
-    w->wt_ext[j] = pred ? ".pz" : ".z";
+    int kind = BTF_WTZ_Z;
+    btf_result r = btf_wtz_encode_smaller(w->qwt[j], w->V, w->L, w->prev_view, z, nz, &kind, err);
+    w->wt_ext[j] = btf_wtz_ext(kind);
     return r;
 }
 
-/* Component j's 16-bit weights as tmp/wt-JJ.bin (version 1) or the smaller of
- * wt-JJ.z and wt-JJ.pz (version 3); file: its name once known. */
+/* Component j's 16-bit weights as tmp/wt-JJ.bin (version 1) or the smallest of
+ * wt-JJ.z, wt-JJ.pz and wt-JJ.webp (version 3); file: its name once known. */
 static btf_result btf__write_weights(btf__writer *w, const char *tmp, int j, char *file, size_t nfile, btf_error *err)
 {
     size_t n = (size_t)w->V * w->L * 3;

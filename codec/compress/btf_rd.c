@@ -185,8 +185,8 @@ static long long btf__rd_wt_rate(const btf__rd *r, const uint16_t *q, btf_error 
 {
     uint8_t *z = NULL;
     size_t nz = 0;
-    int pred = 0;
-    btf_result res = btf_wtz_encode_smaller(q, r->V, r->L, r->prev_view, &z, &nz, &pred, e);
+    int kind = 0;
+    btf_result res = btf_wtz_encode_smaller(q, r->V, r->L, r->prev_view, &z, &nz, &kind, e);
     free(z);
     return res != BTF_OK ? -1 : (long long)nz;
 }

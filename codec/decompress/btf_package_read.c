@@ -62,10 +62,11 @@ static btf_result btf__load_weights8(btf_package *p, const btf_files *fs, const 
 }
 
 
-/* A btf_wtz stream of rows x cols x 3 values at path into a new *q (malloc'd, the
- * caller frees it), the file size checked against the stream's bound before reading;
- * prev: NULL, or the views' predecessors of wt-JJ.pz (btf_wtz_decode_pred). */
-static btf_result btf__read_wtz(const btf_files *fs, const char *path, int rows, int cols, const int *prev,
+/* A weights file of coding kind (BTF_WTZ_*; a btf_wtz stream of rows x cols x 3
+ * values, or a wt-JJ.webp) at path into a new *q (malloc'd, the caller frees it), the
+ * file size checked against the stream's bound before reading; prev: NULL, or the
+ * views' predecessors of wt-JJ.pz (btf_wtz_decode_kind). */
+static btf_result btf__read_wtz(const btf_files *fs, const char *path, int kind, int rows, int cols, const int *prev,
                                 uint16_t **q, btf_error *err)
 {
     size_t n = (size_t)rows * cols * 3, max = btf_wtz_max_bytes(rows, cols);
@@ -81,7 +82,7 @@ static btf_result btf__read_wtz(const btf_files *fs, const char *path, int rows,
     btf_result r = v ? btf_fs_read_with(fs, path, max, &z, &nz, err)
                      : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     if (r == BTF_OK)
-        r = btf_wtz_decode_pred((const uint8_t *)z, nz, rows, cols, prev, v, path, err);
+        r = btf_wtz_decode_kind(kind, (const uint8_t *)z, nz, rows, cols, prev, v, path, err);
     free(z);
     if (r != BTF_OK)
         free(v);
@@ -90,12 +91,12 @@ static btf_result btf__read_wtz(const btf_files *fs, const char *path, int rows,
     return r;
 }
 
-/* Versions 3 and 4: wt-JJ.z (doc/package-format.md section 9.3), or with pred
- * wt-JJ.pz (section 5.4). */
-static btf_result btf__load_weights_z(const btf_package *p, const btf_files *fs, const char *path, int i, int pred,
+/* Versions 3 and 4: wt-JJ.z (doc/package-format.md section 9.3) or wt-JJ.pz (section
+ * 5.4); version 3: wt-JJ.webp (section 5.5). kind: BTF_WTZ_*. */
+static btf_result btf__load_weights_z(const btf_package *p, const btf_files *fs, const char *path, int i, int kind,
                                       float *wt, btf_error *err)
 {
-    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    int L = p->lights.n_dirs, V = p->views.n_dirs, pred = kind == BTF_WTZ_PZ;
     size_t nwt = (size_t)V * L * 3;
     uint16_t *q = NULL;
     int *prev = pred ? malloc((size_t)V * sizeof *prev) : NULL;
@@ -103,7 +104,7 @@ static btf_result btf__load_weights_z(const btf_package *p, const btf_files *fs,
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     if (prev)
         btf_wtz_prev_views(p->blocks->block_of_view, V, prev);
-    btf_result r = btf__read_wtz(fs, path, V, L, prev, &q, err);
+    btf_result r = btf__read_wtz(fs, path, kind, V, L, prev, &q, err);
     free(prev);
     for (size_t k = 0; r == BTF_OK && k < nwt; k++)
         wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)], q[k]);
@@ -128,7 +129,7 @@ static btf_result btf__load_weights_r(const btf_package *p, const btf_files *fs,
         return btf_fail(err, BTF_ERR_FORMAT, "%s: residual weights, but no earlier chunk of component %d carries its 8-bit weights",
                         path, p->chunk[i].component);
     uint16_t *q = NULL;
-    btf_result r = btf__read_wtz(fs, path, V * L, 1, NULL, &q, err);
+    btf_result r = btf__read_wtz(fs, path, BTF_WTZ_Z, V * L, 1, NULL, &q, err);
     unsigned sc = (unsigned)p->chunk[i].wt8_step;
     for (size_t k = 0; r == BTF_OK && k < nwt; k++)
         wt[k] = btf_package_dequant(p->chunk[i].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)],
@@ -165,11 +166,13 @@ static btf_result btf__load_weights(const btf_package *p, const btf_files *fs, c
     char path[4200], *file = NULL;
     snprintf(path, sizeof path, "%s/%s", dir, wf);
     size_t nf = strlen(wf);
+    if (p->version == 3 && nf > 5 && !strcmp(wf + nf - 5, ".webp"))
+        return btf__load_weights_z(p, fs, path, i, BTF_WTZ_WEBP, wt, err);
     if (p->version >= 3 && nf > 3 && !strcmp(wf + nf - 3, ".pz"))
-        return btf__load_weights_z(p, fs, path, i, 1, wt, err);
+        return btf__load_weights_z(p, fs, path, i, BTF_WTZ_PZ, wt, err);
     if (p->version == 3 || (p->version == 4 && nf > 2 && !strcmp(wf + nf - 2, ".z") &&
                             !(nf > 4 && !strcmp(wf + nf - 4, "-r.z"))))
-        return btf__load_weights_z(p, fs, path, i, 0, wt, err); /* version 4 may carry version 3's wt-JJ.z (section 5.3) */
+        return btf__load_weights_z(p, fs, path, i, BTF_WTZ_Z, wt, err); /* version 4 may carry version 3's wt-JJ.z (section 5.3) */
     if (p->version == 4 && nf > 2 && !strcmp(wf + nf - 2, ".z"))
         return btf__load_weights_r(p, fs, path, i, wt, err);
     btf_result r = btf__read_exact(fs, path, 2 * nwt, &file, err);
@@ -245,11 +248,13 @@ static btf_result btf__load_chunk(btf_package *p, const btf_files *fs, const cha
         wf = btf__chunk_file(ci, ".z", 1);
     if (!wf && p->version >= 3)
         wf = btf__chunk_file(ci, ".pz", 1); /* versions 3 and 4: wt-JJ.pz (section 5.4) */
+    if (!wf && p->version == 3)
+        wf = btf__chunk_file(ci, ".webp", 1); /* version 3: wt-JJ.webp (section 5.5) */
     const char *w8 = btf_package_has_levels(p) && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
     char path[4200];
     if (!tf || (!wf && !btf_package_has_levels(p)))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png, .webp or .avif texture or no %s weights", dir, i,
-                        p->version == 3 ? "wt-*.z or wt-*.pz" : ".bin");
+                        p->version == 3 ? "wt-*.z, wt-*.pz or wt-*.webp" : ".bin");
     int nb = p->blocks->n_blocks, W = p->width >> ci->level, H = p->height >> ci->level;
     int ch = p->bits == 16 ? 3 : 1, w = p->atlas_cols * W;
     uint8_t *px = NULL;

@@ -1,9 +1,11 @@
-/* btf_wtz.c - the zlib weights codings wt-JJ.z and wt-JJ.pz (doc/package-format.md
- * sections 9.3 and 5.4). */
+/* btf_wtz.c - the weights codings wt-JJ.z and wt-JJ.pz (zlib, doc/package-format.md
+ * sections 9.3 and 5.4) and wt-JJ.webp (a lossless RGB image, section 5.5). */
 #include "btf_wtz.h"
 #include "btf_common.h"
+#include "btf_webp.h"
 
 #include <stdlib.h>
+#include <string.h>
 #include <zlib.h>
 
 /* zlib's level for the weights. 9 spends its time on the long runs of coarsely
@@ -108,20 +110,96 @@ btf_result btf_wtz_encode_pred(const uint16_t *q, int V, int L, const int *prev,
     return BTF_OK;
 }
 
-btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
-                                  int *pred, btf_error *err)
+int btf_wtz_fits_webp(const uint16_t *q, int V, int L)
 {
-    uint8_t *zp = NULL;
-    size_t np = 0;
-    *pred = 0;
-    btf_result r = btf_wtz_encode(q, V, L, out, len, err);
-    if (r == BTF_OK)
-        r = btf_wtz_encode_pred(q, V, L, prev, &zp, &np, err);
-    if (r == BTF_OK && np < *len) {
+    size_t n = (size_t)V * L * 3;
+    for (size_t i = 0; i < n; i++)
+        if (q[i] > 255)
+            return 0;
+    return 1;
+}
+
+btf_result btf_wtz_encode_webp(const uint16_t *q, int V, int L, uint8_t **out, size_t *len, btf_error *err)
+{
+    size_t n = (size_t)V * L * 3;
+    *out = NULL, *len = 0;
+    if (!btf_wtz_fits_webp(q, V, L))
+        return btf_fail(err, BTF_ERR_RANGE, "weights: a code above 255 has no wt-JJ.webp");
+    uint8_t *rgb = malloc(n ? n : 1);
+    if (!rgb)
+        return btf_fail(err, BTF_ERR_NOMEM, "weights: out of memory");
+    for (size_t i = 0; i < n; i++) /* index (v*L + l)*3 + c is pixel (l, v)'s sample c */
+        rgb[i] = (uint8_t)q[i];
+    btf_result r = btf_webp_encode_rgb(rgb, L, V, out, len, err);
+    free(rgb);
+    return r;
+}
+
+btf_result btf_wtz_decode_webp(const uint8_t *data, size_t len, int V, int L, uint16_t *q, const char *name,
+                               btf_error *err)
+{
+    size_t n = (size_t)V * L * 3;
+    if (len < 1 || len > btf_wtz_max_bytes(V, L))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: %zu bytes, expected 1..%zu", name, len, btf_wtz_max_bytes(V, L));
+    uint8_t *rgb = malloc(n);
+    if (!rgb)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", name);
+    btf_result r = btf_webp_decode_rgb(data, len, name, L, V, rgb, err);
+    for (size_t i = 0; r == BTF_OK && i < n; i++)
+        q[i] = rgb[i];
+    free(rgb);
+    return r;
+}
+
+const char *btf_wtz_ext(int kind)
+{
+    return kind == BTF_WTZ_WEBP ? ".webp" : kind == BTF_WTZ_PZ ? ".pz" : ".z";
+}
+
+int btf_wtz_kind_of(const char *name)
+{
+    size_t n = strlen(name);
+    if (strncmp(name, "wt-", 3))
+        return -1;
+    if (n > 5 && !strcmp(name + n - 5, ".webp"))
+        return BTF_WTZ_WEBP;
+    if (n > 3 && !strcmp(name + n - 3, ".pz"))
+        return BTF_WTZ_PZ;
+    return n > 2 && !strcmp(name + n - 2, ".z") && !(n > 4 && !strcmp(name + n - 4, "-r.z")) ? BTF_WTZ_Z : -1;
+}
+
+btf_result btf_wtz_decode_kind(int kind, const uint8_t *data, size_t len, int V, int L, const int *prev,
+                               uint16_t *q, const char *name, btf_error *err)
+{
+    if (kind == BTF_WTZ_WEBP)
+        return btf_wtz_decode_webp(data, len, V, L, q, name, err);
+    return btf_wtz_decode_pred(data, len, V, L, kind == BTF_WTZ_PZ ? prev : NULL, q, name, err);
+}
+
+/* *out (*len bytes, coding *kind) replaced by b (nb bytes, coding k) when b is smaller;
+ * whichever is not kept is freed. */
+static void btf__wtz_keep_smaller(uint8_t **out, size_t *len, int *kind, uint8_t *b, size_t nb, int k)
+{
+    if (b && nb < *len) {
         free(*out);
-        *out = zp, *len = np, zp = NULL, *pred = 1;
+        *out = b, *len = nb, *kind = k;
+    } else {
+        free(b);
     }
-    free(zp);
+}
+
+btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
+                                  int *kind, btf_error *err)
+{
+    uint8_t *b = NULL;
+    size_t nb = 0;
+    *kind = BTF_WTZ_Z;
+    btf_result r = btf_wtz_encode(q, V, L, out, len, err);
+    if (r == BTF_OK && (r = btf_wtz_encode_pred(q, V, L, prev, &b, &nb, err)) == BTF_OK)
+        btf__wtz_keep_smaller(out, len, kind, b, nb, BTF_WTZ_PZ);
+    b = NULL;
+    if (r == BTF_OK && btf_wtz_fits_webp(q, V, L) && (r = btf_wtz_encode_webp(q, V, L, &b, &nb, err)) == BTF_OK)
+        btf__wtz_keep_smaller(out, len, kind, b, nb, BTF_WTZ_WEBP);
     if (r != BTF_OK)
         free(*out), *out = NULL, *len = 0;
     return r;

@@ -2,7 +2,8 @@
  * wt-JJ.pz (section 5.4): 16-bit quantised weights as zigzag residuals of a
  * prediction, in two byte planes, in one zlib stream. wt-JJ.z predicts from the
  * previous light; wt-JJ.pz also from the view before in the same block, and codes
- * channels 0 and 2 less channel 1's residual.
+ * channels 0 and 2 less channel 1's residual. And wt-JJ.webp (section 5.5): codes
+ * that fit 8 bits as a lossless RGB image, lights across, views down.
  *
  *     uint8_t *z; size_t nz;
  *     btf_wtz_encode(q, V, L, &z, &nz, &err);       // q: V*L*3 values, (v*L + l)*3 + c
@@ -43,10 +44,36 @@ btf_result btf_wtz_encode_pred(const uint16_t *q, int V, int L, const int *prev,
                                btf_error *err);
 btf_result btf_wtz_decode_pred(const uint8_t *z, size_t len, int V, int L, const int *prev, uint16_t *q,
                                const char *name, btf_error *err);
-/* q coded both ways, the smaller kept (ties: wt-JJ.z) into *out (malloc'd, *len bytes);
- * *pred = 1 when it is wt-JJ.pz's coding. What the writers write and the allocation counts. */
+/* The codings of version 3's 16-bit weights files, by the file's name: wt-JJ.z,
+ * wt-JJ.pz and wt-JJ.webp. */
+#define BTF_WTZ_Z 0
+#define BTF_WTZ_PZ 1
+#define BTF_WTZ_WEBP 2
+
+/* 1 when every one of q's V*L*3 codes is at most 255: a wt-JJ.webp can hold them. */
+int btf_wtz_fits_webp(const uint16_t *q, int V, int L);
+/* wt-JJ.webp (doc/package-format.md section 5.5): q (V*L*3, every code <= 255, else
+ * BTF_ERR_RANGE) as an opaque lossless RGB WebP of L x V pixels, pixel (l, v) holding
+ * channels 0, 1, 2 of view v and light l, into *out (malloc'd, *len bytes). */
+btf_result btf_wtz_encode_webp(const uint16_t *q, int V, int L, uint8_t **out, size_t *len, btf_error *err);
+/* Reads a wt-JJ.webp of len bytes (at most btf_wtz_max_bytes) into q (V*L*3):
+ * lossless, L x V, every pixel opaque; BTF_ERR_FORMAT naming name otherwise. */
+btf_result btf_wtz_decode_webp(const uint8_t *data, size_t len, int V, int L, uint16_t *q, const char *name,
+                               btf_error *err);
+/* The extension of coding kind's files: ".z", ".pz" or ".webp" (static strings). */
+const char *btf_wtz_ext(int kind);
+/* The coding of a weights file named name (wt-*.z but not wt-*-r.z, wt-*.pz,
+ * wt-*.webp), -1 for any other name. */
+int btf_wtz_kind_of(const char *name);
+/* Decodes a file of coding kind (prev: the views' predecessors, for wt-JJ.pz). */
+btf_result btf_wtz_decode_kind(int kind, const uint8_t *data, size_t len, int V, int L, const int *prev,
+                               uint16_t *q, const char *name, btf_error *err);
+/* q coded each way it can be (wt-JJ.z, wt-JJ.pz and, when every code is at most 255,
+ * wt-JJ.webp), the smallest kept (ties: in that order) into *out (malloc'd, *len
+ * bytes), its coding into *kind (BTF_WTZ_*). What the writers write and the
+ * allocation counts. */
 btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
-                                  int *pred, btf_error *err);
+                                  int *kind, btf_error *err);
 
 #ifdef __cplusplus
 }

@@ -147,6 +147,54 @@ btf_result btf_webp_encode_grey(const uint8_t *grey, int w, int h, uint8_t **out
     return btf__encode(&cfg, &pic, out, n, err);
 }
 
+btf_result btf_webp_encode_rgb(const uint8_t *rgb, int w, int h, uint8_t **out, size_t *n, btf_error *err)
+{
+    *out = NULL, *n = 0;
+    btf_result r = btf__check_size(w, h, err);
+    if (r != BTF_OK)
+        return r;
+    WebPConfig cfg;
+    WebPPicture pic;
+    if (!WebPConfigInit(&cfg) || !WebPConfigLosslessPreset(&cfg, BTF_WEBP_LEVEL) || !WebPPictureInit(&pic))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "webp: libwebp version mismatch");
+    cfg.exact = 1;
+    pic.use_argb = 1, pic.width = w, pic.height = h;
+    if (!WebPPictureAlloc(&pic))
+        return btf_fail(err, BTF_ERR_NOMEM, "webp: out of memory (%dx%d)", w, h);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const uint8_t *p = rgb + ((size_t)y * w + x) * 3;
+            pic.argb[(size_t)y * pic.argb_stride + x] = 0xff000000u | (uint32_t)p[0] << 16 | (uint32_t)p[1] << 8 | p[2];
+        }
+    return btf__encode(&cfg, &pic, out, n, err);
+}
+
+btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
+                               btf_error *err)
+{
+    int fw = 0, fh = 0;
+    btf_result r = btf_webp_check(data, n, what, &fw, &fh, err);
+    if (r != BTF_OK)
+        return r;
+    if (btf_webp_is_lossy(data, n))
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: a lossy WebP where a lossless one (VP8L) is required", what);
+    if (fw != w || fh != h)
+        return btf_fail(err, BTF_ERR_FORMAT, "%s: WebP of %dx%d, expected %dx%d", what, fw, fh, w, h);
+    size_t np = (size_t)w * (size_t)h;
+    uint8_t *px = malloc(np * 4);
+    if (!px)
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %dx%d pixels", what, w, h);
+    r = WebPDecodeRGBAInto(data, n, px, np * 4, w * 4) ? BTF_OK
+                                                        : btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode WebP data", what);
+    for (size_t i = 0; r == BTF_OK && i < np; i++) {
+        if (px[4 * i + 3] != 255)
+            r = btf_fail(err, BTF_ERR_FORMAT, "%s: pixel %zu is not opaque (alpha %u)", what, i, px[4 * i + 3]);
+        memcpy(rgb + 3 * i, px + 4 * i, 3);
+    }
+    free(px);
+    return r;
+}
+
 int btf_webp_r_of_y(int y)
 {
     int v = ((y * 19077) >> 8) + ((128 * 26149) >> 8) - 14234;

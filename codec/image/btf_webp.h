@@ -1,5 +1,6 @@
 /* btf_webp.h - grey 8-bit images as WebP (libwebp): the lossless encoder the package
- * writers try beside PNG, the lossy encoder of rate-distortion packages
+ * writers try beside PNG (and its RGB form for the weights files wt-JJ.webp), the
+ * lossy encoder of rate-distortion packages
  * (doc/package-format.md sections 4.1 and 10.8), the structural check a reader runs
  * before a decoder sees a file, and the grey decode of either kind. Other decoding
  * goes through btf_image (OpenImageIO).
@@ -10,7 +11,7 @@
  *         free(file);
  *     }
  *
- * Limitations: grey only; a lossy file holds 220 grey levels (its Y plane's 16..235),
+ * Limitations: grey only (but the lossless RGB pair for weights); a lossy file holds 220 grey levels (its Y plane's 16..235),
  * so a lossy round trip is never exact, and the decoded value of a lossy file is R of
  * libwebp's RGB decode (G differs from R by one on about 1% of the pixels). No
  * extended (VP8X) files: no alpha, animation or metadata.
@@ -49,6 +50,16 @@ btf_result btf_webp_encode_grey_lossy(const uint8_t *grey, int w, int h, int qua
  * for anything else, before anything is decoded when the check or the size fails. */
 btf_result btf_webp_decode_grey(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *grey,
                                 btf_error *err);
+/* Encodes w x h RGB bytes (3 per pixel, row 0 first) as an opaque lossless WebP
+ * (every sample kept exactly) into *out (malloc'd, *n bytes; the caller frees it):
+ * the weights files wt-JJ.webp (doc/package-format.md section 5.5). */
+btf_result btf_webp_encode_rgb(const uint8_t *rgb, int w, int h, uint8_t **out, size_t *n, btf_error *err);
+/* Decodes a lossless WebP that btf_webp_check accepts, whose header says w x h and
+ * whose every pixel is opaque, into rgb (the caller's 3*w*h bytes). BTF_ERR_FORMAT
+ * (naming what) for a lossy file, another size or a pixel with alpha below 255; the
+ * check and the size before anything is decoded. */
+btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
+                               btf_error *err);
 /* libwebp's R of a decoded Y at U = V = 128 (its VP8YUVToR), 0..255. */
 int btf_webp_r_of_y(int y);
 /* The Y (0..255) whose btf_webp_r_of_y is nearest q (ties: the smaller Y); the lossy

@@ -11,6 +11,8 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <webp/decode.h>
+#include <webp/encode.h>
 #include <zlib.h>
 
 #include "btf_budget.h"
@@ -167,7 +169,7 @@ Test(rd, smaller_package_at_equal_error)
     for (int i = 0; i < pb->n_chunks; i++) {
         cr_assert_eq(pb->chunk[i].n_files, 2);
         const char *wf = pb->chunk[i].files[1], *ext = strrchr(wf, '.');
-        cr_assert(ext && (!strcmp(ext, ".z") || !strcmp(ext, ".pz")), "%s", wf);
+        cr_assert(ext && (!strcmp(ext, ".z") || !strcmp(ext, ".pz") || !strcmp(ext, ".webp")), "%s", wf);
         sum += pb->chunk[i].bytes;
     }
     cr_assert_eq(sum, bb);
@@ -419,8 +421,32 @@ Test(rd, a_model_slot_is_reused_for_the_same_settings_only)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
-/* wt-JJ.z (or wt-JJ.pz) decoded here from the text of doc/package-format.md section
- * 9.3 (5.4) alone. */
+/* wt-JJ.webp decoded here from the text of doc/package-format.md section 5.5 with
+ * libwebp's own decoder: L x V, lossless, opaque, pixel (l, v)'s R, G, B the codes of
+ * channels 0, 1, 2. */
+static void independent_webp_weights(const unsigned char *data, size_t nd, int V, int L, const float *wt_range,
+                                     const int *block_of_view, float *out)
+{
+    WebPBitstreamFeatures ft;
+    cr_assert_eq(WebPGetFeatures(data, nd, &ft), VP8_STATUS_OK);
+    cr_assert(ft.width == L && ft.height == V && ft.format == 2 && !ft.has_animation, "%dx%d format %d", ft.width,
+              ft.height, ft.format);
+    int w = 0, h = 0;
+    uint8_t *px = WebPDecodeRGBA(data, nd, &w, &h);
+    cr_assert_not_null(px);
+    for (int v = 0; v < V; v++)
+        for (int l = 0; l < L; l++)
+            for (int c = 0; c < 3; c++) {
+                const uint8_t *p = px + ((size_t)v * L + l) * 4;
+                cr_assert_eq(p[3], 255, "pixel (%d, %d) is not opaque", l, v);
+                const float *rg = wt_range + 2 * block_of_view[v];
+                out[((size_t)v * L + l) * 3 + c] = rg[0] + rg[1] * (float)p[c];
+            }
+    WebPFree(px);
+}
+
+/* wt-JJ.z (or wt-JJ.pz, wt-JJ.webp) decoded here from the text of
+ * doc/package-format.md section 9.3 (5.4, 5.5) alone. */
 static void independent_weights(const char *path, int V, int L, const float *wt_range, const int *block_of_view,
                                 float *out)
 {
@@ -431,6 +457,11 @@ static void independent_weights(const char *path, int V, int L, const float *wt_
     unsigned char *z = malloc(4 * n + 2048), *raw = malloc(2 * n);
     size_t nz = fread(z, 1, 4 * n + 2048, f);
     fclose(f);
+    if (strlen(path) > 5 && !strcmp(path + strlen(path) - 5, ".webp")) {
+        independent_webp_weights(z, nz, V, L, wt_range, block_of_view, out);
+        free(z), free(raw);
+        return;
+    }
     uLongf len = (uLongf)(2 * n);
     cr_assert_eq(uncompress(raw, &len, z, (uLong)nz), Z_OK);
     cr_assert_eq(len, 2 * n);
@@ -471,12 +502,43 @@ Test(rd, weights_file_decodes_as_specified)
     btf_package *p = fx_package(out, NULL, 0);
     int V = p->views.n_dirs, L = p->lights.n_dirs;
     float *w = malloc((size_t)V * L * 3 * sizeof(float));
+    int kinds[3] = {0};
     for (int i = 0; i < p->n_chunks; i++) {
         snprintf(path, sizeof path, "%s/%s", out, p->chunk[i].files[1]);
+        kinds[btf_wtz_kind_of(p->chunk[i].files[1]) & 3]++;
         independent_weights(path, V, L, p->chunk[i].wt_range, p->blocks->block_of_view, w);
         for (size_t k = 0; k < (size_t)V * L * 3; k++)
             cr_assert_eq(w[k], p->wt[i][k], "chunk %d weight %zu: %g vs %g", i, k, w[k], p->wt[i][k]);
     }
+    cr_assert_gt(kinds[BTF_WTZ_WEBP], 0, "this knit's codes fit 8 bits and the image is the smallest: wt-JJ.webp");
+    /* every chunk's codes as the other two codings too, read back by the decoders above */
+    int *prev = malloc((size_t)V * sizeof *prev);
+    uint16_t *q = malloc((size_t)V * L * 3 * sizeof *q);
+    btf_wtz_prev_views(p->blocks->block_of_view, V, prev);
+    for (int i = 0; i < p->n_chunks; i++) {
+        char *raw = NULL;
+        size_t nraw = 0;
+        btf_error err = {0};
+        snprintf(path, sizeof path, "%s/%s", out, p->chunk[i].files[1]);
+        cr_assert_eq(btf_fs_read(path, btf_wtz_max_bytes(V, L), &raw, &nraw, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_wtz_decode_kind(btf_wtz_kind_of(p->chunk[i].files[1]), (const uint8_t *)raw, nraw, V, L, prev,
+                                         q, path, &err),
+                     BTF_OK, "%s", err.msg);
+        free(raw);
+        for (int kind = BTF_WTZ_Z; kind <= BTF_WTZ_PZ; kind++) {
+            uint8_t *z = NULL;
+            size_t nz = 0;
+            cr_assert_eq(btf_wtz_encode_pred(q, V, L, kind == BTF_WTZ_PZ ? prev : NULL, &z, &nz, &err), BTF_OK);
+            snprintf(path, sizeof path, "%s/again%s", tmp, btf_wtz_ext(kind));
+            FILE *f = fopen(path, "wb");
+            cr_assert(f && fwrite(z, 1, nz, f) == nz && fclose(f) == 0);
+            free(z);
+            independent_weights(path, V, L, p->chunk[i].wt_range, p->blocks->block_of_view, w);
+            for (size_t k = 0; k < (size_t)V * L * 3; k++)
+                cr_assert_eq(w[k], p->wt[i][k], "chunk %d as %s, weight %zu", i, btf_wtz_ext(kind), k);
+        }
+    }
+    free(prev), free(q);
     free(w);
     btf_package_free(p);
     btf_free(src);
@@ -569,6 +631,96 @@ Test(rd, wtz_pred_round_trip_with_wrapping_and_spread_blocks)
     free(z), free(q), free(back);
 }
 
+/* wt-JJ.webp (doc/package-format.md section 5.5): codes up to 255 round trip through
+ * a lossless RGB image read back by libwebp itself as the text says (pixel (l, v)
+ * holds view v, light l); a code of 256 has none; a lossy file, another size and a
+ * pixel that is not opaque are refused; the smallest of the three codings is kept,
+ * never the image when a code is above 255. */
+Test(rd, wtz_webp_layout_round_trip_and_refusals)
+{
+    int V = 6, L = 9;
+    size_t n = (size_t)V * L * 3;
+    uint16_t *q = malloc(n * sizeof *q), *back = malloc(n * sizeof *q);
+    for (size_t i = 0; i < n; i++) /* smooth along the lights and views, each channel its own level */
+        q[i] = (uint16_t)((i % 3) * 60 + (i / 3) % (size_t)L * 3 + i / (3 * (size_t)L) * 5);
+    q[7] = 255, q[8] = 0;
+    uint8_t *f = NULL;
+    size_t nf = 0;
+    btf_error err = {0};
+    cr_assert(btf_wtz_fits_webp(q, V, L));
+    cr_assert_eq(btf_wtz_encode_webp(q, V, L, &f, &nf, &err), BTF_OK, "%s", err.msg);
+    float *ind = malloc(n * sizeof(float)), range[2] = {0.0f, 1.0f};
+    int *one_block = calloc((size_t)V, sizeof(int));
+    independent_webp_weights(f, nf, V, L, range, one_block, ind);
+    for (size_t i = 0; i < n; i++)
+        cr_assert_eq(ind[i], (float)q[i], "code %zu: %g, written %u", i, ind[i], q[i]);
+    cr_assert_eq(btf_wtz_decode_webp(f, nf, V, L, back, "wt-00.webp", &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(memcmp(q, back, n * sizeof *q), 0);
+    cr_assert_eq(btf_wtz_kind_of("wt-00.webp"), BTF_WTZ_WEBP);
+    cr_assert_eq(btf_wtz_kind_of("tex-00.webp"), -1);
+    cr_assert_eq(btf_wtz_decode_webp(f, nf, V + 1, L, back, "wt-00.webp", &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "wt-00.webp: ") && strstr(err.msg, "expected"), "%s", err.msg);
+    cr_assert_eq(btf_wtz_decode_webp(f, nf - 5, V, L, back, "wt-00.webp", &err), BTF_ERR_FORMAT);
+    /* the three codings: the smallest kept, the image the smallest for these smooth codes */
+    int kind = -1, prev[6];
+    for (int v = 0; v < V; v++)
+        prev[v] = v - 1, one_block[v] = 0;
+    uint8_t *z = NULL, *zz = NULL, *zp = NULL;
+    size_t nz = 0, nzz = 0, nzp = 0;
+    cr_assert_eq(btf_wtz_encode_smaller(q, V, L, prev, &z, &nz, &kind, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_wtz_encode(q, V, L, &zz, &nzz, &err), BTF_OK);
+    cr_assert_eq(btf_wtz_encode_pred(q, V, L, prev, &zp, &nzp, &err), BTF_OK);
+    size_t least = nzz < nzp ? nzz : nzp;
+    least = nf < least ? nf : least;
+    cr_assert_eq(nz, least, "kept %zu bytes: .z %zu, .pz %zu, .webp %zu", nz, nzz, nzp, nf);
+    cr_assert_eq(kind, nf < nzz && nf < nzp ? BTF_WTZ_WEBP : nzp < nzz ? BTF_WTZ_PZ : BTF_WTZ_Z);
+    free(z), free(zz), free(zp);
+    /* a code above 255: no image, and the smaller of the zlib codings */
+    q[11] = 256;
+    cr_assert(!btf_wtz_fits_webp(q, V, L));
+    uint8_t *none = NULL;
+    size_t nn = 0;
+    cr_assert_eq(btf_wtz_encode_webp(q, V, L, &none, &nn, &err), BTF_ERR_RANGE);
+    cr_assert_eq(btf_wtz_encode_smaller(q, V, L, prev, &z, &nz, &kind, &err), BTF_OK, "%s", err.msg);
+    cr_assert_neq(kind, BTF_WTZ_WEBP);
+    free(z);
+    q[11] = 3;
+    /* a lossy WebP and a pixel that is not opaque, both of the right size: refused */
+    uint8_t *rgba = malloc((size_t)V * L * 4), *bad = NULL;
+    for (size_t i = 0; i < (size_t)V * L; i++)
+        rgba[4 * i] = (uint8_t)q[3 * i], rgba[4 * i + 1] = (uint8_t)q[3 * i + 1], rgba[4 * i + 2] = (uint8_t)q[3 * i + 2],
+        rgba[4 * i + 3] = 255;
+    size_t nb = WebPEncodeRGBA(rgba, L, V, 4 * L, 90.0f, &bad);
+    cr_assert_gt(nb, 0);
+    cr_assert_eq(btf_wtz_decode_webp(bad, nb, V, L, back, "wt-01.webp", &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "lossy") || strstr(err.msg, "VP8X"), "%s", err.msg);
+    WebPFree(bad);
+    rgba[4 * 5 + 3] = 254;
+    nb = WebPEncodeLosslessRGBA(rgba, L, V, 4 * L, &bad);
+    cr_assert_gt(nb, 0);
+    cr_assert_eq(btf_wtz_decode_webp(bad, nb, V, L, back, "wt-02.webp", &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "wt-02.webp: "), "%s", err.msg);
+    WebPFree(bad);
+    free(rgba), free(f), free(q), free(back), free(ind), free(one_block);
+}
+
+/* Component 0's weights of the package in out renamed to name (its manifest entry
+ * too); returns the manifest text as it was (malloc'd), for the caller to restore. */
+static char *rename_weights(const char *out, const char *from, const char *name)
+{
+    char path[1024], *text, *orig;
+    snprintf(path, sizeof path, "%s/manifest.json", out);
+    orig = fx_read(path, NULL);
+    char *at = strstr(orig, from);
+    cr_assert_not_null(at, "%s names %s", path, from);
+    size_t n = strlen(orig) + strlen(name) + 1;
+    text = malloc(n);
+    snprintf(text, n, "%.*s%s%s", (int)(at - orig), orig, name, at + strlen(from));
+    fx_put_text(out, "manifest.json", text);
+    free(text);
+    return orig;
+}
+
 Test(rd, reader_limits_of_wt_z)
 {
     char tmp[256], out[512];
@@ -578,28 +730,47 @@ Test(rd, reader_limits_of_wt_z)
     compress_ok(src, 3, 1, out, NULL);
     btf_package *p = fx_package(out, NULL, 0);
     int V = p->views.n_dirs, L = p->lights.n_dirs;
-    char wf[64];
-    snprintf(wf, sizeof wf, "%s", p->chunk[0].files[1]);
+    char was[64];
+    snprintf(was, sizeof was, "%s", p->chunk[0].files[1]);
     btf_package_free(p);
     size_t max = btf_wtz_max_bytes(V, L);
     uint8_t *big = calloc(max + 1, 1);
     btf_error err = {0};
-    fx_put(out, wf, big, max + 1); /* one byte over the limit: refused from the size */
-    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
-    cr_assert(strstr(err.msg, wf) && strstr(err.msg, "bytes, expected 1.."), "%s", err.msg);
-    fx_put(out, wf, big, 0);
-    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
-    fx_put(out, wf, big, 100); /* zeros: not a zlib stream */
-    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
-    cr_assert(strstr(err.msg, "zlib"), "%s", err.msg);
+    /* each coding's name: wt-00.z (zlib) and wt-00.webp (an image), whichever the writer kept */
+    const char *names[2] = {"wt-00.z", "wt-00.webp"};
+    for (int k = 0; k < 2; k++) {
+        const char *wf = names[k];
+        char *orig = rename_weights(out, was, wf);
+        fx_put(out, wf, big, max + 1); /* one byte over the limit: refused from the size */
+        cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+        cr_assert(strstr(err.msg, wf) && strstr(err.msg, "bytes, expected 1.."), "%s", err.msg);
+        fx_put(out, wf, big, 0);
+        cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+        fx_put(out, wf, big, 100); /* zeros: not a zlib stream, not a WebP */
+        cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+        cr_assert(strstr(err.msg, k == 0 ? "zlib" : "not a WebP"), "%s", err.msg);
+        fx_put_text(out, "manifest.json", orig);
+        free(orig);
+    }
+    char *orig = rename_weights(out, was, "wt-00.z");
     /* a valid stream of one weight too many */
     size_t n = (size_t)V * L * 3 + 1;
     uLongf zl = compressBound((uLong)(2 * n));
     uint8_t *z = malloc(zl);
     cr_assert_eq(compress(z, &zl, big, (uLong)(2 * n)), Z_OK);
-    fx_put(out, wf, z, zl);
+    fx_put(out, "wt-00.z", z, zl);
     cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
     cr_assert(strstr(err.msg, "more than"), "%s", err.msg);
+    /* an image of one view too many */
+    uint16_t *q = calloc(n + 3 * (size_t)L, sizeof *q);
+    uint8_t *f = NULL;
+    size_t nf = 0;
+    cr_assert_eq(btf_wtz_encode_webp(q, V + 1, L, &f, &nf, &err), BTF_OK, "%s", err.msg);
+    free(rename_weights(out, "wt-00.z", "wt-00.webp"));
+    fx_put(out, "wt-00.webp", f, nf);
+    cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT);
+    cr_assert(strstr(err.msg, "wt-00.webp") && strstr(err.msg, "expected"), "%s", err.msg);
+    free(f), free(q), free(orig);
     free(z), free(big);
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
