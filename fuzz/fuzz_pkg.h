@@ -33,6 +33,7 @@ typedef struct fuzz_pkgs {
     char avif[64];     /* va's first AVIF texture file */
     char wt3[64];      /* v3's weights file of component 0: wt-00.z, wt-00.pz or wt-00.webp, as the writer chose */
     char wta[64];      /* va's: wt-00.webp (fuzz__webp_weights) */
+    char w84[64];      /* v4's 8-bit weights of component 0: wt-00-8.webp, or wt-00-8.png, as the writer chose */
 } fuzz_pkgs;
 
 /* va: v3 with tex-00 as an AVIF of its decoded atlas (quantiser 20) and component 0's
@@ -180,6 +181,10 @@ static inline const fuzz_pkgs *fuzz_packages(void)
         if (btf_fs_size(path) > 0)
             break;
     }
+    snprintf(p.w84, sizeof p.w84, "wt-00-8.webp");
+    snprintf(path, sizeof path, "%s/%s", p.v4, p.w84);
+    if (btf_fs_size(path) < 0)
+        snprintf(p.w84, sizeof p.w84, "wt-00-8.png");
     snprintf(p.wta, sizeof p.wta, "wt-00.webp");
     snprintf(path, sizeof path, "%s/%s", p.va, p.wta);
     if (!p.avif[0] || btf_fs_size(path) <= 0) {
@@ -193,10 +198,15 @@ static inline const fuzz_pkgs *fuzz_packages(void)
  * weights .bin, 2 manifest.json of v1, 3 an 8-bit weights PNG of v2, 4 the manifest
  * and 5 a residual level of v4; 0xf8, 0xf9: v3's WebP texture tex-00.webp, lossy
  * or lossless, 32 x 32; 0xfa: v3's weights of component 0, wt-00.pz or wt-00.z; 0xfb:
- * va's, wt-00.webp; 0xfc and above: va's AVIF texture); *pkg gets 1, 2, 3, 4 or 5. */
+ * va's, wt-00.webp; 0xfd: v4's 8-bit weights of component 0, wt-00-8.webp (or .png);
+ * 0xfc, 0xfe, 0xff: va's AVIF texture); *pkg gets 1, 2, 3, 4 or 5. */
 static inline const char *fuzz_package_file(const fuzz_pkgs *pk, uint8_t first, int *pkg)
 {
     const char *names[6] = {"tex-00.png", "wt-00.bin", "manifest.json", "wt-00-8.png", "manifest.json", pk->residual};
+    if (first == 0xfd) {
+        *pkg = 4;
+        return pk->w84;
+    }
     if (first >= 0xfb) {
         *pkg = 5;
         return first == 0xfb ? pk->wta : pk->avif;

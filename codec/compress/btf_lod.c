@@ -18,6 +18,7 @@
 #include "btf_manifest.h"
 #include "btf_png.h"
 #include "btf_lossy.h"
+#include "btf_webp.h"
 #include "btf_wtz.h"
 #include "btf_common.h"
 #include "btf_read.h"
@@ -54,6 +55,7 @@ typedef struct btf__lod {
     long long *w8bytes;         /* [a] 8-bit weight file bytes (0: none, the first chunk is level 0) */
     int *w8step;                /* [a] step multiplier s_c of the 8-bit weights (btf__w8_step) */
     uint8_t **w8q;              /* [a] the 8-bit weights written (V*L*3), NULL when none */
+    unsigned char *w8webp;      /* [a] version 4: 1 = they are wt-JJ-8.webp (smaller than the PNG), 0 = wt-JJ-8.png */
     int *order;      /* n_chunks * 2: (a, l) in chunk order */
     int n_order;
     double *rmse_full; /* per chunk: RMSE against the complete package */
@@ -73,7 +75,7 @@ static void btf__lod_free(btf__lod *s)
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
-    free(s->w8bytes), free(s->w8step), free(s->w8q), free(s->isres), free(s->kind), free(s->w16res), free(s->pred);
+    free(s->w8bytes), free(s->w8step), free(s->w8q), free(s->w8webp), free(s->isres), free(s->kind), free(s->w16res), free(s->pred);
     free(s->prev_view);
     free(s->rmse_full);
     btf_package_free(s->p);
@@ -382,11 +384,18 @@ static void btf__level_name(const btf__lod *s, int a, int l, char *name, size_t 
     snprintf(name + e, n - e, "%s", btf__kind_ext(s->kind[k]));
 }
 
-/* Name of component a's 8-bit weights: "wt-JJ.bin" (or "wt-JJ.z") -> "wt-JJ-8.png". */
-static void btf__w8_name(const btf__lod *s, int a, char *name, size_t n)
+/* Name of component a's 8-bit weights: "wt-JJ.bin" (or "wt-JJ.z") -> "wt-JJ-8.png",
+ * or with webp "wt-JJ-8.webp". */
+static void btf__w8_name_as(const btf__lod *s, int a, int webp, char *name, size_t n)
 {
     const char *w = btf__src_file(&s->p->chunk[a], 1);
-    snprintf(name, n, "%.*s-8.png", btf__stem_len(w), w);
+    snprintf(name, n, "%.*s-8.%s", btf__stem_len(w), w, webp ? "webp" : "png");
+}
+
+/* Name of component a's 8-bit weights as written. */
+static void btf__w8_name(const btf__lod *s, int a, char *name, size_t n)
+{
+    btf__w8_name_as(s, a, s->w8webp[a], name, n);
 }
 
 /* Level of component a's first chunk in the order (its coarse weights travel there when > 0). */
@@ -430,9 +439,33 @@ static int btf__w8_step(const btf__lod *s, int a)
     return m < 1.0 ? 1 : m > 65535.0 ? 65535 : (int)m;
 }
 
+/* Version 4: component a's 8-bit weights q (V*L*3) as wt-JJ-8.webp in tmp (an RGB
+ * lossless WebP of L x V pixels, doc/package-format.md section 5.2) when that is
+ * smaller than its PNG (png, already written, of png_bytes): the PNG removed, w8webp
+ * and w8bytes set. */
+static btf_result btf__w8_webp(btf__lod *s, int a, const uint8_t *q, const char *tmp, const char *png,
+                               long long png_bytes, btf_error *err)
+{
+    int L = s->p->lights.n_dirs, V = s->p->views.n_dirs;
+    uint8_t *f = NULL;
+    size_t nf = 0;
+    char name[BTF_PACKAGE_NAME_MAX + 8], path[8400];
+    btf_result r = btf_webp_encode_rgb(q, L, V, &f, &nf, err); /* index (v*L + l)*3 + c: pixel (l, v) */
+    if (r == BTF_OK && (long long)nf < png_bytes) {
+        btf__w8_name_as(s, a, 1, name, sizeof name);
+        snprintf(path, sizeof path, "%s/%s", tmp, name);
+        r = btf_fs_write_atomic(path, f, nf, err);
+        if (r == BTF_OK && remove(png) == 0) /* the PNG this writer just made */
+            s->w8webp[a] = 1, s->w8bytes[a] = (long long)nf;
+    }
+    free(f);
+    return r;
+}
+
 /* Component a's weights requantised to 8 bits (q8 = round(q16 / s_c), the same lo),
- * as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2). */
-static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error *err)
+ * as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2) at path; version
+ * 4: replaced by wt-JJ-8.webp where that is smaller (btf__w8_webp). */
+static btf_result btf__write_w8(btf__lod *s, int a, const char *tmp, const char *path, btf_error *err)
 {
     const btf_package *p = s->p;
     int L = p->lights.n_dirs, V = p->views.n_dirs;
@@ -445,7 +478,9 @@ static btf_result btf__write_w8(btf__lod *s, int a, const char *path, btf_error 
         q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
     }
     s->w8q[a] = q; /* version 4 codes the 16-bit weights over these */
-    return btf_image_write_flags(path, 3 * L, V, 1, 8, q, BTF_IMAGE_PNG_SMALLEST, err);
+    btf_result r = btf_image_write_flags(path, 3 * L, V, 1, 8, q, BTF_IMAGE_PNG_SMALLEST, err);
+    s->w8bytes[a] = btf_fs_size(path);
+    return r == BTF_OK && s->resid ? btf__w8_webp(s, a, q, tmp, path, s->w8bytes[a], err) : r;
 }
 
 /* Name of component a's 16-bit weights in the coding c (BTF__W16_*): "wt-JJ.bin",
@@ -711,8 +746,7 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
             btf__w8_name(s, a, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
             s->w8step[a] = btf__w8_step(s, a);
-            r = btf__write_w8(s, a, to, err);
-            s->w8bytes[a] = btf_fs_size(to);
+            r = btf__write_w8(s, a, tmp, to, err);
         }
         if (r == BTF_OK)
             r = btf__write_w16(s, a, in_dir, tmp, err);
@@ -819,13 +853,14 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->wbytes = calloc((size_t)s->C, sizeof(long long)), s->order = calloc(2 * n, sizeof(int));
     s->rmse_full = calloc(n, sizeof(double)), s->w8bytes = calloc((size_t)s->C, sizeof(long long));
     s->w8step = calloc((size_t)s->C, sizeof(int)), s->w8q = calloc((size_t)s->C, sizeof *s->w8q);
+    s->w8webp = calloc((size_t)s->C, 1);
     s->isres = calloc(n, 1), s->kind = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
     s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t));
     s->prev_view = malloc((size_t)p->views.n_dirs * sizeof *s->prev_view);
     if (s->prev_view)
         btf_wtz_prev_views(p->blocks->block_of_view, p->views.n_dirs, s->prev_view);
-    if (!s->prev_view || !s->w8q || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n)
+    if (!s->prev_view || !s->w8q || !s->w8webp || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     btf__coarse_quality(s, in_dir);
     return BTF_OK;

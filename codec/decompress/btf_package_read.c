@@ -14,6 +14,7 @@
 #include "btf_image.h"
 #include "btf_lod.h"
 #include "btf_manifest.h"
+#include "btf_webp.h"
 #include "btf_wtz.h"
 #include "btf_common.h"
 #include "btf_read.h"
@@ -37,8 +38,26 @@ static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext, in
 }
 
 
-/* Version 2 coarse weights (doc/package-format.md section 5.2): an 8-bit grey PNG of
- * 3L x V pixels, Wt = lo + wt8_step * step * q with the 16-bit [lo, step]. */
+/* Version 4's wt-JJ-8.webp at path into a new *px (V*L*3 bytes, malloc'd): a lossless
+ * RGB WebP of L x V pixels, pixel (l, v) holding index (v*L + l)*3 + c as sample c. */
+static btf_result btf__read_w8_webp(const btf_files *fs, const char *path, int L, int V, uint8_t **px,
+                                    btf_error *err)
+{
+    size_t n = (size_t)V * L * 3, max = btf_wtz_max_bytes(V, L), nz = 0;
+    char *z = NULL;
+    *px = malloc(n);
+    btf_result r = *px ? btf_fs_read_with(fs, path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
+    if (r == BTF_OK)
+        r = btf_webp_decode_rgb((const uint8_t *)z, nz, path, L, V, *px, err);
+    free(z);
+    if (r != BTF_OK)
+        free(*px), *px = NULL;
+    return r;
+}
+
+/* Coarse weights (doc/package-format.md section 5.2): an 8-bit grey PNG of 3L x V
+ * pixels, or in version 4 an RGB lossless WebP of L x V (wt-JJ-8.webp), Wt = lo +
+ * wt8_step * step * q with the 16-bit [lo, step]. */
 static btf_result btf__load_weights8(btf_package *p, const btf_files *fs, const char *dir, int i, const char *wf,
                                      float *wt, btf_error *err)
 {
@@ -46,7 +65,10 @@ static btf_result btf__load_weights8(btf_package *p, const btf_files *fs, const 
     char path[4200];
     uint8_t *px = NULL;
     snprintf(path, sizeof path, "%s/%s", dir, wf);
-    btf_result r = btf_image_read_with(fs, path, 3 * L, V, 1, 0, &px, err);
+    size_t nf = strlen(wf);
+    btf_result r = p->version == 4 && nf > 7 && !strcmp(wf + nf - 7, "-8.webp")
+                       ? btf__read_w8_webp(fs, path, L, V, &px, err)
+                       : btf_image_read_with(fs, path, 3 * L, V, 1, 0, &px, err);
     if (r != BTF_OK)
         return r;
     for (size_t k = 0; k < (size_t)V * L * 3; k++) {
@@ -251,6 +273,8 @@ static btf_result btf__load_chunk(btf_package *p, const btf_files *fs, const cha
     if (!wf && p->version == 3)
         wf = btf__chunk_file(ci, ".webp", 1); /* version 3: wt-JJ.webp (section 5.5) */
     const char *w8 = btf_package_has_levels(p) && !wf ? btf__chunk_file(ci, ".png", 1) : NULL;
+    if (!w8 && p->version == 4 && !wf)
+        w8 = btf__chunk_file(ci, "-8.webp", 1); /* version 4: wt-JJ-8.webp (section 5.2) */
     char path[4200];
     if (!tf || (!wf && !btf_package_has_levels(p)))
         return btf_fail(err, BTF_ERR_FORMAT, "%s: chunk %d lists no .png, .webp or .avif texture or no %s weights", dir, i,

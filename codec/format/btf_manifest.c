@@ -623,13 +623,15 @@ static int btf__first_of(const btf_package *p, int c)
     return -1;
 }
 
-/* 1 when component c travels with 8-bit weights ("wt-JJ-8.png" in one of its chunks). */
+/* 1 when component c travels with 8-bit weights ("wt-JJ-8.png", or in version 4
+ * "wt-JJ-8.webp", in one of its chunks). */
 static int btf__has_w8(const btf_package *p, int c)
 {
     for (int a = 0; a < p->n_chunks; a++)
         for (int f = 0; p->chunk[a].component == c && f < p->chunk[a].n_files; f++) {
-            size_t n = strlen(p->chunk[a].files[f]);
-            if (n > 6 && !strcmp(p->chunk[a].files[f] + n - 6, "-8.png"))
+            const char *name = p->chunk[a].files[f];
+            size_t n = strlen(name);
+            if ((n > 6 && !strcmp(name + n - 6, "-8.png")) || (n > 7 && !strcmp(name + n - 7, "-8.webp")))
                 return 1;
         }
     return 0;

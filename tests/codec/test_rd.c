@@ -790,7 +790,8 @@ static void expect_same_values(const btf_package *a, const btf_package *b)
                 }
 }
 
-/* Bytes of the files whose name starts wt- and does not end -8.png: the 16-bit weights. */
+/* Bytes of the files whose name starts wt- and does not end -8.png or -8.webp: the
+ * 16-bit weights. */
 static long long weights16_bytes(const btf_package *p, const char *dir)
 {
     long long s = 0;
@@ -800,15 +801,42 @@ static long long weights16_bytes(const btf_package *p, const char *dir)
             const char *n = p->chunk[i].files[f];
             struct stat st;
             snprintf(path, sizeof path, "%s/%s", dir, n);
-            if (!strncmp(n, "wt-", 3) && !strstr(n, "-8.png") && stat(path, &st) == 0)
+            if (!strncmp(n, "wt-", 3) && !strstr(n, "-8.png") && !strstr(n, "-8.webp") && stat(path, &st) == 0)
                 s += st.st_size;
         }
     return s;
 }
 
+/* Version 3's 16-bit weights of the package p in dir as wt-JJ.z would hold them. */
+static long long weights_z_bytes(const btf_package *p, const char *dir)
+{
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    int *prev = malloc((size_t)V * sizeof *prev);
+    uint16_t *q = malloc((size_t)V * L * 3 * sizeof *q);
+    btf_wtz_prev_views(p->blocks->block_of_view, V, prev);
+    long long s = 0;
+    char path[1024];
+    for (int i = 0; i < p->n_chunks; i++) {
+        const char *wf = p->chunk[i].files[1];
+        char *raw = NULL;
+        size_t n = 0, nz = 0;
+        uint8_t *z = NULL;
+        btf_error err = {0};
+        snprintf(path, sizeof path, "%s/%s", dir, wf);
+        cr_assert_eq(btf_fs_read(path, btf_wtz_max_bytes(V, L), &raw, &n, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_wtz_decode_kind(btf_wtz_kind_of(wf), (const uint8_t *)raw, n, V, L, prev, q, wf, &err), BTF_OK);
+        cr_assert_eq(btf_wtz_encode(q, V, L, &z, &nz, &err), BTF_OK);
+        s += (long long)nz;
+        free(raw), free(z);
+    }
+    free(prev), free(q);
+    return s;
+}
+
 /* A version-3 package takes residual levels (version 4, asked for or not); its
  * level 0 keeps every value, and its 16-bit weights take the smallest coding, so
- * never more than version 3's wt-JJ.z. */
+ * never more than version 3's codes as wt-JJ.z (version 3 may keep a wt-JJ.webp,
+ * which version 4 does not write). */
 Test(rd, version3_takes_residual_levels_that_keep_its_values)
 {
     char tmp[256], out[512], lv[512];
@@ -826,7 +854,58 @@ Test(rd, version3_takes_residual_levels_that_keep_its_values)
     cr_assert_eq(b->version, 4);
     cr_assert_eq(b->n_levels, 2);
     expect_same_values(a, b);
-    cr_expect_leq(weights16_bytes(b, lv), weights16_bytes(a, out));
+    cr_expect_leq(weights16_bytes(b, lv), weights_z_bytes(a, out));
+    btf_package_free(a), btf_package_free(b);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
+/* Version 4's coarse weights as wt-JJ-8.webp (doc/package-format.md section 5.2):
+ * where the writer keeps one (smaller than the PNG), libwebp's own decode of it, read
+ * as the text says (L x V, pixel (l, v) holding index (v*L + l)*3 + c as sample c),
+ * gives the weights the reader loads for that chunk; the package keeps version 3's
+ * values at level 0. */
+Test(rd, version4_coarse_weights_as_webp_decode_as_specified)
+{
+    char tmp[256], out[512], lv[512], path[1024];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/m", tmp);
+    snprintf(lv, sizeof lv, "%s/lv", tmp);
+    btf *src = fx_material(BTF_GEN_TILES, 16, rings, 3);
+    compress_ok(src, 3, 1, out, NULL);
+    btf_lod_options lo = {0};
+    lo.levels = 2, lo.residual = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+    cr_assert_eq(b->version, 4);
+    expect_same_values(a, b);
+    int L = b->lights.n_dirs, V = b->views.n_dirs, found = 0;
+    for (int i = 0; i < b->n_chunks; i++)
+        for (int f = 0; f < b->chunk[i].n_files; f++) {
+            const char *n = b->chunk[i].files[f];
+            if (!strstr(n, "-8.webp"))
+                continue;
+            found++;
+            size_t nd = 0;
+            char *data = NULL;
+            snprintf(path, sizeof path, "%s/%s", lv, n);
+            cr_assert_eq(btf_fs_read(path, 1 << 24, &data, &nd, &err), BTF_OK);
+            int w = 0, h = 0;
+            uint8_t *px = WebPDecodeRGBA((const uint8_t *)data, nd, &w, &h);
+            cr_assert(px && w == L && h == V, "%s: %dx%d", n, w, h);
+            for (int v = 0; v < V; v++)
+                for (int l = 0; l < L; l++)
+                    for (int c = 0; c < 3; c++) {
+                        size_t k = ((size_t)v * L + l) * 3;
+                        const float *rg = b->chunk[i].wt_range + 2 * b->blocks->block_of_view[v];
+                        float want = rg[0] + (float)b->chunk[i].wt8_step * rg[1] * (float)px[((size_t)v * L + l) * 4 + c];
+                        cr_assert_eq(px[((size_t)v * L + l) * 4 + 3], 255);
+                        cr_assert_eq(b->wt[i][k + c], want, "%s: view %d light %d channel %d", n, v, l, c);
+                    }
+            WebPFree(px), free(data);
+        }
+    cr_assert_gt(found, 0, "the tiles' coarse weights: a wt-JJ-8.webp smaller than the PNG");
     btf_package_free(a), btf_package_free(b);
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
