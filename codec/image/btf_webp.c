@@ -125,7 +125,10 @@ static btf_result btf__check_size(int w, int h, btf_error *err)
     return BTF_OK;
 }
 
-btf_result btf_webp_encode_grey(const uint8_t *grey, int w, int h, uint8_t **out, size_t *n, btf_error *err)
+/* w x h pixels of ch bytes (1: grey, written as R = G = B; 3: RGB) as an opaque
+ * lossless WebP, every sample kept (exact), into *out (malloc'd, *n bytes). */
+static btf_result btf__encode_lossless(const uint8_t *px, int ch, int w, int h, uint8_t **out, size_t *n,
+                                       btf_error *err)
 {
     *out = NULL, *n = 0;
     btf_result r = btf__check_size(w, h, err);
@@ -141,32 +144,21 @@ btf_result btf_webp_encode_grey(const uint8_t *grey, int w, int h, uint8_t **out
         return btf_fail(err, BTF_ERR_NOMEM, "webp: out of memory (%dx%d)", w, h);
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
-            uint32_t g = grey[(size_t)y * w + x];
-            pic.argb[(size_t)y * pic.argb_stride + x] = 0xff000000u | g << 16 | g << 8 | g;
+            const uint8_t *p = px + ((size_t)y * w + x) * (size_t)ch;
+            uint32_t r8 = p[0], g8 = p[ch == 3 ? 1 : 0], b8 = p[ch == 3 ? 2 : 0];
+            pic.argb[(size_t)y * pic.argb_stride + x] = 0xff000000u | r8 << 16 | g8 << 8 | b8;
         }
     return btf__encode(&cfg, &pic, out, n, err);
 }
 
+btf_result btf_webp_encode_grey(const uint8_t *grey, int w, int h, uint8_t **out, size_t *n, btf_error *err)
+{
+    return btf__encode_lossless(grey, 1, w, h, out, n, err);
+}
+
 btf_result btf_webp_encode_rgb(const uint8_t *rgb, int w, int h, uint8_t **out, size_t *n, btf_error *err)
 {
-    *out = NULL, *n = 0;
-    btf_result r = btf__check_size(w, h, err);
-    if (r != BTF_OK)
-        return r;
-    WebPConfig cfg;
-    WebPPicture pic;
-    if (!WebPConfigInit(&cfg) || !WebPConfigLosslessPreset(&cfg, BTF_WEBP_LEVEL) || !WebPPictureInit(&pic))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "webp: libwebp version mismatch");
-    cfg.exact = 1;
-    pic.use_argb = 1, pic.width = w, pic.height = h;
-    if (!WebPPictureAlloc(&pic))
-        return btf_fail(err, BTF_ERR_NOMEM, "webp: out of memory (%dx%d)", w, h);
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            const uint8_t *p = rgb + ((size_t)y * w + x) * 3;
-            pic.argb[(size_t)y * pic.argb_stride + x] = 0xff000000u | (uint32_t)p[0] << 16 | (uint32_t)p[1] << 8 | p[2];
-        }
-    return btf__encode(&cfg, &pic, out, n, err);
+    return btf__encode_lossless(rgb, 3, w, h, out, n, err);
 }
 
 btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,

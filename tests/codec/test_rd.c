@@ -837,26 +837,35 @@ static long long weights_z_bytes(const btf_package *p, const char *dir)
  * level 0 keeps every value, and its 16-bit weights take the smallest coding, so
  * never more than version 3's codes as wt-JJ.z (version 3 may keep a wt-JJ.webp,
  * which version 4 does not write). */
+/* A version-3 package of kind (16x16, k 3) in tmp/m and its 2 levels (btf_lod_build,
+ * residual as given) in tmp/lv, both read into *a and *b; out and lv get the paths. */
+static void levelled_pair(btf_gen_kind kind, int residual, const char *tmp, char *out, char *lv, btf_package **a,
+                          btf_package **b)
+{
+    snprintf(out, 512, "%s/m", tmp);
+    snprintf(lv, 512, "%s/lv", tmp);
+    btf *src = fx_material(kind, 16, rings, 3);
+    compress_ok(src, 3, 1, out, NULL);
+    btf_free(src);
+    btf_lod_options lo = {0};
+    lo.levels = 2, lo.residual = residual;
+    btf_error err = {0};
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+}
+
 Test(rd, version3_takes_residual_levels_that_keep_its_values)
 {
     char tmp[256], out[512], lv[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(out, sizeof out, "%s/m", tmp);
-    snprintf(lv, sizeof lv, "%s/lv", tmp);
-    btf *src = fx_material(BTF_GEN_KNIT, 16, rings, 3);
-    compress_ok(src, 3, 1, out, NULL);
-    btf_lod_options lo = {0};
-    lo.levels = 2;
-    btf_error err = {0};
-    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg); /* residual 0 */
-    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+    btf_package *a, *b;
+    levelled_pair(BTF_GEN_KNIT, 0, tmp, out, lv, &a, &b); /* residual 0: a version-3 source's default */
     cr_assert_eq(a->version, 3);
     cr_assert_eq(b->version, 4);
     cr_assert_eq(b->n_levels, 2);
     expect_same_values(a, b);
     cr_expect_leq(weights16_bytes(b, lv), weights_z_bytes(a, out));
     btf_package_free(a), btf_package_free(b);
-    btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
@@ -869,15 +878,9 @@ Test(rd, version4_coarse_weights_as_webp_decode_as_specified)
 {
     char tmp[256], out[512], lv[512], path[1024];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(out, sizeof out, "%s/m", tmp);
-    snprintf(lv, sizeof lv, "%s/lv", tmp);
-    btf *src = fx_material(BTF_GEN_TILES, 16, rings, 3);
-    compress_ok(src, 3, 1, out, NULL);
-    btf_lod_options lo = {0};
-    lo.levels = 2, lo.residual = 1;
+    btf_package *a, *b;
     btf_error err = {0};
-    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
-    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+    levelled_pair(BTF_GEN_TILES, 1, tmp, out, lv, &a, &b);
     cr_assert_eq(b->version, 4);
     expect_same_values(a, b);
     int L = b->lights.n_dirs, V = b->views.n_dirs, found = 0;
@@ -907,7 +910,6 @@ Test(rd, version4_coarse_weights_as_webp_decode_as_specified)
         }
     cr_assert_gt(found, 0, "the tiles' coarse weights: a wt-JJ-8.webp smaller than the PNG");
     btf_package_free(a), btf_package_free(b);
-    btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
