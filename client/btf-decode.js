@@ -2,7 +2,9 @@
 // off the main thread: a worker decodes with createImageBitmap (no colour conversion, no
 // premultiplication) and reads the pixels back from an OffscreenCanvas 2D context, so the
 // page's main thread never waits on a decode or a GPU readback. Every file these
-// packages hold is opaque (RGB or grey), where a 2D canvas keeps the samples exactly.
+// packages hold is opaque (RGB or grey), where a 2D canvas keeps the samples exactly;
+// a decode that must see the alpha (wt-JJ.webp weights: a pixel that is not opaque is
+// refused) reads back from a canvas with alpha, which keeps opaque samples as exactly.
 // A worker script must be same-origin with the page: on the script's own origin the
 // worker is btf-decode-worker.js; embedded in a page of another origin its code travels
 // inside this module (a Blob URL). Where no worker can be made (a page whose CSP
@@ -11,12 +13,12 @@
 // The worker body (scope: the worker's global, which it then serves); also the
 // main-thread decoder (scope null), so both paths share one decoder.
 export function decoderBody(scope) {
-  const decode = async ({buf, type}) => {
+  const decode = async ({buf, type, alpha}) => {
     const bm = await createImageBitmap(new Blob([buf], {type}), {premultiplyAlpha: 'none',
       colorSpaceConversion: 'none'});
     try {
       const c = new OffscreenCanvas(bm.width, bm.height);
-      const g = c.getContext('2d', {willReadFrequently: true, alpha: false});
+      const g = c.getContext('2d', {willReadFrequently: true, alpha: !!alpha});
       g.drawImage(bm, 0, 0);
       const d = g.getImageData(0, 0, bm.width, bm.height);
       return {width: bm.width, height: bm.height, rgba: new Uint8Array(d.data.buffer)};
@@ -85,10 +87,11 @@ export function imageType(name) {
 
 // Decodes an image file's bytes (Uint8Array) of MIME type `type` (imageType's): a Promise
 // of {width, height, rgba: Uint8Array (4 bytes a pixel, rows top-down)}; it rejects where
-// the browser cannot decode the file (an AVIF in a browser without AVIF).
-export function decodeImage(bytes, type) {
+// the browser cannot decode the file (an AVIF in a browser without AVIF). alpha: true
+// keeps the file's alpha in rgba (else every pixel reads as opaque).
+export function decodeImage(bytes, type, alpha = false) {
   const w = startWorker();
-  const job = {buf: bytes, type}; // copied into the worker: the stream keeps its files (cache, replays)
+  const job = {buf: bytes, type, alpha}; // copied into the worker: the stream keeps its files (cache, replays)
   if (!w) return decodeHere(job);
   return new Promise((resolve, reject) => {
     const id = nextId++;

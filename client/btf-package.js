@@ -130,12 +130,17 @@ function parseLevels(name, m, nb) {
 }
 
 // One chunk's client view; v2 adds level, contrib, the 8-bit weights, ranges by component.
-function parseChunk(name, c, i, nb, lv, version) {
+// version: the layout (1 or 2), mv: the manifest's version.
+function parseChunk(name, c, i, nb, lv, version, mv) {
   const fileOk = (f) => typeof f === 'string' && /^[A-Za-z0-9._-]+$/.test(f) && f[0] !== '.';
   if (!c || !Array.isArray(c.files) || !c.files.every(fileOk)) fail(name, `chunk ${i} has invalid "files"`);
   const tex = c.files.find((f) => f.startsWith('tex-'));
-  const wt = c.files.find((f) => f.startsWith('wt-') && !f.endsWith('.png'));
-  const wt8 = version >= 2 ? c.files.find((f) => f.startsWith('wt-') && f.endsWith('.png')) : undefined;
+  // Weights files (section 7.1). 8-bit: wt-*.png, else (version 4) wt-*-8.webp; 16-bit:
+  // any other wt-* file, .bin first, else .z (-r.z too), else .pz, else (version 3) .webp.
+  const w8s = c.files.filter((f) => f.startsWith('wt-') && (f.endsWith('.png') || (mv === 4 && f.endsWith('-8.webp'))));
+  const wts = c.files.filter((f) => f.startsWith('wt-') && !w8s.includes(f));
+  const wt = ['.bin', '.z', '.pz', '.webp'].reduce((w, e) => w ?? wts.find((f) => f.endsWith(e)), undefined) ?? wts[0];
+  const wt8 = version >= 2 ? w8s.find((f) => f.endsWith('.png')) ?? w8s[0] : undefined;
   if (!tex || (version < 2 && !wt)) fail(name, `chunk ${i} lacks a tex-* or wt-* file`);
   const level = version >= 2 ? c.level ?? 0 : 0;
   if (!isInt(level, 0, lv.levels - 1)) fail(name, `chunk ${i} "level" is out of range`);
@@ -230,8 +235,8 @@ export function reconstructLevel(pkg, chunk, res, coarse) {
 // Validates a manifest object and returns the client's view of it. Throws Error
 // naming the material and the field on anything outside doc/package-format.md.
 // Versions 1, 2 (section 10: (component, level) chunks) and 3 (section 11: version
-// 1 with wt-JJ.z weights). `version` of the result is the chunk layout the GPU side
-// follows (1: one chunk per component at level 0, 2: levels), so a version-3
+// 1 with wt-JJ.z, wt-JJ.pz or wt-JJ.webp weights). `version` of the result is the chunk
+// layout the GPU side follows (1: one chunk per component at level 0, 2: levels), so a version-3
 // manifest reads as 1 there; `manifestVersion` is the number in the file.
 export function parseManifest(m) {
   const name = m && typeof m.name === 'string' ? m.name : '?';
@@ -264,9 +269,13 @@ export function parseManifest(m) {
   if (!Array.isArray(m.chunks) || m.chunks.length < 1 || m.chunks.length > MAX_CHUNKS)
     fail(name, `needs 1..${MAX_CHUNKS} chunks`);
   const lv = parseLevels(name, m, nb);
-  const chunks = m.chunks.map((c, i) => parseChunk(name, c, i, nb, lv, layout));
-  if (m.version === 3 && !chunks.every((c) => c.wt.endsWith('.z') || c.wt.endsWith('.pz')))
-    fail(name, 'version 3 needs a wt-*.z or wt-*.pz file per chunk');
+  const chunks = m.chunks.map((c, i) => parseChunk(name, c, i, nb, lv, layout, m.version));
+  if (m.version === 3 && !chunks.every((c) => ['.z', '.pz', '.webp'].some((e) => c.wt.endsWith(e))))
+    fail(name, 'version 3 needs a wt-*.z, wt-*.pz or wt-*.webp file per chunk');
+  chunks.forEach((c, i) => {
+    if (m.version !== 3 && c.wt && c.wt.endsWith('.webp'))
+      fail(name, `chunk ${i}: ${c.wt}: WebP weights are version 3's`);
+  });
   if (m.version === 4) residualOrder(name, chunks, lv.levels);
   const comps = [...new Set(chunks.map((c) => c.component))];
   return {
@@ -391,15 +400,78 @@ export async function dequantWeightsR(pkg, chunk, buf, q8) {
   });
 }
 
+// Weights as a lossless WebP: version 3's wt-JJ.webp (section 5.5: the 16-bit weight
+// codes, every one at most 255) and version 4's wt-JJ-8.webp (section 5.2: the 8-bit
+// weights), each L x V opaque pixels, pixel (l, v) holding channels 0, 1, 2 of view v
+// and light l in R, G, B. The bytes of file f (default: the chunk's 16-bit weights),
+// checked before an image decoder sees them as the C reader does: a simple-format
+// lossless file (RIFF WEBP, one VP8L chunk filling it) whose header says L x V; a lossy
+// (VP8) file, an extended one (VP8X) or another size fails naming the package and file.
+export function checkWeightsWebp(pkg, chunk, buf, f = chunk.wt) {
+  const b = buf instanceof Uint8Array ? buf : new Uint8Array(buf), n = b.length;
+  const tag = (o) => String.fromCharCode(b[o], b[o + 1], b[o + 2], b[o + 3]);
+  const le32 = (o) => (b[o] | (b[o + 1] << 8) | (b[o + 2] << 16) | (b[o + 3] << 24)) >>> 0;
+  const L = pkg.lights.dirs, V = pkg.views.dirs, max = 2 * V * L * 3 + 1024;
+  if (n < 1 || n > max) fail(pkg.name, `${f} has ${n} bytes, expected 1..${max}`);
+  if (n < 12 || tag(0) !== 'RIFF' || tag(8) !== 'WEBP')
+    fail(pkg.name, `${f}: not a WebP file (no RIFF/WEBP signature)`);
+  if (n < 25) fail(pkg.name, `${f}: WebP file of ${n} bytes is truncated`);
+  if (le32(4) + 8 !== n) fail(pkg.name, `${f}: RIFF size ${le32(4)} does not match the file's ${n} bytes`);
+  if (tag(12) === 'VP8 ') fail(pkg.name, `${f}: a lossy WebP where a lossless one (VP8L) is required`);
+  if (tag(12) !== 'VP8L') fail(pkg.name, `${f}: WebP chunk '${tag(12)}' is not a simple lossless (VP8L) image`);
+  const size = le32(16), bits = le32(21);
+  if (size < 5 || size + 20 + (size & 1) !== n)
+    fail(pkg.name, `${f}: VP8L chunk of ${size} bytes does not fill the file`);
+  if (b[20] !== 0x2f || bits >>> 29 !== 0) fail(pkg.name, `${f}: bad VP8L signature or version`);
+  const w = (bits & 0x3fff) + 1, h = ((bits >>> 14) & 0x3fff) + 1;
+  if (w !== L || h !== V) fail(pkg.name, `${f}: WebP of ${w}x${h}, expected ${L}x${V}`);
+}
+
+// The codes of a weights WebP f from its decoded pixels (width x height, rgba: 4 bytes a
+// pixel, rows top-down, alpha as decoded, neither premultiplied nor colour-converted):
+// q[(v*L + l)*3 + c] = sample c of pixel (x = l, y = v), a Uint8Array of V*L*3. Another
+// size or a pixel whose alpha is not 255 fails naming the package and file.
+function webpCodes(pkg, f, width, height, rgba) {
+  const L = pkg.lights.dirs, V = pkg.views.dirs;
+  if (width !== L || height !== V) fail(pkg.name, `${f} is ${width}x${height}, expected ${L}x${V}`);
+  if (!rgba || rgba.length !== 4 * L * V)
+    fail(pkg.name, `${f} has ${rgba ? rgba.length : 0} pixel bytes, expected ${4 * L * V}`);
+  const q = new Uint8Array(3 * L * V);
+  for (let p = 0; p < L * V; p++) {
+    if (rgba[4 * p + 3] !== 255) fail(pkg.name, `${f}: pixel ${p} is not opaque (alpha ${rgba[4 * p + 3]})`);
+    q[3 * p] = rgba[4 * p];
+    q[3 * p + 1] = rgba[4 * p + 1];
+    q[3 * p + 2] = rgba[4 * p + 2];
+  }
+  return q;
+}
+
+// Version 3's wt-JJ.webp decoded (webpCodes) -> the same Float32Array as dequantWeights.
+export function dequantWeightsW(pkg, chunk, width, height, rgba) {
+  const q = webpCodes(pkg, chunk.wt, width, height, rgba);
+  return dequantQ(pkg, chunk, (i) => q[i]);
+}
+
+// Version 4's wt-JJ-8.webp decoded (webpCodes) -> the 8-bit weights q8 (Uint8Array, the
+// index order of wt-JJ-8.png's pixels) for dequantWeights8 and dequantWeightsR.
+export function weights8Webp(pkg, chunk, width, height, rgba) {
+  return webpCodes(pkg, chunk.wt8, width, height, rgba);
+}
+
 // A chunk's 16-bit weights file, whichever coding its name says: a Promise of the
-// Float32Array (q8: version 4's 8-bit weights of the component, for wt-JJ-r.z).
+// Float32Array (q8: version 4's 8-bit weights of the component, for wt-JJ-r.z). A
+// wt-JJ.webp is an image: checkWeightsWebp, the browser's decoder, then dequantWeightsW
+// (btf-upload.js); here it fails.
 export async function decodeWeights(pkg, chunk, buf, q8) {
+  if (chunk.wt.endsWith('.webp'))
+    fail(pkg.name, `${chunk.wt}: WebP weights need an image decoder (checkWeightsWebp, dequantWeightsW)`);
   if (pkg.manifestVersion === 4 && chunk.wt.endsWith('-r.z')) return dequantWeightsR(pkg, chunk, buf, q8);
   if (pkg.manifestVersion >= 3 && chunk.wt.endsWith('.pz')) return dequantWeightsP(pkg, chunk, buf);
   return chunk.wt.endsWith('.z') ? dequantWeightsZ(pkg, chunk, buf) : dequantWeights(pkg, chunk, buf);
 }
 
-// wt-JJ-8.png pixels (grey, 3L x V, the same index order as wt-JJ.bin) -> Float32Array,
+// wt-JJ-8.png pixels (grey, 3L x V, the same index order as wt-JJ.bin; or version 4's
+// wt-JJ-8.webp codes, weights8Webp) -> Float32Array,
 // Wt = lo + (s_c * step) * q in float32 as codec/btf_package.c.
 export function dequantWeights8(pkg, chunk, px) {
   const L = pkg.lights.dirs, V = pkg.views.dirs, n = V * L * 3;

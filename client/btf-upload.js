@@ -3,7 +3,7 @@
 // weights), queued, and uploaded by the next frame (btf-session.js drives it).
 import {GpuPackage} from './btf-gl.js';
 import {decodeImage, imageType} from './btf-decode.js';
-import {decodeWeights, dequantWeights8} from './btf-package.js';
+import {checkWeightsWebp, decodeWeights, dequantWeights8, dequantWeightsW, weights8Webp} from './btf-package.js';
 
 // Owned by a session; one per GPU package (made for a manifest, again after a context
 // restore), dropped with it (free()).
@@ -50,31 +50,49 @@ export class ChunkUploads {
     this.on.decoded();
   }
 
-  // Image file `name` of a chunk decoded (btf-decode.js); one the browser cannot decode (an
-  // AVIF where it has no AVIF decoder, a damaged file) fails naming the package and file.
-  image(name, data) {
-    return decodeImage(data(name), imageType(name)).catch((e) => {
+  // Image file `name` of a chunk decoded (btf-decode.js; alpha: keep the file's alpha); one
+  // the browser cannot decode (an AVIF where it has no AVIF decoder, a damaged file) fails
+  // naming the package and file.
+  image(name, data, alpha = false) {
+    return decodeImage(data(name), imageType(name), alpha).catch((e) => {
       throw new Error(`package ${this.pkg.name}: ${name}: ${e && e.message ? e.message : e}`);
     });
   }
 
   // Dequantised weights of a chunk, all by btf-package.js: decodeWeights for the 16-bit
-  // files (wt-JJ.bin, version 3's wt-JJ.z, version 4's wt-JJ-r.z over the component's
-  // 8-bit weights; marked .precise), dequantWeights8 for version 2's wt-JJ-8.png (8-bit
-  // coarse, its pixels kept for version 4's residuals), else null (only a texture).
+  // files (wt-JJ.bin, versions 3 and 4's wt-JJ.z and wt-JJ.pz, version 4's wt-JJ-r.z over
+  // the component's 8-bit weights), version 3's wt-JJ.webp checked (checkWeightsWebp),
+  // decoded in the worker with its alpha and dequantised (dequantWeightsW): all marked
+  // .precise; dequantWeights8 for versions 2 and 4's wt-JJ-8.png or version 4's
+  // wt-JJ-8.webp (8-bit coarse, checked and decoded with its alpha as wt-JJ.webp is; the
+  // codes kept for version 4's residuals), else null (only a texture).
   async weights(chunk, data) {
     const pkg = this.pkg, gpu = this.gpu;
+    if (chunk.wt && pkg.manifestVersion === 3 && chunk.wt.endsWith('.webp')) {
+      checkWeightsWebp(pkg, chunk, data(chunk.wt));
+      const img = await this.image(chunk.wt, data, true);
+      const w = dequantWeightsW(pkg, chunk, img.width, img.height, img.rgba);
+      w.precise = true;
+      return w;
+    }
     if (chunk.wt) {
       const w = await decodeWeights(pkg, chunk, data(chunk.wt), gpu.w8q.get(chunk.component));
       w.precise = true;
       return w;
     }
     if (!chunk.wt8) return null;
-    const img = await this.image(chunk.wt8, data);
-    const L = pkg.lights.dirs, V = pkg.views.dirs;
-    if (img.width !== 3 * L || img.height !== V)
-      throw new Error(`package ${pkg.name}: ${chunk.wt8} is ${img.width}x${img.height}, expected ${3 * L}x${V}`);
-    const px = gpu.readGrey(img);
+    let px;
+    if (chunk.wt8.endsWith('.webp')) {
+      checkWeightsWebp(pkg, chunk, data(chunk.wt8), chunk.wt8);
+      const img = await this.image(chunk.wt8, data, true);
+      px = weights8Webp(pkg, chunk, img.width, img.height, img.rgba);
+    } else {
+      const img = await this.image(chunk.wt8, data);
+      const L = pkg.lights.dirs, V = pkg.views.dirs;
+      if (img.width !== 3 * L || img.height !== V)
+        throw new Error(`package ${pkg.name}: ${chunk.wt8} is ${img.width}x${img.height}, expected ${3 * L}x${V}`);
+      px = gpu.readGrey(img);
+    }
     gpu.w8q.set(chunk.component, px);
     return dequantWeights8(pkg, chunk, px);
   }

@@ -83,9 +83,9 @@ list_names_files() {
     [[ $base == /materials/knit/$etag/ ]]
 }
 health_ok() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/healthz") == 200 ]]; }
-# wt J: component J's weights file in the knit package (wt-0J.z or wt-0J.pz, whichever
-# the writer kept: doc/package-format.md section 5.4)
-wt() { (cd "$lib/knit" && compgen -G "wt-0$1.*z") | head -1; }
+# wt J: component J's weights file in the knit package (wt-0J.z, wt-0J.pz or wt-0J.webp,
+# whichever the writer kept: doc/package-format.md sections 5.4 and 5.5); empty when none
+wt() { (cd "$lib/knit" || exit; compgen -G "wt-0$1.*z"; compgen -G "wt-0$1.webp"; true) | head -1; }
 cache_status() { get -o "$work/got" -D - "http://127.0.0.1:$port$base$1" | tr -d '\r' | sed -n 's/^X-Cache-Status: //ip'; }
 miss_then_hit() {
     local w
@@ -113,7 +113,7 @@ bundle_gzip() { # the .gz make build writes beside it, as it is; the file itself
         cmp "$work/bundle.gz" "$BUILD/client/btf-viewer.js.gz" &&
         get -o "$work/bundle.js" "http://127.0.0.1:$port/btf-viewer.js" && cmp "$work/bundle.js" "$BUILD/client/btf-viewer.js"
 }
-cached_after_kill() { [[ $(cache_status "$(wt 1)") == HIT ]] && cmp "$work/got" "$lib/knit/$(wt 1)"; }
+cached_after_kill() { [[ -n $(wt 1) && $(cache_status "$(wt 1)") == HIT ]] && cmp "$work/got" "$lib/knit/$(wt 1)"; }
 old_etag_404() { [[ $(get -o /dev/null -w '%{http_code}' "http://127.0.0.1:$port/materials/knit/0123456789abcdef/wt-01.z") == 404 ]]; }
 # failover SIG [MATERIAL LIB]: 200 clients, one btfd gets SIG once 40% of the chunks have arrived
 failover() {

@@ -57,6 +57,17 @@ function grey(name, file) {
   for (let i = 0; i < px.length; i++) px[i] = img.data[4 * i];
   return {width: img.width, height: img.height, data: px};
 }
+// The 8-bit weights of chunk c of package name: wt-JJ-8.png's grey pixels, or wt-JJ-8.webp
+// (section 5.2: L x V RGB pixels, decoded by oiiotool) through the client's weights8Webp.
+function weights8(name, p, c) {
+  if (!c.wt8.endsWith('.webp')) return grey(name, c.wt8).data;
+  const src = path.join(lib.lib, name, c.wt8), png = path.join(lib.dir, `${name}-${c.wt8}.png`);
+  pkgMod.checkWeightsWebp(p, c, fs.readFileSync(src), c.wt8);
+  const r = spawnSync('oiiotool', [src, '-o', png], {encoding: 'utf8'});
+  assert.equal(r.status, 0, `oiiotool ${src}: ${r.stderr}`);
+  const img = readPng(png);
+  return pkgMod.weights8Webp(p, c, img.width, img.height, img.data);
+}
 
 describe('version 4 (residual levels)', () => {
   // name: the version-4 package; its textures are lossless WebP where that is smaller
@@ -67,7 +78,7 @@ describe('version 4 (residual levels)', () => {
     assert.equal(p4.version, 2, 'the GPU side sees the version-2 layout');
     assert.equal(p4.chunks.length, p2.chunks.length);
     const levels = new Map(), w8 = new Map();
-    let residuals = 0, residualWeights = 0;
+    let residuals = 0, residualWeights = 0, webpWeights8 = 0;
     for (const [j, c4] of p4.chunks.entries()) {
       const c2 = p2.chunks[j];
       assert.deepEqual([c4.component, c4.level], [c2.component, c2.level]);
@@ -77,7 +88,12 @@ describe('version 4 (residual levels)', () => {
       residuals += c4.residual ? 1 : 0;
       levels.set(`${c4.component}/${c4.level}`, bytes);
       assert.deepEqual(Buffer.from(bytes), Buffer.from(grey('tiles-lod', c2.tex).data), `chunk ${j} (${c4.tex})`);
-      if (c4.wt8) w8.set(c4.component, grey(name, c4.wt8).data);
+      if (c4.wt8) { // the same 8-bit weights as version 2's wt-JJ-8.png, whichever file holds them
+        w8.set(c4.component, weights8(name, p4, c4));
+        assert.deepEqual(Buffer.from(w8.get(c4.component)), Buffer.from(grey('tiles-lod', c2.wt8).data),
+          `chunk ${j}: ${c4.wt8}`);
+        webpWeights8 += c4.wt8.endsWith('.webp') ? 1 : 0;
+      }
       if (c4.wt) {
         const buf = fs.readFileSync(path.join(lib.lib, name, c4.wt));
         const w4 = await pkgMod.decodeWeights(p4, c4, buf, w8.get(c4.component));
@@ -87,12 +103,15 @@ describe('version 4 (residual levels)', () => {
       }
     }
     assert.ok(residuals >= 1 && residualWeights >= 1, `${residuals} residual levels, ${residualWeights} residual weights`);
+    console.log(`# ${name}: ${webpWeights8} of ${w8.size} components' 8-bit weights as wt-JJ-8.webp`);
     return p4.chunks.filter((c) => c.tex.endsWith('.webp')).length;
   }
 
   it('the client reader rebuilds the version-2 levels and weights exactly', async () => {
     const webp = await rebuildsExactly('tiles-lap');
     assert.ok(webp >= 1, 'the default package has WebP textures (the test covers them)');
+    assert.ok(manifestOf('tiles-lap').chunks.some((c) => c.files.some((f) => /^wt-.*-8\.webp$/.test(f))),
+      'the default package has wt-JJ-8.webp weights (the test and the drawing below cover them)');
     assert.equal(await rebuildsExactly('tiles-lap-png'), 0, '--png: every texture a PNG');
     const p4 = pkgMod.parseManifest(manifestOf('tiles-lap'));
     // a residual's name in any texture encoding (section 4.3): -dL.avif as -dL.png and -dL.webp

@@ -90,6 +90,31 @@ describe('btf-package.js', () => {
   });
 });
 
+// wt-JJ.webp (section 5.5; version 4's wt-JJ-8.webp, 5.2): weight codes of at most 255
+// as a lossless WebP of L x V opaque pixels, pixel (x = l, y = v) holding channel c of
+// view v, light l in its R, G or B sample. rgba of q as a decoder returns it (4 bytes a
+// pixel, rows top-down).
+const rgbaOf = (q, L, V) => {
+  const rgba = new Uint8Array(4 * L * V).fill(255);
+  for (let v = 0; v < V; v++)
+    for (let l = 0; l < L; l++)
+      for (let c = 0; c < 3; c++) rgba[4 * (v * L + l) + c] = q[(v * L + l) * 3 + c];
+  return rgba;
+};
+// The first bytes of a simple-format WebP: RIFF, WEBP, one chunk `tag` that fills a
+// file of n bytes; VP8L: its signature and header for w x h (the rest zeros).
+const webpHead = (tag, w, h, n = 64) => {
+  const b = Buffer.alloc(n);
+  b.write('RIFF', 0);
+  b.writeUInt32LE(n - 8, 4);
+  b.write('WEBP', 8);
+  b.write(tag, 12);
+  b.writeUInt32LE(n - 20, 16);
+  b[20] = 0x2f;
+  b.writeUInt32LE(((w - 1) | ((h - 1) << 14)) >>> 0, 21);
+  return b;
+};
+
 // Version 3 of the same package (doc/package-format.md section 11): wt-JJ.z weights.
 describe('btf-package.js version 3', () => {
     // q -> wt-JJ.z written from the format text: zigzag differences along the lights, two byte planes, zlib.
@@ -177,15 +202,91 @@ describe('btf-package.js version 3', () => {
     await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], z.subarray(0, z.length - 4)), /wt-01\.pz/);
     await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], new Uint8Array(2 * n + 1025)), /bytes, expected 1\.\./);
   });
-  it('decodes the wt-JJ.z files btf compress --rd writes, every weight within its block range', async (t) => {
-    const btf = path.join(ROOT, 'build', 'btf');
-    if (!fs.existsSync(btf)) return t.skip('build/btf missing');
+  const v3w = () => {
+    const m = v3();
+    m.chunks.forEach((c, j) => { c.files = [`tex-0${j}.webp`, `wt-0${j}.webp`]; });
+    return m;
+  };
+  it('takes wt-JJ.webp as a version-3 chunk\'s weights and tex-JJ.webp as its texture, nowhere else', () => {
+    const p = pkgMod.parseManifest(v3w());
+    assert.equal(p.chunks[1].wt, 'wt-01.webp');
+    assert.equal(p.chunks[1].tex, 'tex-01.webp');
+    const swapped = v3w();
+    swapped.chunks[0].files.reverse(); // the order of "files" does not matter
+    assert.equal(pkgMod.parseManifest(swapped).chunks[0].wt, 'wt-00.webp');
+    assert.equal(pkgMod.parseManifest(swapped).chunks[0].tex, 'tex-00.webp');
+    const both = v3w(); // a file of section 9.3 or 5.4 comes first (section 7.1)
+    both.chunks[0].files = ['wt-00.webp', 'tex-00.webp', 'wt-00.pz'];
+    both.chunks[1].files = ['wt-01.webp', 'wt-01.pz', 'tex-01.webp', 'wt-01.z'];
+    assert.deepEqual(pkgMod.parseManifest(both).chunks.map((c) => [c.tex, c.wt]),
+      [['tex-00.webp', 'wt-00.pz'], ['tex-01.webp', 'wt-01.z']]);
+    const noWt = v3w();
+    noWt.chunks[0].files = ['tex-00.webp'];
+    assert.throws(() => pkgMod.parseManifest(noWt), /package m: chunk 0 lacks a tex-\* or wt-\* file/);
+    const v1 = manifest();
+    v1.chunks[0].files = ['tex-00.png', 'wt-00.webp'];
+    assert.throws(() => pkgMod.parseManifest(v1), /package m: chunk 0: wt-00\.webp: WebP weights are version 3's/);
+  });
+  it('dequantises wt-JJ.webp pixels to the same Float32Array as the raw 16-bit file', async () => {
+    const p = pkgMod.parseManifest(v3w()), p1 = pkgMod.parseManifest(manifest());
+    const L = 81, V = 81, n = V * L * 3, q = new Uint16Array(n);
+    for (let i = 0; i < n; i++) q[i] = i % 11 === 0 ? 0 : i % 11 === 1 ? 255 : (i * 7919 + ((i * i) % 977)) % 256;
+    const want = pkgMod.dequantWeights(p1, p1.chunks[1], Buffer.from(q.buffer));
+    const rgba = rgbaOf(q, L, V);
+    const got = pkgMod.dequantWeightsW(p, p.chunks[1], L, V, rgba);
+    assert.ok(got instanceof Float32Array);
+    assert.deepEqual(got, want);
+    // pixel (x = 5, y = 7)'s green is view 7, light 5, channel 1, in block 7 / 3 = 2
+    const i = (7 * L + 5) * 3 + 1, one = Uint8Array.from(rgba);
+    one[4 * (7 * L + 5) + 1] = 200;
+    const [lo, step] = p.chunks[1].wtRange.subarray(4, 6);
+    assert.equal(lo, -0.5);
+    assert.equal(pkgMod.dequantWeightsW(p, p.chunks[1], L, V, one)[i], Math.fround(lo + Math.fround(step * 200)));
+    // refusals, each naming the package and the file
+    assert.throws(() => pkgMod.dequantWeightsW(p, p.chunks[1], L - 1, V, rgba),
+      /package m: wt-01\.webp is 80x81, expected 81x81/);
+    assert.throws(() => pkgMod.dequantWeightsW(p, p.chunks[1], V * 3, L / 3, rgba), /package m: wt-01\.webp is 243x27/);
+    assert.throws(() => pkgMod.dequantWeightsW(p, p.chunks[1], L, V, rgba.subarray(4)), /wt-01\.webp has \d+ pixel bytes/);
+    for (const [px, a] of [[0, 254], [L * V - 1, 0], [1234, 128]]) {
+      const t = Uint8Array.from(rgba);
+      t[4 * px + 3] = a;
+      assert.throws(() => pkgMod.dequantWeightsW(p, p.chunks[0], L, V, t),
+        new RegExp(`package m: wt-00\\.webp: pixel ${px} is not opaque \\(alpha ${a}\\)`));
+    }
+    await assert.rejects(pkgMod.decodeWeights(p, p.chunks[1], Buffer.alloc(10)),
+      /package m: wt-01\.webp: WebP weights need/);
+  });
+  it('checks a wt-JJ.webp file before decoding: lossless (VP8L), simple format, L x V', () => {
+    const p = pkgMod.parseManifest(v3w()), c = p.chunks[0];
+    pkgMod.checkWeightsWebp(p, c, webpHead('VP8L', 81, 81));
+    const bad = [
+      [webpHead('VP8 ', 81, 81), /a lossy WebP where a lossless one \(VP8L\) is required/],
+      [webpHead('VP8X', 81, 81), /WebP chunk 'VP8X' is not a simple lossless/],
+      [webpHead('VP8L', 80, 81), /WebP of 80x81, expected 81x81/],
+      [webpHead('VP8L', 81, 27), /WebP of 81x27, expected 81x81/],
+      [webpHead('VP8L', 81, 81).subarray(0, 60), /RIFF size 56 does not match/],
+      [Buffer.from('GIF89a-not-a-webp-file-at-all-xxxx'), /not a WebP file/],
+      [Buffer.alloc(0), /has 0 bytes/],
+      [Buffer.alloc(2 * 81 * 81 * 3 + 1025), /bytes, expected 1\.\./],
+    ];
+    for (const [b, re] of bad)
+      assert.throws(() => pkgMod.checkWeightsWebp(p, c, b), (e) => /^package m: wt-00\.webp/.test(e.message) &&
+        re.test(e.message), String(re));
+  });
+  it('decodes the wt-JJ.z and wt-JJ.pz files btf compress --rd writes, every weight within its block range; ' +
+     'its wt-JJ.webp files pass the check', async (t) => {
+    const btf = BTF;
+    if (!fs.existsSync(btf)) return t.skip(`${btf} missing`);
     const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'btf-v3-'));
     try {
       child.execFileSync(btf, ['compress', 'gen:stone:8:901', path.join(dir, 'p'), '--rd', '--components', '3', '--quiet']);
       const m = JSON.parse(fs.readFileSync(path.join(dir, 'p', 'manifest.json'), 'utf8'));
       const p = pkgMod.parseManifest(m);
       for (const c of p.chunks) {
+        if (c.wt.endsWith('.webp')) { // an image: decoded by the browser (rd.test.mjs)
+          pkgMod.checkWeightsWebp(p, c, fs.readFileSync(path.join(dir, 'p', c.wt)));
+          continue;
+        }
         const w = await pkgMod.decodeWeights(p, c, fs.readFileSync(path.join(dir, 'p', c.wt)));
         for (let v = 0; v < p.views.dirs; v++) {
           const b = p.viewBlock[v], lo = c.wtRange[2 * b], hi = lo + 65535 * c.wtRange[2 * b + 1];
@@ -264,6 +365,43 @@ describe('btf-package.js version 2', () => {
       assert.ok(Math.abs(w[i] - want) <= 4 * Math.abs(want) * 2 ** -23 + 1e-6, `weight ${i}: ${w[i]} vs ${want}`);
     }
     assert.throws(() => pkgMod.dequantWeights8(p, p.chunks[1], q.subarray(1)), /wt-01-8\.png has/);
+  });
+
+  // Version 4 (section 12) with the 8-bit weights as wt-JJ-8.webp (section 5.2) and the
+  // 16-bit ones as residuals over them.
+  const v4w = () => {
+    const m = manifestV2();
+    m.version = 4;
+    m.chunks.forEach((c) => { c.files = c.files.map((f) => f.replace('-8.png', '-8.webp').replace('.bin', '-r.z')); });
+    return m;
+  };
+  it('version 4: wt-JJ-8.webp as the 8-bit weights, its pixels in wt-JJ-8.png\'s order, checked as wt-JJ.webp', () => {
+    const p = pkgMod.parseManifest(v4w()), p2 = pkgMod.parseManifest(manifestV2());
+    assert.deepEqual(p.chunks.map((c) => [c.tex, c.wt ?? null, c.wt8 ?? null]),
+      [['tex-00-l1.png', null, 'wt-00-8.webp'], ['tex-01-l1.png', null, 'wt-01-8.webp'],
+        ['tex-00.png', 'wt-00-r.z', null], ['tex-01.png', 'wt-01-r.z', null]]);
+    const both = v4w(); // a chunk listing both: the PNG (section 7.1)
+    both.chunks[0].files = ['wt-00-8.webp', 'tex-00-l1.png', 'wt-00-8.png'];
+    assert.equal(pkgMod.parseManifest(both).chunks[0].wt8, 'wt-00-8.png');
+    const v2 = manifestV2(); // not in version 2: read as 16-bit weights, which WebP are only in version 3
+    v2.chunks[0].files[1] = 'wt-00-8.webp';
+    assert.throws(() => pkgMod.parseManifest(v2), /package m: chunk 0: wt-00-8\.webp: WebP weights are version 3's/);
+    const L = 81, V = 81, n = V * L * 3, q = new Uint8Array(n);
+    for (let i = 0; i < n; i++) q[i] = (i * 7919 + ((i * i) % 977)) % 256;
+    const rgba = rgbaOf(q, L, V), q8 = pkgMod.weights8Webp(p, p.chunks[1], L, V, rgba);
+    assert.deepEqual(q8, q);
+    assert.deepEqual(pkgMod.dequantWeights8(p, p.chunks[1], q8), pkgMod.dequantWeights8(p2, p2.chunks[1], q));
+    assert.throws(() => pkgMod.weights8Webp(p, p.chunks[1], 3 * L, V, rgba),
+      /package m: wt-01-8\.webp is 243x81, expected 81x81/);
+    const t = Uint8Array.from(rgba);
+    t[4 * 7 + 3] = 200;
+    assert.throws(() => pkgMod.weights8Webp(p, p.chunks[0], L, V, t),
+      /package m: wt-00-8\.webp: pixel 7 is not opaque \(alpha 200\)/);
+    pkgMod.checkWeightsWebp(p, p.chunks[0], webpHead('VP8L', L, V), p.chunks[0].wt8);
+    assert.throws(() => pkgMod.checkWeightsWebp(p, p.chunks[0], webpHead('VP8 ', L, V), p.chunks[0].wt8),
+      /package m: wt-00-8\.webp: a lossy WebP/);
+    assert.throws(() => pkgMod.checkWeightsWebp(p, p.chunks[0], webpHead('VP8L', 3 * L, V), p.chunks[0].wt8),
+      /package m: wt-00-8\.webp: WebP of 243x81, expected 81x81/);
   });
 });
 

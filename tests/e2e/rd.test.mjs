@@ -1,11 +1,12 @@
-// rd.test.mjs - a version-3 package (doc/package-format.md section 9.3: wt-JJ.z
-// weights, inflated by the browser's DecompressionStream; what `btf compress` writes
+// rd.test.mjs - a version-3 package (doc/package-format.md section 9.3: wt-JJ.z or
+// wt-JJ.pz weights, inflated by the browser's DecompressionStream, or wt-JJ.webp ones,
+// section 5.5, decoded by the browser's image decoder; what `btf compress` writes
 // by default), the same with lossy WebP textures (section 4.1: the default where they
 // win) or lossy AVIF ones (--avif), and the version-4 package with levels over it in
 // headless Chromium against a real btfd: each streams completely and draws the image
 // its version-1 twin (the same source, equal-noise steps, raw weights: --plain) draws,
-// up to quantisation; the client's decode of each lossy texture is the C reader's,
-// byte for byte.
+// up to quantisation; the client's decode of each lossy texture and of each wt-JJ.webp
+// is the C reader's, exactly, and a wt-JJ.webp that is lossy or not opaque is refused.
 import assert from 'node:assert/strict';
 import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
@@ -21,12 +22,16 @@ const isLossy = (dir, f) => fs.readFileSync(path.join(dir, f)).subarray(12, 16).
 // 1 when it is an AVIF: named .avif, its first box an 'ftyp' of major brand 'avif' (section 4.1).
 const isAvif = (dir, f) => f.endsWith('.avif') &&
   fs.readFileSync(path.join(dir, f)).subarray(4, 12).toString('latin1') === 'ftypavif';
+// The manifest of package `name` in the library.
+const manifestOf = (name) => JSON.parse(fs.readFileSync(path.join(lib.lib, name, 'manifest.json'), 'utf8'));
 // The chunks' texture files of package `name` in the library that pass test(dir, f).
 function textures(name, test) {
   const dir = path.join(lib.lib, name);
-  const m = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
-  return m.chunks.map((c) => ({file: c.files[0], level: c.level ?? 0})).filter((t) => test(dir, t.file));
+  return manifestOf(name).chunks.map((c) => ({file: c.files[0], level: c.level ?? 0})).filter((t) => test(dir, t.file));
 }
+// The chunks' 16-bit weights files of package `name` (wt-*, not the 8-bit wt-JJ-8.png).
+const weightFiles = (name) => manifestOf(name).chunks.flatMap((c) => c.files)
+  .filter((f) => f.startsWith('wt-') && !f.endsWith('-8.png'));
 
 before(async () => {
   requireBuild();
@@ -114,8 +119,13 @@ async function decodesAsReader(name, files) {
   return {types: [...types], g};
 }
 
-describe('version 3 (wt-JJ.z weights)', () => {
+describe('version 3 (wt-JJ.z, wt-JJ.pz or wt-JJ.webp weights)', () => {
   it('streams, decodes and draws as its version-1 twin does, with levels too', async () => {
+    // the writer keeps the smallest coding of each component's weights: at this size
+    // wt-JJ.webp (section 5.5), which the browser's image decoder reads
+    const webp = ['tiles-rd', 'tiles-lossy'].flatMap((m) => weightFiles(m).filter((f) => /^wt-.*\.webp$/.test(f)));
+    assert.ok(webp.length >= 1, 'a version-3 package drawn carries wt-JJ.webp weights (the test covers them)');
+    console.log(`# ${webp.length} wt-JJ.webp weights files among the version-3 packages drawn`);
     const shots = await drawAll(['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl'],
       ['tiles-rdl', 'tiles-lossyl']);
     // The packages differ only in their quantisation steps (each adds about 0.5 RMS
@@ -142,6 +152,112 @@ describe('version 3 (wt-JJ.z weights)', () => {
     const dll = meanAbsDiff(shots.tiles, shots['tiles-lossyl']);
     console.log(`# ${coarse.length} lossy coarse levels: mean |difference| ${dll.toFixed(3)} of 255 from version 1`);
     assert.ok(dll < 3, `lossy levels within 3 levels of version 1 (${dll})`);
+    assertClean(desktop);
+  });
+});
+
+// A simple-format WebP (RIFF, WEBP, one chunk) holding the chunk `tag` ('VP8L' or 'VP8 ') of
+// WebP file b, which may be an extended one (VP8X: Chromium writes one for an image with alpha).
+function simpleWebp(b, tag) {
+  for (let o = 12; o + 8 <= b.length;) {
+    const t = b.toString('latin1', o, o + 4), n = b.readUInt32LE(o + 4), end = o + 8 + n + (n & 1);
+    if (t === tag) {
+      const out = Buffer.alloc(12 + end - o);
+      out.write('RIFF', 0);
+      out.writeUInt32LE(out.length - 8, 4);
+      out.write('WEBP', 8);
+      b.copy(out, 12, o, end);
+      return out;
+    }
+    o = end;
+  }
+  throw new Error(`no ${tag} chunk in the WebP file`);
+}
+
+describe('wt-JJ.webp weights (version 3, section 5.5)', () => {
+  it('the client decodes each wt-JJ.webp to the C reader\'s weights, exactly', async () => {
+    // `btf lod --levels 1` reads the package through btf_package_read and writes its
+    // 16-bit weights again in a zlib coding (version 4: wt-JJ.z, wt-JJ.pz)
+    const name = 'tiles-rd', dir = path.join(lib.lib, name), ref = path.join(lib.dir, `${name}-wref`);
+    const r = spawnSync(BTF, ['lod', dir, ref, '--levels', '1', '--quiet'], {encoding: 'utf8'});
+    assert.equal(r.status, 0, `btf lod: ${r.stderr}`);
+    const m = manifestOf(name), mr = JSON.parse(fs.readFileSync(path.join(ref, 'manifest.json'), 'utf8'));
+    const b64 = (d, f) => fs.readFileSync(path.join(d, f)).toString('base64');
+    const files = m.chunks.map((c) => c.files.find((f) => f.startsWith('wt-')));
+    assert.ok(files.every((f) => f.endsWith('.webp')), `${name}: every weights file a wt-JJ.webp (${files})`);
+    assert.ok(mr.chunks.every((c) => /^wt-\d+\.p?z$/.test(c.files.find((f) => f.startsWith('wt-')))), 'the reference\'s in zlib');
+    const page = await newPage(desktop);
+    await page.goto(`${server.pagesUrl}viewer.html?material=tiles&width=64&height=64`);
+    const got = await page.evaluate(async ([base, m, mr, wt, wtRef]) => {
+      const {decodeImage} = await import(`${base}btf-decode.js`);
+      const P = await import(`${base}btf-package.js`);
+      const bytes = (s) => Uint8Array.from(atob(s), (c) => c.charCodeAt(0));
+      const pkg = P.parseManifest(m), pr = P.parseManifest(mr), out = [];
+      for (const c of pkg.chunks) {
+        const file = bytes(wt[c.wt]);
+        P.checkWeightsWebp(pkg, c, file);
+        const d = await decodeImage(file, 'image/webp', true);
+        const w = P.dequantWeightsW(pkg, c, d.width, d.height, d.rgba);
+        const rc = pr.chunks.find((x) => x.component === c.component && x.wt);
+        const want = await P.decodeWeights(pr, rc, bytes(wtRef[rc.wt]));
+        let differ = 0;
+        for (let i = 0; i < want.length; i++) differ += w[i] !== want[i];
+        out.push({file: c.wt, ref: rc.wt, n: w.length, nRef: want.length, differ});
+      }
+      return out;
+    }, [server.url, m, mr, Object.fromEntries(files.map((f) => [f, b64(dir, f)])),
+      Object.fromEntries(mr.chunks.map((c) => c.files.find((f) => f.startsWith('wt-'))).map((f) => [f, b64(ref, f)]))]);
+    assert.equal(got.length, m.chunks.length);
+    for (const g of got) {
+      assert.ok(g.n === g.nRef && g.n === 81 * 81 * 3, `${g.file}: ${g.n} weights, the reference ${g.nRef}`);
+      assert.equal(g.differ, 0, `${g.file}: ${g.differ} weights differ from the C reader's (${g.ref})`);
+    }
+    console.log(`# ${got.length} wt-JJ.webp files decoded to the C reader's weights (${got.map((g) => g.ref).join(', ')})`);
+    assertClean(desktop);
+  });
+
+  it('a wt-JJ.webp with a pixel that is not opaque, or a lossy one: one final error event naming it', async () => {
+    const page = await newPage(desktop);
+    await page.goto(`${server.pagesUrl}viewer.html?material=tiles&width=64&height=64`);
+    // L x V = 81 x 81 pixels from Chromium's own WebP encoder: quality 1 is lossless
+    const encode = (alpha, quality) => page.evaluate(async ([alpha, quality]) => {
+      const c = new OffscreenCanvas(81, 81), d = new ImageData(81, 81);
+      for (let i = 0; i < d.data.length; i++) d.data[i] = i % 4 === 3 ? 255 : (i * 37) & 127;
+      d.data[4 * 100 + 3] = alpha;
+      c.getContext('2d').putImageData(d, 0, 0);
+      return Array.from(new Uint8Array(await (await c.convertToBlob({type: 'image/webp', quality})).arrayBuffer()));
+    }, [alpha, quality]).then((a) => Buffer.from(a));
+    const cases = {'tiles-wtalpha': [simpleWebp(await encode(128, 1), 'VP8L'), /pixel 100 is not opaque \(alpha 128\)/],
+      'tiles-wtlossy': [simpleWebp(await encode(255, 0.8), 'VP8 '), /a lossy WebP where a lossless one \(VP8L\) is required/]};
+    const second = manifestOf('tiles-rd').chunks[1].files.find((f) => f.startsWith('wt-'));
+    assert.match(second, /^wt-\d+\.webp$/);
+    for (const [name, [file]] of Object.entries(cases)) {
+      fs.cpSync(path.join(lib.lib, 'tiles-rd'), path.join(lib.lib, name), {recursive: true});
+      fs.writeFileSync(path.join(lib.lib, name, second), file);
+    }
+    server.proc.kill('SIGHUP'); // btfd rescans the library
+    await waitFor(page, async (url) => {
+      const list = await (await fetch(url)).text();
+      return list.includes('"tiles-wtalpha"') && list.includes('"tiles-wtlossy"');
+    }, `${server.url}materials`, 'btfd lists the new packages');
+    for (const [name, [, reason]] of Object.entries(cases)) {
+      const p = await desktop.newPage();
+      await p.addInitScript(() => {
+        window.__events = [];
+        document.addEventListener('error', (e) => window.__events.push(e.detail));
+      });
+      await p.goto(`${server.pagesUrl}viewer.html?material=${name}&geometry=plane&light=fixed&width=256&height=256`);
+      await waitFor(p, () => window.__events.length > 0 && window.__btf.viewers()[0].frames > 0, null, `${name}: the error`);
+      await new Promise((r) => setTimeout(r, 500));
+      const ev = await p.evaluate(() => window.__events), v = (await viewers(p))[0];
+      assert.equal(ev.length, 1, JSON.stringify(ev));
+      // (the copy keeps the manifest's "name", which the message gives)
+      assert.ok(ev[0].reason.startsWith(`package tiles-rd: ${second}: `) && reason.test(ev[0].reason), ev[0].reason);
+      assert.equal(ev[0].retrying, undefined, 'final, not retried');
+      assert.equal(v.drawnChunks, 1, 'chunk 0 drawn, nothing after the one that failed');
+      console.log(`# ${name}: error "${v.error}", ${v.drawnChunks} chunk drawn`);
+      await p.close();
+    }
     assertClean(desktop);
   });
 });
