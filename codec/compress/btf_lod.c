@@ -464,7 +464,7 @@ static btf_result btf__w8_webp(btf__lod *s, int a, const uint8_t *q, const char 
 
 /* Component a's weights requantised to 8 bits (q8 = round(q16 / s_c), the same lo),
  * as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2) at path; version
- * 4: replaced by wt-JJ-8.webp where that is smaller (btf__w8_webp). */
+ * 4 without png_only: replaced by wt-JJ-8.webp where that is smaller (btf__w8_webp). */
 static btf_result btf__write_w8(btf__lod *s, int a, const char *tmp, const char *path, btf_error *err)
 {
     const btf_package *p = s->p;
@@ -480,7 +480,7 @@ static btf_result btf__write_w8(btf__lod *s, int a, const char *tmp, const char 
     s->w8q[a] = q; /* version 4 codes the 16-bit weights over these */
     btf_result r = btf_image_write_flags(path, 3 * L, V, 1, 8, q, BTF_IMAGE_PNG_SMALLEST, err);
     s->w8bytes[a] = btf_fs_size(path);
-    return r == BTF_OK && s->resid ? btf__w8_webp(s, a, q, tmp, path, s->w8bytes[a], err) : r;
+    return r == BTF_OK && s->webp ? btf__w8_webp(s, a, q, tmp, path, s->w8bytes[a], err) : r;
 }
 
 /* Name of component a's 16-bit weights in the coding c (BTF__W16_*): "wt-JJ.bin",

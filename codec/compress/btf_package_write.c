@@ -68,6 +68,7 @@ typedef struct btf__writer {
     const char **tex_ext; /* C: ".png", ".webp" or ".avif", the extension of component j's texture file once written */
     const char **wt_ext;  /* C: ".bin" (version 1), ".z", ".pz" or ".webp" (version 3), its weights file's, once written */
     int *prev_view;       /* V: each view's predecessor in its block (btf_wtz_prev_views), for wt-JJ.pz */
+    int wt_webp;          /* version 3: 1 = wt-JJ.webp may be kept (not png_only: no WebP file at all) */
     int codec;            /* the lossy textures' encoding (btf_package_options.lossy, btf_lossy.h) */
     int *quality;         /* C: -1, or the lossy level of component j's texture (version 3, btf_rd_result) */
     uint8_t **lossy;      /* C: component j's lossy WebP or AVIF file (malloc'd, lossy_n[j] bytes; its atlas
@@ -396,13 +397,13 @@ static btf_result btf__hook(const btf__writer *w, int i, const char *file, btf_e
 
 
 
-/* Version 3's weights of component j: the smallest of wt-JJ.z, wt-JJ.pz and
- * wt-JJ.webp (btf_wtz_encode_smaller), into *z (malloc'd, *nz bytes), its extension
- * into w->wt_ext[j]. */
+/* Version 3's weights of component j: the smallest of wt-JJ.z, wt-JJ.pz and (unless
+ * png_only) wt-JJ.webp (btf_wtz_encode_smaller), into *z (malloc'd, *nz bytes), its
+ * extension into w->wt_ext[j]. */
 static btf_result btf__encode_weights(btf__writer *w, int j, uint8_t **z, size_t *nz, btf_error *err)
 {
     int kind = BTF_WTZ_Z;
-    btf_result r = btf_wtz_encode_smaller(w->qwt[j], w->V, w->L, w->prev_view, z, nz, &kind, err);
+    btf_result r = btf_wtz_encode_smaller(w->qwt[j], w->V, w->L, w->prev_view, w->wt_webp, z, nz, &kind, err);
     w->wt_ext[j] = btf_wtz_ext(kind);
     return r;
 }
@@ -830,6 +831,7 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
     for (int j = 0; r == BTF_OK && j < w.C; j++)
         w.tnoise[j] = noise; /* equal noise; --rd replaces it after the PCA */
     w.version = o.rd ? 3 : 1;
+    w.wt_webp = !o.png_only;
     if (r == BTF_OK && o.rd && !(noise > 0.0f))
         r = btf_fail(err, BTF_ERR_ARG, "rate-distortion steps (rd) need tex_noise >= 0");
     if (r == BTF_OK && c.estimate && !o.rd)

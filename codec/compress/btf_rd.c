@@ -186,7 +186,7 @@ static long long btf__rd_wt_rate(const btf__rd *r, const uint16_t *q, btf_error 
     uint8_t *z = NULL;
     size_t nz = 0;
     int kind = 0;
-    btf_result res = btf_wtz_encode_smaller(q, r->V, r->L, r->prev_view, &z, &nz, &kind, e);
+    btf_result res = btf_wtz_encode_smaller(q, r->V, r->L, r->prev_view, !r->par->png_only, &z, &nz, &kind, e);
     free(z);
     return res != BTF_OK ? -1 : (long long)nz;
 }

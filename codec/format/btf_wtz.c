@@ -188,8 +188,8 @@ static void btf__wtz_keep_smaller(uint8_t **out, size_t *len, int *kind, uint8_t
     }
 }
 
-btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
-                                  int *kind, btf_error *err)
+btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, int webp, uint8_t **out,
+                                  size_t *len, int *kind, btf_error *err)
 {
     uint8_t *b = NULL;
     size_t nb = 0;
@@ -198,7 +198,7 @@ btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *pr
     if (r == BTF_OK && (r = btf_wtz_encode_pred(q, V, L, prev, &b, &nb, err)) == BTF_OK)
         btf__wtz_keep_smaller(out, len, kind, b, nb, BTF_WTZ_PZ);
     b = NULL;
-    if (r == BTF_OK && btf_wtz_fits_webp(q, V, L) && (r = btf_wtz_encode_webp(q, V, L, &b, &nb, err)) == BTF_OK)
+    if (r == BTF_OK && webp && btf_wtz_fits_webp(q, V, L) && (r = btf_wtz_encode_webp(q, V, L, &b, &nb, err)) == BTF_OK)
         btf__wtz_keep_smaller(out, len, kind, b, nb, BTF_WTZ_WEBP);
     if (r != BTF_OK)
         free(*out), *out = NULL, *len = 0;

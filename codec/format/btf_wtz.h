@@ -68,12 +68,12 @@ int btf_wtz_kind_of(const char *name);
 /* Decodes a file of coding kind (prev: the views' predecessors, for wt-JJ.pz). */
 btf_result btf_wtz_decode_kind(int kind, const uint8_t *data, size_t len, int V, int L, const int *prev,
                                uint16_t *q, const char *name, btf_error *err);
-/* q coded each way it can be (wt-JJ.z, wt-JJ.pz and, when every code is at most 255,
- * wt-JJ.webp), the smallest kept (ties: in that order) into *out (malloc'd, *len
- * bytes), its coding into *kind (BTF_WTZ_*). What the writers write and the
- * allocation counts. */
-btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, uint8_t **out, size_t *len,
-                                  int *kind, btf_error *err);
+/* q coded each way it can be (wt-JJ.z, wt-JJ.pz and, with webp and when every code is
+ * at most 255, wt-JJ.webp), the smallest kept (ties: in that order) into *out
+ * (malloc'd, *len bytes), its coding into *kind (BTF_WTZ_*). What the writers write
+ * and the allocation counts (webp 0: a package of PNG files and zlib streams only). */
+btf_result btf_wtz_encode_smaller(const uint16_t *q, int V, int L, const int *prev, int webp, uint8_t **out,
+                                  size_t *len, int *kind, btf_error *err);
 
 #ifdef __cplusplus
 }

@@ -134,7 +134,7 @@ static void equal_noise_bytes(const btf_package *pa, const char *a, long long *t
         btf_error err = {0};
         int *prev = malloc((size_t)pa->views.n_dirs * sizeof *prev), pred = 0;
         btf_wtz_prev_views(pa->blocks->block_of_view, pa->views.n_dirs, prev);
-        cr_assert_eq(btf_wtz_encode_smaller(q, pa->views.n_dirs, pa->lights.n_dirs, prev, &z, &nz, &pred, &err), BTF_OK);
+        cr_assert_eq(btf_wtz_encode_smaller(q, pa->views.n_dirs, pa->lights.n_dirs, prev, 1, &z, &nz, &pred, &err), BTF_OK);
         free(z), free(prev);
         *wt += (long long)nz;
     }
@@ -667,13 +667,18 @@ Test(rd, wtz_webp_layout_round_trip_and_refusals)
         prev[v] = v - 1, one_block[v] = 0;
     uint8_t *z = NULL, *zz = NULL, *zp = NULL;
     size_t nz = 0, nzz = 0, nzp = 0;
-    cr_assert_eq(btf_wtz_encode_smaller(q, V, L, prev, &z, &nz, &kind, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_wtz_encode_smaller(q, V, L, prev, 1, &z, &nz, &kind, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(btf_wtz_encode(q, V, L, &zz, &nzz, &err), BTF_OK);
     cr_assert_eq(btf_wtz_encode_pred(q, V, L, prev, &zp, &nzp, &err), BTF_OK);
     size_t least = nzz < nzp ? nzz : nzp;
     least = nf < least ? nf : least;
     cr_assert_eq(nz, least, "kept %zu bytes: .z %zu, .pz %zu, .webp %zu", nz, nzz, nzp, nf);
     cr_assert_eq(kind, nf < nzz && nf < nzp ? BTF_WTZ_WEBP : nzp < nzz ? BTF_WTZ_PZ : BTF_WTZ_Z);
+    free(z);
+    /* without webp (a package of PNG files, btf_package_options.png_only): the zlib codings only */
+    cr_assert_eq(btf_wtz_encode_smaller(q, V, L, prev, 0, &z, &nz, &kind, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(nz, nzz < nzp ? nzz : nzp);
+    cr_assert_neq(kind, BTF_WTZ_WEBP);
     free(z), free(zz), free(zp);
     /* a code above 255: no image, and the smaller of the zlib codings */
     q[11] = 256;
@@ -681,7 +686,7 @@ Test(rd, wtz_webp_layout_round_trip_and_refusals)
     uint8_t *none = NULL;
     size_t nn = 0;
     cr_assert_eq(btf_wtz_encode_webp(q, V, L, &none, &nn, &err), BTF_ERR_RANGE);
-    cr_assert_eq(btf_wtz_encode_smaller(q, V, L, prev, &z, &nz, &kind, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_wtz_encode_smaller(q, V, L, prev, 1, &z, &nz, &kind, &err), BTF_OK, "%s", err.msg);
     cr_assert_neq(kind, BTF_WTZ_WEBP);
     free(z);
     q[11] = 3;
@@ -866,6 +871,48 @@ Test(rd, version3_takes_residual_levels_that_keep_its_values)
     expect_same_values(a, b);
     cr_expect_leq(weights16_bytes(b, lv), weights_z_bytes(a, out));
     btf_package_free(a), btf_package_free(b);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
+/* Number of the package's chunk files (p in dir) whose name ends ext. */
+static int files_ending(const btf_package *p, const char *ext)
+{
+    int n = 0;
+    size_t e = strlen(ext);
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; f < p->chunk[i].n_files; f++) {
+            size_t m = strlen(p->chunk[i].files[f]);
+            n += m > e && !strcmp(p->chunk[i].files[f] + m - e, ext);
+        }
+    return n;
+}
+
+/* png_only (btf compress --png, btf lod --png): no WebP file at all, weights
+ * included, where the same package without it keeps wt-JJ.webp and wt-JJ-8.webp. */
+Test(rd, png_only_packages_hold_no_webp_weights)
+{
+    char tmp[256], out[512], lv[512];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    btf_package *a, *b;
+    levelled_pair(BTF_GEN_TILES, 1, tmp, out, lv, &a, &b);
+    cr_assert_gt(files_ending(a, ".webp"), 0);
+    cr_assert_gt(files_ending(b, "-8.webp"), 0);
+    btf_package_free(a), btf_package_free(b);
+    btf *src = fx_material(BTF_GEN_TILES, 16, rings, 3);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 3;
+    btf_package_options ko = {0};
+    ko.rd = 1, ko.png_only = 1;
+    btf_lod_options lo = {0};
+    lo.levels = 2, lo.residual = 1, lo.png_only = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    a = fx_package(out, NULL, 0), b = fx_package(lv, NULL, 0);
+    cr_expect_eq(files_ending(a, ".webp"), 0, "version 3 with png_only");
+    cr_expect_eq(files_ending(b, ".webp"), 0, "version 4 with png_only");
+    btf_package_free(a), btf_package_free(b);
+    btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 

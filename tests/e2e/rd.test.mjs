@@ -38,6 +38,8 @@ before(async () => {
   lib = makeLibrary({tiles: ['tiles', 4, 0, ['--plain']], 'tiles-rd': ['tiles', 4, 0, ['--lossless']],
     // at 32 texels a side lossy textures win for coarser steps than the default's
     'tiles-rdl': ['tiles', 4, 2], 'tiles-lossy': ['tiles', 4, 0, ['--tex-noise', '1']],
+    // fine steps: weight codes above 255, so wt-JJ.pz or wt-JJ.z (no wt-JJ.webp)
+    'tiles-fine': ['tiles', 4, 0, ['--tex-noise', '0.05']],
     // and with levels: a lossy component's coarse levels lossy too (package-format.md
     // 10.7); the choice weighs lossy textures with their levels, so a coarser noise
     'tiles-lossyl': ['tiles', 4, 2, ['--tex-noise', '1.5']],
@@ -126,8 +128,14 @@ describe('version 3 (wt-JJ.z, wt-JJ.pz or wt-JJ.webp weights)', () => {
     const webp = ['tiles-rd', 'tiles-lossy'].flatMap((m) => weightFiles(m).filter((f) => /^wt-.*\.webp$/.test(f)));
     assert.ok(webp.length >= 1, 'a version-3 package drawn carries wt-JJ.webp weights (the test covers them)');
     console.log(`# ${webp.length} wt-JJ.webp weights files among the version-3 packages drawn`);
-    const shots = await drawAll(['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl'],
+    const zlib = weightFiles('tiles-fine').filter((f) => /^wt-.*\.p?z$/.test(f));
+    assert.ok(zlib.length >= 1, 'a version-3 package drawn carries wt-JJ.pz or wt-JJ.z weights (the test covers them)');
+    const shots = await drawAll(['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl', 'tiles-fine'],
       ['tiles-rdl', 'tiles-lossyl']);
+    // Finer steps than the default's: closer to the float model, the same bound.
+    const df = meanAbsDiff(shots.tiles, shots['tiles-fine']);
+    console.log(`# version 3 with ${zlib.length} zlib weights files vs version 1: mean |difference| ${df.toFixed(3)} of 255`);
+    assert.ok(df < 3, `version-3 image with zlib weights within 3 levels of version 1 (${df})`);
     // The packages differ only in their quantisation steps (each adds about 0.5 RMS
     // on the 0..255 scale per component, 4 components): their images differ by about
     // a level; a weight file decoded wrongly (a wrong byte plane, prediction or
