@@ -161,32 +161,6 @@ btf_result btf_webp_encode_rgb(const uint8_t *rgb, int w, int h, uint8_t **out, 
     return btf__encode_lossless(rgb, 3, w, h, out, n, err);
 }
 
-btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
-                               btf_error *err)
-{
-    int fw = 0, fh = 0;
-    btf_result r = btf_webp_check(data, n, what, &fw, &fh, err);
-    if (r != BTF_OK)
-        return r;
-    if (btf_webp_is_lossy(data, n))
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: a lossy WebP where a lossless one (VP8L) is required", what);
-    if (fw != w || fh != h)
-        return btf_fail(err, BTF_ERR_FORMAT, "%s: WebP of %dx%d, expected %dx%d", what, fw, fh, w, h);
-    size_t np = (size_t)w * (size_t)h;
-    uint8_t *px = malloc(np * 4);
-    if (!px)
-        return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %dx%d pixels", what, w, h);
-    r = WebPDecodeRGBAInto(data, n, px, np * 4, w * 4) ? BTF_OK
-                                                        : btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode WebP data", what);
-    for (size_t i = 0; r == BTF_OK && i < np; i++) {
-        if (px[4 * i + 3] != 255)
-            r = btf_fail(err, BTF_ERR_FORMAT, "%s: pixel %zu is not opaque (alpha %u)", what, i, px[4 * i + 3]);
-        memcpy(rgb + 3 * i, px + 4 * i, 3);
-    }
-    free(px);
-    return r;
-}
-
 int btf_webp_r_of_y(int y)
 {
     int v = ((y * 19077) >> 8) + ((128 * 26149) >> 8) - 14234;
@@ -233,27 +207,58 @@ btf_result btf_webp_encode_grey_lossy(const uint8_t *grey, int w, int h, int qua
     return btf__encode(&cfg, &pic, out, n, err);
 }
 
-btf_result btf_webp_decode_grey(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *grey,
-                                btf_error *err)
+/* A WebP that btf_webp_check accepts and whose header says w x h, decoded into *px
+ * (malloc'd; the caller frees it): RGB for a lossy file (*ch 3), RGBA for a lossless
+ * one (*ch 4); nothing allocated before the check and the size pass. */
+static btf_result btf__decode_px(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t **px,
+                                 int *ch, btf_error *err)
 {
     int fw = 0, fh = 0;
+    *px = NULL;
     btf_result r = btf_webp_check(data, n, what, &fw, &fh, err);
     if (r != BTF_OK)
         return r;
     if (fw != w || fh != h)
         return btf_fail(err, BTF_ERR_FORMAT, "%s: WebP of %dx%d, expected %dx%d", what, fw, fh, w, h);
-    int lossy = btf_webp_is_lossy(data, n), ch = lossy ? 3 : 4;
+    int lossy = btf_webp_is_lossy(data, n);
     size_t np = (size_t)w * (size_t)h;
-    uint8_t *px = malloc(np * (size_t)ch);
-    if (!px)
+    *ch = lossy ? 3 : 4;
+    if (!(*px = malloc(np * (size_t)*ch)))
         return btf_fail(err, BTF_ERR_NOMEM, "%s: cannot allocate %dx%d pixels", what, w, h);
-    uint8_t *got = lossy ? WebPDecodeRGBInto(data, n, px, np * 3, w * 3) : WebPDecodeRGBAInto(data, n, px, np * 4, w * 4);
-    r = got ? BTF_OK : btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode WebP data", what);
-    for (size_t i = 0; r == BTF_OK && i < np; i++) {
+    uint8_t *got = lossy ? WebPDecodeRGBInto(data, n, *px, np * 3, w * 3) : WebPDecodeRGBAInto(data, n, *px, np * 4, w * 4);
+    if (!got)
+        free(*px), *px = NULL;
+    return got ? BTF_OK : btf_fail(err, BTF_ERR_FORMAT, "%s: cannot decode WebP data", what);
+}
+
+btf_result btf_webp_decode_grey(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *grey,
+                                btf_error *err)
+{
+    uint8_t *px = NULL;
+    int ch = 0;
+    btf_result r = btf__decode_px(data, n, what, w, h, &px, &ch, err);
+    for (size_t i = 0; r == BTF_OK && i < (size_t)w * (size_t)h; i++) {
         const uint8_t *p = px + i * (size_t)ch;
-        if (!lossy && (p[1] != p[0] || p[2] != p[0] || p[3] != 255))
+        if (ch == 4 && (p[1] != p[0] || p[2] != p[0] || p[3] != 255))
             r = btf_fail(err, BTF_ERR_FORMAT, "%s: not a grey image (channels differ at pixel %zu)", what, i);
         grey[i] = p[0];
+    }
+    free(px);
+    return r;
+}
+
+btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
+                               btf_error *err)
+{
+    uint8_t *px = NULL;
+    int ch = 0;
+    btf_result r = btf__decode_px(data, n, what, w, h, &px, &ch, err);
+    if (r == BTF_OK && ch != 4)
+        r = btf_fail(err, BTF_ERR_FORMAT, "%s: a lossy WebP where a lossless one (VP8L) is required", what);
+    for (size_t i = 0; r == BTF_OK && i < (size_t)w * (size_t)h; i++) {
+        if (px[4 * i + 3] != 255)
+            r = btf_fail(err, BTF_ERR_FORMAT, "%s: pixel %zu is not opaque (alpha %u)", what, i, px[4 * i + 3]);
+        memcpy(rgb + 3 * i, px + 4 * i, 3);
     }
     free(px);
     return r;
