@@ -1,7 +1,7 @@
 // util.mjs - helpers of the browser tests: the built tools, a small material library
 // made by them, btfd on a free loopback port, Chromium (playwright-core, Debian's
-// /usr/bin/chromium with CHROMIUM_ARGS: no sandbox, software GL through SwiftShader,
-// no network side traffic; a fresh profile), page error collection, PNG read/write (node:zlib) and image differences.
+// /usr/bin/chromium at nice 10 through chromium-nice.sh, with CHROMIUM_ARGS: no sandbox,
+// software GL through SwiftShader, no network side traffic; a fresh profile), page error collection, PNG read/write (node:zlib) and image differences.
 import assert from 'node:assert/strict';
 import {spawn, spawnSync} from 'node:child_process';
 import {createHash} from 'node:crypto';
@@ -15,7 +15,7 @@ export const ROOT = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '
 export const BUILD = path.resolve(ROOT, process.env.BTF_BUILD || 'build');
 export const BTF = path.join(BUILD, 'btf');
 export const BTFD = path.join(BUILD, 'btfd');
-export const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
+export const CHROMIUM = process.env.CHROMIUM || path.join(ROOT, 'tests/e2e/chromium-nice.sh');
 
 export const CHROMIUM_ARGS = ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
   '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update',
