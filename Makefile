@@ -40,10 +40,15 @@ pkg__or_stop = $(if $(filter PKG-CONFIG-FAILED,$(1)),$(error pkg-config $(2): $(
 #   input/      readers of measured BTFs; btf_input.c the one dispatcher
 #   decompress/ package reader, decoder, level selection
 #   compress/   PCA, rate control, budget search, writer, level builder, thumbnail
-CODEC_PKGS  := OpenImageIO libcjson lapacke openblas zlib qhull_r libwebp libavif
+#   image/btf_image_oiio.cpp is not in the archive: it is the module $(BUILD)/btf_image_oiio.so
+#               (OpenImageIO and its 260 libraries), which btf_image.c loads on the first
+#               image call (codec/image/btf_image_module.h), so no program maps them at start
+CODEC_PKGS  := libcjson lapacke openblas zlib qhull_r libwebp libavif
+IMAGE_PKGS  := OpenImageIO
 CODEC_ROOMS := common image format input decompress compress
-CODEC_OBJ   := $(foreach r,$(CODEC_ROOMS),$(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/$(r)/*.c)) \
-                 $(patsubst %.cpp,$(BUILD)/%.o,$(wildcard codec/$(r)/*.cpp)))
+CODEC_OBJ   := $(foreach r,$(CODEC_ROOMS),$(patsubst %.c,$(BUILD)/%.o,$(wildcard codec/$(r)/*.c)))
+IMAGE_MOD   := $(BUILD)/btf_image_oiio.so
+IMAGE_MOD_OBJ := $(BUILD)/codec/image/btf_image_oiio.pic.o
 CODEC_LIB   := $(BUILD)/codec/libbtfcodec.a
 # $(call codec_inc,ROOMS): -I for the public headers and for these inner rooms.
 codec_inc    = -Icodec/include $(addprefix -Icodec/,$(1))
@@ -55,6 +60,10 @@ $(BUILD)/codec/format/%.o:     INC := $(call codec_inc,common image format)
 $(BUILD)/codec/input/%.o:      INC := $(call codec_inc,common image input)
 $(BUILD)/codec/decompress/%.o: INC := $(call codec_inc,common image format decompress)
 $(BUILD)/codec/compress/%.o:   INC := $(call codec_inc,common image format decompress compress)
+$(IMAGE_MOD_OBJ): INC := $(call codec_inc,common image)
+$(IMAGE_MOD_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(IMAGE_PKGS) libwebp libavif)
+# where an installed program's library finds the module when not beside the program
+$(BUILD)/codec/image/btf_image.o: PKG_CFLAGS += -DBTF_IMAGE_MODULE_DIR='"$(PREFIX)/lib/btfcodec"'
 
 # bench/gen/    synthetic materials with ground truth (uses codec)
 GEN_OBJ    := $(patsubst %.c,$(BUILD)/%.o,$(wildcard bench/gen/*.c))
@@ -104,7 +113,7 @@ TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 
 .PHONY: all setup build test e2e check asan bench bench-gpu chart figure demo clean lib install uninstall
 all: build
-build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN) $(BUNDLE)
+build: $(ROOM_LIBS) $(BTF_BIN) $(TEST_BIN) $(BUNDLE) $(IMAGE_MOD)
 lib: $(CODEC_LIB)
 # The library under its documented name, for programs outside this tree
 # (the default build only: sanitizer builds keep theirs in their own folder).
@@ -124,6 +133,13 @@ $(BUILD)/%.o: %.c
 $(BUILD)/%.o: %.cpp
 	@mkdir -p $(dir $@)
 	$(CXX) $(CXXFLAGS) $(INC) $(PKG_CFLAGS) -c $< -o $@
+
+$(BUILD)/%.pic.o: %.cpp
+	@mkdir -p $(dir $@)
+	$(CXX) $(CXXFLAGS) -fPIC -fvisibility=hidden $(INC) $(PKG_CFLAGS) -c $< -o $@
+
+$(IMAGE_MOD): $(IMAGE_MOD_OBJ)
+	$(CXX) $(LDFLAGS) -shared -o $@ $^ $(call pkg,--libs,$(IMAGE_PKGS)) -lstdc++ -lm
 
 $(BUILD)/%.a:
 	@mkdir -p $(dir $@)
@@ -229,14 +245,15 @@ INST_HEADERS := $(wildcard codec/include/*.h)
 INST_CLIENT  := $(wildcard client/*.*)
 INST_PAGES   := $(wildcard client/pages/*.*)
 INST_SHADERS := $(wildcard shaders/*.glsl shaders/*.vert shaders/*.frag) shaders/manifest.json
-INST_FILES    = bin/btf bin/btfd lib/libbtfcodec.a lib/pkgconfig/btfcodec.pc \
+INST_FILES    = bin/btf bin/btfd lib/libbtfcodec.a lib/btfcodec/btf_image_oiio.so lib/pkgconfig/btfcodec.pc \
     $(INST_HEADERS:codec/include/%=include/btfcodec/%) $(addprefix share/btf-stream/,$(INST_CLIENT) $(INST_SHADERS)) \
     $(INST_PAGES:client/pages/%=share/btf-stream/client/%)
 
-install: $(BTF_BIN) $(BUILD)/btfd $(CODEC_LIB)
+install: $(BTF_BIN) $(BUILD)/btfd $(CODEC_LIB) $(IMAGE_MOD)
 	install -D -m 755 $(BTF_BIN) $(INST_ROOT)/bin/btf
 	install -D -m 755 $(BUILD)/btfd $(INST_ROOT)/bin/btfd
 	install -D -m 644 $(CODEC_LIB) $(INST_ROOT)/lib/libbtfcodec.a
+	install -D -m 755 $(IMAGE_MOD) $(INST_ROOT)/lib/btfcodec/btf_image_oiio.so
 	install -D -m 644 -t $(INST_ROOT)/include/btfcodec $(INST_HEADERS)
 	install -D -m 644 -t $(INST_ROOT)/share/btf-stream/client $(INST_CLIENT) $(INST_PAGES)
 	install -D -m 644 -t $(INST_ROOT)/share/btf-stream/shaders $(INST_SHADERS)
@@ -248,7 +265,7 @@ install: $(BTF_BIN) $(BUILD)/btfd $(CODEC_LIB)
 
 uninstall:
 	rm -f $(addprefix $(INST_ROOT)/,$(INST_FILES))
-	rmdir $(addprefix $(INST_ROOT)/,share/btf-stream/client share/btf-stream/shaders share/btf-stream include/btfcodec) 2>/dev/null || true
+	rmdir $(addprefix $(INST_ROOT)/,share/btf-stream/client share/btf-stream/shaders share/btf-stream include/btfcodec lib/btfcodec) 2>/dev/null || true
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)
 include server/build.mk

@@ -71,7 +71,7 @@ fuzz-replay: $(FUZZ_CODEC_REPLAY) $(FUZZ_REPLAY)
 fuzz-codec:
 	$(MAKE) BUILD=$(FUZZ_BUILD) CC=clang CXX=clang++ OPT='-O1 -g' WARN='-Wall -Wextra' \
 	    SAN='-fsanitize=address,undefined,fuzzer-no-link' \
-	    $(FUZZ_BUILD)/codec/libbtfcodec.a $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
+	    $(FUZZ_BUILD)/codec/libbtfcodec.a $(FUZZ_BUILD)/btf_image_oiio.so $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
 	    $(FUZZ_BUILD)/shaders/host/libbtfgl.a $(FUZZ_CODEC:%=$(FUZZ_BUILD)/fuzz/fuzz_%.o)
 	@for t in $(FUZZ_CODEC); do \
 	    clang++ -fsanitize=fuzzer,address,undefined -fopenmp -o $(FUZZ_BUILD)/fuzz/fuzz_$$t \

@@ -49,7 +49,7 @@ all_present() {
 }
 
 installed_files() {
-    all_present bin/btf bin/btfd lib/libbtfcodec.a lib/pkgconfig/btfcodec.pc || return 1
+    all_present bin/btf bin/btfd lib/libbtfcodec.a lib/btfcodec/btf_image_oiio.so lib/pkgconfig/btfcodec.pc || return 1
     [ -x "$INST/bin/btf" ] && [ -x "$INST/bin/btfd" ] || { echo "bin/btf or bin/btfd not executable"; return 1; }
 }
 
@@ -130,7 +130,10 @@ compile_program() {
 }
 
 run_program() {
-    mkdir -p "$TMP/run" && "$TMP/hello" "$TMP/run" | tee "$TMP/hello.out" || return 1
+    # staged, not at PREFIX: the library finds its image module through BTF_IMAGE_MODULE
+    # (installed for real, in PREFIX/lib/btfcodec/, where it looks by default)
+    mkdir -p "$TMP/run" && BTF_IMAGE_MODULE=$INST/lib/btfcodec/btf_image_oiio.so "$TMP/hello" "$TMP/run" |
+        tee "$TMP/hello.out" || return 1
     grep -qx "btfcodec $VERSION: 81 directions, .*" "$TMP/hello.out"
 }
 
@@ -190,6 +193,14 @@ serves_installed_client() {
 }
 
 # make TARGET on the built $BUILD, staged in $DEST (not a sub-make of `make test`).
+# The installed btf writes images through the module in ../lib/btfcodec/ from bin/ (no
+# BTF_IMAGE_MODULE), and maps no OpenImageIO at start (ldd: not among its libraries).
+installed_btf_images() {
+    if ldd "$INST/bin/btf" | grep -q OpenImageIO; then echo "bin/btf links OpenImageIO at start"; return 1; fi
+    env -u BTF_IMAGE_MODULE "$INST/bin/btf" gen knit "$TMP/gen" --size 4 --format png || return 1
+    [ -n "$(find "$TMP/gen" -name '*.png' | head -1)" ] || { echo "no PNG in $TMP/gen"; return 1; }
+}
+
 inst_make() {
     MAKEFLAGS= make --no-print-directory -s "$1" DESTDIR="$DEST" PREFIX="$PREFIX" BUILD="$BUILD"
 }
@@ -202,12 +213,13 @@ uninstalled() {
 }
 
 check "make install DESTDIR=\$(mktemp -d) PREFIX=$PREFIX" inst_make install
-check "bin/btf, bin/btfd, lib/libbtfcodec.a, lib/pkgconfig/btfcodec.pc" installed_files
+check "bin/btf, bin/btfd, lib/libbtfcodec.a, lib/btfcodec/btf_image_oiio.so, lib/pkgconfig/btfcodec.pc" installed_files
 check "include/btfcodec/ holds codec/include/*.h" installed_headers
 check "share/btf-stream/ holds client/ and shaders/" installed_share
 check "pkg-config --modversion btfcodec is $VERSION" pc_version
 check "a program builds with pkg-config --cflags --libs --static btfcodec" compile_program
 check "that program runs" run_program
+check "installed btf writes images through lib/btfcodec/btf_image_oiio.so" installed_btf_images
 check "installed btfd --version (or --help)" btfd_version
 check "installed btfd serves share/btf-stream/ by default" serves_installed_client
 check "make uninstall removes every installed file" uninstalled

@@ -533,3 +533,58 @@ Test(image, avif_malformed_refused)
     free(px), free(f);
     cr_assert_eq(fx_rmtree(dir), 0);
 }
+
+/* 1 when a mapping of this process names `name` (/proc/self/maps). */
+static int mapped(const char *name)
+{
+    FILE *f = fopen("/proc/self/maps", "r");
+    cr_assert_not_null(f);
+    char line[4096];
+    int hit = 0;
+    while (!hit && fgets(line, sizeof line, f))
+        hit = strstr(line, name) != NULL;
+    fclose(f);
+    return hit;
+}
+
+/* OpenImageIO (and the libraries it links) is mapped on the first image call, not at
+ * start (codec/image/btf_image_module.h): a program that reads no image starts without it. */
+Test(image, openimageio_is_mapped_on_the_first_image_call)
+{
+    cr_assert(!mapped("libOpenImageIO"), "OpenImageIO is mapped before any image call");
+    cr_assert(!mapped("btf_image_oiio.so"));
+    char dir[256], p[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(p, sizeof p, "%s/a.png", dir);
+    uint8_t px[12] = {0, 50, 100, 150, 200, 250, 1, 2, 3, 4, 5, 6};
+    btf_error err = {0};
+    cr_assert_eq(btf_image_write(p, 2, 2, 3, 8, px, &err), BTF_OK, "%s", err.msg);
+    int w, h, ch;
+    cr_assert_eq(btf_image_info(p, &w, &h, &ch, &err), BTF_OK, "%s", err.msg);
+    cr_assert(w == 2 && h == 2 && ch == 3);
+    cr_assert(mapped("btf_image_oiio.so") && mapped("libOpenImageIO"), "the module is loaded by the first call");
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* A module that cannot be loaded: every image call fails with BTF_ERR_IO naming what
+ * was tried, and nothing is written. */
+Test(image, a_missing_module_is_a_clear_error)
+{
+    cr_assert_eq(setenv("BTF_IMAGE_MODULE", "/nonexistent/btf_image_oiio.so", 1), 0);
+    char dir[256], p[600];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(p, sizeof p, "%s/a.png", dir);
+    uint8_t px[4] = {1, 2, 3, 4};
+    btf_error err = {0};
+    cr_assert_eq(btf_image_write(p, 2, 2, 1, 8, px, &err), BTF_ERR_IO);
+    cr_assert(strstr(err.msg, "OpenImageIO module") && strstr(err.msg, "/nonexistent/btf_image_oiio.so") &&
+                  strstr(err.msg, "BTF_IMAGE_MODULE"),
+              "%s", err.msg);
+    cr_assert_eq(fx_count_files(dir), 0, "a file was written");
+    int w, h, ch;
+    err.msg[0] = 0;
+    cr_assert_eq(btf_image_info(p, &w, &h, &ch, &err), BTF_ERR_IO);
+    cr_assert(strstr(err.msg, "/nonexistent/btf_image_oiio.so"), "%s", err.msg);
+    cr_assert(!mapped("libOpenImageIO"));
+    cr_assert_eq(fx_rmtree(dir), 0);
+}

@@ -1,5 +1,9 @@
-// btf_image.cpp - the one C++ file: OpenImageIO behind the C API of btf_image.h.
+// btf_image_oiio.cpp - the one C++ file: OpenImageIO behind the C API of btf_image.h,
+// built on its own as the module btf_image_oiio.so (btf_image_module.h), which
+// btf_image.c loads on the first image call. It calls the codec only through the
+// host table it is opened with (H below): the names of those functions are macros here.
 #include "btf_image.h"
+#include "btf_image_module.h"
 #include "btf_fs.h"
 #include "btf_png.h"
 #include "btf_avif.h"
@@ -21,6 +25,20 @@
 #include <unistd.h>
 
 using namespace OIIO;
+
+static const btf_image_host *H; // the program's table, set once by btf_image_oiio_open
+#define btf_fail H->fail
+#define btf_fs_read_with H->fs_read_with
+#define btf_fs_size H->fs_size
+#define btf_fs_commit_file H->fs_commit_file
+#define btf_png_check H->png_check
+#define btf_png_check_header H->png_check_header
+#define btf_webp_check H->webp_check
+#define btf_webp_encode_grey H->webp_encode_grey
+#define btf_avif_is_avif H->avif_is_avif
+#define btf_avif_check H->avif_check
+#define btf_lossy_codec_of H->lossy_codec_of
+#define btf_lossy_decode H->lossy_decode
 
 static const int kMaxSide = 1 << 15;
 static const size_t kMaxFileBytes = (size_t)1 << 30; // a larger PNG, WebP or AVIF is refused unread
@@ -163,14 +181,14 @@ static btf_result info(source &s, int *w, int *h, int *channels, btf_error *err)
     return BTF_OK;
 }
 
-extern "C" btf_result btf_image_info(const char *path, int *w, int *h, int *channels, btf_error *err)
+static btf_result oiio_info(const char *path, int *w, int *h, int *channels, btf_error *err)
 {
     source s;
     btf_result r = load_file(path, 1, s, err);
     return r == BTF_OK ? info(s, w, h, channels, err) : r;
 }
 
-extern "C" btf_result btf_image_info_with(const btf_files *files, const char *path, int *w, int *h, int *channels,
+static btf_result oiio_info_with(const btf_files *files, const char *path, int *w, int *h, int *channels,
                                           btf_error *err)
 {
     source s;
@@ -256,7 +274,7 @@ static btf_result read_u8(source &s, int *w, int *h, int *channels, uint8_t **pi
     return in ? decode(in.get(), s, w, h, channels, pixels, err) : r;
 }
 
-extern "C" btf_result btf_image_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels,
+static btf_result oiio_read_u8(const char *path, int *w, int *h, int *channels, uint8_t **pixels,
                                         btf_error *err)
 {
     source s;
@@ -286,7 +304,7 @@ static int add_row(const float *row, int w, int ch, int f, double *acc, int *bad
     return 0;
 }
 
-extern "C" btf_result btf_image_read_rgb_f32(const char *path, int max_w, int max_h, int *w, int *h, float **rgb,
+static btf_result oiio_read_rgb_f32(const char *path, int max_w, int max_h, int *w, int *h, float **rgb,
                                              btf_error *err)
 {
     *rgb = nullptr;
@@ -472,7 +490,7 @@ static btf_result write_image(const char *path, int w, int h, int channels, int 
     return r == BTF_OK ? commit(tmp, path, flags, err) : r;
 }
 
-extern "C" btf_result btf_image_write_smallest(const char *stem, int w, int h, const uint8_t *grey, int flags,
+static btf_result oiio_write_smallest(const char *stem, int w, int h, const uint8_t *grey, int flags,
                                                const char **ext, long long *bytes, btf_error *err)
 {
     std::string png = std::string(stem) + ".png", webp = std::string(stem) + ".webp", pext, wext;
@@ -551,7 +569,7 @@ static btf_result lossy_grey(const source &s, int *w, int *h, uint8_t **pixels, 
     return BTF_OK;
 }
 
-extern "C" btf_result btf_image_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
+static btf_result oiio_read_grey(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err)
 {
     source s;
     int ch = 0;
@@ -578,7 +596,7 @@ static btf_result read_lossy_with(const source &s, int w, int h, int channels, i
     return r == BTF_OK ? lossy_grey(s, &fw, &fh, pixels, err) : r;
 }
 
-extern "C" btf_result btf_image_read_with(const btf_files *files, const char *path, int w, int h, int channels,
+static btf_result oiio_read_with(const btf_files *files, const char *path, int w, int h, int channels,
                                           int grey, uint8_t **pixels, btf_error *err)
 {
     source s;
@@ -600,20 +618,19 @@ extern "C" btf_result btf_image_read_with(const btf_files *files, const char *pa
     return r == BTF_OK && grey ? to_grey(path, w, h, ch, pixels, err) : r;
 }
 
-extern "C" btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
-                                      btf_error *err)
-{
-    return write_image(path, w, h, channels, bits, pixels, 0, err);
-}
-
-extern "C" btf_result btf_image_write_flags(const char *path, int w, int h, int channels, int bits, const void *pixels,
-                                            int flags, btf_error *err)
+static btf_result oiio_write_flags(const char *path, int w, int h, int channels, int bits, const void *pixels,
+                                   int flags, btf_error *err)
 {
     return write_image(path, w, h, channels, bits, pixels, flags, err);
 }
 
-extern "C" btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels, int bits,
-                                               const void *pixels, btf_error *err)
+extern "C" __attribute__((visibility("default"))) const btf_image_api *btf_image_oiio_open(const btf_image_host *host,
+                                                                                            int abi)
 {
-    return write_image(path, w, h, channels, bits, pixels, BTF_IMAGE_UNSYNCED, err);
+    static const btf_image_api api = {oiio_info,        oiio_info_with,      oiio_read_u8,   oiio_read_rgb_f32,
+                                      oiio_write_flags, oiio_write_smallest, oiio_read_grey, oiio_read_with};
+    if (abi != BTF_IMAGE_MODULE_ABI || !host)
+        return nullptr;
+    H = host;
+    return &api;
 }
