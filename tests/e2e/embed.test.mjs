@@ -516,7 +516,7 @@ describe('a slow link', () => {
       try {
         const m = await measureLink(ctx, {btfdPort: server.port, pagesUrl: pages.url, page: 'slow', bps, delayMs: 20});
         console.log(`# 4 Mbit/s, 40 ms RTT, load ${i + 1}: stream ${(100 * m.streamUtilisation).toFixed(1)}% of the ` +
-          `link, whole load ${(100 * m.utilisation).toFixed(1)}% (${m.bytes} bytes, first frame ` +
+          `link (${(100 * m.streamFromOpen).toFixed(1)}% from the socket's open), whole load ${(100 * m.utilisation).toFixed(1)}% (${m.bytes} bytes, first frame ` +
           `${m.firstFrameMs.toFixed(0)} ms, complete ${m.completeMs.toFixed(0)} ms)`);
         if (!r || m.streamUtilisation > r.streamUtilisation) r = m;
         assertClean(ctx);

@@ -24,7 +24,7 @@ import {BUILD, ROOT, capture, freePort, launch, makeLibrary, newPage, requireBui
 // its footprint needs, 26 chunks and about 224 KB on the phone), with its thumbnail (the
 // poster). FIELD_ARGS: other compress options (e.g. "--plain", the version-2 package).
 const MATERIALS = {knit: ['knit', 24, 2, (process.env.FIELD_ARGS ?? '').split(' ').filter(Boolean)]};
-const RUNS = Number(process.env.FIELD_RUNS || 7); // fresh visits (each with a reload) on the 4 Mbit/s link
+const RUNS = Number(process.env.FIELD_RUNS || 5); // fresh visits (each with a reload) on the 4 Mbit/s link
 const PHONE = {viewport: {width: 390, height: 700}, deviceScaleFactor: 2, isMobile: true, hasTouch: true};
 let lib, server, pages;
 
