@@ -215,8 +215,9 @@ async function assertComplete(page) {
 }
 
 // Console lines a failure case may show: the browser's own reports of refused or cut
-// connections (a request in flight when the link drops, e.g. the poster).
-const refused = (p) => /ERR_CONNECTION_(REFUSED|RESET|CLOSED)|ERR_EMPTY_RESPONSE|WebSocket connection to .* failed|503 \(Service Unavailable\)/.test(p);
+// connections (a request in flight when the link drops, e.g. the poster: cut before its
+// headers, or within its body, ERR_CONTENT_LENGTH_MISMATCH).
+const refused = (p) => /ERR_CONNECTION_(REFUSED|RESET|CLOSED)|ERR_EMPTY_RESPONSE|ERR_CONTENT_LENGTH_MISMATCH|WebSocket connection to .* failed|503 \(Service Unavailable\)/.test(p);
 
 describe('failures a page owner can handle', () => {
   it('btfd down at page load: an error event and a message, then the picture once it is up', async () => {
