@@ -108,7 +108,13 @@ $(TEST_OBJ): INC := $(ALL_INC) -Itests
 $(TEST_OBJ): PKG_CFLAGS = $(ALL_CFLAGS) $(call pkg,--cflags,criterion libwebsockets)
 
 ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
-LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread
+# (a sanitizer build's programs link the image module: IMAGE_AT_START below)
+LINK_DEPS   = $(if $(SAN),$(IMAGE_MOD))
+# Sanitizer builds link the image module at start (dlopen then finds it loaded): gcc 12's
+# LeakSanitizer crashes ("Tracer caught signal 11") scanning the dynamic TLS of a library
+# opened later, as OpenImageIO's are; loaded at start their TLS is static.
+IMAGE_AT_START = $(if $(SAN),$(abspath $(IMAGE_MOD)) -Xlinker -rpath -Xlinker $(abspath $(BUILD)))
+LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread $(IMAGE_AT_START)
 TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 
 .PHONY: all setup build test e2e check asan bench bench-gpu chart figure demo clean lib install uninstall
@@ -150,10 +156,10 @@ $(GL_LIB): $(GL_OBJ)
 $(EVAL_LIB): $(EVAL_OBJ)
 $(TOOLS_LIB): $(TOOLS_OBJ)
 
-$(BTF_BIN): $(BUILD)/tools/btf_main.o $(ROOM_LIBS)
+$(BTF_BIN): $(BUILD)/tools/btf_main.o $(ROOM_LIBS) | $(LINK_DEPS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(LINK_LIBS)
 
-$(TEST_BIN): $(TEST_OBJ) $(ROOM_LIBS)
+$(TEST_BIN): $(TEST_OBJ) $(ROOM_LIBS) | $(LINK_DEPS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(TEST_LIBS) $(LINK_LIBS)
 
 # The suites run two test processes at a time (--jobs 2), each on one OpenMP (and
@@ -205,7 +211,7 @@ asan: setup
 BENCH_BIN := $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/*.c))
 $(BENCH_BIN:%=%.o): INC := $(ALL_INC)
 $(BENCH_BIN:%=%.o): PKG_CFLAGS = $(ALL_CFLAGS)
-$(BUILD)/bench/%: $(BUILD)/bench/%.o $(ROOM_LIBS)
+$(BUILD)/bench/%: $(BUILD)/bench/%.o $(ROOM_LIBS) | $(LINK_DEPS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(LINK_LIBS)
 
 bench: setup

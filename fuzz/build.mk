@@ -45,7 +45,7 @@
 FUZZ_CODEC        := dirset dfmf manifest package package_mem thesis thesis_mem ubo2003_name roundtrip gltf hdr
 FUZZ_CODEC_OBJ    := $(FUZZ_CODEC:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 FUZZ_CODEC_REPLAY := $(FUZZ_CODEC:%=$(BUILD)/fuzz/replay_%)
-FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS)) -lstdc++ -lm
+FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS)) -lstdc++ -lm $(IMAGE_AT_START)
 FUZZ_BUILD        ?= build-fuzz
 FUZZ_RSS_MB       ?= 2048
 
@@ -53,7 +53,7 @@ $(FUZZ_CODEC_OBJ): INC := $(CODEC_INNER) -Ibench/gen -Ishaders/host -Ifuzz
 $(FUZZ_CODEC_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(CODEC_PKGS))
 build: $(FUZZ_CODEC_REPLAY)
 
-$(BUILD)/fuzz/replay_%: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay_main.o $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
+$(BUILD)/fuzz/replay_%: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay_main.o $(GL_LIB) $(GEN_LIB) $(CODEC_LIB) | $(LINK_DEPS)
 	$(CXX) $(LDFLAGS) -o $@ $^ $(FUZZ_LINK)
 
 .PHONY: fuzz fuzz-deep fuzz-replay fuzz-codec
@@ -77,7 +77,7 @@ fuzz-codec:
 	    clang++ -fsanitize=fuzzer,address,undefined -fopenmp -o $(FUZZ_BUILD)/fuzz/fuzz_$$t \
 	        $(FUZZ_BUILD)/fuzz/fuzz_$$t.o $(FUZZ_BUILD)/shaders/host/libbtfgl.a $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
 	        $(FUZZ_BUILD)/codec/libbtfcodec.a \
-	        $(FUZZ_LINK) || exit 1; \
+	        $(FUZZ_LINK) $(abspath $(FUZZ_BUILD))/btf_image_oiio.so -Wl,-rpath,$(abspath $(FUZZ_BUILD)) || exit 1; \
 	done
 
 # the order targets run in: the quickest to 10 M executions first (so a deep run cut

@@ -549,10 +549,17 @@ static int mapped(const char *name)
 
 /* OpenImageIO (and the libraries it links) is mapped on the first image call, not at
  * start (codec/image/btf_image_module.h): a program that reads no image starts without it. */
+/* (A sanitizer build links the module at start, the Makefile's IMAGE_AT_START: only the
+ * second half holds there.) */
+#ifdef __SANITIZE_ADDRESS__
+#define IMAGE_AT_START 1
+#else
+#define IMAGE_AT_START 0
+#endif
 Test(image, openimageio_is_mapped_on_the_first_image_call)
 {
-    cr_assert(!mapped("libOpenImageIO"), "OpenImageIO is mapped before any image call");
-    cr_assert(!mapped("btf_image_oiio.so"));
+    cr_assert(IMAGE_AT_START || !mapped("libOpenImageIO"), "OpenImageIO is mapped before any image call");
+    cr_assert(IMAGE_AT_START || !mapped("btf_image_oiio.so"));
     char dir[256], p[600];
     cr_assert(fx_tmpdir(dir, sizeof dir));
     snprintf(p, sizeof p, "%s/a.png", dir);
@@ -585,6 +592,6 @@ Test(image, a_missing_module_is_a_clear_error)
     err.msg[0] = 0;
     cr_assert_eq(btf_image_info(p, &w, &h, &ch, &err), BTF_ERR_IO);
     cr_assert(strstr(err.msg, "/nonexistent/btf_image_oiio.so"), "%s", err.msg);
-    cr_assert(!mapped("libOpenImageIO"));
+    cr_assert(IMAGE_AT_START || !mapped("libOpenImageIO"));
     cr_assert_eq(fx_rmtree(dir), 0);
 }
