@@ -113,7 +113,9 @@ LINK_DEPS   = $(if $(SAN),$(IMAGE_MOD))
 # Sanitizer builds link the image module at start (dlopen then finds it loaded): gcc 12's
 # LeakSanitizer crashes ("Tracer caught signal 11") scanning the dynamic TLS of a library
 # opened later, as OpenImageIO's are; loaded at start their TLS is static.
-IMAGE_AT_START = $(if $(SAN),$(abspath $(IMAGE_MOD)) -Xlinker -rpath -Xlinker $(abspath $(BUILD)))
+# $(call image_at_start,DIR): the link words for DIR's module (the libFuzzer links use it too).
+image_at_start = $(abspath $(1))/btf_image_oiio.so -Xlinker -rpath -Xlinker $(abspath $(1))
+IMAGE_AT_START = $(if $(SAN),$(call image_at_start,$(BUILD)))
 LINK_LIBS   = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS) gsl) -lstdc++ -lm -lpthread $(IMAGE_AT_START)
 TEST_LIBS   = $(call pkg,--libs,criterion libwebsockets)
 

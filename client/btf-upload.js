@@ -59,6 +59,13 @@ export class ChunkUploads {
     });
   }
 
+  // A weights WebP `name` of a chunk (wt-JJ.webp, wt-JJ-8.webp): its bytes checked as the C
+  // reader checks them (checkWeightsWebp), then decoded with its alpha kept.
+  weightsImage(chunk, name, data) {
+    checkWeightsWebp(this.pkg, chunk, data(name), name);
+    return this.image(name, data, true);
+  }
+
   // Dequantised weights of a chunk, all by btf-package.js: decodeWeights for the 16-bit
   // files (wt-JJ.bin, versions 3 and 4's wt-JJ.z and wt-JJ.pz, version 4's wt-JJ-r.z over
   // the component's 8-bit weights), version 3's wt-JJ.webp checked (checkWeightsWebp),
@@ -69,8 +76,7 @@ export class ChunkUploads {
   async weights(chunk, data) {
     const pkg = this.pkg, gpu = this.gpu;
     if (chunk.wt && pkg.manifestVersion === 3 && chunk.wt.endsWith('.webp')) {
-      checkWeightsWebp(pkg, chunk, data(chunk.wt));
-      const img = await this.image(chunk.wt, data, true);
+      const img = await this.weightsImage(chunk, chunk.wt, data);
       const w = dequantWeightsW(pkg, chunk, img.width, img.height, img.rgba);
       w.precise = true;
       return w;
@@ -83,8 +89,7 @@ export class ChunkUploads {
     if (!chunk.wt8) return null;
     let px;
     if (chunk.wt8.endsWith('.webp')) {
-      checkWeightsWebp(pkg, chunk, data(chunk.wt8), chunk.wt8);
-      const img = await this.image(chunk.wt8, data, true);
+      const img = await this.weightsImage(chunk, chunk.wt8, data);
       px = weights8Webp(pkg, chunk, img.width, img.height, img.rgba);
     } else {
       const img = await this.image(chunk.wt8, data);

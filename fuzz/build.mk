@@ -77,7 +77,7 @@ fuzz-codec:
 	    clang++ -fsanitize=fuzzer,address,undefined -fopenmp -o $(FUZZ_BUILD)/fuzz/fuzz_$$t \
 	        $(FUZZ_BUILD)/fuzz/fuzz_$$t.o $(FUZZ_BUILD)/shaders/host/libbtfgl.a $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
 	        $(FUZZ_BUILD)/codec/libbtfcodec.a \
-	        $(FUZZ_LINK) $(abspath $(FUZZ_BUILD))/btf_image_oiio.so -Wl,-rpath,$(abspath $(FUZZ_BUILD)) || exit 1; \
+	        $(FUZZ_LINK) $(call image_at_start,$(FUZZ_BUILD)) || exit 1; \
 	done
 
 # the order targets run in: the quickest to 10 M executions first (so a deep run cut

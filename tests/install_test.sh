@@ -192,7 +192,6 @@ serves_installed_client() {
     return $rc
 }
 
-# make TARGET on the built $BUILD, staged in $DEST (not a sub-make of `make test`).
 # The installed btf writes images through the module in ../lib/btfcodec/ from bin/ (no
 # BTF_IMAGE_MODULE), and maps no OpenImageIO at start (ldd: not among its libraries).
 installed_btf_images() {
@@ -201,6 +200,7 @@ installed_btf_images() {
     [ -n "$(find "$TMP/gen" -name '*.png' | head -1)" ] || { echo "no PNG in $TMP/gen"; return 1; }
 }
 
+# make TARGET on the built $BUILD, staged in $DEST (not a sub-make of `make test`).
 inst_make() {
     MAKEFLAGS= make --no-print-directory -s "$1" DESTDIR="$DEST" PREFIX="$PREFIX" BUILD="$BUILD"
 }

@@ -43,12 +43,12 @@ static int image__try(const char *path)
 {
     void *h = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     const char *why = NULL;
-    btf_image_open_fn open = NULL;
+    btf_image_open_fn entry = NULL;
     if (!h)
         why = dlerror();
-    else if (!(*(void **)&open = dlsym(h, BTF_IMAGE_MODULE_ENTRY)))
+    else if (!(*(void **)&entry = dlsym(h, BTF_IMAGE_MODULE_ENTRY)))
         why = "no " BTF_IMAGE_MODULE_ENTRY;
-    else if (!(image__api = open(&image__host, BTF_IMAGE_MODULE_ABI)))
+    else if (!(image__api = entry(&image__host, BTF_IMAGE_MODULE_ABI)))
         why = "built for another version of this program";
     if (why) {
         size_t used = strlen(image__why);
