@@ -21,6 +21,10 @@
 #     FUZZ_NICE=N               run each target under nice -n N (default: not)
 #     FUZZ_JOBS=N               N targets at a time (fuzz/parallel.sh; default 1, fuzz-deep:
 #                               every core), each on one core
+#     FUZZ_FORK=N               each target in libFuzzer's fork mode, N worker processes
+#                               (default 0: one process); with FUZZ_JOBS=1, a slow target
+#                               on every core: make fuzz-deep FUZZ_TARGETS=gltf FUZZ_JOBS=1
+#                               FUZZ_FORK=2 (FUZZ_RUNS does not bound it: fuzz/run.sh)
 #     FUZZ_ASAN_OPTIONS=...     ASan's options (fast_unwind_on_malloc=0: full allocation
 #                               stacks, at a 30th of the speed; fuzz/run.sh's header)
 #     (per target)              -max_len (the largest input its format needs) and its own
@@ -93,11 +97,13 @@ FUZZ_NICE    ?=
 FUZZ_DEEP_RUNS    ?= 10000000
 FUZZ_DEEP_SECONDS ?= 3600
 FUZZ_JOBS         ?=
+FUZZ_FORK         ?= 0
 
 fuzz: fuzz-codec fuzz-request
 	FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_RUNS=$(FUZZ_RUNS) FUZZ_RSS_MB=$(FUZZ_RSS_MB) FUZZ_TMPDIR=$(FUZZ_TMPDIR) \
 	    FUZZ_ASAN_OPTIONS='$(FUZZ_ASAN_OPTIONS)' FUZZ_FLAGS='$(FUZZ_FLAGS)' FUZZ_CORPUS=$(FUZZ_CORPUS) \
 	    FUZZ_THREADS=$(FUZZ_THREADS) FUZZ_NICE=$(FUZZ_NICE) FUZZ_SUMMARY=$(FUZZ_SUMMARY) FUZZ_JOBS=$(FUZZ_JOBS) \
+	    FUZZ_FORK=$(FUZZ_FORK) \
 	    bash fuzz/$(if $(filter-out 0 1,$(FUZZ_JOBS)),parallel.sh,run.sh) $(FUZZ_BUILD) $(FUZZ_TARGETS)
 
 # The deep run: make fuzz with other defaults, on a copy of the corpora.

@@ -23,6 +23,12 @@
 #
 # FUZZ_FLAGS adds libFuzzer flags to every run (after the target's own).
 #
+# FUZZ_FORK=N (N > 0) runs each target in libFuzzer's fork mode: N worker processes
+# under one parent, which merges their finds into the corpus (a slow target on every
+# core: give FUZZ_JOBS=1 with it). Its parent prints no final stats, so the row's
+# executions are its last status line's count ("#N: cov: ..."), the rate that over
+# the wall time; FUZZ_RUNS does not bound it, FUZZ_SECONDS does.
+#
 # ASan unwinds allocation stacks with frame pointers (ASAN_OPTIONS from
 # FUZZ_ASAN_OPTIONS, default empty): fast_unwind_on_malloc=0 would give the full
 # stacks a leak inside a library without frame pointers needs to match
@@ -44,6 +50,7 @@ tmp=${FUZZ_TMPDIR:-/tmp}
 asan=${FUZZ_ASAN_OPTIONS:-}
 flags=${FUZZ_FLAGS:-} # more libFuzzer flags, e.g. -entropic=0
 threads=${FUZZ_THREADS:-1}
+fork=${FUZZ_FORK:-0}
 nice=${FUZZ_NICE:+nice -n $FUZZ_NICE} # a deep run gives way to other work on the machine
 lsan=suppressions=$root/tests/lsan.supp
 corpus=$(cd "${FUZZ_CORPUS:-fuzz/corpus}" && pwd)
@@ -115,7 +122,8 @@ for t in "$@"; do
     args=(-max_total_time="$seconds" -rss_limit_mb="$rss" -malloc_limit_mb="$rss" -max_len=$maxlen
           -print_final_stats=1 "${tflags[@]}")
     bound="$seconds s"
-    ((runs > 0)) && args+=(-runs="$runs") bound+=" or $runs runs"
+    ((runs > 0 && fork == 0)) && args+=(-runs="$runs") bound+=" or $runs runs"
+    ((fork > 0)) && args+=(-fork="$fork") bound+=", $fork processes"
     args+=($flags)
     echo "fuzz: $t for $bound: ${tenv[*]} ${args[*]}"
     start=$(date +%s.%N)
@@ -125,6 +133,10 @@ for t in "$@"; do
     rc=$?
     wall=$(echo "$(date +%s.%N) - $start" | bc)
     execs=$(stat number_of_executed_units "$log") rate=$(stat average_exec_per_sec "$log")
+    if ((fork > 0)); then # the parent's last status line: "#N: cov: C ft: F corp: ..."
+        execs=$(sed -n 's/^#\([0-9]*\): cov:.*/\1/p' "$log" | tail -1)
+        rate=$(awk -v n="${execs:-0}" -v w="$wall" 'BEGIN { printf "%d", (w > 0 ? n / w : 0) }')
+    fi
     read -r cov ft <<<"$(coverage "$log")"
     result=ok
     leak=$(sed -n 's/.*Test unit written to \(.*leak-[0-9a-f]*\)$/\1/p' "$log" | tail -1)
@@ -142,7 +154,7 @@ for t in "$@"; do
 done
 
 {
-    echo "# make fuzz: FUZZ_SECONDS=$seconds FUZZ_RUNS=$runs, $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores, scratch in $tmp"
+    echo "# make fuzz: FUZZ_SECONDS=$seconds FUZZ_RUNS=$runs FUZZ_FORK=$fork, $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) cores, scratch in $tmp"
     printf '%-13s %11s %8s %9s %8s %6s %7s %7s %7s %5s  %s\n' target execs seconds exec/s "10M in" cov ft corpus \
         max_len load result
     printf '%s\n' "${rows[@]}"
