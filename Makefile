@@ -106,6 +106,8 @@ TEST_OBJ   := $(patsubst %.c,$(BUILD)/%.o,$(filter-out tests/deploy/%,$(wildcard
 TEST_BIN   := $(BUILD)/run_tests
 $(TEST_OBJ): INC := $(ALL_INC) -Itests
 $(TEST_OBJ): PKG_CFLAGS = $(ALL_CFLAGS) $(call pkg,--cflags,criterion libwebsockets)
+# the image test knows when the build links the image module at start (IMAGE_AT_START)
+$(BUILD)/tests/codec/test_image.o: PKG_CFLAGS += $(if $(IMAGE_AT_START),-DBTF_IMAGE_AT_START=1)
 
 ROOM_LIBS  := $(TOOLS_LIB) $(EVAL_LIB) $(GL_LIB) $(GEN_LIB) $(CODEC_LIB)
 # (a sanitizer build's programs link the image module: IMAGE_AT_START below)

@@ -132,10 +132,11 @@ for t in "$@"; do
         $nice "./fuzz_$t" "${args[@]}" "$corpus/$t" >"log/$t.txt" 2>&1)
     rc=$?
     wall=$(echo "$(date +%s.%N) - $start" | bc)
-    execs=$(stat number_of_executed_units "$log") rate=$(stat average_exec_per_sec "$log")
     if ((fork > 0)); then # the parent's last status line: "#N: cov: C ft: F corp: ..."
         execs=$(sed -n 's/^#\([0-9]*\): cov:.*/\1/p' "$log" | tail -1)
         rate=$(awk -v n="${execs:-0}" -v w="$wall" 'BEGIN { printf "%d", (w > 0 ? n / w : 0) }')
+    else
+        execs=$(stat number_of_executed_units "$log") rate=$(stat average_exec_per_sec "$log")
     fi
     read -r cov ft <<<"$(coverage "$log")"
     result=ok

@@ -548,10 +548,10 @@ static int mapped(const char *name)
 }
 
 /* OpenImageIO (and the libraries it links) is mapped on the first image call, not at
- * start (codec/image/btf_image_module.h): a program that reads no image starts without it. */
-/* (A sanitizer build links the module at start, the Makefile's IMAGE_AT_START: only the
- * second half holds there.) */
-#ifdef __SANITIZE_ADDRESS__
+ * start (codec/image/btf_image_module.h): a program that reads no image starts without it.
+ * A sanitizer build links the module at start (the Makefile's IMAGE_AT_START, which
+ * defines BTF_IMAGE_AT_START here): only the second half holds there. */
+#ifdef BTF_IMAGE_AT_START
 #define IMAGE_AT_START 1
 #else
 #define IMAGE_AT_START 0
