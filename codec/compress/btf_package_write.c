@@ -84,7 +84,8 @@ typedef struct btf__writer {
     double *Qq, *Qf;      /* C*C: (t_i.t_j)(w_i.w_j) */
     double *Tqd, *Tfd;    /* rows x C scratch */
     double *Wd;           /* maxcols x 2C scratch: [Wq | Wf] */
-    double *Ad, *D;       /* slab scratch */
+    double *Ad, *D;       /* slab scratch, slab rows each */
+    int slab;             /* rows of a slab: BTF__SLAB_ROWS, or every row of a smaller material */
     double *TT, *WW;      /* C*C scratch */
     int stride, sub_w, sub_h; /* Lab subsample: every stride-th texel, sub_w x sub_h of them */
     float *ref;           /* sub_w*sub_h x V x L x 3: the source at the subsample, kept from each block */
@@ -146,8 +147,9 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->Tqd = malloc((size_t)w->rows * C * sizeof(double));
     w->Tfd = malloc((size_t)w->rows * C * sizeof(double));
     w->Wd = malloc((size_t)maxcols * 2 * C * sizeof(double));
-    w->Ad = malloc((size_t)BTF__SLAB_ROWS * maxcols * sizeof(double));
-    w->D = malloc((size_t)BTF__SLAB_ROWS * 2 * C * sizeof(double));
+    w->slab = w->rows < BTF__SLAB_ROWS ? w->rows : BTF__SLAB_ROWS;
+    w->Ad = malloc((size_t)w->slab * maxcols * sizeof(double));
+    w->D = malloc((size_t)w->slab * 2 * C * sizeof(double));
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
     w->ref = malloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
@@ -237,8 +239,8 @@ static void btf__accum_q(btf__writer *w, const double *T, const double *Wm, int 
 static void btf__accum_p(btf__writer *w, const float *A, int cols)
 {
     int C = w->C;
-    for (int r0 = 0; r0 < w->rows; r0 += BTF__SLAB_ROWS) {
-        int nr = w->rows - r0 < BTF__SLAB_ROWS ? w->rows - r0 : BTF__SLAB_ROWS;
+    for (int r0 = 0; r0 < w->rows; r0 += w->slab) {
+        int nr = w->rows - r0 < w->slab ? w->rows - r0 : w->slab;
         for (int c = 0; c < cols; c++)
             for (int r = 0; r < nr; r++)
                 w->Ad[(size_t)c * nr + r] = A[(size_t)c * w->rows + r0 + r];
