@@ -347,14 +347,22 @@ static btf_result oiio_read_rgb_f32(const char *path, int max_w, int max_h, int 
     return BTF_OK;
 }
 
-// Encodes pixels into the file tmp; png_filter: libpng's filter mask (0 = its adaptive
-// default), for PNG files only.
+// Encodes pixels into the file tmp, or with mem into *mem instead (nothing on disk;
+// the format still from tmp's extension); png_filter: libpng's filter mask (0 = its
+// adaptive default), for PNG files only.
 static btf_result encode_image(const std::string &tmp, const char *path, int w, int h, int channels, int bits,
-                               const void *pixels, int png_filter, btf_error *err)
+                               const void *pixels, int png_filter, std::vector<unsigned char> *mem, btf_error *err)
 {
+    std::unique_ptr<Filesystem::IOVecOutput> proxy; // outlives out, which writes into it until closed
     auto out = ImageOutput::create(tmp);
     if (!out)
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: no writer for this extension", path);
+    if (mem) {
+        mem->clear(); // the proxy writes from offset 0 and keeps whatever lies beyond
+        proxy.reset(new Filesystem::IOVecOutput(*mem));
+        if (!out->supports("ioproxy") || !out->set_ioproxy(proxy.get()))
+            return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: this format cannot be encoded in memory", path);
+    }
     ImageSpec spec(w, h, channels, bits == 8 ? TypeDesc::UINT8 : TypeDesc::UINT16);
     spec.attribute("oiio:UnassociatedAlpha", 1);
     spec.attribute("png:compressionLevel", 9); // PNG: deflate level 9 (the writer's default is 6)
@@ -366,11 +374,14 @@ static btf_result encode_image(const std::string &tmp, const char *path, int w, 
     ok = out->close() && ok;
     if (!ok) {
         std::string e = one_line(out->geterror());
-        std::remove(tmp.c_str());
+        if (!mem)
+            std::remove(tmp.c_str());
         return btf_fail(err, BTF_ERR_IO, "%s: write failed (%s)", path, e.c_str());
     }
     return BTF_OK;
 }
+
+static btf_result write_bytes(const std::string &tmp, const char *path, const uint8_t *data, size_t n, btf_error *err);
 
 // With BTF_IMAGE_PNG_SMALLEST: the filter choice that deflates smallest among libpng's
 // per-row adaptive one and filter None, Up or Average on every row, judged on the
@@ -379,32 +390,26 @@ static btf_result encode_image(const std::string &tmp, const char *path, int w, 
 // None on residuals; Sub and Paeth did not win on the materials measured
 // (doc/package-format.md section 11.2). The strip's choice is nearly always the
 // whole image's; it can lose a little to the adaptive choice, where comparing both
-// on the whole image would cost a second full encoding.
-static btf_result encode_smallest_png(const std::string &tmp, const std::string &ext, const char *path, int w, int h,
-                                      int channels, int bits, const void *pixels, btf_error *err)
+// on the whole image would cost a second full encoding. The trials are encoded in
+// memory; when the strip is the whole image the smallest is written as it is.
+static btf_result encode_smallest_png(const std::string &tmp, const char *path, int w, int h, int channels,
+                                      int bits, const void *pixels, btf_error *err)
 {
     static const int filters[4] = {0, 0x08, 0x20, 0x40}; // adaptive, None, Up, Average (libpng's masks)
     const int strip = 64;
     int sh = h <= 2 * strip ? h : strip, y0 = h <= 2 * strip ? 0 : h / 2 - strip / 2;
     const unsigned char *rows = (const unsigned char *)pixels + (size_t)y0 * w * channels * (bits / 8);
-    std::string cand = tmp + ".f" + ext;
-    long long best = -1;
+    std::vector<unsigned char> best, cand;
     int pick = 0;
     btf_result r = BTF_OK;
     for (int i = 0; r == BTF_OK && i < 4; i++) {
-        r = encode_image(cand, path, w, sh, channels, bits, rows, filters[i], err);
-        long long n = r == BTF_OK ? btf_fs_size(cand.c_str()) : -1;
-        if (n >= 0 && (best < 0 || n < best)) {
-            best = n, pick = i;
-            if (sh == h && std::rename(cand.c_str(), tmp.c_str()) != 0) // the strip is the image: keep it
-                r = btf_fail(err, BTF_ERR_IO, "%s: cannot rename temporary file", path);
-        }
+        r = encode_image(tmp, path, w, sh, channels, bits, rows, filters[i], &cand, err);
+        if (r == BTF_OK && (i == 0 || cand.size() < best.size())) // the first of equal sizes
+            best.swap(cand), pick = i;
     }
-    std::remove(cand.c_str());
-    if (r == BTF_OK && sh != h)
-        r = encode_image(tmp, path, w, h, channels, bits, pixels, filters[pick], err);
-    if (r != BTF_OK)
-        std::remove(tmp.c_str());
+    if (r == BTF_OK)
+        r = sh == h ? write_bytes(tmp, path, best.data(), best.size(), err)
+                    : encode_image(tmp, path, w, h, channels, bits, pixels, filters[pick], nullptr, err);
     return r;
 }
 
@@ -457,9 +462,9 @@ static btf_result encode_any(const std::string &tmp, const std::string &ext, con
     if (ext == ".webp" || ext == ".WEBP")
         return encode_webp(tmp, path, w, h, channels, bits, pixels, err);
     if (png && (flags & BTF_IMAGE_PNG_SMALLEST))
-        return encode_smallest_png(tmp, ext, path, w, h, channels, bits, pixels, err);
+        return encode_smallest_png(tmp, path, w, h, channels, bits, pixels, err);
     int filter = !png ? 0 : (flags & BTF_IMAGE_PNG_UNFILTERED) ? 0x08 : (flags & BTF_IMAGE_PNG_UP) ? 0x20 : 0;
-    return encode_image(tmp, path, w, h, channels, bits, pixels, filter, err);
+    return encode_image(tmp, path, w, h, channels, bits, pixels, filter, nullptr, err);
 }
 
 // tmp into place at path: fsync of the file and the directory unless BTF_IMAGE_UNSYNCED.
