@@ -557,10 +557,10 @@ static int btf__rd_nearest(const float *g, int n, float v)
  * whole material (doc/package-format.md section 11.4). */
 static void btf__rd_near_lossy(btf__rd *r, int j, int q)
 {
-    int a = q < 0 ? BTF__RD_NQ - 1 : -1;
-    for (int i = 0, c = r->par->lossy; q >= 0 && i < BTF__RD_NQ; i++)
+    int lossless = q < 0, a = lossless ? BTF__RD_NQ - 1 : -1;
+    for (int i = 0, c = r->par->lossy; !lossless && i < BTF__RD_NQ; i++)
         a = a < 0 || abs(btf_lossy_ladder(c, i) - q) < abs(btf_lossy_ladder(c, a) - q) ? i : a;
-    int lo = a - BTF_RD_NEAR_NOTCHES * (q < 0 ? 2 : 1), hi = a + BTF_RD_NEAR_NOTCHES; /* widened to even ends, encoded */
+    int lo = a - BTF_RD_NEAR_NOTCHES * (lossless ? 2 : 1), hi = a + BTF_RD_NEAR_NOTCHES; /* widened to even ends, encoded */
     lo = lo < 0 ? 0 : lo - (lo % 2), hi = hi >= BTF__RD_NQ ? BTF__RD_NQ - 1 : hi + (hi % 2);
     for (int i = 0; i < r->nt - BTF__RD_NT; i++)
         r->mt[(size_t)j * r->nt + BTF__RD_NT + i] = a >= 0 && i >= lo && i <= hi;

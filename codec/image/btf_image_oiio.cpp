@@ -347,6 +347,21 @@ static btf_result oiio_read_rgb_f32(const char *path, int max_w, int max_h, int 
     return BTF_OK;
 }
 
+// Bytes into the new file tmp (stdio; the caller syncs and renames).
+static btf_result write_bytes(const std::string &tmp, const char *path, const uint8_t *data, size_t n, btf_error *err)
+{
+    FILE *f = std::fopen(tmp.c_str(), "wb");
+    if (!f)
+        return btf_fail(err, BTF_ERR_IO, "%s: cannot create", tmp.c_str());
+    bool ok = std::fwrite(data, 1, n, f) == n;
+    ok = std::fclose(f) == 0 && ok;
+    if (!ok) {
+        std::remove(tmp.c_str());
+        return btf_fail(err, BTF_ERR_IO, "%s: write failed", path);
+    }
+    return BTF_OK;
+}
+
 // Encodes pixels into the file tmp, or with mem into *mem instead (nothing on disk;
 // the format still from tmp's extension); png_filter: libpng's filter mask (0 = its
 // adaptive default), for PNG files only.
@@ -381,8 +396,6 @@ static btf_result encode_image(const std::string &tmp, const char *path, int w, 
     return BTF_OK;
 }
 
-static btf_result write_bytes(const std::string &tmp, const char *path, const uint8_t *data, size_t n, btf_error *err);
-
 // With BTF_IMAGE_PNG_SMALLEST: the filter choice that deflates smallest among libpng's
 // per-row adaptive one and filter None, Up or Average on every row, judged on the
 // image's middle 64 rows (the whole image when it has at most 128), then the whole
@@ -411,21 +424,6 @@ static btf_result encode_smallest_png(const std::string &tmp, const char *path, 
         r = sh == h ? write_bytes(tmp, path, best.data(), best.size(), err)
                     : encode_image(tmp, path, w, h, channels, bits, pixels, filters[pick], nullptr, err);
     return r;
-}
-
-// Bytes into the new file tmp (stdio; the caller syncs and renames).
-static btf_result write_bytes(const std::string &tmp, const char *path, const uint8_t *data, size_t n, btf_error *err)
-{
-    FILE *f = std::fopen(tmp.c_str(), "wb");
-    if (!f)
-        return btf_fail(err, BTF_ERR_IO, "%s: cannot create", tmp.c_str());
-    bool ok = std::fwrite(data, 1, n, f) == n;
-    ok = std::fclose(f) == 0 && ok;
-    if (!ok) {
-        std::remove(tmp.c_str());
-        return btf_fail(err, BTF_ERR_IO, "%s: write failed", path);
-    }
-    return BTF_OK;
 }
 
 // WebP (grey 8-bit only) through libwebp: OpenImageIO 2.4's WebP writer imports the
