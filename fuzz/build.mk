@@ -42,7 +42,7 @@
 # manifest), package_mem (the same files read from memory, btf_package_read_with),
 # thesis (thesis packages on disk), thesis_mem (the same from memory),
 # ubo2003_name (image file names), roundtrip (random tiny BTFs through compress +
-# read + decode; the writer has no memory sink, so its package goes to FUZZ_TMPDIR),
+# read + decode, the package held in memory: the writer's sink, no file system call),
 # gltf (glTF models of the GL host, shaders/host/btf_gltf.cpp), hdr (environment
 # images, shaders/host/btf_env.c), request (btfd's request parser, server/build.mk).
 

@@ -1,7 +1,8 @@
 /* fuzz_roundtrip.c - libFuzzer round-trip target: the input chooses a tiny BTF
  * (1..4 x 1..4 texels, 1..3 rings of 1..4 directions for lights and views, the
- * samples), k, C (1..4) and the texture bits; it is compressed into a package, read
- * back and every sample decoded. Each decoded sample must match the float PCA
+ * samples), k, C (1..4) and the texture bits; it is compressed into a package held
+ * in memory (the writer's sink, btf_package_channel.sink, into a btf_fs_memdir: no
+ * file system call), read back through btf_files and every sample decoded. Each decoded sample must match the float PCA
  * reconstruction within what quantisation can move it: per component j of block b,
  * |w_j| * tex_step/2 + |t_j| * wt_step/2 + tex_step * wt_step/4 (largest |t_j|,
  * |w_j| of the block), summed over components, plus float slack.
@@ -13,6 +14,8 @@
  * six components, within the earlier bounds, took 150. */
 #include <math.h>
 
+#include "btf_compress.h"
+#include "btf_fs.h"
 #include "btf_package.h"
 #include "fuzz_util.h"
 
@@ -65,12 +68,13 @@ static double block_bound(const btf_package *p, const btf_pca_block *blk, int b)
     return e;
 }
 
-static void check_package(const btf *src, const btf_pca_options *po, const char *dir)
+static void check_package(const btf *src, const btf_pca_options *po, const btf_fs_memdir *md)
 {
     btf_package *p = NULL;
     btf_pca_model *m = NULL;
     btf_error err = {{0}};
-    FUZZ_CHECK(btf_package_read(dir, 0, &p, &err) == BTF_OK);
+    btf_files files = btf_fs_mem_files(&md->mem);
+    FUZZ_CHECK(btf_package_read_with("mem/rt", 0, &files, &p, &err) == BTF_OK);
     FUZZ_CHECK(btf_pca_compress(src, po, NULL, NULL, &m, &err) == BTF_OK);
     for (int v = 0; v < src->views.n_dirs; v++) {
         int b = p->blocks->block_of_view[v];
@@ -111,13 +115,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     po.components = 1 + (int)(next_byte(&in) % 4);
     btf_package_options ko = {0};
     ko.bits = (next_byte(&in) & 1) ? 16 : 8;
-    char dir[300];
-    snprintf(dir, sizeof dir, "%s/rt", fuzz_dir());
+    btf_fs_memdir md = {0};
+    btf_package_channel ch = {0};
+    ch.sink = btf_fs_memdir_put, ch.sink_user = &md;
     btf_error err = {{0}};
-    if (btf_package_compress(src, &po, &ko, dir, NULL, &err) == BTF_OK)
-        check_package(src, &po, dir);
+    if (btf_package_compress_with(src, &po, &ko, &ch, "mem/rt", NULL, &err) == BTF_OK)
+        check_package(src, &po, &md);
     else
         FUZZ_CHECK(err.msg[0] != 0);
+    btf_fs_memdir_free(&md);
     btf_free(src);
     return 0;
 }

@@ -127,6 +127,60 @@ btf_files btf_fs_mem_files(const btf_fs_mem *m)
     return f;
 }
 
+/* A malloc'd copy of n bytes (one more, zero, so a text is a string); NULL when out of memory. */
+static char *btf__fs_copy(const void *data, size_t n)
+{
+    char *c = malloc(n + 1);
+    if (c) {
+        if (n)
+            memcpy(c, data, n);
+        c[n] = 0;
+    }
+    return c;
+}
+
+/* Entry i of d, writable (d made every entry). */
+static btf_fs_mem_file *btf__fs_memdir_at(btf_fs_memdir *d, int i)
+{
+    return (btf_fs_mem_file *)&d->mem.file[i];
+}
+
+btf_result btf_fs_memdir_put(void *user, const char *name, const void *data, size_t n, btf_error *err)
+{
+    btf_fs_memdir *d = user;
+    const btf_fs_mem_file *was = btf__fs_mem_find(&d->mem, name);
+    int i = was ? (int)(was - d->mem.file) : d->mem.n;
+    if (!was && d->mem.n == d->cap) {
+        int cap = d->cap ? 2 * d->cap : 16;
+        void *f = realloc((void *)d->mem.file, (size_t)cap * sizeof *d->mem.file);
+        if (!f)
+            return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", name);
+        d->mem.file = f, d->cap = cap;
+    }
+    char *nm = was ? NULL : btf__fs_copy(name, strlen(name)), *bytes = btf__fs_copy(data, n);
+    if (!bytes || (!was && !nm)) {
+        free(nm), free(bytes);
+        return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (%zu bytes)", name, n);
+    }
+    btf_fs_mem_file *f = btf__fs_memdir_at(d, i);
+    if (was)
+        free((void *)f->data);
+    else
+        f->name = nm, d->mem.n++;
+    f->data = bytes, f->size = n;
+    return BTF_OK;
+}
+
+void btf_fs_memdir_free(btf_fs_memdir *d)
+{
+    for (int i = 0; i < d->mem.n; i++) {
+        btf_fs_mem_file *f = btf__fs_memdir_at(d, i);
+        free((void *)f->name), free((void *)f->data);
+    }
+    free((void *)d->mem.file);
+    memset(d, 0, sizeof *d);
+}
+
 /* The directory part of path into buf ("." when there is none). */
 static void btf__fs_dirname(const char *path, char *buf, size_t n)
 {

@@ -66,6 +66,24 @@ typedef struct btf_fs_mem {
  * a missing name BTF_ERR_MISSING, one over max_bytes BTF_ERR_RANGE). */
 btf_files btf_fs_mem_files(const btf_fs_mem *m);
 
+/* Where a writer hands each file it makes instead of writing it (the package
+ * writer's btf_package_channel.sink): name is the file's name in its directory, the
+ * callee copies what it keeps. */
+typedef btf_result (*btf_fs_sink_fn)(void *user, const char *name, const void *data, size_t n, btf_error *err);
+
+/* Files collected in memory, each a copy it owns (name and bytes) until
+ * btf_fs_memdir_free; mem serves them to a reader through btf_fs_mem_files(&d.mem)
+ * and stays valid until the next put. Zero-initialised before the first put. */
+typedef struct btf_fs_memdir {
+    btf_fs_mem mem;
+    int cap;
+} btf_fs_memdir;
+
+/* A btf_fs_sink_fn over a btf_fs_memdir (user): a copy of the file, replacing one of
+ * the same name. */
+btf_result btf_fs_memdir_put(void *user, const char *name, const void *data, size_t n, btf_error *err);
+void btf_fs_memdir_free(btf_fs_memdir *d);
+
 /* Writes n bytes to path atomically: a temporary in the same directory, fsync,
  * rename over path, fsync of the directory. On failure path is untouched and the
  * temporary removed. */

@@ -9,6 +9,7 @@
 #define BTF_COMPRESS_H
 
 #include "btf_budget.h"
+#include "btf_fs.h"
 #include "btf_package.h"
 
 #ifdef __cplusplus
@@ -60,6 +61,13 @@ typedef struct btf_package_channel {
      * full disk. NULL = none. */
     int (*write_hook)(void *ctx, int i, const char *file);
     void *hook_ctx;
+    /* NULL, or where the package's files go instead of out_dir (btf_fs.h): each is
+     * handed to sink(sink_user, name, bytes, n) once made, one call at a time, the
+     * manifest last; nothing is written to the disk (no temporary directory either),
+     * out_dir only names the package, and no thumbnail is made. The fuzz target
+     * fuzz_roundtrip.c reads such a package back through btf_fs_memdir. */
+    btf_fs_sink_fn sink;
+    void *sink_user;
 } btf_package_channel;
 
 /* btf_package_compress and btf_package_compress_views with a channel (NULL = none). */

@@ -399,6 +399,22 @@ static btf_result btf__hook(const btf__writer *w, int i, const char *file, btf_e
 
 
 
+/* File `file` of the package: to the channel's sink, or into tmp atomically. */
+static btf_result btf__put(const btf__writer *w, const char *tmp, const char *file, const void *data, size_t n,
+                           btf_error *err)
+{
+    const btf_package_channel *c = w->chan;
+    btf_result r;
+    if (c->sink) {
+#pragma omp critical(btf__sink)
+        r = c->sink(c->sink_user, file, data, n, err);
+        return r;
+    }
+    char path[8192];
+    snprintf(path, sizeof path, "%s/%s", tmp, file);
+    return btf_fs_write_atomic(path, data, n, err);
+}
+
 /* Version 3's weights of component j: the smallest of wt-JJ.z, wt-JJ.pz and (unless
  * png_only) wt-JJ.webp (btf_wtz_encode_smaller), into *z (malloc'd, *nz bytes), its
  * extension into w->wt_ext[j]. */
@@ -411,8 +427,8 @@ static btf_result btf__encode_weights(btf__writer *w, int j, uint8_t **z, size_t
 }
 
 /* Component j's 16-bit weights as tmp/wt-JJ.bin (version 1) or the smallest of
- * wt-JJ.z, wt-JJ.pz and wt-JJ.webp (version 3); file: its name once known. */
-static btf_result btf__write_weights(btf__writer *w, const char *tmp, int j, char *file, size_t nfile, btf_error *err)
+ * wt-JJ.z, wt-JJ.pz and wt-JJ.webp (version 3); *bytes: its size. */
+static btf_result btf__write_weights(btf__writer *w, const char *tmp, int j, long long *bytes, btf_error *err)
 {
     size_t n = (size_t)w->V * w->L * 3;
     const uint16_t *q = w->qwt[j];
@@ -427,14 +443,14 @@ static btf_result btf__write_weights(btf__writer *w, const char *tmp, int j, cha
             buf[2 * i] = (uint8_t)(q[i] & 255u), buf[2 * i + 1] = (uint8_t)(q[i] >> 8);
     } else
         r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", tmp);
-    snprintf(file, nfile, "wt-%02d%s", j, w->wt_ext[j] ? w->wt_ext[j] : ".bin");
-    char path[8192];
-    snprintf(path, sizeof path, "%s/%s", tmp, file);
+    char file[BTF_PACKAGE_NAME_MAX];
+    snprintf(file, sizeof file, "wt-%02d%s", j, w->wt_ext[j] ? w->wt_ext[j] : ".bin");
     if (r == BTF_OK)
         r = btf__hook(w, 2 * j + 1, file, err);
     if (r == BTF_OK)
-        r = btf_fs_write_atomic(path, buf, nb, err);
+        r = btf__put(w, tmp, file, buf, nb, err);
     free(buf);
+    *bytes = r == BTF_OK ? (long long)nb : -1;
     return r;
 }
 
@@ -500,14 +516,18 @@ static const char *btf__tex_ext(const btf__writer *w, const btf_package_options 
 static btf_result btf__write_texture(btf__writer *w, const btf_package_options *o, const char *tmp, int j,
                                      long long *bytes, btf_error *err)
 {
-    char path[8192];
-    snprintf(path, sizeof path, "%s/tex-%02d", tmp, j);
+    char file[BTF_PACKAGE_NAME_MAX];
     w->tex_ext[j] = btf__tex_ext(w, o, j);
-    size_t n = strlen(path);
-    snprintf(path + n, sizeof path - n, "%s", w->tex_ext[j]);
-    btf_result r = w->lossy[j] ? btf_fs_write_atomic(path, w->lossy[j], w->lossy_n[j], err)
-                               : btf_image_write_flags(path, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST, err);
-    *bytes = btf_fs_size(path);
+    snprintf(file, sizeof file, "tex-%02d%s", j, w->tex_ext[j]);
+    uint8_t *enc = NULL;
+    size_t n = w->lossy[j] ? w->lossy_n[j] : 0;
+    btf_result r = w->lossy[j] ? BTF_OK
+                               : btf_image_encode(file, w->aw, w->ah, w->ch, 8, w->atlas[j], BTF_IMAGE_PNG_SMALLEST,
+                                                  &enc, &n, err);
+    if (r == BTF_OK)
+        r = btf__put(w, tmp, file, w->lossy[j] ? w->lossy[j] : enc, n, err);
+    free(enc);
+    *bytes = r == BTF_OK ? (long long)n : -1;
     return r;
 }
 
@@ -515,18 +535,14 @@ static btf_result btf__write_texture(btf__writer *w, const btf_package_options *
 static btf_result btf__write_component(btf__writer *w, const btf_package_options *o, const char *tmp, int j,
                                        long long *bytes, btf_error *err)
 {
-    char path[8192], file[BTF_PACKAGE_NAME_MAX];
+    char file[BTF_PACKAGE_NAME_MAX];
     snprintf(file, sizeof file, "tex-%02d.png", j);
     btf_result r = btf__hook(w, 2 * j, file, err);
-    long long s1 = -1;
+    long long s1 = -1, s2 = -1;
     if (r == BTF_OK)
         r = btf__write_texture(w, o, tmp, j, &s1, err);
     if (r == BTF_OK)
-        r = btf__write_weights(w, tmp, j, file, sizeof file, err);
-    snprintf(path, sizeof path, "%s/%s", tmp, file);
-    long long s2 = btf_fs_size(path);
-    if (r == BTF_OK && (s1 < 0 || s2 < 0))
-        r = btf_fail(err, BTF_ERR_IO, "%s: written file vanished", tmp);
+        r = btf__write_weights(w, tmp, j, &s2, err);
     *bytes = s1 + s2;
     return r;
 }
@@ -557,12 +573,11 @@ static btf_result btf__write_components(btf__writer *w, const btf_package_option
     return r;
 }
 
-/* Writes every file into tmp, chooses the order and writes the manifest. */
+/* Writes every file into tmp (or the channel's sink), chooses the order and writes the manifest. */
 static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, const btf_package_options *o,
                                  const char *name, const char *tmp, btf_compress_stats *st, btf_error *err)
 {
     int C = w->C;
-    char path[8192];
     long long *bytes = calloc((size_t)C, sizeof *bytes);
     int *order = calloc((size_t)C, sizeof *order);
     double *rmse = calloc((size_t)C, sizeof(double)), *rmsef = calloc((size_t)C, sizeof(double));
@@ -599,14 +614,13 @@ static btf_result btf__write_all(btf__writer *w, const btf_pca_options *po, cons
         r = BTF_ERR_NOMEM;
         goto done;
     }
-    snprintf(path, sizeof path, "%s/manifest.json", tmp);
     if (w->chan->estimate) {
         *w->chan->estimate = text; /* the caller's now */
         text = NULL;
     } else {
         r = btf__hook(w, 2 * C, "manifest.json", err);
         if (r == BTF_OK)
-            r = btf_fs_write_atomic(path, text, strlen(text), err);
+            r = btf__put(w, tmp, "manifest.json", text, strlen(text), err);
     }
     free(text);
     if (r == BTF_OK && st) {
@@ -702,10 +716,10 @@ static btf_result btf__lossy_atlases(btf__writer *w, const btf_pca_model *m, btf
 /* Version 3: steps by rate-distortion from the float model m, then every block's
  * matrix rebuilt once to quantise it and accumulate the exact error sums. */
 static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca_model *m, float noise,
-                                   const btf_package_options *o, const char *tmp, btf_error *err)
+                                   const btf_package_options *o, btf_error *err)
 {
     const btf_package_channel *c = w->chan;
-    btf_rd_params par = {m,           w->acols,     w->arows,  noise,   tmp, c->rd_max_bytes, o->png_only,
+    btf_rd_params par = {m,           w->acols,     w->arows,  noise,   c->rd_max_bytes, o->png_only,
                          c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix, w->bits,
                          o->lossy,       o->levels ? BTF_RD_LOSSY_LEVELS : 0.0};
     btf_rd_result rr, *keep = c->rd_out;
@@ -838,12 +852,13 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
         r = btf_fail(err, BTF_ERR_ARG, "rate-distortion steps (rd) need tex_noise >= 0");
     if (r == BTF_OK && c.estimate && !o.rd)
         r = btf_fail(err, BTF_ERR_ARG, "package: estimates come from the rate-distortion allocation (rd)");
-    char tmp[BTF_FS_PATH_MAX];
-    if (r == BTF_OK)
+    char tmp[BTF_FS_PATH_MAX] = "";
+    int disk = !c.estimate && !c.sink; /* the files go into tmp, then tmp in place of out_dir */
+    if (r == BTF_OK && !c.sink)
         r = btf_fs_replaceable(out_dir, btf_manifest_owns_dir, NULL, err); /* refuse before the work */
-    if (r == BTF_OK)
+    if (r == BTF_OK && disk)
         r = btf_fs_temp_dir(out_dir, tmp, sizeof tmp, btf_manifest_owns_temp, NULL, err);
-    int made = r == BTF_OK;
+    int made = r == BTF_OK && disk;
     double t0 = btf_seconds(), t1 = t0;
     if (r == BTF_OK) {
         /* the writer keeps what it needs per block; --rd keeps the model and passes the blocks again */
@@ -858,7 +873,7 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
         else
             r = btf_pca_compress_views(src, &po, o.rd ? NULL : btf__on_block, &w, o.rd ? &m : NULL, err);
         if (r == BTF_OK && o.rd)
-            r = btf__rd_quantise(&w, src, m, noise, &o, tmp, err);
+            r = btf__rd_quantise(&w, src, m, noise, &o, err);
         if (slot)
             *slot = m; /* the slot owns it now */
         else
@@ -867,12 +882,12 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
     }
     if (r == BTF_OK)
         r = btf__write_all(&w, &po, &o, name, tmp, stats, err);
-    if (r == BTF_OK && !c.estimate && o.thumbnail > 0)
+    if (r == BTF_OK && disk && o.thumbnail > 0)
         r = btf_package_thumbnail(tmp, o.thumbnail, err);
-    if (r == BTF_OK && !c.estimate)
+    if (r == BTF_OK && disk)
         r = btf_fs_replace_dir(tmp, out_dir, btf_manifest_owns_dir, NULL, err);
-    if ((r != BTF_OK || c.estimate) && made)
-        btf_fs_rmtree(tmp, NULL); /* the scratch of an estimate, or a failed package */
+    if (r != BTF_OK && made)
+        btf_fs_rmtree(tmp, NULL); /* a failed package */
     if (stats) {
         stats->seconds_pca = t1 - t0;
         stats->seconds_write = btf_seconds() - t1;

@@ -255,11 +255,9 @@ static btf_result btf__rd_lossy_candidate(btf__rd *r, int n, uint8_t *atlas, uin
 
 /* Rate and distortion of texture candidate n = j * nt + i into r->rt, r->dt: the rate
  * sample's atlas encoded as the package writes it, times rate_scale: its lossless
- * WebP bytes, or with png_only or 16-bit codes the PNG file (filter Up) in
- * scratch/rd-candidate-T.png for thread T.
- * atlas is the thread's own buffer. */
-static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, uint8_t *buf, double *eb, int thread,
-                                        btf_error *err)
+ * WebP bytes, or with png_only or 16-bit codes its PNG's (filter Up), encoded in
+ * memory. atlas is the thread's own buffer. */
+static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, uint8_t *buf, double *eb, btf_error *err)
 {
     if (r->mt && !r->mt[n]) {
         r->dt[n] = INFINITY, r->rt[n] = 0;
@@ -272,24 +270,13 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, uint8
     if (interp)
         return BTF_OK;
     int ah = r->sub_rows * r->H;
-    long long s = -1;
-    btf_result res = BTF_OK;
-    if (!r->par->png_only && r->ch == 1) {
-        uint8_t *webp = NULL;
-        size_t nw = 0;
-        res = btf_webp_encode_grey(atlas, r->aw, ah, &webp, &nw, err);
-        free(webp);
-        s = res == BTF_OK ? (long long)nw : -1;
-    } else {
-        char path[BTF_FS_PATH_MAX];
-        snprintf(path, sizeof path, "%s/rd-candidate-%d.png", r->par->scratch, thread);
-        res = btf_image_write_flags(path, r->aw, ah, r->ch, 8, atlas, BTF_IMAGE_UNSYNCED | BTF_IMAGE_PNG_UP, err);
-        s = res == BTF_OK ? btf_fs_size(path) : -1;
-        remove(path);
-        if (res == BTF_OK && s < 0)
-            res = btf_fail(err, BTF_ERR_IO, "%s: candidate atlas vanished", path);
-    }
-    r->rt[n] = s < 0 ? s : (long long)llround((double)s * r->rate_scale);
+    uint8_t *f = NULL;
+    size_t nf = 0;
+    btf_result res = !r->par->png_only && r->ch == 1
+                         ? btf_webp_encode_grey(atlas, r->aw, ah, &f, &nf, err)
+                         : btf_image_encode("rd-candidate.png", r->aw, ah, r->ch, 8, atlas, BTF_IMAGE_PNG_UP, &f, &nf, err);
+    free(f);
+    r->rt[n] = res != BTF_OK ? -1 : (long long)llround((double)nf * r->rate_scale);
     return res;
 }
 
@@ -366,7 +353,7 @@ static btf_result btf__rd_measure_tex(btf__rd *r, btf_error *err)
 #pragma omp for schedule(dynamic, 1)
         for (int n = 0; n < r->C * r->nt; n++) /* lossy ones first: the longest encodes */
             if (mine == BTF_OK)
-                mine = btf__rd_tex_candidate(r, btf__rd_task(r, n), atlas, buf, eb, omp_get_thread_num(), &e);
+                mine = btf__rd_tex_candidate(r, btf__rd_task(r, n), atlas, buf, eb, &e);
 #pragma omp critical(btf__rd_result)
         btf__rd_first_error(mine, &e, &res, err);
         free(atlas), free(buf), free(eb);
@@ -760,9 +747,9 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
 {
     memset(out, 0, sizeof *out);
     const btf_pca_model *m = par->model;
-    if (!m || !(par->tex_noise > 0.0f) || !par->scratch || par->atlas_cols < 1 || par->atlas_rows < 1 ||
+    if (!m || !(par->tex_noise > 0.0f) || par->atlas_cols < 1 || par->atlas_rows < 1 ||
         (long)par->atlas_cols * par->atlas_rows < m->blocks->n_blocks)
-        return btf_fail(err, BTF_ERR_ARG, "rate-distortion: needs a model, tex_noise > 0, a scratch directory and an atlas grid");
+        return btf_fail(err, BTF_ERR_ARG, "rate-distortion: needs a model, tex_noise > 0 and an atlas grid");
     btf__rd r = {0};
     r.par = par, r.m = m, r.C = m->n_comp, r.nb = m->blocks->n_blocks, r.W = m->width, r.H = m->height;
     r.rows = r.W * r.H, r.L = m->lights.n_dirs, r.V = m->views.n_dirs;

@@ -8,7 +8,7 @@
  * lossy, a component's texture may instead be a lossy WebP or AVIF of its full-range codes
  * (btf_rd_result.tex_quality), its error then estimated from that sample too.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, tmp_dir, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0};  // equal-noise error, lossless WebP, every step measured
+ *     btf_rd_params par = {model, cols, rows, 0.5f, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0};  // equal-noise error, lossless WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -64,7 +64,6 @@ typedef struct btf_rd_params {
     const btf_pca_model *model; /* the float PCA of the package */
     int atlas_cols, atlas_rows; /* the package's atlas grid */
     float tex_noise;            /* equal-noise reference per component (0..255 scale), > 0 */
-    const char *scratch;        /* directory for the candidate atlases (removed again) */
     /* > 0: instead of the equal-noise error, the least error (PCA truncation plus
      * quantisation) whose kept components' files fit in max_bytes: a component is
      * kept when its energy exceeds its quantised cost D + lambda R, lambda the

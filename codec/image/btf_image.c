@@ -114,6 +114,14 @@ btf_result btf_image_write_flags(const char *path, int w, int h, int channels, i
     return m ? m->write_flags(path, w, h, channels, bits, pixels, flags, err) : BTF_ERR_IO;
 }
 
+btf_result btf_image_encode(const char *name, int w, int h, int channels, int bits, const void *pixels, int flags,
+                            uint8_t **out, size_t *n, btf_error *err)
+{
+    *out = NULL, *n = 0;
+    const btf_image_api *m = image__get(name, err);
+    return m ? m->encode(name, w, h, channels, bits, pixels, flags, out, n, err) : BTF_ERR_IO;
+}
+
 btf_result btf_image_write(const char *path, int w, int h, int channels, int bits, const void *pixels,
                            btf_error *err)
 {

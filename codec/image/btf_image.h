@@ -56,6 +56,11 @@ btf_result btf_image_write_unsynced(const char *path, int w, int h, int channels
 #define BTF_IMAGE_PNG_UP 16
 btf_result btf_image_write_flags(const char *path, int w, int h, int channels, int bits, const void *pixels, int flags,
                                  btf_error *err);
+/* The bytes btf_image_write_flags would write to a file called name (its extension
+ * picks the format; the flags' PNG choices, the sync flag ignored) into *out, a new
+ * malloc'd buffer of *n bytes the caller frees; nothing touches the disk. */
+btf_result btf_image_encode(const char *name, int w, int h, int channels, int bits, const void *pixels, int flags,
+                            uint8_t **out, size_t *n, btf_error *err);
 /* An 8-bit grey image as STEM.png (with flags' PNG choices) or, when it is smaller,
  * STEM.webp, lossless (doc/package-format.md section 4; never with BTF_IMAGE_NO_WEBP);
  * *ext gets ".png" or ".webp" (static strings), *bytes the file's size. Only the

@@ -22,7 +22,7 @@ extern "C" {
 #define BTF_IMAGE_MODULE_FILE "btf_image_oiio.so"
 #define BTF_IMAGE_MODULE_ENTRY "btf_image_oiio_open"
 /* Raised whenever either table below changes: a module built for another value is refused. */
-#define BTF_IMAGE_MODULE_ABI 1
+#define BTF_IMAGE_MODULE_ABI 2
 
 /* What the module may call in the program (btf_common.h, btf_fs.h, btf_png.h, btf_webp.h,
  * btf_avif.h, btf_lossy.h). Owned by btf_image.c: a constant that lives as long as the process. */
@@ -59,6 +59,8 @@ typedef struct btf_image_api {
     btf_result (*read_grey)(const char *path, int *w, int *h, uint8_t **pixels, btf_error *err);
     btf_result (*read_with)(const btf_files *files, const char *path, int w, int h, int channels, int grey,
                             uint8_t **pixels, btf_error *err);
+    btf_result (*encode)(const char *name, int w, int h, int channels, int bits, const void *pixels, int flags,
+                         uint8_t **out, size_t *n, btf_error *err);
 } btf_image_api;
 
 /* The module's one exported function: its table for this host, or NULL when abi is

@@ -399,14 +399,14 @@ static btf_result encode_image(const std::string &tmp, const char *path, int w, 
 // With BTF_IMAGE_PNG_SMALLEST: the filter choice that deflates smallest among libpng's
 // per-row adaptive one and filter None, Up or Average on every row, judged on the
 // image's middle 64 rows (the whole image when it has at most 128), then the whole
-// image in tmp with that choice. Up wins on most component atlases, Average on some,
+// image in tmp (or *mem) with that choice. Up wins on most component atlases, Average on some,
 // None on residuals; Sub and Paeth did not win on the materials measured
 // (doc/package-format.md section 11.2). The strip's choice is nearly always the
 // whole image's; it can lose a little to the adaptive choice, where comparing both
 // on the whole image would cost a second full encoding. The trials are encoded in
 // memory; when the strip is the whole image the smallest is written as it is.
 static btf_result encode_smallest_png(const std::string &tmp, const char *path, int w, int h, int channels,
-                                      int bits, const void *pixels, btf_error *err)
+                                      int bits, const void *pixels, std::vector<unsigned char> *mem, btf_error *err)
 {
     static const int filters[4] = {0, 0x08, 0x20, 0x40}; // adaptive, None, Up, Average (libpng's masks)
     const int strip = 64;
@@ -420,49 +420,61 @@ static btf_result encode_smallest_png(const std::string &tmp, const char *path, 
         if (r == BTF_OK && (i == 0 || cand.size() < best.size())) // the first of equal sizes
             best.swap(cand), pick = i;
     }
-    if (r == BTF_OK)
-        r = sh == h ? write_bytes(tmp, path, best.data(), best.size(), err)
-                    : encode_image(tmp, path, w, h, channels, bits, pixels, filters[pick], nullptr, err);
-    return r;
+    if (r != BTF_OK || sh != h)
+        return r == BTF_OK ? encode_image(tmp, path, w, h, channels, bits, pixels, filters[pick], mem, err) : r;
+    if (!mem)
+        return write_bytes(tmp, path, best.data(), best.size(), err);
+    mem->swap(best);
+    return BTF_OK;
 }
 
 // WebP (grey 8-bit only) through libwebp: OpenImageIO 2.4's WebP writer imports the
 // pixels through YUV, so its "lossless" files do not give the same bytes back.
 static btf_result encode_webp(const std::string &tmp, const char *path, int w, int h, int channels, int bits,
-                              const void *pixels, btf_error *err)
+                              const void *pixels, std::vector<unsigned char> *mem, btf_error *err)
 {
     if (channels != 1 || bits != 8)
         return btf_fail(err, BTF_ERR_UNSUPPORTED, "%s: WebP is written for 8-bit grey images only", path);
     uint8_t *buf = nullptr;
     size_t n = 0;
     btf_result r = btf_webp_encode_grey((const uint8_t *)pixels, w, h, &buf, &n, err);
-    if (r == BTF_OK)
+    if (r == BTF_OK && mem)
+        mem->assign(buf, buf + n);
+    else if (r == BTF_OK)
         r = write_bytes(tmp, path, buf, n, err);
     free(buf);
     return r;
+}
+
+// ".EXT" of path (empty without one).
+static std::string ext_of(const char *path)
+{
+    std::string p(path);
+    size_t dot = p.find_last_of('.');
+    return dot == std::string::npos ? std::string() : p.substr(dot);
 }
 
 // "PATH.tmp-PID.EXT" for path, the extension kept last so OpenImageIO picks the
 // format from the temp name; ext gets ".EXT" (empty without one).
 static std::string temp_path(const char *path, std::string *ext)
 {
-    std::string p(path);
-    size_t dot = p.find_last_of('.');
-    *ext = dot == std::string::npos ? std::string() : p.substr(dot);
-    return p + ".tmp-" + std::to_string((long)getpid()) + *ext;
+    *ext = ext_of(path);
+    return std::string(path) + ".tmp-" + std::to_string((long)getpid()) + *ext;
 }
 
-// Encodes into tmp as path's extension says (PNG with the flags' filter choice).
+// Encodes into tmp, or with mem into *mem (nothing on disk), as path's extension
+// says (PNG with the flags' filter choice).
 static btf_result encode_any(const std::string &tmp, const std::string &ext, const char *path, int w, int h,
-                             int channels, int bits, const void *pixels, int flags, btf_error *err)
+                             int channels, int bits, const void *pixels, int flags, std::vector<unsigned char> *mem,
+                             btf_error *err)
 {
     int png = ext == ".png" || ext == ".PNG";
     if (ext == ".webp" || ext == ".WEBP")
-        return encode_webp(tmp, path, w, h, channels, bits, pixels, err);
+        return encode_webp(tmp, path, w, h, channels, bits, pixels, mem, err);
     if (png && (flags & BTF_IMAGE_PNG_SMALLEST))
-        return encode_smallest_png(tmp, path, w, h, channels, bits, pixels, err);
+        return encode_smallest_png(tmp, path, w, h, channels, bits, pixels, mem, err);
     int filter = !png ? 0 : (flags & BTF_IMAGE_PNG_UNFILTERED) ? 0x08 : (flags & BTF_IMAGE_PNG_UP) ? 0x20 : 0;
-    return encode_image(tmp, path, w, h, channels, bits, pixels, filter, nullptr, err);
+    return encode_image(tmp, path, w, h, channels, bits, pixels, filter, mem, err);
 }
 
 // tmp into place at path: fsync of the file and the directory unless BTF_IMAGE_UNSYNCED.
@@ -489,8 +501,24 @@ static btf_result write_image(const char *path, int w, int h, int channels, int 
     if (bad_params(w, h, channels, bits))
         return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%dx%d/%d", path, w, h, channels, bits);
     std::string ext, tmp = temp_path(path, &ext);
-    btf_result r = encode_any(tmp, ext, path, w, h, channels, bits, pixels, flags, err);
+    btf_result r = encode_any(tmp, ext, path, w, h, channels, bits, pixels, flags, nullptr, err);
     return r == BTF_OK ? commit(tmp, path, flags, err) : r;
+}
+
+// The bytes write_image would put in a file called name, into *out (malloc'd, *n).
+static btf_result oiio_encode(const char *name, int w, int h, int channels, int bits, const void *pixels, int flags,
+                              uint8_t **out, size_t *n, btf_error *err)
+{
+    *out = nullptr, *n = 0;
+    if (bad_params(w, h, channels, bits))
+        return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%dx%d/%d", name, w, h, channels, bits);
+    std::vector<unsigned char> mem;
+    btf_result r = encode_any(name, ext_of(name), name, w, h, channels, bits, pixels, flags, &mem, err);
+    if (r == BTF_OK && !(*out = (uint8_t *)malloc(mem.size() + 1)))
+        r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", name);
+    if (r == BTF_OK)
+        memcpy(*out, mem.data(), mem.size()), *n = mem.size();
+    return r;
 }
 
 static btf_result oiio_write_smallest(const char *stem, int w, int h, const uint8_t *grey, int flags,
@@ -501,10 +529,10 @@ static btf_result oiio_write_smallest(const char *stem, int w, int h, const uint
     if (bad_params(w, h, 1, 8))
         return btf_fail(err, BTF_ERR_ARG, "%s: bad image parameters %dx%d", png.c_str(), w, h);
     std::string ptmp = temp_path(png.c_str(), &pext), wtmp = temp_path(webp.c_str(), &wext);
-    btf_result r = encode_any(ptmp, pext, png.c_str(), w, h, 1, 8, grey, flags, err);
+    btf_result r = encode_any(ptmp, pext, png.c_str(), w, h, 1, 8, grey, flags, nullptr, err);
     long long pn = r == BTF_OK ? btf_fs_size(ptmp.c_str()) : -1, wn = -1;
     if (r == BTF_OK && !(flags & BTF_IMAGE_NO_WEBP)) {
-        r = encode_webp(wtmp, webp.c_str(), w, h, 1, 8, grey, err);
+        r = encode_webp(wtmp, webp.c_str(), w, h, 1, 8, grey, nullptr, err);
         wn = r == BTF_OK ? btf_fs_size(wtmp.c_str()) : -1;
     }
     if (r == BTF_OK && (pn < 0 || ((flags & BTF_IMAGE_NO_WEBP) == 0 && wn < 0)))
@@ -631,7 +659,8 @@ extern "C" __attribute__((visibility("default"))) const btf_image_api *btf_image
                                                                                             int abi)
 {
     static const btf_image_api api = {oiio_info,        oiio_info_with,      oiio_read_u8,   oiio_read_rgb_f32,
-                                      oiio_write_flags, oiio_write_smallest, oiio_read_grey, oiio_read_with};
+                                      oiio_write_flags, oiio_write_smallest, oiio_read_grey, oiio_read_with,
+                                      oiio_encode};
     if (abi != BTF_IMAGE_MODULE_ABI || !host)
         return nullptr;
     H = host;

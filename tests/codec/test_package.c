@@ -17,6 +17,7 @@
 #include "fixtures.h"
 #include "btf_decode.h"
 #include "btf_compress.h"
+#include "btf_lossy.h"
 
 /* A generated knit material, size x size, on fx_dirs11 (8-bit like measured data). */
 static btf *make_material(int size)
@@ -382,6 +383,81 @@ Test(package, threaded_writes_match_one_thread)
     cr_assert_eq(btf_package_compress_with(src, &po, &ko, &ch, a, NULL, &err), BTF_ERR_IO);
     cr_expect(strstr(err.msg, "wt-07.bin: write failed"), "%s", err.msg);
     cr_assert_eq(count_entries(tmp), 2, "a temporary directory was left beside the packages");
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
+/* A sink that refuses the file named *ctx, else puts it in the btf_fs_memdir. */
+typedef struct refusing_sink {
+    btf_fs_memdir dir;
+    const char *refuse;
+} refusing_sink;
+
+static btf_result refuse_one(void *user, const char *name, const void *data, size_t n, btf_error *err)
+{
+    refusing_sink *s = user;
+    if (s->refuse && !strcmp(name, s->refuse)) {
+        snprintf(err->msg, sizeof err->msg, "%s: refused by the sink", name);
+        return BTF_ERR_IO;
+    }
+    return btf_fs_memdir_put(&s->dir, name, data, n, err);
+}
+
+/* Compresses src with ko into the sink and into tmp/disk; every file the sink got is
+ * the disk's, byte for byte, the disk has no other but its thumbnail, the sink's
+ * package reads, and the out_dir it was given was never made. */
+static void sink_matches_disk(const btf *src, const btf_pca_options *po, const btf_package_options *ko,
+                              const char *tmp)
+{
+    char disk[512], never[512];
+    snprintf(disk, sizeof disk, "%s/disk", tmp);
+    snprintf(never, sizeof never, "%s/never", tmp);
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, po, ko, disk, NULL, &err), BTF_OK, "%s", err.msg);
+    refusing_sink s = {0};
+    btf_package_channel ch = {0};
+    ch.sink = refuse_one, ch.sink_user = &s;
+    cr_assert_eq(btf_package_compress_with(src, po, ko, &ch, never, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(btf_fs_size(never), -1);
+    cr_expect_eq(count_entries(never), -1, "the sink's out_dir was made");
+    for (int i = 0; i < s.dir.mem.n; i++) {
+        const btf_fs_mem_file *f = &s.dir.mem.file[i];
+        char path[1024], *bytes = NULL;
+        size_t n = 0;
+        snprintf(path, sizeof path, "%s/%s", disk, f->name);
+        cr_assert_eq(btf_fs_read(path, 1 << 26, &bytes, &n, &err), BTF_OK, "%s", err.msg);
+        cr_expect(n == f->size && !memcmp(bytes, f->data, n), "%s: the sink's bytes differ from the disk's", f->name);
+        free(bytes);
+    }
+    cr_expect_eq(s.dir.mem.n + (ko->thumbnail > 0), count_entries(disk), "a file only on the disk");
+    btf_files files = btf_fs_mem_files(&s.dir.mem);
+    btf_package *p = NULL;
+    cr_assert_eq(btf_package_read_with("mem/m", 0, &files, &p, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(p->n_chunks, po->components);
+    btf_package_free(p);
+    s.refuse = "manifest.json"; /* a sink's error is the writer's */
+    cr_expect_eq(btf_package_compress_with(src, po, ko, &ch, never, NULL, &err), BTF_ERR_IO);
+    cr_expect(strstr(err.msg, "refused by the sink"), "%s", err.msg);
+    btf_fs_memdir_free(&s.dir);
+    cr_expect_eq(count_entries(tmp), 1, "only the disk's package in %s", tmp);
+    cr_assert_eq(fx_rmtree(disk), 0);
+}
+
+/* btf_package_channel.sink: the package version 1 (16-bit textures) and version 3
+ * (rate-distortion steps, lossy WebP allowed, a thumbnail asked for) held in memory. */
+Test(package, sink_gets_the_files_the_disk_gets)
+{
+    char tmp[256];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    btf *src = make_material(16);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 4;
+    btf_package_options ko = {0};
+    ko.name = "m", ko.bits = 16;
+    sink_matches_disk(src, &po, &ko, tmp);
+    btf_package_options k3 = {0};
+    k3.name = "m", k3.rd = 1, k3.lossy = BTF_LOSSY_WEBP, k3.thumbnail = 32;
+    sink_matches_disk(src, &po, &k3, tmp);
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }

@@ -263,10 +263,10 @@ Test(rd, ladders_are_reused_for_the_same_model_only)
  * the equal-noise error), measured near `near` when it is not NULL, with lossy
  * textures of that codec (btf_rd_params.lossy; 0: none). */
 static void allocate_near(const btf_pca_model *m, long long max_bytes, const btf_rd_result *near, int lossy,
-                          const char *tmp, btf_rd_result *out)
+                          btf_rd_result *out)
 {
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, max_bytes, 0, NULL, 0.0, near, NULL, 8, lossy, 0.0};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, max_bytes, 0, NULL, 0.0, near, NULL, 8, lossy, 0.0};
     btf_error err = {0};
     cr_assert_eq(btf_rd_allocate(&par, out, &err), BTF_OK, "%s", err.msg);
 }
@@ -293,14 +293,12 @@ static btf_pca_model *tiles_model(int size, btf **src)
 
 Test(rd, a_near_choice_limits_the_steps_measured)
 {
-    char tmp[256];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
     btf *src = NULL;
     btf_pca_model *m = tiles_model(32, &src);
     btf_rd_result full, same, far, fit, fit_near;
-    allocate_near(m, 0, NULL, 0, tmp, &full);
+    allocate_near(m, 0, NULL, 0, &full);
     /* near its own choice: the same steps (they are among those measured) */
-    allocate_near(m, 0, &full, 0, tmp, &same);
+    allocate_near(m, 0, &full, 0, &same);
     for (int j = 0; j < 6; j++)
         cr_expect(same.tex_noise[j] == full.tex_noise[j] && same.wt_noise[j] == full.wt_noise[j], "component %d", j);
     cr_expect_eq(same.d_target, full.d_target, "the references are measured either way");
@@ -309,7 +307,7 @@ Test(rd, a_near_choice_limits_the_steps_measured)
      * weights), where the full ladder chose other steps */
     float coarse[6] = {4.0f, 4.0f, 4.0f, 4.0f, 4.0f, 4.0f};
     btf_rd_result near = {.n_comp = 6, .tex_noise = coarse, .wt_noise = coarse};
-    allocate_near(m, 0, &near, 0, tmp, &far);
+    allocate_near(m, 0, &near, 0, &far);
     int moved = 0;
     for (int j = 0; j < 6; j++) {
         cr_expect(near_or_reference(far.tex_noise[j], 4.0f, 0.5f), "component %d texture noise %g", j, far.tex_noise[j]);
@@ -318,15 +316,14 @@ Test(rd, a_near_choice_limits_the_steps_measured)
     }
     cr_expect_gt(moved, 0, "the full ladder chose within the window anyway: the test shows nothing");
     /* a byte budget, near its own fit: the same fit */
-    allocate_near(m, full.bytes_rd * 3 / 4, NULL, 0, tmp, &fit);
-    allocate_near(m, full.bytes_rd * 3 / 4, &fit, 0, tmp, &fit_near);
+    allocate_near(m, full.bytes_rd * 3 / 4, NULL, 0, &fit);
+    allocate_near(m, full.bytes_rd * 3 / 4, &fit, 0, &fit_near);
     cr_expect_eq(fit_near.bytes_rd, fit.bytes_rd);
     cr_expect_eq(fit_near.d_rd, fit.d_rd);
     btf_rd_result_free(&full), btf_rd_result_free(&same), btf_rd_result_free(&far);
     btf_rd_result_free(&fit), btf_rd_result_free(&fit_near);
     btf_pca_model_free(m);
     btf_free(src);
-    cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
 /* A near choice of a lossless step still measures the finest lossy levels (within
@@ -336,19 +333,17 @@ Test(rd, a_near_choice_limits_the_steps_measured)
  * can be lossy again, at those levels only. */
 Test(rd, a_lossless_near_choice_still_measures_the_finest_lossy_levels)
 {
-    char tmp[256];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
     btf *src = NULL;
     btf_pca_model *m = tiles_model(64, &src); /* lossy levels win on its atlases (lossy_where_they_win) */
     btf_rd_result full, got;
-    allocate_near(m, 0, NULL, BTF_LOSSY_WEBP, tmp, &full);
+    allocate_near(m, 0, NULL, BTF_LOSSY_WEBP, &full);
     float tex[6], wt[6];
     int quality[6], lossy = 0;
     for (int j = 0; j < 6; j++)
         tex[j] = 0.5f, wt[j] = full.wt_noise[j], quality[j] = -1, lossy += full.tex_quality[j] >= 0;
     cr_assert_gt(lossy, 0, "the full ladder chose no lossy level: the test shows nothing");
     btf_rd_result near = {.n_comp = 6, .tex_noise = tex, .wt_noise = wt, .tex_quality = quality};
-    allocate_near(m, 0, &near, BTF_LOSSY_WEBP, tmp, &got);
+    allocate_near(m, 0, &near, BTF_LOSSY_WEBP, &got);
     int finest = btf_lossy_ladder(BTF_LOSSY_WEBP, BTF_LOSSY_LADDER - 1 - 2 * BTF_RD_NEAR_NOTCHES), again = 0;
     for (int j = 0; j < 6; j++) {
         cr_log_info("component %d: full quality %d, near lossless: quality %d", j, full.tex_quality[j], got.tex_quality[j]);
@@ -360,7 +355,6 @@ Test(rd, a_lossless_near_choice_still_measures_the_finest_lossy_levels)
     btf_rd_result_free(&full), btf_rd_result_free(&got);
     btf_pca_model_free(m);
     btf_free(src);
-    cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
 /* Compresses src at k, 6 components, --rd with the model slot; returns the package's RMSE. */
@@ -382,14 +376,12 @@ static double compress_slot(const btf *src, int k, btf_pca_model **slot, const c
  * measured, and with factors of 1 changes nothing. */
 Test(rd, texture_rates_are_scaled_by_a_fix)
 {
-    char tmp[256];
-    cr_assert(fx_tmpdir(tmp, sizeof tmp));
     btf *src = NULL;
     btf_pca_model *m = tiles_model(32, &src);
     btf_error err = {0};
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
     btf_rd_ladder l = {0};
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, tmp, 0, 0, &l, 0.0, NULL, NULL, 8, 0, 0.0};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, 0, 0, &l, 0.0, NULL, NULL, 8, 0, 0.0};
     btf_rd_result eq, plain, ones, fixed;
     cr_assert_eq(btf_rd_allocate(&par, &eq, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(l.n_comp, 6, "the ladder is stored");
@@ -422,7 +414,6 @@ Test(rd, texture_rates_are_scaled_by_a_fix)
     free(measured);
     btf_pca_model_free(m);
     btf_free(src);
-    cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
 Test(rd, a_model_slot_is_reused_for_the_same_settings_only)
