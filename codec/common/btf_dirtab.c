@@ -275,7 +275,11 @@ static int btf__cells_from(btf_dirtab *t, const btf__walker *wk, int stop)
         for (int i = 0; i < BTF__N; i++) {
             btf__v3 p = btf__cell_centre(i, j);
             int c = prev, k, cell = j * BTF__N + i + 1; /* btf__walk from prev, r following c */
-            btf__vol v;
+            btf__vol v = btf__volumes(r, p);
+            if (btf__vol_at(v, btf__vol_least(v)) >= 0.0f) { /* in the previous cell's triangle: most cells */
+                t->cell[j * BTF__N + i] = c;
+                continue;
+            }
             for (int s = 0;; s++) {
                 if (wk->seen && wk->seen[c] == cell) { /* round a loop: its triangle at the last step */
                     int s0 = wk->at[c];
