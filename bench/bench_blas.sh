@@ -16,7 +16,7 @@ BTF=$BUILD/btf
 [[ -x $BTF ]] || { echo "bench_blas: $BTF is missing: run 'make build' first" >&2; exit 1; }
 [[ -x /usr/bin/time ]] || { echo "bench_blas: needs GNU time (/usr/bin/time)" >&2; exit 1; }
 runs=${BLAS_RUNS:-3}
-cores=$(nproc)
+cores=$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc) # nproc alone follows OMP_NUM_THREADS
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_blas.XXXXXX")
 hogs=()
 stop_hogs() {

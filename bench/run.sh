@@ -44,7 +44,7 @@ for src in "${srcs[@]}"; do
     echo "bench: running $base -> $out" >&2
     {
         echo "# $name: $(date -u +%Y-%m-%dT%H:%M:%SZ), commit $(git rev-parse --short HEAD 2>/dev/null || echo none)"
-        echo "# host: $(nproc) cpus, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//')"
+        echo "# host: $(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc) cpus, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//')"
     } >"$out.tmp"
     start=$(date +%s.%N)
     if "${cmd[@]}" >>"$out.tmp"; then
