@@ -96,6 +96,18 @@ static const btf_fs_mem_file *btf__fs_mem_find(const btf_fs_mem *m, const char *
     return NULL;
 }
 
+/* A malloc'd copy of n bytes (one more, zero, so a text is a string); NULL when out of memory. */
+static char *btf__fs_copy(const void *data, size_t n)
+{
+    char *c = malloc(n + 1);
+    if (c) {
+        if (n)
+            memcpy(c, data, n);
+        c[n] = 0;
+    }
+    return c;
+}
+
 /* btf_files.read over a btf_fs_mem: a copy, refused as btf_fs_read refuses a file. */
 static btf_result btf__fs_mem_read(void *user, const char *path, size_t max_bytes, char **out, size_t *size,
                                    btf_error *err)
@@ -106,11 +118,8 @@ static btf_result btf__fs_mem_read(void *user, const char *path, size_t max_byte
         return btf_fail(err, BTF_ERR_MISSING, "%s: cannot open (%s)", path, strerror(ENOENT));
     if (f->size > max_bytes)
         return btf__fs_over(path, f->size, max_bytes, err);
-    if (!(*out = malloc(f->size + 1)))
+    if (!(*out = btf__fs_copy(f->data, f->size)))
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory (%zu bytes)", path, f->size + 1);
-    if (f->size)
-        memcpy(*out, f->data, f->size);
-    (*out)[f->size] = 0;
     *size = f->size;
     return BTF_OK;
 }
@@ -125,18 +134,6 @@ btf_files btf_fs_mem_files(const btf_fs_mem *m)
 {
     btf_files f = {btf__fs_mem_read, btf__fs_mem_size, (void *)m};
     return f;
-}
-
-/* A malloc'd copy of n bytes (one more, zero, so a text is a string); NULL when out of memory. */
-static char *btf__fs_copy(const void *data, size_t n)
-{
-    char *c = malloc(n + 1);
-    if (c) {
-        if (n)
-            memcpy(c, data, n);
-        c[n] = 0;
-    }
-    return c;
 }
 
 /* Entry i of d, writable (d made every entry). */

@@ -442,7 +442,7 @@ static btf_result btf__write_weights(btf__writer *w, const char *tmp, int j, lon
         for (size_t i = 0; i < n; i++)
             buf[2 * i] = (uint8_t)(q[i] & 255u), buf[2 * i + 1] = (uint8_t)(q[i] >> 8);
     } else
-        r = btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", tmp);
+        r = btf_fail(err, BTF_ERR_NOMEM, "wt-%02d.bin: out of memory", j);
     char file[BTF_PACKAGE_NAME_MAX];
     snprintf(file, sizeof file, "wt-%02d%s", j, w->wt_ext[j] ? w->wt_ext[j] : ".bin");
     if (r == BTF_OK)
