@@ -1,9 +1,12 @@
-/* bench_util.h - clocks shared by the benchmark programs (header only). */
+/* bench_util.h - clocks and start-up shared by the benchmark programs (header only). */
 #ifndef BENCH_UTIL_H
 #define BENCH_UTIL_H
 
+#include <stdio.h>
+#include <stdlib.h>
 #include <sys/resource.h>
 #include <time.h>
+#include <unistd.h>
 
 /* Monotonic wall clock in seconds. */
 static inline double now_s(void)
@@ -21,6 +24,20 @@ static inline double cpu_s(void)
     getrusage(RUSAGE_SELF, &ru);
     return (double)ru.ru_utime.tv_sec + (double)ru.ru_stime.tv_sec +
            1e-6 * (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+/* The start of a bench that runs `btf`: $BUILD/btf (BUILD default "build") into btf
+ * (600 bytes) and a new directory "/tmp/bench_NAME.XXXXXX" into tmp (64 bytes); 0, with
+ * a message on stderr, when btf is missing or the directory cannot be made. */
+static inline int bench_btf_and_tmp(const char *name, char btf[600], char tmp[64])
+{
+    const char *build = getenv("BUILD") ? getenv("BUILD") : "build";
+    snprintf(btf, 600, "%s/btf", build);
+    snprintf(tmp, 64, "/tmp/bench_%s.XXXXXX", name);
+    if (access(btf, X_OK) == 0 && mkdtemp(tmp))
+        return 1;
+    fprintf(stderr, "bench_%s: %s is missing (run 'make build') or no temporary directory\n", name, btf);
+    return 0;
 }
 
 #endif

@@ -44,6 +44,7 @@
  * the others; alone: `make build $BUILD/bench/bench_vq`, then `bash bench/run.sh vq`
  * (writes bench/results/vq.txt; VQ_ONLY=NAME: one material). Needs $BUILD/btf (BUILD
  * default build). */
+#include "bench_util.h"
 #include "btf.h"
 #include "btf_fs.h"
 #include "btf_package.h"
@@ -57,7 +58,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-#include <unistd.h>
 #include <zlib.h>
 
 #define VQ_N_K 9        /* K = 16 << 0 ... 16 << 8 = 4096 */
@@ -604,13 +604,9 @@ static int run_case(const vq_case *c, const char *btf, const char *tmp)
 
 int main(void)
 {
-    const char *build = getenv("BUILD") ? getenv("BUILD") : "build";
-    char btf[600], tmp[] = "/tmp/bench_vq.XXXXXX";
-    snprintf(btf, sizeof btf, "%s/btf", build);
-    if (access(btf, X_OK) != 0 || !mkdtemp(tmp)) {
-        fprintf(stderr, "bench_vq: %s is missing (run 'make build') or no temporary directory\n", btf);
+    char btf[600], tmp[64];
+    if (!bench_btf_and_tmp("vq", btf, tmp))
         return 1;
-    }
     openblas_set_num_threads(1); /* the PCA as `btf compress` computes it (one BLAS thread) */
     const char *only = getenv("VQ_ONLY");
     int bad = 0;

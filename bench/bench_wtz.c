@@ -23,6 +23,7 @@
  *
  * Generated materials at seeds no test uses (64x64, tiles at 128x128); about 4 minutes
  * on 2 cores. Needs `make build` ($BUILD/btf, BUILD default build). */
+#include "bench_util.h"
 #include "btf.h"
 #include "btf_fs.h"
 #include "btf_manifest.h"
@@ -31,7 +32,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 /* One material to compress: a name, the `btf compress` source and its extra flags. */
 typedef struct bench_case {
@@ -133,13 +133,9 @@ static int run_case(const bench_case *c, const char *btf, const char *tmp)
 
 int main(void)
 {
-    const char *build = getenv("BUILD") ? getenv("BUILD") : "build";
-    char btf[600], tmp[] = "/tmp/bench_wtz.XXXXXX";
-    snprintf(btf, sizeof btf, "%s/btf", build);
-    if (access(btf, X_OK) != 0 || !mkdtemp(tmp)) {
-        fprintf(stderr, "bench_wtz: %s is missing (run 'make build') or no temporary directory\n", btf);
+    char btf[600], tmp[64];
+    if (!bench_btf_and_tmp("wtz", btf, tmp))
         return 1;
-    }
     int bad = 0;
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
         bad |= run_case(&cases[i], btf, tmp) != 0;
