@@ -368,6 +368,26 @@ btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error
 
 btf_result btf_package_read_with(const char *dir, int n, const btf_files *files, btf_package **out, btf_error *err)
 {
+    return btf_package_read_opts(dir, n, files, NULL, out, err);
+}
+
+/* The direction tables the reader adds (those the manifest's triangles did not
+ * give), unless o asks for none. */
+static btf_result btf__read_dirtabs(btf_package *p, const btf_package_read_options *o, btf_error *err)
+{
+    btf_result r = BTF_OK;
+    if (o && o->no_dirtab)
+        return BTF_OK;
+    if (!p->dirtab[0]) /* the decoder's direction tables, as the GPU gets them */
+        r = btf_dirtab_build(&p->lights, &p->dirtab[0], err);
+    if (r == BTF_OK && !p->dirtab[1])
+        r = btf_dirtab_build(&p->views, &p->dirtab[1], err);
+    return r;
+}
+
+btf_result btf_package_read_opts(const char *dir, int n, const btf_files *files, const btf_package_read_options *o,
+                                 btf_package **out, btf_error *err)
+{
     *out = NULL;
     if (!dir || strlen(dir) > 4000)
         return btf_fail(err, BTF_ERR_ARG, "package: no directory");
@@ -388,10 +408,8 @@ btf_result btf_package_read_with(const char *dir, int n, const btf_files *files,
     }
     for (int i = 0; r == BTF_OK && i < want; i++)
         r = btf__load_chunk(p, files, dir, i, err);
-    if (r == BTF_OK && !p->dirtab[0]) /* the decoder's direction tables, as the GPU gets them */
-        r = btf_dirtab_build(&p->lights, &p->dirtab[0], err);
-    if (r == BTF_OK && !p->dirtab[1])
-        r = btf_dirtab_build(&p->views, &p->dirtab[1], err);
+    if (r == BTF_OK)
+        r = btf__read_dirtabs(p, o, err);
     if (r != BTF_OK) {
         btf_package_free(p);
         return r;

@@ -130,7 +130,7 @@ typedef struct btf_package {
     int n_levels;           /* spatial levels (1 in version 1); level l has (W >> l) x (H >> l) texels */
     double lod_threshold;   /* version 2: visibility threshold the chunk order was made for ("lod"); 0 if absent */
     char *budget;           /* "budget": what btf_budget_compress chose and measured, as JSON text (malloc'd); NULL if none */
-    struct btf_dirtab *dirtab[2]; /* lights, views as direction tables (btf_dirtab.h), made by btf_package_read (a list set's from the manifest's triangles), freed by btf_manifest_clear; NULL: btf_decode walks the rings */
+    struct btf_dirtab *dirtab[2]; /* lights, views as direction tables (btf_dirtab.h), made by btf_package_read (a list set's from the manifest's triangles; none with btf_package_read_options.no_dirtab), freed by btf_manifest_clear; NULL: btf_decode walks the rings */
     char *rd;               /* version 3 "rd": the steps btf_rd_allocate chose, as JSON text (malloc'd); NULL if none */
     uint8_t **q8;           /* version 4: per loaded chunk its level's reconstructed atlas bytes (malloc'd); NULL otherwise */
     uint8_t **w8q;          /* version 4: per loaded chunk that carried wt-JJ-8.png its bytes (malloc'd); NULL otherwise */
@@ -186,6 +186,16 @@ btf_result btf_package_read(const char *dir, int n, btf_package **out, btf_error
  * package held in memory: the reader asks files for "DIR/manifest.json", "DIR/tex-00.png",
  * ... (dir only names them) and decodes PNG and WebP textures from the bytes it gets. */
 btf_result btf_package_read_with(const char *dir, int n, const btf_files *files, btf_package **out, btf_error *err);
+/* What btf_package_read_opts may skip; the caller's, read during the call only. */
+typedef struct btf_package_read_options {
+    int no_dirtab; /* 1: the reader builds no direction table (dirtab[] stay NULL but a list
+                    * set's from the manifest's triangles): btf_decode then walks the rings
+                    * (the same triangles, values equal within float rounding) */
+} btf_package_read_options;
+/* btf_package_read_with with options o (NULL or all zero: the same as it). The
+ * measured samples (btf_package_value, btf_package_reconstruct) never read the tables. */
+btf_result btf_package_read_opts(const char *dir, int n, const btf_files *files, const btf_package_read_options *o,
+                                 btf_package **out, btf_error *err);
 void btf_package_free(btf_package *p);
 
 /* Decoded values (n floats in place) on the scale of the package's source: encoded

@@ -469,8 +469,14 @@ Test(dirlist, hostile_manifest_triangles_are_refused)
     btf_error err = {{0}};
     cr_expect_neq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "a triangle short accepted");
     cr_expect(strstr(err.msg, "cover") != NULL || strstr(err.msg, "hull") != NULL, "hole: \"%s\"", err.msg);
+    btf_package_read_options ro = {0}; /* no_dirtab skips the reader's tables, not the manifest's */
+    ro.no_dirtab = 1;
+    cr_expect_neq(btf_package_read_opts(pkg, 0, NULL, &ro, &p, &err), BTF_OK, "no_dirtab: a triangle short accepted");
     fx_write_text(man, good);
     cr_expect_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
+    btf_package_free(p);
+    cr_expect_eq(btf_package_read_opts(pkg, 0, NULL, &ro, &p, &err), BTF_OK, "%s", err.msg);
+    cr_expect(p && p->dirtab[0] && p->dirtab[1], "no_dirtab: a list set's tables from the manifest's triangles");
     btf_package_free(p);
     free(good);
     fx_rmtree(dir);

@@ -271,6 +271,49 @@ Test(package, decoder_at_measured_directions_equals_direct_reconstruction)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
+/* btf_package_read_options.no_dirtab: the package reads without direction tables
+ * (the option is not ignored), the measured samples are the same bits, and the
+ * decoder's ring walk gives what the tables give within float rounding, at random
+ * directions over the whole sphere (below the horizon too). */
+Test(package, read_without_dirtabs_decodes_the_same)
+{
+    char tmp[256], out[512];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/m", tmp);
+    btf *src = make_material(8);
+    compress_ok(src, 3, 4, 8, out);
+    btf_package *t = fx_package(out, NULL, 0), *r = NULL;
+    btf_package_read_options ro = {0};
+    ro.no_dirtab = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_read_opts(out, 0, NULL, &ro, &r, &err), BTF_OK, "%s", err.msg);
+    cr_assert(t->dirtab[0] && t->dirtab[1], "the default read builds both tables");
+    cr_assert(!r->dirtab[0] && !r->dirtab[1], "no_dirtab ignored");
+    float a[3], b[3], L[3], V[3];
+    for (int v = 0; v < 11; v++)
+        for (int l = 0; l < 11; l++) {
+            btf_package_value(t, v, l, v % 8, l % 8, 0, a);
+            btf_package_value(r, v, l, v % 8, l % 8, 0, b);
+            cr_assert(!memcmp(a, b, sizeof a), "view %d light %d", v, l);
+        }
+    uint32_t s = 12345u;
+    btf_decode_options o = {0};
+    o.filter = BTF_FILTER_BILINEAR;
+    for (int i = 0; i < 2000; i++) {
+        for (int c = 0; c < 3; c++)
+            L[c] = 2.0f * (float)fx_unit(fx_xorshift32(&s)) - 1.0f, V[c] = 2.0f * (float)fx_unit(fx_xorshift32(&s)) - 1.0f;
+        float u = (float)fx_unit(fx_xorshift32(&s)), w = (float)fx_unit(fx_xorshift32(&s));
+        btf_decode(t, u, w, L, V, &o, a);
+        btf_decode(r, u, w, L, V, &o, b);
+        for (int c = 0; c < 3; c++)
+            cr_assert(fabsf(a[c] - b[c]) <= 1e-4f * fmaxf(1.0f, fabsf(a[c])), "query %d: table %g, ring walk %g", i,
+                      a[c], b[c]);
+    }
+    btf_package_free(t), btf_package_free(r);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
 /* Failing writer hook: fails when asked for file number *ctx. */
 static int fail_nth(void *ctx, int i, const char *file)
 {
