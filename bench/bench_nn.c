@@ -405,11 +405,7 @@ static int package_at(const char *btf, const char *tmp, const nn_case *c, double
         fprintf(stderr, "bench_nn: %s: %s\n", c->name, err.msg[0] ? err.msg : "compress failed");
         return -1;
     }
-    char mpath[800];
-    snprintf(mpath, sizeof mpath, "%s/manifest.json", dir);
-    *bytes = btf_fs_size(mpath);
-    for (int i = 0; i < p->n_chunks; i++)
-        *bytes += p->chunk[i].bytes;
+    *bytes = bench_package_bytes(dir, p);
     btf_package_free(p);
     snprintf(cmd, sizeof cmd, "'%s' eval '%s' '%s' --no-curve --csv", btf, c->src, dir);
     FILE *f = popen(cmd, "r");

@@ -2,6 +2,8 @@
 #ifndef BENCH_UTIL_H
 #define BENCH_UTIL_H
 
+#include "btf_fs.h"
+#include "btf_package.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/resource.h>
@@ -38,6 +40,18 @@ static inline int bench_btf_and_tmp(const char *name, char btf[600], char tmp[64
         return 1;
     fprintf(stderr, "bench_%s: %s is missing (run 'make build') or no temporary directory\n", name, btf);
     return 0;
+}
+
+/* A package's bytes as a page fetches them: its manifest (in dir) and every chunk's
+ * files (p read from dir). */
+static inline long long bench_package_bytes(const char *dir, const btf_package *p)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/manifest.json", dir);
+    long long n = btf_fs_size(path);
+    for (int i = 0; i < p->n_chunks; i++)
+        n += p->chunk[i].bytes;
+    return n;
 }
 
 #endif

@@ -553,11 +553,8 @@ static void print_case(const vq_case *c, const btf_package *p, const vq_current 
 static int measure_package(const vq_case *c, const btf_package *p, const btf_pca_model *m, const char *dir,
                            long long *pkg, vq_current *cur, vq_total *t)
 {
-    char mpath[700];
-    snprintf(mpath, sizeof mpath, "%s/manifest.json", dir);
-    *pkg = btf_fs_size(mpath);
+    *pkg = bench_package_bytes(dir, p);
     for (int i = 0; i < p->n_chunks; i++) {
-        *pkg += p->chunk[i].bytes;
         if (p->chunk[i].level != 0 || measure_component(p, m, i, dir, cur, t) != 0) {
             fprintf(stderr, "bench_vq: %s: chunk %d not measured\n", c->name, i);
             return -1;
