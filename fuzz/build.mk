@@ -24,7 +24,7 @@
 #     FUZZ_FORK=N               each target in libFuzzer's fork mode, N worker processes
 #                               (default 0: one process); with FUZZ_JOBS=1, a slow target
 #                               on every core: make fuzz-deep FUZZ_TARGETS=gltf FUZZ_JOBS=1
-#                               FUZZ_FORK=2 (FUZZ_RUNS does not bound it: fuzz/run.sh)
+#                               FUZZ_FORK=2 (FUZZ_RUNS counts every worker's executions)
 #     FUZZ_ASAN_OPTIONS=...     ASan's options (fast_unwind_on_malloc=0: full allocation
 #                               stacks, at a 30th of the speed; fuzz/run.sh's header)
 #     (per target)              -max_len (the largest input its format needs) and its own

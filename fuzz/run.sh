@@ -27,7 +27,9 @@
 # under one parent, which merges their finds into the corpus (a slow target on every
 # core: give FUZZ_JOBS=1 with it). Its parent prints no final stats, so the row's
 # executions are its last status line's count ("#N: cov: ..."), the rate that over
-# the wall time; FUZZ_RUNS does not bound it, FUZZ_SECONDS does.
+# the wall time. FUZZ_RUNS bounds it too: the parent stops its workers once their
+# executions together pass it ("fuzzed for N iterations, wrapping up soon"), so the
+# count can end a little above.
 #
 # ASan unwinds allocation stacks with frame pointers (ASAN_OPTIONS from
 # FUZZ_ASAN_OPTIONS, default empty): fast_unwind_on_malloc=0 would give the full
@@ -122,7 +124,7 @@ for t in "$@"; do
     args=(-max_total_time="$seconds" -rss_limit_mb="$rss" -malloc_limit_mb="$rss" -max_len=$maxlen
           -print_final_stats=1 "${tflags[@]}")
     bound="$seconds s"
-    ((runs > 0 && fork == 0)) && args+=(-runs="$runs") bound+=" or $runs runs"
+    ((runs > 0)) && args+=(-runs="$runs") bound+=" or $runs runs"
     ((fork > 0)) && args+=(-fork="$fork") bound+=", $fork processes"
     args+=($flags)
     echo "fuzz: $t for $bound: ${tenv[*]} ${args[*]}"
