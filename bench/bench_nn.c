@@ -341,14 +341,6 @@ static btf_metrics evaluate(const nn_net *t, const float *lat, const nn_data *d,
     return m;
 }
 
-/* x rounded to a half float's 11 significant bits (the range the weights use). */
-static float half_round(float x)
-{
-    int e;
-    float m = frexpf(x, &e);
-    return ldexpf(rintf(ldexpf(m, 11)), e - 11);
-}
-
 /* The latents quantised to 8 bits a channel into q (T x Z), their images' bytes; -1
  * when an image could not be encoded (with a message). */
 static long long quantise_latents(const nn_net *t, const btf *s, float *q)
@@ -472,7 +464,7 @@ static int run_shape(const char *btf, const char *tmp, const nn_case *c, const n
     }
     train(&t, q, d, &w, tune, 0.0f, NN_LR_NET * 0.25f);
     for (size_t i = t.n_lat; i < t.n; i++)
-        t.p[i] = half_round(t.p[i]);
+        t.p[i] = bench_half_round(t.p[i]);
     cpu += cpu_s() - t0;
     btf_metrics mq = evaluate(&t, q, d, &w);
     long long net_bytes = 2 * (long long)(t.n - t.n_lat), bytes = lat_bytes + net_bytes;

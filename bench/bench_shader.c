@@ -13,7 +13,11 @@
  *   fixed    the product program as `btf render` draws this scene (a distant light on
  *            a plane): BTF_FIXED_LIGHT, the light's weights blended once per draw
  *            (shaders/host/btf_gl_fixed.h), same run, same error measure. `shader`
- *            is the run-time light path that curved meshes and point lights take.
+ *            is the run-time light path that curved meshes and point lights take;
+ *   nn       bench_nn.c's small nonlinear decoder (shaders/bench/nn.frag, benchmark
+ *            only) with Z = 16 latents a texel and H = 64 or 128 hidden units, random
+ *            parameters, against `shader` and `fixed` at C = 8 in one interleaved run;
+ *            its error is against the same network evaluated on the CPU (nn_eval).
  *
  * All three draw the same plane mesh (btf_render.vert, btf_render.h conventions),
  * camera (30, -90, 1.1), fov 40, the material repeated 8 x 8 so it covers the whole
@@ -893,6 +897,203 @@ typedef struct bench_row {
     double shader_ms, thesis_ms, env_ms, fixed_ms, e_s, m_s, e_t, m_t, e_x, m_x;
 } bench_row;
 
+/* ---------------------------------------------------------------- nonlinear decoder */
+
+#define NN_Z 16      /* latents a texel: bench_nn.c's smaller shape */
+#define NN_TEXW 1024 /* parameter texture row, in vec4 (nn.frag) */
+
+/* A network of bench_nn.c's shape with random parameters (its cost does not depend on
+ * them; the error compares the program with nn_eval on the same ones), its program and
+ * textures; owned by run_nn, one per hidden width, freed by nn_free. */
+typedef struct nn_ctx {
+    const scene *s;
+    int H, K1, G, n_vec; /* hidden units, input vec4 (latents + 2), vec4 a layer, parameter vec4 */
+    int off[6];          /* W1 b1 W2 b2 W3 b3: first vec4 of each (nn.frag's order) */
+    float *w;            /* n_vec x 4, half-float values */
+    uint8_t *lat;        /* MAT x MAT x NN_Z latent bytes */
+    float lo[NN_Z], step[NN_Z];
+    GLuint prog, wtex, ltex;
+} nn_ctx;
+
+/* Multiply-adds and texel fetches per fragment (padded inputs counted as evaluated). */
+static int nn_macs(int H) { return H * (NN_Z + 8) + H * H + 3 * H; }
+static int nn_fetches(int H) { return NN_Z / 4 + H * (NN_Z / 4 + 2) + H * H / 4 + 5 * H / 4 + 1; }
+
+/* Uniform in (-a, a), half-rounded. */
+static float nn_rand(unsigned short st[3], double a) { return bench_half_round((float)((erand48(st) * 2 - 1) * a)); }
+
+/* Fills the parameters (He-uniform layers, an output around mid-grey) and latents. */
+static void nn_fill(nn_ctx *n)
+{
+    unsigned short st[3] = {0x5eed, 0x00aa, (unsigned short)n->H};
+    int din = NN_Z + 6, fan[3] = {din, n->H, n->H}, rows[3] = {n->H, n->H, 3}, len[3] = {n->K1, n->G, n->G};
+    double gain[3] = {1.0, 1.0, 0.2};
+    for (int layer = 0; layer < 3; layer++) {
+        float *w = n->w + 4 * (size_t)n->off[2 * layer], *b = n->w + 4 * (size_t)n->off[2 * layer + 1];
+        double a = gain[layer] * sqrt(6.0 / fan[layer]);
+        for (int u = 0; u < rows[layer]; u++) {
+            for (int k = 0; k < 4 * len[layer]; k++) /* inputs past din (the padding) get 0 */
+                w[(size_t)u * 4 * len[layer] + k] = layer == 0 && k >= din ? 0.0f : nn_rand(st, a);
+            b[u] = layer == 2 ? 0.5f : nn_rand(st, 0.05);
+        }
+    }
+    for (int z = 0; z < NN_Z; z++)
+        n->lo[z] = -1.0f - 0.05f * z, n->step[z] = (2.0f + 0.1f * z) / 255.0f;
+    for (size_t i = 0; i < (size_t)MAT * MAT * NN_Z; i++)
+        n->lat[i] = (uint8_t)(erand48(st) * 256);
+}
+
+/* The network's value at texel (x, y) for local light l and view v (unit), clamped. */
+static void nn_eval(const nn_ctx *n, int x, int y, const float l[3], const float v[3], float rgb[3])
+{
+    float in[NN_Z + 8] = {0}, h1[128], h2[128], hv[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
+    float hn = sqrtf(hv[0] * hv[0] + hv[1] * hv[1] + hv[2] * hv[2]);
+    for (int z = 0; z < NN_Z; z++)
+        in[z] = n->lo[z] + n->step[z] * n->lat[((size_t)y * MAT + x) * NN_Z + z];
+    float f[6] = {l[0], l[1], v[0], v[1], hv[0] / hn, hv[1] / hn};
+    memcpy(in + NN_Z, f, sizeof f);
+    const float *src[3] = {in, h1, h2};
+    float *dst[3] = {h1, h2, rgb};
+    int rows[3] = {n->H, n->H, 3}, len[3] = {4 * n->K1, n->H, n->H};
+    for (int layer = 0; layer < 3; layer++) {
+        const float *w = n->w + 4 * (size_t)n->off[2 * layer], *b = n->w + 4 * (size_t)n->off[2 * layer + 1];
+        for (int u = 0; u < rows[layer]; u++) {
+            double a = b[u];
+            for (int k = 0; k < len[layer]; k++)
+                a += (double)w[(size_t)u * len[layer] + k] * src[layer][k];
+            dst[layer][u] = layer < 2 ? (float)fmax(a, 0.0) : (float)fmin(fmax(a, 0.0), 1.0);
+        }
+    }
+}
+
+/* n's parameters, latents, textures and program for H hidden units; 0 on success. */
+static int nn_create(btf_gl *gl, const scene *s, int H, nn_ctx *n)
+{
+    memset(n, 0, sizeof *n);
+    n->s = s, n->H = H, n->K1 = NN_Z / 4 + 2, n->G = H / 4;
+    int sizes[6] = {H * n->K1, n->G, H * n->G, n->G, 3 * n->G, 1};
+    for (int i = 0; i < 6; i++)
+        n->off[i] = n->n_vec, n->n_vec += sizes[i];
+    int rows = (n->n_vec + NN_TEXW - 1) / NN_TEXW;
+    n->w = calloc((size_t)rows * NN_TEXW * 4, sizeof(float));
+    n->lat = malloc((size_t)MAT * MAT * NN_Z);
+    uint8_t *img = malloc((size_t)MAT * MAT * NN_Z);
+    if (!n->w || !n->lat || !img) {
+        free(img);
+        return die("nn: out of memory", NULL);
+    }
+    nn_fill(n);
+    for (int q = 0; q < NN_Z / 4; q++) /* layer q of 4 latents below layer q - 1 */
+        for (size_t i = 0; i < (size_t)MAT * MAT; i++)
+            memcpy(img + ((size_t)q * MAT * MAT + i) * 4, n->lat + i * NN_Z + 4 * q, 4);
+    btf_error err = {{0}};
+    int bad = btf_gl_texture_create(gl, NN_TEXW, rows, BTF_GL_RGBA32F, n->w, &n->wtex, &err) != BTF_OK ||
+              btf_gl_texture_create(gl, MAT, MAT * NN_Z / 4, BTF_GL_RGBA8, img, &n->ltex, &err) != BTF_OK;
+    free(img);
+    if (bad)
+        return die("nn textures", &err);
+    char defs[160];
+    snprintf(defs, sizeof defs, "#define NN_Z %d\n#define NN_H %d\n#define NN_TEXW %d\n", NN_Z, H, NN_TEXW);
+    n->prog = build_bench_program(gl, "nn.frag", defs);
+    return n->prog ? 0 : 1;
+}
+
+static int nn_setup(btf_gl *gl, void *ctx)
+{
+    nn_ctx *n = ctx;
+    const btf_gl_api *f = btf_gl_fn(gl);
+    f->UseProgram(n->prog);
+    GLuint tex[2] = {n->ltex, n->wtex};
+    const char *names[2] = {"u_lat", "u_w"};
+    for (int i = 0; i < 2; i++) {
+        f->ActiveTexture((GLenum)(GL_TEXTURE0 + i));
+        f->BindTexture(GL_TEXTURE_2D, tex[i]);
+        f->Uniform1i(f->GetUniformLocation(n->prog, names[i]), i);
+    }
+    f->Uniform2i(f->GetUniformLocation(n->prog, "u_size"), MAT, MAT);
+    f->Uniform4fv(f->GetUniformLocation(n->prog, "u_lat_lo"), NN_Z / 4, n->lo);
+    f->Uniform4fv(f->GetUniformLocation(n->prog, "u_lat_step"), NN_Z / 4, n->step);
+    scene_uniforms(gl, n->prog, n->s);
+    btf_error err = {{0}};
+    return btf_gl_check(gl, "nn setup", &err) != BTF_OK ? die("nn", &err) : 0;
+}
+
+/* r->rgb: n's values at the sampled pixels (their uv, local light and view); returns
+ * the share of values inside (0, 1), which the comparison sees unclamped. */
+static double nn_ref(const nn_ctx *n, ref_pixels *r)
+{
+    int inside = 0;
+    for (int i = 0; i < r->n; i++) {
+        float l[3], v[3], ln = 0, vn = 0;
+        for (int c = 0; c < 3; c++)
+            ln += r->l[i * 3 + c] * r->l[i * 3 + c], vn += r->v[i * 3 + c] * r->v[i * 3 + c];
+        for (int c = 0; c < 3; c++)
+            l[c] = r->l[i * 3 + c] / sqrtf(ln), v[c] = r->v[i * 3 + c] / sqrtf(vn);
+        int xy[2];
+        for (int a = 0; a < 2; a++) {
+            float u = r->uv[i * 2 + a];
+            xy[a] = (int)floorf((u - floorf(u)) * MAT);
+            xy[a] = xy[a] < 0 ? 0 : xy[a] >= MAT ? MAT - 1 : xy[a];
+        }
+        nn_eval(n, xy[0], xy[1], l, v, &r->rgb[i * 3]);
+        for (int c = 0; c < 3; c++)
+            inside += r->rgb[i * 3 + c] > 0.0f && r->rgb[i * 3 + c] < 1.0f;
+    }
+    return r->n ? inside / (3.0 * r->n) : 0.0;
+}
+
+static void nn_free(btf_gl *gl, nn_ctx *n)
+{
+    btf_gl_texture_free(gl, n->wtex);
+    btf_gl_texture_free(gl, n->ltex);
+    if (n->prog)
+        btf_gl_fn(gl)->DeleteProgram(n->prog);
+    free(n->w);
+    free(n->lat);
+}
+
+/* The network at H = 64 and 128 against the product program at C = 8 (run-time and
+ * fixed light), frames interleaved; each network's render against nn_eval. */
+static int run_nn(btf_gl *gl, const scene *s, const btf_gl_target *t, const btf_gl_package *g, btf_gl_fixed *fixed,
+                  ref_pixels *ref)
+{
+    static const int Hs[2] = {64, 128};
+    nn_ctx nn[2];
+    product_ctx pc = {s, g, 8, NULL, NULL, NULL, 0}, px = {s, g, 8, NULL, NULL, fixed, 0};
+    int bad = product_build(gl, &pc, NULL) || product_build(gl, &px, NULL);
+    for (int i = 0; i < 2; i++)
+        bad = bad || nn_create(gl, s, Hs[i], &nn[i]);
+    bench_case c[4] = {{.setup = product_setup, .ctx = &pc}, {.setup = product_setup, .ctx = &px},
+                       {.setup = nn_setup, .ctx = &nn[0]}, {.setup = nn_setup, .ctx = &nn[1]}};
+    bad = bad || time_frames(gl, s, t, c, 4);
+    for (int i = 0; !bad && i < 2; i++) {
+        double e, m;
+        double inside = nn_ref(&nn[i], ref);
+        if ((bad = draw_once(gl, s, t, &c[2 + i]) || render_error(gl, t, ref, &e, &m)) != 0)
+            break;
+        frame_cost k = c[2 + i].cost;
+        int H = Hs[i];
+        printf("nn_h%d_cpu_ms %.2f ms\nnn_h%d_over_shader_C8_cpu_ratio %.3f x\nnn_h%d_over_fixed_C8_cpu_ratio %.3f x\n", H,
+               k.cpu_ms, H, k.cpu_ms / c[0].cost.cpu_ms, H, k.cpu_ms / c[1].cost.cpu_ms);
+        if (k.gpu_ms > 0 && c[0].cost.gpu_ms > 0 && c[1].cost.gpu_ms > 0)
+            printf("nn_h%d_gpu_ms %.3f ms\nnn_h%d_over_shader_C8_gpu_ratio %.3f x\nnn_h%d_over_fixed_C8_gpu_ratio %.3f x\n",
+                   H, k.gpu_ms, H, k.gpu_ms / c[0].cost.gpu_ms, H, k.gpu_ms / c[1].cost.gpu_ms);
+        printf("nn_h%d_rmse_vs_cpu %.3f 0..255\nnn_h%d_max_err_vs_cpu %.1f 0..255\nnn_h%d_unclamped %.3f fraction\n", H,
+               e, H, m, H, inside);
+        printf("nn_h%d_macs %d per_fragment\nnn_h%d_fetches %d per_fragment\n", H, nn_macs(H), H, nn_fetches(H));
+        printf("# nn H = %d (Z = %d): %.2f ms CPU a frame against %.2f (product, run-time light, C = 8) and %.2f "
+               "(fixed light): %.2fx / %.2fx; RMSE %.3f against the CPU evaluation\n",
+               H, NN_Z, k.cpu_ms, c[0].cost.cpu_ms, c[1].cost.cpu_ms, k.cpu_ms / c[0].cost.cpu_ms,
+               k.cpu_ms / c[1].cost.cpu_ms, e);
+    }
+    fflush(stdout);
+    for (int i = 0; i < 2; i++)
+        nn_free(gl, &nn[i]);
+    btf_shader_program_free(gl, pc.prog);
+    btf_shader_program_free(gl, px.prog);
+    return bad;
+}
+
 /* The results as a markdown table, as comment lines of the results file: the product
  * as btf render draws this scene (fixed light), then the run-time light path. */
 static void print_table(const bench_row *r, int n)
@@ -1047,6 +1248,8 @@ static int run(btf_gl *gl, const btf_package *p, const char *dir)
     }
     print_table(rows, n_rows);
     const char *max_c = getenv("BENCH_MAX_C"); /* 0: the level run alone */
+    if ((!max_c || atoi(max_c) >= 8) && 8 <= p->n_loaded && run_nn(gl, &s, t, g, fixed, &ref))
+        return 1;
     if ((!max_c || atoi(max_c) == 0) && run_levels(gl, p, dir, &s, t))
         return 1;
     if (!max_c && run_fetch(gl, &s, t))

@@ -4,6 +4,7 @@
 
 #include "btf_fs.h"
 #include "btf_package.h"
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/resource.h>
@@ -52,6 +53,15 @@ static inline long long bench_package_bytes(const char *dir, const btf_package *
     for (int i = 0; i < p->n_chunks; i++)
         n += p->chunk[i].bytes;
     return n;
+}
+
+/* x rounded to a half float's 11 significant bits (a network's parameters as a page
+ * would receive them; the range they use, no overflow handling). */
+static inline float bench_half_round(float x)
+{
+    int e;
+    float m = frexpf(x, &e);
+    return ldexpf(rintf(ldexpf(m, 11)), e - 11);
 }
 
 #endif
