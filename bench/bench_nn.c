@@ -40,7 +40,9 @@
  * 81 x 81 directions). The run takes about NN_EPOCHS x 40 s per network on 2 cores.
  * `make bench` runs it with the others; alone: `make build $BUILD/bench/bench_nn`, then
  * `bash bench/run.sh nn` (writes bench/results/nn.txt; NN_ONLY=NAME: one material;
- * NN_SHAPE=Z: one latent size; NN_H: other hidden units; NN_EPOCHS, NN_TUNE: passes).
+ * NN_SHAPE=Z: one latent size; NN_H: other hidden units; NN_EPOCHS, NN_TUNE: passes;
+ * NN_SOURCE=SRC: that `btf compress` source instead of the table, named NN_ONLY or
+ * "source", e.g. a thesis package made a DFMF file by `btf import-thesis DIR F --size 64`).
  * Needs $BUILD/btf (BUILD default build). */
 #include "bench_util.h"
 #include "btf.h"
@@ -444,7 +446,7 @@ static int run_shape(const char *btf, const char *tmp, const nn_case *c, const n
 {
     const char *ep = getenv("NN_EPOCHS"), *tu = getenv("NN_TUNE");
     double epochs = ep ? atof(ep) : 12.0, tune = tu ? atof(tu) : 1.0;
-    nn_net t;
+    nn_net t = {0}; /* net_free is safe on it when q is not allocated */
     nn_work w = {0};
     rng_state = NN_SEED; /* each network the same whichever ran before it */
     float *q = malloc(sizeof(float) * (size_t)d->T * (size_t)sh.Z);
@@ -529,9 +531,10 @@ int main(void)
     if (!bench_btf_and_tmp("nn", btf, tmp))
         return 1;
     openblas_set_num_threads(1);
-    const char *only = getenv("NN_ONLY");
-    int bad = 0;
-    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
+    const char *only = getenv("NN_ONLY"), *given = getenv("NN_SOURCE");
+    nn_case one = {only ? only : "source", given};
+    int bad = given ? run_case(btf, tmp, &one) != 0 : 0;
+    for (size_t i = 0; !given && i < sizeof cases / sizeof cases[0]; i++)
         if (!only || !strcmp(only, cases[i].name))
             bad |= run_case(btf, tmp, &cases[i]) != 0;
     btf_fs_rmtree(tmp, NULL);
