@@ -241,7 +241,7 @@ chart: setup
 	$(BTF_BIN) chart gen:knit gen:tiles gen:stone \
 	    $(wildcard $(SHARED)/data/thesis-ubo2003/wool $(SHARED)/data/thesis-ubo2003/corduroy) \
 	    --size 32 --stream-size 64 --out doc/figures
-	$(TEST_BIN) --jobs 2 --filter 'stability/*'
+	BTF_STABILITY_OUT=$(CURDIR)/doc/figures/stability.md $(TEST_BIN) --jobs 2 --filter 'stability/*'
 
 # The README's product under the built-in studio environment (doc/figures/product-studio.png).
 figure: setup
