@@ -27,6 +27,12 @@
 #                               FUZZ_FORK=2 (FUZZ_RUNS counts every worker's executions)
 #     FUZZ_ASAN_OPTIONS=...     ASan's options (fast_unwind_on_malloc=0: full allocation
 #                               stacks, at a 30th of the speed; fuzz/run.sh's header)
+#     FUZZ_SAN=undefined        the sanitizers of the libFuzzer build (default
+#                               address,undefined; UB always stops a run: no recovery).
+#                               Without ASan a slow target runs faster, for depth, in its
+#                               own folder, its corpus then replayed under ASan:
+#                               make fuzz-deep FUZZ_BUILD=build-fuzz-ub FUZZ_SAN=undefined ...
+#                               then build-fuzz/fuzz/fuzz_NAME -runs=0 DIR (doc/cli.md 12.1)
 #     (per target)              -max_len (the largest input its format needs) and its own
 #                               libFuzzer flags and environment: fuzz/run.sh, target_settings
 #   make fuzz-deep              the deep run: every target to FUZZ_DEEP_RUNS (default 10 M)
@@ -52,6 +58,7 @@ FUZZ_CODEC_REPLAY := $(FUZZ_CODEC:%=$(BUILD)/fuzz/replay_%)
 FUZZ_LINK          = $(call pkg,--libs,$(CODEC_PKGS) $(GL_PKGS)) -lstdc++ -lm $(IMAGE_AT_START)
 FUZZ_BUILD        ?= build-fuzz
 FUZZ_RSS_MB       ?= 2048
+FUZZ_SAN          ?= address,undefined
 
 $(FUZZ_CODEC_OBJ): INC := $(CODEC_INNER) -Ibench/gen -Ishaders/host -Ifuzz
 $(FUZZ_CODEC_OBJ): PKG_CFLAGS = $(call pkg,--cflags,$(CODEC_PKGS))
@@ -74,11 +81,11 @@ fuzz-replay: $(FUZZ_CODEC_REPLAY) $(FUZZ_REPLAY)
 # dfmf -9 %, package -5 %.
 fuzz-codec:
 	$(MAKE) BUILD=$(FUZZ_BUILD) CC=clang CXX=clang++ OPT='-O1 -g' WARN='-Wall -Wextra' \
-	    SAN='-fsanitize=address,undefined,fuzzer-no-link' \
+	    SAN='-fsanitize=$(FUZZ_SAN),fuzzer-no-link -fno-sanitize-recover=undefined' \
 	    $(FUZZ_BUILD)/codec/libbtfcodec.a $(FUZZ_BUILD)/btf_image_oiio.so $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
 	    $(FUZZ_BUILD)/shaders/host/libbtfgl.a $(FUZZ_CODEC:%=$(FUZZ_BUILD)/fuzz/fuzz_%.o)
 	@for t in $(FUZZ_CODEC); do \
-	    clang++ -fsanitize=fuzzer,address,undefined -fopenmp -o $(FUZZ_BUILD)/fuzz/fuzz_$$t \
+	    clang++ -fsanitize=fuzzer,$(FUZZ_SAN) -fno-sanitize-recover=undefined -fopenmp -o $(FUZZ_BUILD)/fuzz/fuzz_$$t \
 	        $(FUZZ_BUILD)/fuzz/fuzz_$$t.o $(FUZZ_BUILD)/shaders/host/libbtfgl.a $(FUZZ_BUILD)/bench/gen/libbtfgen.a \
 	        $(FUZZ_BUILD)/codec/libbtfcodec.a \
 	        $(FUZZ_LINK) $(call image_at_start,$(FUZZ_BUILD)) || exit 1; \

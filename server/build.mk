@@ -47,8 +47,8 @@ $(RESUME_BIN): tests/deploy/resume_clients.c tests/lws_connect.h $(CODEC_LIB)
 	$(CC) $(CFLAGS) -MF /dev/null -D_GNU_SOURCE $(CODEC_INNER) -Itests $(SERVER_CFLAGS) -o $@ $< $(CODEC_LIB) \
 	    $(LDFLAGS) $(SERVER_LIBS) -lm
 
-# libFuzzer + ASan/UBSan (FUZZ_BUILD: fuzz/build.mk); `make fuzz` runs it.
+# libFuzzer + ASan/UBSan (FUZZ_BUILD, FUZZ_SAN: fuzz/build.mk); `make fuzz` runs it.
 fuzz-request:
 	@mkdir -p $(FUZZ_BUILD)/fuzz
-	clang -std=c11 -g -O1 -D_DEFAULT_SOURCE -fsanitize=fuzzer,address,undefined -Iserver \
+	clang -std=c11 -g -O1 -D_DEFAULT_SOURCE -fsanitize=fuzzer,$(FUZZ_SAN) -fno-sanitize-recover=undefined -Iserver \
 	    $(SERVER_CFLAGS) -o $(FUZZ_BUILD)/fuzz/fuzz_request $(FUZZ_SRC) $(FUZZ_LIBS) -lm
