@@ -243,10 +243,12 @@ chart: setup
 	    --size 32 --stream-size 64 --out doc/figures
 	BTF_STABILITY_OUT=$(CURDIR)/doc/figures/stability.md $(TEST_BIN) --jobs 2 --filter 'stability/*'
 
-# The README's product under the built-in studio environment (doc/figures/product-studio.png).
+# The README's product under the built-in studio environment (doc/figures/product-studio.png),
+# and the library page and the 1-chunk-against-all picture the browser tests take.
 figure: setup
 	$(MAKE) build
 	bash tools/figure.sh
+	BTF_FIGURES_OUT=$(CURDIR)/doc/figures node --test tests/e2e/client.test.mjs
 
 demo: setup build
 	bash tools/demo.sh

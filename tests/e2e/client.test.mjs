@@ -1,6 +1,9 @@
 // client.test.mjs - the WebGL2 client (client/) in headless Chromium against a real
 // btfd serving a small library made by the built tools. Run: node --test tests/e2e/
 // Every page must load without a page error or a console error.
+// Two pictures of the docs come from here (doc/figures/gallery.png, chunks-1-vs-all.png):
+// written there only when BTF_FIGURES_OUT names that folder (`make figure` does), else
+// into a scratch folder, so a test run leaves the source tree as it was.
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
@@ -8,6 +11,10 @@ import {after, before, describe, it} from 'node:test';
 import {ROOT, assertClean, capture, hasRender, launch, makeLibrary, meanAbsDiff, newPage, requireBuild, sideBySide,
   writeSpiralList,
   startServer, viewers, waitFor, writePng} from './util.mjs';
+import os from 'node:os';
+
+const FIGURES = process.env.BTF_FIGURES_OUT || fs.mkdtempSync(path.join(os.tmpdir(), 'btf-figures-'));
+if (!process.env.BTF_FIGURES_OUT) after(() => fs.rmSync(FIGURES, {recursive: true, force: true}));
 
 // 32x32 texels, 81 x 81 directions: knit with 6 chunks (progressive capture after
 // 1, 2, 4, all), tiles and stone with 3 (three different materials on the embed page);
@@ -66,8 +73,7 @@ describe('gallery (index.html)', () => {
     assert.ok(t.streamBytes <= t.scene.bytes && t.streamBytes <= full.bytes, JSON.stringify(t));
     console.log(`# gallery thumbnail of tiles-lod (v2, ${t.cssWidth} CSS px): level ${t.scene.level}, ` +
       `${t.received}/${t.manifestChunks} chunks, ${t.streamBytes} of ${full.bytes} bytes`);
-    fs.mkdirSync(path.join(ROOT, 'doc'), {recursive: true});
-    await page.screenshot({path: path.join(ROOT, 'doc/figures/gallery.png')});
+    await page.screenshot({path: path.join(FIGURES, 'gallery.png')});
 
     await page.click('#grid .card a');
     await page.waitForSelector('#detail:not([hidden]) btf-viewer');
@@ -217,7 +223,7 @@ describe('progressive refinement', () => {
     for (const [a, b] of [[1, 2], [2, 4], [4, 6]])
       assert.ok(meanAbsDiff(shots[a], shots[b]) > 0.05, `image changes from ${a} to ${b} chunks`);
     assert.ok(d[0] > d[1] && d[1] > d[2] && d[2] > 0, `difference to the final image shrinks: ${d.join(' > ')}`);
-    writePng(path.join(ROOT, 'doc/figures/chunks-1-vs-all.png'), sideBySide([shots[1], shots[6]]));
+    writePng(path.join(FIGURES, 'chunks-1-vs-all.png'), sideBySide([shots[1], shots[6]]));
     assertClean(desktop);
   });
 
