@@ -133,15 +133,10 @@ static void data_features(nn_data *d)
     const btf *s = d->src;
     for (int v = 0; v < s->views.n_dirs; v++)
         for (int l = 0; l < d->L; l++) {
-            float lv[3], vv[3], h[3];
+            float lv[3], vv[3];
             btf_dirset_vector(&s->lights, l, lv);
             btf_dirset_vector(&s->views, v, vv);
-            for (int c = 0; c < 3; c++)
-                h[c] = lv[c] + vv[c];
-            float n = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-            float *f = d->feat + (size_t)(v * d->L + l) * NN_FEAT;
-            f[0] = lv[0], f[1] = lv[1], f[2] = vv[0], f[3] = vv[1];
-            f[4] = n > 0 ? h[0] / n : 0, f[5] = n > 0 ? h[1] / n : 0;
+            bench_nn_features(lv, vv, d->feat + (size_t)(v * d->L + l) * NN_FEAT);
         }
 }
 

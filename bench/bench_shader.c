@@ -946,12 +946,10 @@ static void nn_fill(nn_ctx *n)
 /* The network's value at texel (x, y) for local light l and view v (unit), clamped. */
 static void nn_eval(const nn_ctx *n, int x, int y, const float l[3], const float v[3], float rgb[3])
 {
-    float in[NN_Z + 8] = {0}, h1[128], h2[128], hv[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
-    float hn = sqrtf(hv[0] * hv[0] + hv[1] * hv[1] + hv[2] * hv[2]);
+    float in[NN_Z + 8] = {0}, h1[128], h2[128];
     for (int z = 0; z < NN_Z; z++)
         in[z] = n->lo[z] + n->step[z] * n->lat[((size_t)y * MAT + x) * NN_Z + z];
-    float f[6] = {l[0], l[1], v[0], v[1], hv[0] / hn, hv[1] / hn};
-    memcpy(in + NN_Z, f, sizeof f);
+    bench_nn_features(l, v, in + NN_Z);
     const float *src[3] = {in, h1, h2};
     float *dst[3] = {h1, h2, rgb};
     int rows[3] = {n->H, n->H, 3}, len[3] = {4 * n->K1, n->H, n->H};
@@ -1058,7 +1056,7 @@ static int run_nn(btf_gl *gl, const scene *s, const btf_gl_target *t, const btf_
                   ref_pixels *ref)
 {
     static const int Hs[2] = {64, 128};
-    nn_ctx nn[2];
+    nn_ctx nn[2] = {{0}}; /* nn_free is safe on one nn_create did not reach */
     product_ctx pc = {s, g, 8, NULL, NULL, NULL, 0}, px = {s, g, 8, NULL, NULL, fixed, 0};
     int bad = product_build(gl, &pc, NULL) || product_build(gl, &px, NULL);
     for (int i = 0; i < 2; i++)

@@ -64,4 +64,14 @@ static inline float bench_half_round(float x)
     return ldexpf(rintf(ldexpf(m, 11)), e - 11);
 }
 
+/* The small nonlinear decoder's direction inputs (bench_nn.c, and the shader bench's
+ * network): l.xy, v.xy and the half vector's x, y, from the unit light l and view v. */
+static inline void bench_nn_features(const float l[3], const float v[3], float f[6])
+{
+    float h[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]};
+    float n = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    f[0] = l[0], f[1] = l[1], f[2] = v[0], f[3] = v[1];
+    f[4] = n > 0 ? h[0] / n : 0, f[5] = n > 0 ? h[1] / n : 0;
+}
+
 #endif
