@@ -179,15 +179,20 @@ describe('the README embed on a phone behind a slow link', () => {
       judge(runs);
     });
 
-  it('1 Mbit/s, 40 ms: the same, refined as the chunks came (3 runs)', async () => {
-    const runs = await fieldRuns(1e6, 3);
-    report('1 Mbit/s', runs);
+  // Refined as the chunks came: every picture with more chunks than the one before, and at
+  // least 5 pictures in the median run. On this machine's software GL the first chunk's
+  // frame takes 0.65-0.75 s (the driver builds the program's pipeline) and each later one
+  // 0.25-0.3 s, while the chunks arrive over 3.4 s at 0.5 Mbit/s (9-14 pictures here);
+  // at 1 Mbit/s they arrive within 1.4 s, room for only 2-4 pictures on this host
+  // whatever the page does. A page that draws the first chunk and then the whole
+  // package draws 2.
+  it('0.5 Mbit/s, 40 ms: the same, refined as the chunks came (3 runs)', async () => {
+    const runs = await fieldRuns(0.5e6, 3);
+    report('0.5 Mbit/s', runs);
     judge(runs);
-    // refined as the chunks came: every picture with more chunks than the one before, and
-    // at least 3 pictures in the median run (a frame takes 0.3-0.5 s here, the link 2.3 s)
     const drawn = runs.map((r) => r.first.times.drawn);
     for (const d of drawn) assert.ok(d.every(([c], i) => i === 0 || c > d[i - 1][0]), `drawn ${JSON.stringify(d)}`);
-    assert.ok(median(drawn.map((d) => d.length)) >= 3, `pictures drawn: ${JSON.stringify(drawn)}`);
+    assert.ok(median(drawn.map((d) => d.length)) >= 5, `pictures drawn: ${JSON.stringify(drawn)}`);
   });
 });
 
