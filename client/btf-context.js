@@ -7,6 +7,7 @@ import {loadShaders} from './btf-gl.js';
 import {MeshRenderer} from './btf-render.js';
 
 let shared;
+const SHOWN_POLL_MS = 8; // how often a frame whose picture is awaited asks whether the GPU passed it
 
 function rendererName(gl) {
   const ext = gl.getExtension('WEBGL_debug_renderer_info');
@@ -23,10 +24,14 @@ class SharedGl {
     this.software = this.gl ? /swiftshader|llvmpipe|software/i.test(rendererName(this.gl)) : false;
     this.users = new Set();      // viewers: contextLost(), contextRestored()
     this.renderers = new Map();  // shader base URL -> Promise of MeshRenderer
+    this.drawnFns = [];          // afterFrame callbacks of this animation frame's draws (its fence not in yet)
+    this.fenceFns = [];          // afterFrame callbacks of the fence in flight
     this.canvas.addEventListener('webglcontextlost', (e) => {
       e.preventDefault();
       this.lost = true;
       this.fence = null;
+      this.drawnFns = []; // their pictures never showed
+      this.fenceFns = [];
       this.renderers.clear();
       for (const u of this.users) u.contextLost();
     });
@@ -69,23 +74,60 @@ class SharedGl {
   // took for the last fenced frame.
   drewIn(tick) {
     const gl = this.gl;
-    if (this.fence || typeof gl.fenceSync !== 'function') return;
+    if (this.fence || typeof gl.fenceSync !== 'function') return this.passOn();
     this.fence = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
     gl.flush();
     this.fenceAt = performance.now();
     this.fenceTick = tick;
+    this.fenceFns = this.drawnFns;
+    this.drawnFns = [];
+    if (this.fenceFns.length) this.pollShown();
+  }
+
+  // fn(ms since navigation start) once the GPU has passed the draws just made (the
+  // fence drewIn puts after them): when their picture can reach the screen, which on a
+  // slow GPU is well after the draw call.
+  afterFrame(fn) {
+    this.drawnFns.push(fn);
+  }
+
+  // The callbacks of draws that get no fence of their own: with another viewer's fence
+  // of this animation frame in flight, on it (these draws follow it in the same task);
+  // without fences, at once.
+  passOn() {
+    const fns = this.drawnFns, now = performance.now();
+    this.drawnFns = [];
+    if (this.fence) this.fenceFns.push(...fns);
+    else for (const fn of fns) fn(now);
+  }
+
+  // Asks every SHOWN_POLL_MS whether the fence in flight has passed, while callbacks wait on it.
+  pollShown() {
+    clearTimeout(this.shownTimer);
+    this.shownTimer = setTimeout(() => {
+      if (this.fenceFns.length && !this.passed()) this.pollShown();
+    }, SHOWN_POLL_MS);
+  }
+
+  // True when no fence is in flight or the GPU has passed it (then retired: gpuMs, frameNo, callbacks).
+  passed() {
+    if (!this.fence) return true;
+    const gl = this.gl;
+    if (!gl.isContextLost() && gl.getSyncParameter(this.fence, gl.SYNC_STATUS) !== gl.SIGNALED) return false;
+    const now = performance.now(), fns = this.fenceFns;
+    this.gpuMs = now - this.fenceAt;
+    gl.deleteSync(this.fence);
+    this.fence = null;
+    this.fenceFns = [];
+    this.frameNo = (this.frameNo || 0) + 1;
+    for (const fn of fns) fn(now);
+    return true;
   }
 
   // True when a viewer may draw in animation frame `tick`.
   idle(tick) {
     if (!this.fence || this.fenceTick === tick) return true;
-    const gl = this.gl;
-    if (!gl.isContextLost() && gl.getSyncParameter(this.fence, gl.SYNC_STATUS) !== gl.SIGNALED) return false;
-    this.gpuMs = performance.now() - this.fenceAt;
-    gl.deleteSync(this.fence);
-    this.fence = null;
-    this.frameNo = (this.frameNo || 0) + 1;
-    return true;
+    return this.passed();
   }
 
   stats() {

@@ -398,7 +398,12 @@ export class BtfSession {
   drawn() {
     this.frames++;
     const chunks = this.drawableChunks();
-    if (chunks > (this.drawnTotal || 0)) this.times.drawn = [...(this.times.drawn || []), [chunks, Math.round(performance.now())]];
+    if (chunks > (this.drawnTotal || 0)) {
+      this.times.drawn = [...(this.times.drawn || []), [chunks, Math.round(performance.now())]];
+      this.ctx.afterFrame((at) => { // when the GPU has drawn it (a slow GPU: well after the call)
+        this.times.shown = [...(this.times.shown || []), [chunks, Math.round(at)]];
+      });
+    }
     this.drawnTotal = chunks;
     for (const f of this.feeds) f.drawnChunks = f.drawableChunks();
     if (!this.loaded) this.firstFrame(chunks);

@@ -108,8 +108,8 @@ export function clsRecorder() {
   }).observe({type: 'layout-shift', buffered: true});
 }
 
-// One visit of `url` until viewer 0 has drawn its whole budget (timeout ms): what the
-// page showed and when, in ms from navigation start: {firstFrame, firstChunk (the first
+// One visit of `url` until viewer 0 has drawn its whole budget and the GPU has passed
+// that frame (timeout ms): what the page showed and when, in ms from navigation start: {firstFrame, firstChunk (the first
 // chunk's last byte arrived), lastChunk, complete, scriptRequest (when the page asked for
 // btf-viewer.js), scriptBytes ([its body over the link, decoded]), chunksAtFirstFrame,
 // times (the viewer's loading sequence, doc/client.md), streamBytes (chunk payload over the WebSocket), cls, error}.
@@ -119,7 +119,9 @@ export async function visit(page, url, timeout = 120000) {
   for (;;) {
     const done = await page.evaluate(() => {
       const v = window.__btf?.viewers()[0];
-      return v && v.complete && v.drawnChunks === v.ownLimit && v.frames > 0;
+      const last = (xs) => (xs && xs.length ? xs[xs.length - 1][0] : -1);
+      return v && v.complete && v.drawnChunks === v.ownLimit && v.frames > 0 &&
+        last(v.times.shown) === last(v.times.drawn);
     });
     if (done) break;
     if (Date.now() - t0 > timeout) {
