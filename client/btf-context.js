@@ -71,17 +71,25 @@ class SharedGl {
   // time) a fence goes in, and no viewer draws again until the GPU has passed it, so on
   // software GL or a slow GPU frames never queue up behind each other (new chunks and
   // the user's input show in the next frame the GPU can take). gpuMs: how long the GPU
-  // took for the last fenced frame.
+  // took for the last fenced frame. The afterFrame callbacks of these draws wait on the
+  // fence (one of this animation frame already in, another viewer's: these draws follow
+  // it in the same task); without fences they run at once.
   drewIn(tick) {
-    const gl = this.gl;
-    if (this.fence || typeof gl.fenceSync !== 'function') return this.passOn();
-    this.fence = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
-    gl.flush();
-    this.fenceAt = performance.now();
-    this.fenceTick = tick;
-    this.fenceFns = this.drawnFns;
+    const gl = this.gl, fns = this.drawnFns;
     this.drawnFns = [];
-    if (this.fenceFns.length) this.pollShown();
+    if (typeof gl.fenceSync !== 'function') {
+      const now = performance.now();
+      for (const fn of fns) fn(now);
+      return;
+    }
+    if (!this.fence) {
+      this.fence = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
+      gl.flush();
+      this.fenceAt = performance.now();
+      this.fenceTick = tick;
+    }
+    this.fenceFns.push(...fns);
+    if (fns.length) this.pollShown();
   }
 
   // fn(ms since navigation start) once the GPU has passed the draws just made (the
@@ -89,16 +97,6 @@ class SharedGl {
   // slow GPU is well after the draw call.
   afterFrame(fn) {
     this.drawnFns.push(fn);
-  }
-
-  // The callbacks of draws that get no fence of their own: with another viewer's fence
-  // of this animation frame in flight, on it (these draws follow it in the same task);
-  // without fences, at once.
-  passOn() {
-    const fns = this.drawnFns, now = performance.now();
-    this.drawnFns = [];
-    if (this.fence) this.fenceFns.push(...fns);
-    else for (const fn of fns) fn(now);
   }
 
   // Asks every SHOWN_POLL_MS whether the fence in flight has passed, while callbacks wait on it.

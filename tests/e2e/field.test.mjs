@@ -8,10 +8,10 @@
 // the link (script, list, manifest, chunks) plus 1 s of the page's request for the
 // script, and the whole picture within 1.5 s of the last chunk (every run within 3x);
 // every picture drawn reaches the screen (the GPU passes its frame), the first within
-// 2 s of its draw and each later one within 1 s; a reload streams at most 5% of the chunk bytes and takes at most 5% of the link's,
-// nothing below the viewer moves (layout shift), and each failure (server down at page
-// load, link dropped mid-stream, shader files failing, server stopped after complete)
-// ends in an `error` event and, once the server is back, in a complete picture, while a
+// 2 s of its draw and each later one within 1 s; a reload streams at most 5% of the
+// chunk bytes and takes at most 5% of the link's, nothing below the viewer moves
+// (layout shift), and each failure (server down at page load, link dropped mid-stream,
+// shader files failing, server stopped after complete) ends in an `error` event and, once the server is back, in a complete picture, while a
 // page holding the whole package tries no connection when its budget grows. Run: node --test tests/e2e/
 import assert from 'node:assert/strict';
 import {after, before, describe, it} from 'node:test';

@@ -109,9 +109,9 @@ export function clsRecorder() {
 }
 
 // One visit of `url` until viewer 0 has drawn its whole budget and the GPU has passed
-// that frame (timeout ms): what the page showed and when, in ms from navigation start: {firstFrame, firstChunk (the first
-// chunk's last byte arrived), lastChunk, complete, scriptRequest (when the page asked for
-// btf-viewer.js), scriptBytes ([its body over the link, decoded]), chunksAtFirstFrame,
+// that frame (timeout ms): what the page showed and when, in ms from navigation start:
+// {firstFrame, firstChunk (the first chunk's last byte arrived), lastChunk, complete,
+// scriptRequest (when the page asked for btf-viewer.js), scriptBytes ([its body over the link, decoded]), chunksAtFirstFrame,
 // times (the viewer's loading sequence, doc/client.md), streamBytes (chunk payload over the WebSocket), cls, error}.
 export async function visit(page, url, timeout = 120000) {
   await page.goto(url);
