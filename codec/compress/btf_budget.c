@@ -15,27 +15,43 @@
 #include "btf_rd.h"
 #include "btf_common.h"
 
-/* The candidate k values: the budget's, else 9, 3 and 1 (largest first: see
- * btf__budget_prunes), within 1..views. */
+#define BTF__BUDGET_K_START 9 /* the default walk's first k (btf__budget_ks) */
+
+/* The candidate k values, within 1..views: the budget's in its order, else the
+ * default walk's: 9 (or the largest of the others below it), then the larger ones
+ * ascending (27, 81, ... each 3x the last below the view count, then the view count:
+ * one basis for every view), then the smaller ones descending (3, 1). */
 static int btf__budget_ks(const btf_budget *b, int views, int *ks)
 {
-    static const int dflt[3] = {9, 3, 1};
-    const int *src = b->n_k > 0 ? b->k : dflt;
-    int n = 0, m = b->n_k > 0 ? b->n_k : 3;
-    for (int i = 0; i < m && i < BTF_BUDGET_MAX_K; i++)
-        if (src[i] >= 1 && src[i] <= views)
-            ks[n++] = src[i];
+    int n = 0;
+    if (b->n_k > 0) {
+        for (int i = 0; i < b->n_k && i < BTF_BUDGET_MAX_K; i++)
+            if (b->k[i] >= 1 && b->k[i] <= views)
+                ks[n++] = b->k[i];
+        return n;
+    }
+    int up[BTF_BUDGET_MAX_K], nu = 0; /* 1, 3, 9, ... below views, then views */
+    for (long k = 1; k < views && nu < BTF_BUDGET_MAX_K - 1; k *= 3)
+        up[nu++] = (int)k;
+    up[nu++] = views;
+    int s = 0;
+    while (s + 1 < nu && up[s + 1] <= BTF__BUDGET_K_START)
+        s++;
+    for (int i = s; i < nu; i++)
+        ks[n++] = up[i];
+    for (int i = s - 1; i >= 0; i--)
+        ks[n++] = up[i];
     return n;
 }
 
-/* 1 when the default ks are measured largest first and the search stops at the
- * first k that does not beat the one before it (the caller listed no ks and asked
- * for no full search). The bytes a k needs for an error (or the error in a budget)
- * fall and then rise as k grows: blocks of more views share their textures, but
- * need more components. On the generated tiles, knit and stone at 64x64 under an
- * error target k 9 won, k 3 took 1.3-1.7 times its bytes and k 1 2-3 times, so k 1
- * was never the answer where k 3 lost to k 9; measuring it cost a third of the
- * search (doc/performance.md section 11, "The search's k"). */
+/* 1 when the default ks are walked (the caller listed no ks and asked for no full
+ * search): from the first, larger ones while each beats the best before it, and
+ * smaller ones (while each beats the best) only when no larger one won
+ * (btf__budget_walk). The bytes a k needs for an error (or the error in a budget)
+ * fall and then rise as k grows: blocks of more views share their textures, but need
+ * more components. On generated tiles, knit and stone at 64x64 under the thesis
+ * format's error k 27 or 81 won (0.67-0.84x the bytes of k 9), on the thesis's wool
+ * and corduroy k 1 and 3 (doc/performance.md section 4, "The search's k"). */
 static int btf__budget_prunes(const btf_budget *b)
 {
     return b->n_k <= 0 && !b->full_search;
@@ -491,29 +507,38 @@ static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
     return r;
 }
 
+/* Candidate c measured again with half as many components again, rounded up to a
+ * multiple of 4 (16, 24, 36, 56, 64: the renderer reads 4 per texel; up to
+ * BTF_BUDGET_MAX_COMPONENTS and what its blocks hold), as the best only with more
+ * chunks kept than c; its index into *i, -1 when the blocks hold no more. */
+static btf_result btf__budget_grown(btf__search *s, int c, int *i, btf_error *err)
+{
+    btf_budget_choice was = s->rs.candidate[c];
+    int n = (was.components * 3 / 2 + 3) / 4 * 4;
+    n = n < BTF_BUDGET_MAX_COMPONENTS ? n : BTF_BUDGET_MAX_COMPONENTS;
+    n = btf__fit_components(s->src, s->pca, was.k, n);
+    *i = -1;
+    if (n <= was.components)
+        return BTF_OK;
+    *i = s->rs.n_candidates;
+    s->rs.candidate[*i] = (btf_budget_choice){.k = was.k, .components = n, .rd_fit = was.rd_fit, .center = was.center};
+    return btf__budget_eval(s, *i, was.n_chunks + 1, 1.0, err);
+}
+
 /* While the best candidate keeps every component it has, it is tried again with
- * half as many again, rounded up to a multiple of 4 (16, 24, 36, 56, 64: the
- * renderer reads 4 per texel; up to BTF_BUDGET_MAX_COMPONENTS and what its blocks
- * hold); stops when the larger one does not win. Steps of half as many again, not
- * doubling: with the steps fitted to the bytes the error is not monotonic in the
- * count, so a doubling can step over the best. The larger one wins only with more
- * chunks kept, not by a lower error alone: with as many chunks it holds about the
- * same components, and its edge is noise of the window. */
+ * more (btf__budget_grown); stops when the larger one does not win. Steps of half as
+ * many again, not doubling: with the steps fitted to the bytes the error is not
+ * monotonic in the count, so a doubling can step over the best. The larger one wins
+ * only with more chunks kept, not by a lower error alone: with as many chunks it
+ * holds about the same components, and its edge is noise of the window. */
 static btf_result btf__budget_grow(btf__search *s, btf_error *err)
 {
     btf_result r = BTF_OK;
     for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_GROW && s->best >= 0 && s->all_kept[s->best]; g++) {
-        btf_budget_choice c = s->rs.candidate[s->best];
-        int n = (c.components * 3 / 2 + 3) / 4 * 4;
-        n = n < BTF_BUDGET_MAX_COMPONENTS ? n : BTF_BUDGET_MAX_COMPONENTS;
-        n = btf__fit_components(s->src, s->pca, c.k, n);
-        if (n <= c.components)
-            break; /* the blocks hold no more */
-        int i = s->rs.n_candidates, was = s->best;
-        s->rs.candidate[i] = (btf_budget_choice){.k = c.k, .components = n, .rd_fit = c.rd_fit, .center = c.center};
-        r = btf__budget_eval(s, i, c.n_chunks + 1, 1.0, err);
-        if (s->best == was)
-            break;
+        int was = s->best, i = -1;
+        r = btf__budget_grown(s, was, &i, err);
+        if (i < 0 || s->best == was)
+            break; /* the blocks hold no more, or the larger one lost */
     }
     return r;
 }
@@ -536,6 +561,34 @@ static btf_result btf__budget_screen(btf__search *s, btf_error *err)
     if (r == BTF_OK) {
         s->screen = win, s->screen_scale = (double)w * h / ((double)cw * ch);
         s->rs.screen_width = cw, s->rs.screen_height = ch;
+    }
+    return r;
+}
+
+/* Candidates k = ks[0 .. nk) measured with n components (fit: steps fitted to the
+ * bytes), in order; with the default walk (btf__budget_prunes) the larger ks stop
+ * at the first that does not beat the best, and the smaller ones are measured only
+ * when no larger one won, stopping the same way. A larger k that loses while keeping
+ * every component it has (the count stopped it, not the budget) is measured once
+ * more with more (btf__budget_grown) before it counts as lost: blocks of more views
+ * need more components for the same error (the generated stone at 64x64: k 27 loses
+ * to k 9 at 16 components and wins at 24). */
+static btf_result btf__budget_walk(btf__search *sr, const int *ks, int nk, int n, int fit, btf_error *err)
+{
+    int prune = btf__budget_prunes(sr->b), up_won = 0, up_lost = 0, down_lost = 0;
+    btf_result r = BTF_OK;
+    for (int i = 0; r == BTF_OK && i < nk; i++) {
+        int up = ks[i] > ks[0], down = ks[i] < ks[0];
+        if (prune && ((up && up_lost) || (down && (up_won || down_lost))))
+            continue;
+        int c = sr->rs.n_candidates;
+        sr->rs.candidate[c] = (btf_budget_choice){.k = ks[i], .components = n, .rd_fit = fit, .center = sr->pca.center};
+        r = btf__budget_eval(sr, c, 0, 1.0, err);
+        int g = -1; /* a larger k that lost keeping all its components: once more with more */
+        if (r == BTF_OK && up && sr->best != c && sr->all_kept[c] && sr->b->max_components <= 0)
+            r = btf__budget_grown(sr, c, &g, err);
+        int won = sr->best == c || (g >= 0 && sr->best == g);
+        up_won |= up && won, up_lost |= up && !won, down_lost |= down && !won;
     }
     return r;
 }
@@ -578,17 +631,12 @@ static btf_result btf__budget_search_once(const btf *src, const btf_pca_options 
         sr->hook.write_hook = hook->write_hook, sr->hook.hook_ctx = hook->hook_ctx;
     if (r == BTF_OK)
         r = btf__budget_screen(sr, err);
-    int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks), nt = 0;
+    int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks);
     int fit = po.rd && budget->max_bytes > 0; /* version 3: steps fitted to the bytes */
     int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;
-    for (int i = 0; i < nk; i++)
-        sr->rs.candidate[nt++] = (btf_budget_choice){.k = ks[i], .components = n0, .rd_fit = fit, .center = sr->pca.center};
-    for (int i = 0; r == BTF_OK && i < nt; i++) {
-        r = btf__budget_eval(sr, i, 0, 1.0, err);
-        if (btf__budget_prunes(budget) && i > 0 && sr->best != i)
-            break; /* a smaller k lost to a larger one: the ks below it are not measured */
-    }
-    nt = sr->rs.n_candidates;
+    if (r == BTF_OK)
+        r = btf__budget_walk(sr, ks, nk, n0, fit, err);
+    int nt = sr->rs.n_candidates;
     if (r == BTF_OK && sr->best >= 0 && sr->pca.center == BTF_CENTER_DEFAULT) { /* the best, centred */
         sr->rs.candidate[nt] = sr->rs.candidate[sr->best];
         sr->rs.candidate[nt].center = BTF_CENTER_ROW;

@@ -7,8 +7,9 @@
  *         printf("k %d, %d chunks, %lld bytes, Lab %.3f\n", res.k, res.n_chunks, res.bytes, res.lab);
  *
  * Each candidate k is compressed once with the largest component count (the
- * default ks 9, 3, 1 largest first, stopping at the first that does not beat the
- * one before it, unless full_search); its
+ * default ks walk from 9 up, 27, 81, ... each 3x the last, then every view, while
+ * each beats the best, and when none above 9 won, down to 3 and 1 while each beats
+ * it; full_search measures every one of them); its
  * manifest gives the bytes and the measured CIELab error of every chunk prefix
  * (the chunk order is by error drop per byte, doc/package-format.md section 10.3),
  * so every budget of that k is read off one compression. With opt->rd (version 3)
@@ -60,16 +61,17 @@ extern "C" {
 #define BTF_BUDGET_SCREEN_EDGE 0.03
 #define BTF_BUDGET_FINER 2 /* max_error out of the default steps' reach: searches again at 1/2, 1/4 the noise */
 #define BTF_BUDGET_MAX_GROW 4        /* growth rounds: 16 -> 24 -> 36 -> 56 -> 64 */
-/* each k, one centred, the growth rounds */
-#define BTF_BUDGET_MAX_CANDIDATES (BTF_BUDGET_MAX_K + 1 + BTF_BUDGET_MAX_GROW)
+/* each k and its growth in the walk, one centred, the growth rounds */
+#define BTF_BUDGET_MAX_CANDIDATES (2 * BTF_BUDGET_MAX_K + 1 + BTF_BUDGET_MAX_GROW)
 
 /* What to meet; plain value. Exactly one of max_bytes, max_error is set. */
 typedef struct btf_budget {
     long long max_bytes; /* > 0: the least error within this many bytes (manifest + chunk files) */
     double max_error;    /* > 0: the fewest bytes whose CIELab error (as btf eval reports) is <= this */
     int max_components;  /* components compressed per candidate; 0 = 16, then 1.5x while all are kept */
-    /* candidate k; n_k = 0: 9, 3 and 1 (those the views allow), the smaller ones
-     * measured only while each beats the one before it */
+    /* candidate k; n_k = 0: 9, 27, 81, ... (each 3x the last below the view count),
+     * the view count, 3 and 1, those the views allow, walked from 9 up, else down,
+     * while each beats the best */
     int k[BTF_BUDGET_MAX_K], n_k;
     /* 1 = candidates measured on the whole material, not on its centre window (with
      * rd), and every default k measured */

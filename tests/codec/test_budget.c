@@ -153,11 +153,24 @@ Test(budget, max_error_below_the_default_steps_is_met_with_finer_ones)
     fx_rmtree(dir);
 }
 
-/* The default search without full_search measures k 9, 3, 1 largest first and stops
- * at the first k that does not beat the best before it (within a byte budget: an
- * empty prefix loses, else the lower error; for an error target: meeting it, then
- * fewer bytes, else the lower error): all, the full search's candidates (every k,
- * then the centred retry), predicts which ks it measures, their results (the same
+/* 1 when candidate c beats bc under b (within a byte budget: an empty prefix loses,
+ * else the lower error; for an error target: meeting it, then fewer bytes, else the
+ * lower error). */
+static int beats(const btf_budget *b, const btf_budget_choice *c, const btf_budget_choice *bc)
+{
+    int met = c->lab <= b->max_error, best_met = bc->lab <= b->max_error;
+    return b->max_bytes > 0 ? c->n_chunks > 0 && (bc->n_chunks == 0 || c->lab < bc->lab)
+           : met != best_met ? met
+           : met             ? c->bytes < bc->bytes
+                             : c->lab < bc->lab;
+}
+
+/* The default search without full_search walks the ks from the first (9): the larger
+ * ones while each beats the best (one that loses keeping every component it has is
+ * measured once more with more components first), then, only when no larger one won,
+ * the smaller ones while each beats the best. all, the full search's candidates
+ * (every default k in the walk's order, a larger one's growth after it, then the
+ * centred retry), predicts which candidates it measures, their results (the same
  * settings measure the same) and its choice. */
 static void expect_pruned_like(const btf *src, btf_budget b, const btf_budget_result *all, const char *out)
 {
@@ -165,26 +178,35 @@ static void expect_pruned_like(const btf *src, btf_budget b, const btf_budget_re
     btf_budget_result res;
     btf_error err = {0};
     cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
-    int n = 1, best = 0;
-    while (n < all->n_candidates - 1) { /* the last of all is the centred retry */
-        const btf_budget_choice *c = &all->candidate[n], *bc = &all->candidate[best];
-        int met = c->lab <= b.max_error, best_met = bc->lab <= b.max_error; /* with an error target */
-        int better = b.max_bytes > 0 ? c->n_chunks > 0 && (bc->n_chunks == 0 || c->lab < bc->lab)
-                     : met != best_met ? met
-                     : met             ? c->bytes < bc->bytes
-                                       : c->lab < bc->lab;
-        n++;
-        if (!better)
-            break;
-        best = n - 1;
-    }
-    cr_assert_eq(res.n_candidates, n + 1, "%d ks measured and the centred retry, got %d candidates", n,
-                 res.n_candidates);
+    int end = 0; /* all's walk: its candidates before the centred retry */
+    while (end < all->n_candidates && all->candidate[end].center != BTF_CENTER_ROW)
+        end++;
+    int walk[2 * BTF_BUDGET_MAX_K], n = 0, best = 0, up_won = 0, k0 = all->candidate[0].k;
+    for (int pass = 0; pass < 3; pass++) /* the first k, the larger ks, then the smaller ones */
+        for (int i = 0, stop = pass == 2 && up_won; i < end && !stop; i++) {
+            const btf_budget_choice *c = &all->candidate[i];
+            if ((pass == 0) != (c->k == k0) || (pass == 1 && c->k < k0) || (pass == 2 && c->k > k0))
+                continue;
+            int won = i == 0 || beats(&b, c, &all->candidate[best]);
+            walk[n++] = i;
+            best = won ? i : best;
+            if (i + 1 < end && all->candidate[i + 1].k == c->k && c->k > k0) { /* its growth */
+                int g = i + 1;
+                walk[n++] = g, i = g;
+                if (!won && beats(&b, &all->candidate[g], &all->candidate[best]))
+                    best = g, won = 1;
+            }
+            up_won |= pass == 1 && won;
+            stop = pass > 0 && !won;
+        }
+    cr_assert_geq(res.n_candidates, n + 1, "%d candidates measured and the centred retry, got %d", n,
+                  res.n_candidates);
     for (int i = 0; i < n; i++) {
-        cr_expect_eq(res.candidate[i].k, all->candidate[i].k, "candidate %d: k %d", i, res.candidate[i].k);
-        cr_expect_eq(res.candidate[i].bytes, all->candidate[i].bytes, "k %d: the same bytes", res.candidate[i].k);
-        cr_expect_float_eq(res.candidate[i].lab, all->candidate[i].lab, 1e-12, "k %d: the same error",
-                           res.candidate[i].k);
+        const btf_budget_choice *want = &all->candidate[walk[i]];
+        cr_expect_eq(res.candidate[i].k, want->k, "candidate %d: k %d, expected k %d", i, res.candidate[i].k, want->k);
+        cr_expect_eq(res.candidate[i].components, want->components, "k %d: components", want->k);
+        cr_expect_eq(res.candidate[i].bytes, want->bytes, "k %d: the same bytes", want->k);
+        cr_expect_float_eq(res.candidate[i].lab, want->lab, 1e-12, "k %d: the same error", want->k);
     }
     cr_expect_eq(res.candidate[n].k, all->candidate[best].k, "the centred retry is of the best measured k");
     cr_expect_eq(res.candidate[n].center, BTF_CENTER_ROW);
@@ -197,24 +219,28 @@ Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
     snprintf(out, sizeof out, "%s/p", dir);
     btf *src = material();
     btf_budget b = {0};
-    b.max_bytes = 60000; /* default candidates 9, 3, 1 */
+    b.max_bytes = 60000; /* 15 views: default candidates 9, 15 (every view), 3, 1 */
     btf_budget_result res;
     btf_error err = {0};
     b.full_search = 1; /* every default k */
     cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
-    cr_expect_eq(res.n_candidates, 4, "k 9, 3, 1 and the best of them with row centring");
+    cr_expect_eq(res.n_candidates, 5, "k 9, 15, 3, 1 and the best of them with row centring");
+    static const int order[4] = {9, 15, 3, 1};
+    for (int i = 0; i < 4; i++)
+        cr_expect_eq(res.candidate[i].k, order[i], "candidate %d: k %d", i, res.candidate[i].k);
     for (int i = 0; i < res.n_candidates; i++)
         if (res.candidate[i].n_chunks > 0)
             cr_expect_geq(res.candidate[i].lab + 1e-12, res.lab, "k %d beats the choice", res.candidate[i].k);
     btf_budget_result all = res;
-    expect_pruned_like(src, b, &all, out); /* here k 3 beats k 9 and k 1 beats k 3: all measured */
+    expect_pruned_like(src, b, &all, out); /* here k 15 loses to k 9, k 3 beats it and k 1 beats k 3 */
     btf_budget e = {0};
     e.max_error = 0.8, e.full_search = 1;
     cr_assert_eq(btf_budget_compress(src, NULL, NULL, &e, out, &all, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(all.n_candidates, 4);
-    cr_expect(all.candidate[1].bytes > all.candidate[0].bytes && all.candidate[2].bytes > all.candidate[0].bytes,
-              "here k 9 meets 0.8 with the fewest bytes");
-    expect_pruned_like(src, e, &all, out); /* so k 1 is not measured */
+    cr_assert_eq(all.n_candidates, 5);
+    cr_expect(all.candidate[1].k == 15 && all.candidate[1].bytes < all.candidate[0].bytes &&
+                  all.candidate[1].lab <= e.max_error,
+              "here k 15 (every view) meets 0.8 with fewer bytes than k 9");
+    expect_pruned_like(src, e, &all, out); /* so k 3 and 1 are not measured */
     b.max_bytes = 100;
     cr_expect_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_ERR_RANGE);
     cr_expect(strstr(err.msg, "cannot hold"), "%s", err.msg);

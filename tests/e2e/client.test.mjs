@@ -21,10 +21,12 @@ if (!process.env.BTF_FIGURES_OUT) after(() => fs.rmSync(FIGURES, {recursive: tru
 // tiles-lod: version 2 with 3 spatial levels (scene budgets; sorts last, so the embed
 // page's first three materials stay version 1).
 // tiles-list: an explicit direction list (a spiral, not rings; doc/data-model.md); sorts
-// between tiles and tiles-lod.
+// between tiles and tiles-lod. tiles-k81: one block of every view (k 81, one texture
+// tile a component), what a budget search chooses on generated materials; sorts
+// between tiles and tiles-list.
 const LIST = writeSpiralList(48, 11);
 const MATERIALS = {knit: ['knit', 6], 'tiles-list': ['tiles', 4, 0, [], ['--sampling', LIST]], tiles: ['tiles', 3],
-  stone: ['stone', 3], 'tiles-lod': ['tiles', 6, 3]};
+  'tiles-k81': ['tiles', 3, 0, ['--k', '81']], stone: ['stone', 3], 'tiles-lod': ['tiles', 6, 3]};
 let lib, server, desktop;
 
 before(async () => {

@@ -14,6 +14,9 @@ const SCENES = [
   {material: 'tiles', geometry: 'sphere', w: 160, h: 160, camera: [60, -70, 3.6], light: [45, -50], fov: 40, chunks: 2},
   {material: 'stone', geometry: 'cylinder', w: 160, h: 120, camera: [50, -100, 3.6], light: [30, 20], fov: 40,
     chunks: 3},
+  // one block of every view (k 81): a single texture tile per component
+  {material: 'tiles-k81', geometry: 'sphere', w: 160, h: 160, camera: [50, -40, 3.6], light: [35, 60], fov: 40,
+    chunks: 3},
   // an explicit direction list: the manifest's triangles, mirror images near the horizon
   {material: 'tiles-list', geometry: 'sphere', w: 160, h: 160, camera: [55, -80, 3.6], light: [70, 30], fov: 40,
     chunks: 4},

@@ -722,8 +722,8 @@ Test(gl, interp_direction_list_both_backends)
 #define DEC_QW 32 /* queries per render: 32 x 32 */
 #define DEC_Q (DEC_QW * DEC_QW)
 
-/* Package of a generated knit in a fresh temp dir; path written to pkg. */
-static void make_package_on(char *tmp, size_t n, char *pkg, size_t pn, int bits, btf_dirset d)
+/* Package of a generated knit (k views per block) in a fresh temp dir; path written to pkg. */
+static void make_package_on(char *tmp, size_t n, char *pkg, size_t pn, int bits, btf_dirset d, int k)
 {
     cr_assert(fx_tmpdir(tmp, n));
     snprintf(pkg, pn, "%s/knit", tmp);
@@ -732,7 +732,7 @@ static void make_package_on(char *tmp, size_t n, char *pkg, size_t pn, int bits,
     btf_error err = {{0}};
     cr_assert_eq(btf_gen_create(&gp, DEC_W, DEC_W, &d, &d, BTF_F32, &m, &err), BTF_OK, "%s", err.msg);
     btf_pca_options po = {0};
-    po.k = 3;
+    po.k = k;
     po.components = DEC_C;
     btf_package_options ko = {0};
     ko.bits = bits;
@@ -742,7 +742,7 @@ static void make_package_on(char *tmp, size_t n, char *pkg, size_t pn, int bits,
 
 static void make_package(char *tmp, size_t n, char *pkg, size_t pn, int bits)
 {
-    make_package_on(tmp, n, pkg, pn, bits, fx_dirs19());
+    make_package_on(tmp, n, pkg, pn, bits, fx_dirs19(), 3);
 }
 
 /* Decode queries: q0 = (light, u), q1 = (view, v). Adversarial first, then random. */
@@ -842,11 +842,12 @@ static double decode_compare(btf_gl *gl, btf_shader_program *prog, const btf_pac
     return worst;
 }
 
-/* Every partial package 1..C, nearest and bilinear, clamp and wrap, on one backend. */
-static void check_decode_on(btf_gl_backend b, int bits, btf_gl_format fmt, btf_dirset d, int n_first)
+/* Every partial package 1..C, nearest and bilinear, clamp and wrap, on one backend
+ * (k views per block). */
+static void check_decode_on(btf_gl_backend b, int bits, btf_gl_format fmt, btf_dirset d, int n_first, int k)
 {
     char tmp[256], pkg[300];
-    make_package_on(tmp, sizeof tmp, pkg, sizeof pkg, bits, d);
+    make_package_on(tmp, sizeof tmp, pkg, sizeof pkg, bits, d, k);
     btf_package *p = NULL;
     btf_error err = {{0}};
     cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
@@ -877,7 +878,7 @@ static void check_decode_on(btf_gl_backend b, int bits, btf_gl_format fmt, btf_d
 
 static void check_decode(btf_gl_backend b, int bits, btf_gl_format fmt)
 {
-    check_decode_on(b, bits, fmt, fx_dirs19(), 1);
+    check_decode_on(b, bits, fmt, fx_dirs19(), 1, 3);
 }
 
 /* The decoder specialised at compile time (btf_gl_package_defines: BTF_FILTER,
@@ -931,11 +932,18 @@ Test(gl, decode_specialised_matches_cpu)
 }
 
 /* The real 81 x 81 sampling, complete package only (compression costs seconds). */
-Test(gl, decode_matches_cpu_ubo2003_egl) { check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, btf_dirset_ubo2003(), DEC_C); }
+Test(gl, decode_matches_cpu_ubo2003_egl) { check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, btf_dirset_ubo2003(), DEC_C, 3); }
+/* The largest blocks a budget search chooses: 27 views a block (3 blocks) and every
+ * view in one block (one texture tile a component). */
+Test(gl, decode_matches_cpu_large_blocks_egl)
+{
+    check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, btf_dirset_ubo2003(), DEC_C, 27);
+    check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, btf_dirset_ubo2003(), DEC_C, 81);
+}
 
 Test(gl, decode_matches_cpu_egl_float) { check_decode(BTF_GL_EGL, 8, BTF_GL_RGBA32F); }
 /* A list package: the manifest's triangles, the views' blocks through mirror images. */
-Test(gl, decode_matches_cpu_direction_list_egl) { check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, spiral_list(), DEC_C); }
+Test(gl, decode_matches_cpu_direction_list_egl) { check_decode_on(BTF_GL_EGL, 8, BTF_GL_RGBA32F, spiral_list(), DEC_C, 3); }
 Test(gl, decode_matches_cpu_osmesa_float) { check_decode(BTF_GL_OSMESA, 8, BTF_GL_RGBA32F); }
 Test(gl, decode_matches_cpu_16bit_both_backends)
 {
