@@ -507,6 +507,16 @@ static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
     return r;
 }
 
+/* 1 when candidate c may do better with more components: it keeps every one it has
+ * (the count stopped it, not the budget), the caller fixed no count, and under an
+ * error target it misses the target (one that meets it with all its chunks would cut
+ * more components off at the same place). */
+static int btf__budget_short(const btf__search *s, int c)
+{
+    const btf_budget_choice *x = &s->rs.candidate[c];
+    return s->all_kept[c] && s->b->max_components <= 0 && (s->b->max_error <= 0 || x->lab > s->b->max_error);
+}
+
 /* Candidate c measured again with half as many components again, rounded up to a
  * multiple of 4 (16, 24, 36, 56, 64: the renderer reads 4 per texel; up to
  * BTF_BUDGET_MAX_COMPONENTS and what its blocks hold), as the best only with more
@@ -525,8 +535,9 @@ static btf_result btf__budget_grown(btf__search *s, int c, int *i, btf_error *er
     return btf__budget_eval(s, *i, was.n_chunks + 1, 1.0, err);
 }
 
-/* While the best candidate keeps every component it has, it is tried again with
- * more (btf__budget_grown); stops when the larger one does not win. Steps of half as
+/* While the best candidate keeps every component it has (and misses an error
+ * target: btf__budget_short), it is tried again with more (btf__budget_grown);
+ * stops when the larger one does not win. Steps of half as
  * many again, not doubling: with the steps fitted to the bytes the error is not
  * monotonic in the count, so a doubling can step over the best. The larger one wins
  * only with more chunks kept, not by a lower error alone: with as many chunks it
@@ -534,7 +545,7 @@ static btf_result btf__budget_grown(btf__search *s, int c, int *i, btf_error *er
 static btf_result btf__budget_grow(btf__search *s, btf_error *err)
 {
     btf_result r = BTF_OK;
-    for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_GROW && s->best >= 0 && s->all_kept[s->best]; g++) {
+    for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_GROW && s->best >= 0 && btf__budget_short(s, s->best); g++) {
         int was = s->best, i = -1;
         r = btf__budget_grown(s, was, &i, err);
         if (i < 0 || s->best == was)
@@ -569,8 +580,8 @@ static btf_result btf__budget_screen(btf__search *s, btf_error *err)
  * bytes), in order; with the default walk (btf__budget_prunes) the larger ks stop
  * at the first that does not beat the best, and the smaller ones are measured only
  * when no larger one won, stopping the same way. A larger k that loses while keeping
- * every component it has (the count stopped it, not the budget) is measured once
- * more with more (btf__budget_grown) before it counts as lost: blocks of more views
+ * every component it has and missing an error target (btf__budget_short) is measured
+ * once more with more (btf__budget_grown) before it counts as lost: blocks of more views
  * need more components for the same error (the generated stone at 64x64: k 27 loses
  * to k 9 at 16 components and wins at 24). */
 static btf_result btf__budget_walk(btf__search *sr, const int *ks, int nk, int n, int fit, btf_error *err)
@@ -585,7 +596,7 @@ static btf_result btf__budget_walk(btf__search *sr, const int *ks, int nk, int n
         sr->rs.candidate[c] = (btf_budget_choice){.k = ks[i], .components = n, .rd_fit = fit, .center = sr->pca.center};
         r = btf__budget_eval(sr, c, 0, 1.0, err);
         int g = -1; /* a larger k that lost keeping all its components: once more with more */
-        if (r == BTF_OK && up && sr->best != c && sr->all_kept[c] && sr->b->max_components <= 0)
+        if (r == BTF_OK && up && sr->best != c && btf__budget_short(sr, c))
             r = btf__budget_grown(sr, c, &g, err);
         int won = sr->best == c || (g >= 0 && sr->best == g);
         up_won |= up && won, up_lost |= up && !won, down_lost |= down && !won;

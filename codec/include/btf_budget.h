@@ -18,10 +18,11 @@
  * candidate is then tried once more with the thesis's row centring (component 0 =
  * the texel's mean; on a window it must win by BTF_BUDGET_SCREEN_EDGE), which wins
  * on materials made of a mean and a few terms. When the best candidate keeps every component it
- * was compressed with (the component count, not the budget, stopped it) and the
- * caller did not fix the count, it is tried again with half as many components again (16,
- * 24, 36, 56, 64: BTF_BUDGET_MAX_COMPONENTS) while that keeps more chunks at a
- * lower error.
+ * was compressed with (the component count, not the budget, stopped it; with
+ * max_error, it also misses the target) and the caller did not fix the count, it is
+ * tried again with half as many components again (16, 24, 36, 56, 64:
+ * BTF_BUDGET_MAX_COMPONENTS) while that keeps more chunks at a lower error; in the
+ * walk a larger k that loses that way is tried once so before it counts as lost.
  *
  * The candidates are measured on the material's centre window of half its width
  * and height when a side has BTF_BUDGET_SCREEN_MIN texels or more (texture bytes
