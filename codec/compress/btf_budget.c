@@ -515,11 +515,11 @@ static btf_result btf__budget_write_best(btf__search *s, btf_error *err)
 /* 1 when candidate c may do better with more components: it keeps every one it has
  * (the count stopped it, not the budget), the caller fixed no count, and under an
  * error target it misses the target (one that meets it with all its chunks would cut
- * more components off at the same place). */
-static int btf__budget_short(const btf__search *s, int c)
+ * more components off at the same place), by at most reach times it. */
+static int btf__budget_short(const btf__search *s, int c, double reach)
 {
-    const btf_budget_choice *x = &s->rs.candidate[c];
-    return s->all_kept[c] && s->b->max_components <= 0 && (s->b->max_error <= 0 || x->lab > s->b->max_error);
+    double e = s->rs.candidate[c].lab, t = s->b->max_error;
+    return s->all_kept[c] && s->b->max_components <= 0 && (t <= 0 || (e > t && e <= reach * t));
 }
 
 /* Candidate c measured again with half as many components again, rounded up to a
@@ -550,7 +550,7 @@ static btf_result btf__budget_grown(btf__search *s, int c, int *i, btf_error *er
 static btf_result btf__budget_grow(btf__search *s, btf_error *err)
 {
     btf_result r = BTF_OK;
-    for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_GROW && s->best >= 0 && btf__budget_short(s, s->best); g++) {
+    for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_GROW && s->best >= 0 && btf__budget_short(s, s->best, HUGE_VAL); g++) {
         int was = s->best, i = -1;
         r = btf__budget_grown(s, was, &i, err);
         if (i < 0 || s->best == was)
@@ -602,8 +602,7 @@ static btf_result btf__budget_walk(btf__search *sr, const int *ks, int nk, int n
         sr->rs.candidate[c] = (btf_budget_choice){.k = ks[i], .components = n, .rd_fit = fit, .center = sr->pca.center};
         r = btf__budget_eval(sr, c, 0, 1.0, err);
         int g = -1; /* a larger k that lost keeping all its components: once more with more */
-        if (r == BTF_OK && up && sr->best != c && btf__budget_short(sr, c) &&
-            (sr->b->max_error <= 0 || sr->rs.candidate[c].lab <= BTF__BUDGET_GROW_REACH * sr->b->max_error))
+        if (r == BTF_OK && up && sr->best != c && btf__budget_short(sr, c, BTF__BUDGET_GROW_REACH))
             r = btf__budget_grown(sr, c, &g, err);
         int won = sr->best == c || (g >= 0 && sr->best == g);
         up_won |= up && won, up_lost |= up && !won, down_lost |= down && !won;
