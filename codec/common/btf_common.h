@@ -1,6 +1,7 @@
 /* btf_common.h - plumbing shared by the codec's rooms and the project's other
  * rooms, not part of the installed API: error formatting, name lookup, area
- * weights, 8-bit view columns, a monotonic clock. Implemented in btf_core.c and btf_views.c.
+ * weights, 8-bit view columns, large buffers, a monotonic clock. Implemented in
+ * btf_core.c, btf_views.c and btf_mem.c.
  */
 #ifndef BTF_COMMON_H
 #define BTF_COMMON_H
@@ -37,6 +38,14 @@ int btf_area_weights(int n_in, int n_out, int *first, int *cnt, float *w, int ma
 /* Planar columns of one interleaved 8-bit RGB image (texels*3 bytes) into
  * cols[c * texels + i] = px[3 i + c] * (1/255), the scale of btf_get. */
 void btf_views_put_u8(const uint8_t *px, size_t texels, float *cols);
+
+/* A buffer of bytes for free(): from 8 MiB up aligned to 2 MiB and marked for
+ * transparent huge pages (madvise; a hint the kernel may ignore), so that filling
+ * it takes one page fault per 2 MiB instead of per 4 KiB. A 64x64 material's block
+ * matrix of every view (322 MB) is filled several times per budget search. NULL
+ * when out of memory. btf_big_calloc zeroes it (NULL also when n * size overflows). */
+void *btf_big_alloc(size_t bytes);
+void *btf_big_calloc(size_t n, size_t size);
 
 /* Monotonic clock in seconds (CLOCK_MONOTONIC): for durations only. */
 double btf_seconds(void);

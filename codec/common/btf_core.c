@@ -73,7 +73,7 @@ btf_result btf_create(int width, int height, const btf_dirset *lights, const btf
     if (!b)
         return btf_fail(err, BTF_ERR_NOMEM, "btf_create: out of memory");
     size_t elem = storage == BTF_U8 ? 1u : sizeof(float);
-    b->data = calloc(count, elem);
+    b->data = btf_big_calloc(count, elem);
     if (!b->data) {
         free(b);
         return btf_fail(err, BTF_ERR_NOMEM, "btf_create: cannot allocate %zu bytes", count * elem);

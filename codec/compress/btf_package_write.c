@@ -23,7 +23,7 @@
 #include "btf_common.h"
 #include "btf_blocks.h"
 
-#define BTF__SLAB_ROWS 4096
+#define BTF__SLAB_ROWS 512
 
 /* ---------------------------------------------------------------- small helpers */
 
@@ -148,11 +148,11 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->Tfd = malloc((size_t)w->rows * C * sizeof(double));
     w->Wd = malloc((size_t)maxcols * 2 * C * sizeof(double));
     w->slab = w->rows < BTF__SLAB_ROWS ? w->rows : BTF__SLAB_ROWS;
-    w->Ad = malloc((size_t)w->slab * maxcols * sizeof(double));
+    w->Ad = btf_big_alloc((size_t)w->slab * maxcols * sizeof(double));
     w->D = malloc((size_t)w->slab * 2 * C * sizeof(double));
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
-    w->ref = malloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
+    w->ref = btf_big_alloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
     int ok = w->ref && w->tnoise && w->tex_ext && w->wt_ext && w->prev_view && w->quality && w->lossy && w->lossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
              w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
@@ -742,7 +742,7 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     if (r != BTF_OK)
         return r;
     r = btf__lossy_atlases(w, m, err);
-    float *A = r == BTF_OK ? malloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
+    float *A = r == BTF_OK ? btf_big_alloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
     if (r == BTF_OK && !A)
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");
     for (int b = 0; r == BTF_OK && b < w->blocks->n_blocks; b++) {

@@ -110,7 +110,7 @@ static int btf__orth(float *Y, int m, int n, float *tau)
 static btf_result btf__top_gram(const btf__op *op, int p, float *V, float *s, btf_error *err)
 {
     int n = op->cols;
-    float *G = malloc((size_t)n * n * sizeof(float));
+    float *G = btf_big_alloc((size_t)n * n * sizeof(float));
     float *ev = malloc((size_t)n * sizeof(float));
     int *supp = malloc(2 * (size_t)p * sizeof(int));
     if (!G || !ev || !supp) {
@@ -208,7 +208,7 @@ static btf_result btf__top_svd(const btf__op *op, int p, float *V, float *s, btf
 {
     size_t n = (size_t)op->rows * op->cols;
     int mn = op->rows < op->cols ? op->rows : op->cols;
-    float *Ac = malloc(n * sizeof(float)), *sv = malloc((size_t)mn * sizeof(float));
+    float *Ac = btf_big_alloc(n * sizeof(float)), *sv = malloc((size_t)mn * sizeof(float));
     float *VT = malloc((size_t)mn * op->cols * sizeof(float));
     if (!Ac || !sv || !VT) {
         free(Ac), free(sv), free(VT);
@@ -219,7 +219,7 @@ static btf_result btf__top_svd(const btf__op *op, int p, float *V, float *s, btf
         for (int c = 0; c < op->cols; c++)
             cblas_saxpy(op->rows, -1.0f, op->m, 1, Ac + (size_t)c * op->rows, 1);
     int info;
-    float *U = malloc((size_t)op->rows * mn * sizeof(float));
+    float *U = btf_big_alloc((size_t)op->rows * mn * sizeof(float));
     if (!U) {
         free(Ac), free(sv), free(VT);
         return btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (sgesdd U)");
@@ -431,7 +431,7 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
     }
     m->block = calloc((size_t)m->blocks->n_blocks, sizeof *m->block);
     int rows = src->width * src->height, maxcols = 3 * src->lights.n_dirs * m->blocks->k;
-    float *A = malloc((size_t)rows * maxcols * sizeof(float));
+    float *A = btf_big_alloc((size_t)rows * maxcols * sizeof(float));
     if (!m->block || !A) {
         free(A);
         btf_pca_model_free(m);
