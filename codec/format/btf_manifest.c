@@ -557,16 +557,21 @@ static cJSON *btf__ranges_json(const float *rg, int n_blocks)
     return a;
 }
 
-/* A finite number (0 for NaN/Inf); version 2 keeps 4 significant digits (short JSON). */
-static double btf__num(const btf_package *p, double x)
+/* A chunk's error number as JSON (0 for NaN/Inf): every digit in version 1; as a
+ * float32 in version 3 (about 9 characters instead of 17: the manifest travels first,
+ * and --max-error and the tests compare these with other measurements); 4
+ * significant digits in versions 2 and 4. */
+static cJSON *btf__num(const btf_package *p, double x)
 {
     char b[32];
     if (!isfinite(x))
-        return 0.0;
-    if (!btf_package_has_levels(p))
-        return x;
+        return cJSON_CreateNumber(0.0);
+    if (p->version == 1)
+        return cJSON_CreateNumber(x);
+    if (p->version == 3)
+        return btf__f32_json((float)x);
     snprintf(b, sizeof b, "%.4g", x);
-    return strtod(b, NULL);
+    return cJSON_CreateNumber(strtod(b, NULL));
 }
 
 /* Format, size, directions, grouping, atlas, weights and error sample: common to both versions. */
@@ -689,20 +694,20 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
     for (int f = 0; f < ci->n_files; f++)
         cJSON_AddItemToArray(files, cJSON_CreateString(ci->files[f]));
     cJSON_AddNumberToObject(c, "bytes", (double)ci->bytes);
-    cJSON_AddNumberToObject(c, "rmse", btf__num(p, ci->rmse));
+    cJSON_AddItemToObject(c, "rmse", btf__num(p, ci->rmse));
     if (!btf_package_has_levels(p))
-        cJSON_AddNumberToObject(c, "lab", btf__num(p, ci->lab));
-    cJSON_AddNumberToObject(c, "psnr", btf__num(p, ci->psnr));
+        cJSON_AddItemToObject(c, "lab", btf__num(p, ci->lab));
+    cJSON_AddItemToObject(c, "psnr", btf__num(p, ci->psnr));
     if (!btf_package_has_levels(p))
-        cJSON_AddNumberToObject(c, "delta_e76", btf__num(p, ci->delta_e76));
-    cJSON_AddNumberToObject(c, "rmse_float", btf__num(p, ci->rmse_float));
+        cJSON_AddItemToObject(c, "delta_e76", btf__num(p, ci->delta_e76));
+    cJSON_AddItemToObject(c, "rmse_float", btf__num(p, ci->rmse_float));
     if (!btf_package_has_levels(p)) {
         cJSON_AddItemToObject(c, "tex_range", btf__ranges_json(ci->tex_range, p->blocks->n_blocks));
         cJSON_AddItemToObject(c, "wt_range", btf__ranges_json(ci->wt_range, p->blocks->n_blocks));
     } else {
         cJSON_AddNumberToObject(c, "level", ci->level);
-        cJSON_AddNumberToObject(c, "contrib", btf__num(p, ci->contrib));
-        cJSON_AddNumberToObject(c, "rmse_full", btf__num(p, ci->rmse_full));
+        cJSON_AddItemToObject(c, "contrib", btf__num(p, ci->contrib));
+        cJSON_AddItemToObject(c, "rmse_full", btf__num(p, ci->rmse_full));
     }
     if (ci->has_pred) {
         cJSON *pr = cJSON_AddArrayToObject(c, "predictor");
@@ -729,8 +734,8 @@ char *btf_manifest_print(const btf_package *p, btf_error *err)
         for (int a = 0; a < p->n_chunks; a++)
             cJSON_AddItemToArray(chunks, btf__print_chunk(p, a));
     }
-    /* version 1 stays readable; version 2 is compact (it travels first) */
-    char *s = m ? (btf_package_has_levels(p) ? cJSON_PrintUnformatted(m) : cJSON_Print(m)) : NULL;
+    /* version 1 stays readable; the others are compact (the manifest travels first) */
+    char *s = m ? (p->version != 1 ? cJSON_PrintUnformatted(m) : cJSON_Print(m)) : NULL;
     cJSON_Delete(m);
     if (!s)
         btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (manifest)");
