@@ -7,7 +7,8 @@
  *         printf("k %d, %d chunks, %lld bytes, Lab %.3f\n", res.k, res.n_chunks, res.bytes, res.lab);
  *
  * Each candidate k is compressed once with the largest component count (the
- * default ks walk from 9 up, 27, 81, ... each 3x the last, then every view, while
+ * default ks walk from 9 up, 27, 81, ... each 3x the last, then two blocks where the
+ * last leaves more (41 of 81 views), then every view, while
  * each beats the best, and when none above 9 won, down to 3 and 1 while each beats
  * it; full_search measures every one of them); its
  * manifest gives the bytes and the measured CIELab error of every chunk prefix
@@ -71,6 +72,7 @@ typedef struct btf_budget {
     double max_error;    /* > 0: the fewest bytes whose CIELab error (as btf eval reports) is <= this */
     int max_components;  /* components compressed per candidate; 0 = 16, then 1.5x while all are kept */
     /* candidate k; n_k = 0: 9, 27, 81, ... (each 3x the last below the view count),
+     * half the view count rounded up (where the last leaves more than two blocks),
      * the view count, 3 and 1, those the views allow, walked from 9 up, else down,
      * while each beats the best */
     int k[BTF_BUDGET_MAX_K], n_k;

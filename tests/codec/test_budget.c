@@ -336,3 +336,35 @@ Test(budget, a_candidate_keeping_every_component_is_tried_with_more)
     btf_free(src);
     fx_rmtree(dir);
 }
+
+/* Where the last power of 3 below the view count leaves more than two blocks, the
+ * walk also tries two blocks (half the views, rounded up) before every view: on 21
+ * views (9 leaves three blocks) the default ks are 9, 11, 21, 3, 1, and the walk over
+ * them measures what the full search predicts. */
+Test(budget, two_blocks_are_tried_between_three_and_one)
+{
+    static const btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 8, 0.0f}, {60.0f, 12, 0.0f}};
+    char dir[64], out[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    btf *src = fx_material(BTF_GEN_TILES, 16, r, 3);
+    cr_assert_eq(src->views.n_dirs, 21);
+    btf_budget e = {0};
+    e.max_error = 0.8, e.full_search = 1;
+    btf_budget_result all;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &e, out, &all, &err), BTF_OK, "%s", err.msg);
+    static const int order[5] = {9, 11, 21, 3, 1};
+    int at = 0; /* the full search's ks in order, each maybe followed by its growth */
+    for (int i = 0; i < all.n_candidates && all.candidate[i].center != BTF_CENTER_ROW; i++)
+        if (i == 0 || all.candidate[i].k != all.candidate[i - 1].k) {
+            cr_assert_lt(at, 5, "more ks than 9, 11, 21, 3, 1");
+            cr_expect_eq(all.candidate[i].k, order[at], "k number %d: %d, expected %d", at, all.candidate[i].k,
+                         order[at]);
+            at++;
+        }
+    cr_expect_eq(at, 5, "%d ks measured", at);
+    expect_pruned_like(src, e, &all, out);
+    btf_free(src);
+    fx_rmtree(dir);
+}
