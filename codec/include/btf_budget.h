@@ -102,6 +102,9 @@ typedef struct btf_budget_result {
     float tex_noise; /* with max_error: the texture noise of the steps that met it, or of the last try (the
                       * default steps did not reach it: halved up to BTF_BUDGET_FINER times); else 0 */
     int screen_width, screen_height; /* the window the candidates were measured on (with rd) */
+    int refits; /* with rd and max_bytes: 1 when the winner was written a second time, its steps fitted to
+                 * what the first write came out over or under the budget by (the better write is kept) */
+    btf_budget_choice first; /* with refits: the first write's best prefix */
     int n_candidates;
     btf_budget_choice candidate[BTF_BUDGET_MAX_CANDIDATES];
 } btf_budget_result;
