@@ -460,13 +460,14 @@ static double *btf__budget_tex_fix(const btf__search *s, const btf_package *p, c
 
 /* The written winner's steps fitted again when the chunks its allocation kept, as
  * written, and the budget record came out under the budget by more than
- * 1/BTF__BUDGET_SLACK of it (to the budget plus what they left), or over the budget
- * with the cut dropping some of them (the chunk order is by error drop per byte, so the kept components are
- * taken as the first chunks): the allocation's estimates fill the budget to within a
- * few hundred bytes, but an atlas estimated from a sample of its tile rows can come
- * out several percent larger, and the cut then loses a whole chunk. Fitted again to the budget less the record and 0.2%, each
- * component's texture rates scaled by its atlas as written over its estimate
- * (btf_rd_params.tex_rate_fix), the better of the two writes is kept in the
+ * 1/BTF__BUDGET_SLACK of it (fitted to the budget plus what they left), or over the
+ * budget with the cut dropping some of them (the chunk order is by error drop per
+ * byte, so the kept components are taken as the first chunks): the allocation's
+ * estimates fill the budget to within a few hundred bytes, but an atlas estimated
+ * from a sample of its tile rows can come out several percent larger, and the cut
+ * then loses a whole chunk. Fitted again to the budget less the record and 0.2%,
+ * each component's texture rates scaled by its atlas as written over its estimate
+ * (btf_rd_params.tex_rate_fix). The better of the two writes is kept in the
  * candidate's directory. */
 static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int *met, btf_error *err)
 {
