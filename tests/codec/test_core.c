@@ -1,10 +1,13 @@
 /* test_core.c - room codec, suites "core" and "dirset": the BTF container
- * (codec/include/btf.h) and direction-set basics. */
+ * (codec/include/btf.h), its large buffers (btf_common.h) and direction-set basics. */
 #include <criterion/criterion.h>
 #include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "btf.h"
+#include "btf_common.h"
 
 Test(core, result_strings_are_distinct)
 {
@@ -132,4 +135,26 @@ Test(dirset, make_rejects_bad_tables)
     cr_expect_eq(btf_dirset_make(bad_theta, 1, &d, NULL), BTF_ERR_RANGE);
     cr_expect_eq(btf_dirset_make(bad_count, 1, &d, NULL), BTF_ERR_RANGE);
     cr_expect_eq(btf_dirset_make(bad_count, 0, &d, NULL), BTF_ERR_RANGE);
+}
+
+/* Large buffers (btf_big_alloc, btf_big_calloc): from 8 MiB up aligned to the 2 MiB
+ * huge page; zeroed by the calloc form, every byte; an overflowing count refused,
+ * not wrapped into a small buffer; small sizes (0 included) are plain buffers. */
+Test(core, big_buffers_are_aligned_zeroed_and_bounded)
+{
+    size_t n = (size_t)9 << 20;
+    unsigned char *p = btf_big_calloc(n, 1);
+    cr_assert_not_null(p);
+    cr_expect_eq((uintptr_t)p % ((uintptr_t)2 << 20), 0, "a 9 MiB buffer on a 2 MiB boundary");
+    size_t nonzero = 0;
+    for (size_t i = 0; i < n; i++)
+        nonzero += p[i] != 0;
+    cr_expect_eq(nonzero, 0, "%zu bytes not zeroed", nonzero);
+    p[n - 1] = 1; /* the whole buffer is writable */
+    free(p);
+    cr_expect_null(btf_big_calloc(SIZE_MAX / 4 + 2, 4), "(SIZE_MAX / 4 + 2) x 4 wraps to 4 bytes");
+    void *small = btf_big_alloc(0), *one = btf_big_calloc(3, 5);
+    cr_expect_not_null(small);
+    cr_expect(one && !memcmp(one, "\0\0\0\0\0\0\0\0\0\0\0\0\0\0", 15), "15 zero bytes");
+    free(small), free(one);
 }
