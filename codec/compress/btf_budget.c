@@ -47,7 +47,7 @@ static int btf__budget_ks(const btf_budget *b, int views, int *ks)
                 ks[n++] = b->k[i];
         return n;
     }
-    int up[BTF_BUDGET_MAX_K], nu = 0; /* 1, 3, 9, ... below views, then views */
+    int up[BTF_BUDGET_MAX_K], nu = 0; /* 1, 3, 9, ... below views, maybe two blocks, then views */
     for (long k = 1; k < views && nu < BTF_BUDGET_MAX_K - 1; k *= 3)
         up[nu++] = (int)k;
     int two = (views + 1) / 2; /* two blocks, where the last power leaves more */
@@ -483,8 +483,8 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
     free(json);
     long long over = kept_bytes + record - s->b->max_bytes;
     int cut = got->n_chunks < s->final_kept && over > 0; /* the bytes cut chunks it kept */
-    long long near = s->b->max_bytes - s->b->max_bytes / BTF__BUDGET_SLACK; /* the allocation filled it */
-    int slack = got->n_chunks >= s->final_kept && -over > s->b->max_bytes / BTF__BUDGET_SLACK && s->final_est >= near;
+    long long share = s->b->max_bytes / BTF__BUDGET_SLACK; /* left unused, and expected used */
+    int slack = got->n_chunks >= s->final_kept && -over > share && s->final_est >= s->b->max_bytes - share;
     long long fit = s->b->max_bytes - record - s->b->max_bytes / 500;
     s->tex_fix = cut ? btf__budget_tex_fix(s, &p, s->dir[i]) : NULL;
     if (!s->tex_fix) /* no measured atlas, or under the budget: the budget less the overshoot */

@@ -1421,7 +1421,6 @@ Test(rd, a_budget_search_writes_only_the_winner)
     cr_assert_eq(res.n_candidates, 3, "k 1 and 3 with fitted steps, the best centred");
     cr_assert_eq(manifests, 1 + res.refits, "%d packages written for %d candidates (%d refits)", manifests,
                  res.n_candidates, res.refits);
-    cr_log_info("refits %d, %lld of %lld bytes", res.refits, res.bytes, b.max_bytes);
     /* the record's choice is the package as written: its bytes on disk, its error */
     btf_package *p = fx_package(out, NULL, 0);
     cr_assert_eq(written_bytes(p, out), res.bytes);
