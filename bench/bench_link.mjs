@@ -23,7 +23,7 @@ import {spawnSync} from 'node:child_process';
 import path from 'node:path';
 import {BTF, BUILD, freePort, launch, makeLibrary, newPage, servePages, startNginx, startServer}
   from '../tests/e2e/util.mjs';
-import {linkShare, startThrottle, visit} from '../tests/e2e/throttle.mjs';
+import {linkShare, startThrottle, visit, warmGpu} from '../tests/e2e/throttle.mjs';
 
 const CLIENT = process.env.BTF_CLIENT || path.join(BUILD, 'client');
 const lib = makeLibrary({knit: ['knit', 24, 2]}, {thumbnails: true});
@@ -43,6 +43,7 @@ try {
     const link = await startThrottle({target: server.port, bps: mbit * 1e6, delayMs: 20});
     try {
       const p = await newPage(ctx);
+      await warmGpu(p);
       const r = await visit(p, `${pages.url}slow.html?link=${link.port}`);
       const res = await p.evaluate(() => performance.getEntriesByType('resource').map((e) => [e.name, e.responseEnd]));
       const t = r.times || {};
@@ -76,6 +77,7 @@ async function phoneVisit(name, target, bps) {
   const link = await startThrottle({target, bps, delayMs: 20});
   try {
     const p = await newPage(ctx);
+    await warmGpu(p);
     const r = await visit(p, `${pages.url}${name}.html?link=${link.port}`);
     r.transport = (await p.evaluate(() => window.__btf.streams()[0].transport));
     r.utilisation = linkShare(link.down, r.streamBytes, bps);

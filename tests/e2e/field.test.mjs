@@ -16,7 +16,7 @@
 import assert from 'node:assert/strict';
 import {after, before, describe, it} from 'node:test';
 import path from 'node:path';
-import {clsRecorder, startThrottle, visit} from './throttle.mjs';
+import {clsRecorder, startThrottle, visit, warmGpu} from './throttle.mjs';
 import {BUILD, ROOT, capture, freePort, launch, makeLibrary, newPage, requireBuild, servePages, startServer, waitFor}
   from './util.mjs';
 
@@ -98,6 +98,7 @@ async function fieldRuns(bps, runs) {
     try {
       await phone.addInitScript(clsRecorder);
       const page = await newPage(phone);
+      await warmGpu(page); // as a phone's browser is: its GPU process running
       const url = `${pages.url}readme.html?link=${link.port}`;
       const first = await visit(page, url);
       const linkBytes = link.down.bytes; // everything the first visit took through the link

@@ -113,6 +113,18 @@ export function clsRecorder() {
 // {firstFrame, firstChunk (the first chunk's last byte arrived), lastChunk, complete,
 // scriptRequest (when the page asked for btf-viewer.js), scriptBytes ([its body over the link, decoded]), chunksAtFirstFrame,
 // times (the viewer's loading sequence, doc/client.md), streamBytes (chunk payload over the WebSocket), cls, error}.
+// A phone's browser already runs its GPU process (it composites with it); a headless
+// Chromium launched for one visit starts it at the page's first WebGL context, which then
+// blocks that page's main thread for 0.24-1.1 s on this 2-core host (a second context:
+// 11-108 ms), delaying every message of the stream by as much. One context on a blank
+// page first (no request: the HTTP cache stays empty), so a timed visit times the page
+// and not the browser's start.
+export async function warmGpu(page) {
+  await page.setContent('<canvas></canvas>');
+  const ok = await page.evaluate(() => !!document.querySelector('canvas').getContext('webgl2'));
+  if (!ok) throw new Error('no WebGL2 context in this browser');
+}
+
 export async function visit(page, url, timeout = 120000) {
   await page.goto(url);
   const t0 = Date.now();
