@@ -400,14 +400,15 @@ export async function dequantWeightsR(pkg, chunk, buf, q8) {
   });
 }
 
-// Weights as a lossless WebP: version 3's wt-JJ.webp (section 5.5: the 16-bit weight
-// codes, every one at most 255) and version 4's wt-JJ-8.webp (section 5.2: the 8-bit
-// weights), each L x V opaque pixels, pixel (l, v) holding channels 0, 1, 2 of view v
-// and light l in R, G, B. The bytes of file f (default: the chunk's 16-bit weights),
-// checked before an image decoder sees them as the C reader does: a simple-format
-// lossless file (RIFF WEBP, one VP8L chunk filling it) whose header says L x V; a lossy
-// (VP8) file, an extended one (VP8X) or another size fails naming the package and file.
-export function checkWeightsWebp(pkg, chunk, buf, f = chunk.wt) {
+// Weights as a WebP: version 3's wt-JJ.webp (section 5.5: the 16-bit weight codes, every
+// one at most 255, lossless; or lossy, its decode the codes) and version 4's wt-JJ-8.webp
+// (section 5.2: the 8-bit weights, lossless only), each L x V opaque pixels, pixel (l, v)
+// holding channels 0, 1, 2 of view v and light l in R, G, B. The bytes of file f (default:
+// the chunk's 16-bit weights), checked before an image decoder sees them as the C reader
+// does: a simple-format file (RIFF WEBP, one VP8L chunk, or with lossyOk one VP8 key frame,
+// filling it) whose header says L x V; another kind (VP8X) or another size fails naming
+// the package and file.
+export function checkWeightsWebp(pkg, chunk, buf, f = chunk.wt, lossyOk = false) {
   const b = buf instanceof Uint8Array ? buf : new Uint8Array(buf), n = b.length;
   const tag = (o) => String.fromCharCode(b[o], b[o + 1], b[o + 2], b[o + 3]);
   const le32 = (o) => (b[o] | (b[o + 1] << 8) | (b[o + 2] << 16) | (b[o + 3] << 24)) >>> 0;
@@ -417,14 +418,35 @@ export function checkWeightsWebp(pkg, chunk, buf, f = chunk.wt) {
     fail(pkg.name, `${f}: not a WebP file (no RIFF/WEBP signature)`);
   if (n < 25) fail(pkg.name, `${f}: WebP file of ${n} bytes is truncated`);
   if (le32(4) + 8 !== n) fail(pkg.name, `${f}: RIFF size ${le32(4)} does not match the file's ${n} bytes`);
-  if (tag(12) === 'VP8 ') fail(pkg.name, `${f}: a lossy WebP where a lossless one (VP8L) is required`);
+  if (tag(12) === 'VP8 ' && !lossyOk) fail(pkg.name, `${f}: a lossy WebP where a lossless one (VP8L) is required`);
+  const [w, h] = tag(12) === 'VP8 ' ? vp8Size(pkg, f, b, n, le32) : vp8lSize(pkg, f, b, n, tag, le32);
+  if (w !== L || h !== V) fail(pkg.name, `${f}: WebP of ${w}x${h}, expected ${L}x${V}`);
+}
+
+// [width, height] of a lossless (VP8L) WebP whose RIFF header checkWeightsWebp checked.
+function vp8lSize(pkg, f, b, n, tag, le32) {
   if (tag(12) !== 'VP8L') fail(pkg.name, `${f}: WebP chunk '${tag(12)}' is not a simple lossless (VP8L) image`);
   const size = le32(16), bits = le32(21);
   if (size < 5 || size + 20 + (size & 1) !== n)
     fail(pkg.name, `${f}: VP8L chunk of ${size} bytes does not fill the file`);
   if (b[20] !== 0x2f || bits >>> 29 !== 0) fail(pkg.name, `${f}: bad VP8L signature or version`);
-  const w = (bits & 0x3fff) + 1, h = ((bits >>> 14) & 0x3fff) + 1;
-  if (w !== L || h !== V) fail(pkg.name, `${f}: WebP of ${w}x${h}, expected ${L}x${V}`);
+  return [(bits & 0x3fff) + 1, ((bits >>> 14) & 0x3fff) + 1];
+}
+
+// [width, height] of a lossy (VP8) WebP: one shown key frame of version 0..3 with its
+// start code, no scaling, its first partition inside the chunk (the C reader's check).
+function vp8Size(pkg, f, b, n, le32) {
+  const size = le32(16);
+  if (n < 30 || size < 10 || size + 20 + (size & 1) !== n)
+    fail(pkg.name, `${f}: VP8 chunk of ${size} bytes does not fill the file`);
+  const tag = b[20] | (b[21] << 8) | (b[22] << 16);
+  if (tag & 1) fail(pkg.name, `${f}: VP8 frame is not a key frame`);
+  if (((tag >> 1) & 7) > 3 || !((tag >> 4) & 1)) fail(pkg.name, `${f}: VP8 frame of a version above 3 or not shown`);
+  if (b[23] !== 0x9d || b[24] !== 0x01 || b[25] !== 0x2a) fail(pkg.name, `${f}: bad VP8 start code`);
+  const ws = b[26] | (b[27] << 8), hs = b[28] | (b[29] << 8);
+  if (ws >> 14 || hs >> 14 || !(ws & 0x3fff) || !(hs & 0x3fff)) fail(pkg.name, `${f}: VP8 frame scaled or empty`);
+  if (tag >>> 5 > size - 10) fail(pkg.name, `${f}: VP8 first partition of ${tag >>> 5} bytes overruns its chunk`);
+  return [ws & 0x3fff, hs & 0x3fff];
 }
 
 // The codes of a weights WebP f from its decoded pixels (width x height, rgba: 4 bytes a

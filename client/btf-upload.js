@@ -59,10 +59,11 @@ export class ChunkUploads {
     });
   }
 
-  // A weights WebP `name` of a chunk (wt-JJ.webp, wt-JJ-8.webp): its bytes checked as the C
-  // reader checks them (checkWeightsWebp), then decoded with its alpha kept.
+  // A weights WebP `name` of a chunk (wt-JJ.webp, lossless or lossy; wt-JJ-8.webp, lossless):
+  // its bytes checked as the C reader checks them (checkWeightsWebp), then decoded with its
+  // alpha kept (a lossy file decodes opaque).
   weightsImage(chunk, name, data) {
-    checkWeightsWebp(this.pkg, chunk, data(name), name);
+    checkWeightsWebp(this.pkg, chunk, data(name), name, name === chunk.wt); // version 3's may be lossy
     return this.image(name, data, true);
   }
 

@@ -74,6 +74,10 @@ typedef struct btf__writer {
     uint8_t **lossy;      /* C: component j's lossy WebP or AVIF file (malloc'd, lossy_n[j] bytes; its atlas
                            * holds its decode), NULL for a lossless texture */
     size_t *lossy_n;
+    int *wquality;        /* C: -1, or the WebP quality of component j's lossy weights (version 3, btf_rd_result) */
+    uint8_t **wlossy;     /* C: component j's lossy weights file (malloc'd, wlossy_n[j] bytes; qwt[j] holds its
+                           * decode, wt_range[j] its ranges), NULL for weights on steps */
+    size_t *wlossy_n;
     const btf_package_channel *chan; /* the caller's channel (btf_compress.h), all zero when none */
     long long *est_bytes; /* C, with btf_package_channel.estimate: component j's estimated file bytes; else NULL */
     uint16_t **qwt;       /* C arrays V*L*3 */
@@ -106,6 +110,9 @@ static void btf__writer_free(btf__writer *w)
     free(w->atlas), free(w->qwt), free(w->tex_range), free(w->wt_range), free(w->tnoise), free(w->wnoise), free(w->rd_json);
     for (int j = 0; w->lossy && j < w->C; j++)
         free(w->lossy[j]);
+    for (int j = 0; w->wlossy && j < w->C; j++)
+        free(w->wlossy[j]);
+    free(w->wquality), free(w->wlossy), free(w->wlossy_n);
     free(w->tex_ext), free(w->wt_ext), free(w->prev_view), free(w->est_bytes), free(w->quality), free(w->lossy), free(w->lossy_n);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
@@ -139,8 +146,10 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->prev_view = malloc((size_t)w->V * sizeof *w->prev_view);
     w->quality = malloc((size_t)C * sizeof(int));
     w->lossy = calloc((size_t)C, sizeof *w->lossy), w->lossy_n = calloc((size_t)C, sizeof(size_t));
-    for (int j = 0; w->quality && j < C; j++)
-        w->quality[j] = -1;
+    w->wquality = malloc((size_t)C * sizeof(int));
+    w->wlossy = calloc((size_t)C, sizeof *w->wlossy), w->wlossy_n = calloc((size_t)C, sizeof(size_t));
+    for (int j = 0; w->quality && w->wquality && j < C; j++)
+        w->quality[j] = -1, w->wquality[j] = -1;
     w->Pq = calloc((size_t)C, sizeof(double)), w->Pf = calloc((size_t)C, sizeof(double));
     w->Qq = calloc(C2, sizeof(double)), w->Qf = calloc(C2, sizeof(double));
     w->TT = calloc(C2, sizeof(double)), w->WW = calloc(C2, sizeof(double));
@@ -153,7 +162,7 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
     w->ref = btf_big_alloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
-    int ok = w->ref && w->tnoise && w->tex_ext && w->wt_ext && w->prev_view && w->quality && w->lossy && w->lossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
+    int ok = w->ref && w->tnoise && w->tex_ext && w->wt_ext && w->prev_view && w->quality && w->lossy && w->lossy_n && w->wquality && w->wlossy && w->wlossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
              w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
     for (int j = 0; ok && j < C; j++) {
@@ -201,7 +210,8 @@ static void btf__quant_textures(btf__writer *w, int b, const btf_pca_block *res)
 }
 
 
-/* Quantises block b's weights (16 bits, steps for wnoise) into qwt; [Wq | Wf] into Wd. */
+/* Quantises block b's weights (16 bits, steps for wnoise) into qwt (a lossy
+ * component's codes are the decode of its file, already there); [Wq | Wf] into Wd. */
 static void btf__quant_weights(btf__writer *w, int b, const btf_pca_block *res)
 {
     const btf_blocks *bl = w->blocks;
@@ -209,14 +219,17 @@ static void btf__quant_weights(btf__writer *w, int b, const btf_pca_block *res)
     for (int j = 0; j < w->C; j++) {
         const float *wj = res->w + (size_t)j * cols;
         float *rg = w->wt_range[j] + 2 * b;
-        btf_rd_range(wj, (size_t)cols, 65535u, rg);
-        if (w->wnoise[j] > 0.0f)
+        int lossy = w->wlossy[j] != NULL;
+        if (!lossy)
+            btf_rd_range(wj, (size_t)cols, 65535u, rg);
+        if (!lossy && w->wnoise[j] > 0.0f)
             rg[1] = btf_rd_step(rg[1], w->wnoise[j], w->rows, cblas_snrm2(w->rows, res->t + (size_t)j * w->rows, 1));
         for (int col = 0; col < cols; col++) {
             int pos = col / (3 * w->L), l = (col / 3) % w->L, c = col % 3;
             int v = bl->views[bl->start[b] + pos];
-            unsigned q = btf_rd_quant(wj[col], rg, 65535u);
-            w->qwt[j][((size_t)v * w->L + l) * 3 + c] = (uint16_t)q;
+            size_t i = ((size_t)v * w->L + l) * 3 + c;
+            unsigned q = lossy ? w->qwt[j][i] : btf_rd_quant(wj[col], rg, 65535u);
+            w->qwt[j][i] = (uint16_t)q;
             w->Wd[(size_t)j * cols + col] = btf_package_dequant(rg, q);
             w->Wd[(size_t)(w->C + j) * cols + col] = wj[col];
         }
@@ -415,11 +428,18 @@ static btf_result btf__put(const btf__writer *w, const char *tmp, const char *fi
     return btf_fs_write_atomic(path, data, n, err);
 }
 
-/* Version 3's weights of component j: the smallest of wt-JJ.z, wt-JJ.pz and (unless
- * png_only) wt-JJ.webp (btf_wtz_encode_smaller), into *z (malloc'd, *nz bytes), its
- * extension into w->wt_ext[j]. */
+/* Version 3's weights of component j: its lossy wt-JJ.webp, else the smallest of
+ * wt-JJ.z, wt-JJ.pz and (unless png_only) wt-JJ.webp (btf_wtz_encode_smaller), into
+ * *z (malloc'd, *nz bytes), its extension into w->wt_ext[j]. */
 static btf_result btf__encode_weights(btf__writer *w, int j, uint8_t **z, size_t *nz, btf_error *err)
 {
+    if (w->wlossy[j]) { /* the lossy file its codes are the decode of */
+        w->wt_ext[j] = ".webp";
+        *z = malloc(w->wlossy_n[j]), *nz = w->wlossy_n[j];
+        if (*z)
+            memcpy(*z, w->wlossy[j], *nz);
+        return *z ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "wt-%02d.webp: out of memory", j);
+    }
     int kind = BTF_WTZ_Z;
     btf_result r = btf_wtz_encode_smaller(w->qwt[j], w->V, w->L, w->prev_view, w->wt_webp, z, nz, &kind, err);
     w->wt_ext[j] = btf_wtz_ext(kind);
@@ -645,12 +665,15 @@ static char *btf__rd_json(const btf_rd_result *rr, int codec)
     cJSON_AddNumberToObject(o, "bytes", (double)rr->bytes_rd);
     cJSON_AddNumberToObject(o, "kept", rr->n_kept);
     cJSON *t = cJSON_AddArrayToObject(o, "tex_noise"), *wn = cJSON_AddArrayToObject(o, "wt_noise");
-    int lossy = 0;
+    int lossy = 0, wlossy = 0;
     for (int j = 0; j < rr->n_comp; j++) {
         cJSON_AddItemToArray(t, cJSON_CreateNumber(rr->tex_noise[j]));
         cJSON_AddItemToArray(wn, cJSON_CreateNumber(rr->wt_noise[j]));
-        lossy |= rr->tex_quality[j] >= 0;
+        lossy |= rr->tex_quality[j] >= 0, wlossy |= rr->wt_quality[j] >= 0;
     }
+    cJSON *wq = wlossy ? cJSON_AddArrayToObject(o, "wt_quality") : NULL;
+    for (int j = 0; wq && j < rr->n_comp; j++)
+        cJSON_AddItemToArray(wq, cJSON_CreateNumber(rr->wt_quality[j]));
     cJSON *q = lossy ? cJSON_AddArrayToObject(o, "tex_quality") : NULL;
     for (int j = 0; q && j < rr->n_comp; j++)
         cJSON_AddItemToArray(q, cJSON_CreateNumber(rr->tex_quality[j]));
@@ -721,7 +744,7 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     const btf_package_channel *c = w->chan;
     btf_rd_params par = {m,           w->acols,     w->arows,  noise,   c->rd_max_bytes, o->png_only,
                          c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix, w->bits,
-                         o->lossy,       o->levels ? BTF_RD_LOSSY_LEVELS : 0.0};
+                         o->lossy,       o->levels ? BTF_RD_LOSSY_LEVELS : 0.0, o->lossy && !o->levels};
     btf_rd_result rr, *keep = c->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)
@@ -729,6 +752,7 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
     memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
     memcpy(w->quality, rr.tex_quality, (size_t)w->C * sizeof(int));
+    memcpy(w->wquality, rr.wt_quality, (size_t)w->C * sizeof(int));
     w->codec = o->lossy;
     w->rd_json = btf__rd_json(&rr, o->lossy);
     if (c->estimate && (w->est_bytes = malloc((size_t)w->C * sizeof(long long))) != NULL)
@@ -742,6 +766,9 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     if (r != BTF_OK)
         return r;
     r = btf__lossy_atlases(w, m, err);
+    for (int j = 0; r == BTF_OK && j < w->C; j++) /* lossy weights: their file and its decode */
+        if (w->wquality[j] >= 0)
+            r = btf_rd_wt_lossy(m, j, w->wquality[j], w->wt_range[j], w->qwt[j], &w->wlossy[j], &w->wlossy_n[j], err);
     float *A = r == BTF_OK ? btf_big_alloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
     if (r == BTF_OK && !A)
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");

@@ -18,6 +18,7 @@
 #include "btf_wtz.h"
 #include "btf_common.h"
 #include "btf_blocks.h"
+#include "btf_package.h"
 
 #define BTF__RD_TEX_LO (-8) /* texture ladder: tex_noise * 2^(i/2), i = LO..HI */
 #define BTF__RD_TEX_HI 6
@@ -36,6 +37,10 @@ _Static_assert(BTF__RD_NW % 2 == 0, "weight ladder: its last noise step at an od
  * encoding): the candidates NT .. NT + NQ - 1 of each component's texture ladder,
  * full-range 8-bit codes. */
 #define BTF__RD_NQ BTF_LOSSY_LADDER
+/* Lossy weights (with lossy textures, not under levels: btf_rd_params.lossy_weights):
+ * the candidates NW .. NW + NQW - 1 of each component's weight ladder, its weights as a
+ * lossy WebP of full-range 8-bit codes (btf_rd_wt_lossy) at the WebP ladder's levels. */
+#define BTF__RD_NQW BTF_LOSSY_LADDER
 #define BTF__RD_REFINE_PASSES 8 /* choices at most, each after measuring what the last chose interpolated */
 _Static_assert(BTF__RD_NQ % 2 == 1, "lossy ladder: both ends at even levels, encoded");
 
@@ -45,6 +50,7 @@ typedef struct btf__rd {
     const btf_pca_model *m;
     int C, nb, W, H, rows, L, V, aw;
     int nt;                /* texture candidates per component: NT lossless steps, then NQ lossy qualities with lossy */
+    int nw;                /* weight candidates per component: NW steps, then NQW lossy qualities with lossy weights */
     int ch;                /* atlas channels: 1 (8-bit codes) or 3 (16-bit: high, low, 0) */
     unsigned qmax;         /* the largest texture code: 255 or 65535 */
     int *sub_row;          /* per atlas row of tiles: its row in the rate sample, -1 = not sampled */
@@ -280,6 +286,69 @@ static btf_result btf__rd_tex_candidate(btf__rd *r, int n, uint8_t *atlas, uint8
     return res;
 }
 
+btf_result btf_rd_wt_lossy(const btf_pca_model *m, int j, int quality, float *ranges, uint16_t *q, uint8_t **file,
+                           size_t *n, btf_error *err)
+{
+    const btf_blocks *bl = m->blocks;
+    int L = m->lights.n_dirs, V = m->views.n_dirs;
+    size_t np = (size_t)V * L * 3;
+    uint8_t *rgb = malloc(np);
+    *file = NULL, *n = 0;
+    if (!rgb)
+        return btf_fail(err, BTF_ERR_NOMEM, "weights: out of memory (lossy)");
+    for (int b = 0; b < bl->n_blocks; b++) {
+        const btf_pca_block *pb = &m->block[b];
+        const float *wj = pb->w + (size_t)j * pb->cols;
+        float *rg = ranges + 2 * b;
+        btf_rd_range(wj, (size_t)pb->cols, 255u, rg);
+        for (int col = 0; col < pb->cols; col++) {
+            int pos = col / (3 * L), l = (col / 3) % L, c = col % 3;
+            int v = bl->views[bl->start[b] + pos];
+            rgb[((size_t)v * L + l) * 3 + c] = (uint8_t)btf_rd_quant(wj[col], rg, 255u);
+        }
+    }
+    btf_result r = btf_webp_encode_rgb_lossy(rgb, L, V, quality, file, n, err);
+    if (r == BTF_OK)
+        r = btf_webp_decode_rgb(*file, *n, "weights: lossy candidate", L, V, 1, rgb, err);
+    for (size_t i = 0; r == BTF_OK && i < np; i++)
+        q[i] = rgb[i];
+    if (r != BTF_OK)
+        free(*file), *file = NULL, *n = 0;
+    free(rgb);
+    return r;
+}
+
+/* Lossy weight candidate i (NW .. nw - 1) of component j: its file's bytes and the
+ * squared error its decode adds (each block's weight errors times its texture's norm
+ * squared, as btf__rd_wt counts them) into r->rw, r->dw; q: the thread's V*L*3 scratch. */
+static btf_result btf__rd_wt_lossy_candidate(btf__rd *r, int j, int i, uint16_t *q, btf_error *err)
+{
+    const btf_blocks *bl = r->m->blocks;
+    float *rg = malloc(sizeof(float) * 2 * (size_t)r->nb);
+    uint8_t *file = NULL;
+    size_t n = 0;
+    btf_result res = rg ? btf_rd_wt_lossy(r->m, j, btf_lossy_ladder(BTF_LOSSY_WEBP, i - BTF__RD_NW), rg, q, &file, &n, err)
+                        : btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (lossy weights)");
+    double d = 0.0;
+    for (int b = 0; res == BTF_OK && b < r->nb; b++) {
+        const btf_pca_block *pb = &r->m->block[b];
+        const float *wj = pb->w + (size_t)j * pb->cols;
+        float tn = cblas_snrm2(r->rows, pb->t + (size_t)j * r->rows, 1);
+        double e = 0.0;
+        for (int col = 0; col < pb->cols; col++) {
+            int pos = col / (3 * r->L), l = (col / 3) % r->L, c = col % 3;
+            int v = bl->views[bl->start[b] + pos];
+            double dv = (double)wj[col] - (double)btf_package_dequant(rg + 2 * b, q[((size_t)v * r->L + l) * 3 + c]);
+            e += dv * dv;
+        }
+        d += e * (double)tn * (double)tn;
+    }
+    r->dw[(size_t)j * r->nw + i] = res == BTF_OK ? d : INFINITY;
+    r->rw[(size_t)j * r->nw + i] = (long long)n;
+    free(rg), free(file);
+    return res;
+}
+
 /* A thread's result into *res and its message into err, unless an error is there
  * already (called inside the critical section that ends each parallel region). */
 static void btf__rd_first_error(btf_result mine, const btf_error *e, btf_result *res, btf_error *err)
@@ -383,17 +452,21 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
         btf_result mine = q ? BTF_OK : btf_fail(&e, BTF_ERR_NOMEM, "rate-distortion: out of memory (weights)");
 #pragma omp for schedule(dynamic, 1)
         for (int j = 0; j < r->C; j++)
-            for (int i = 0; i < BTF__RD_NW && mine == BTF_OK; i++) {
-                if (r->mw && !r->mw[(size_t)j * BTF__RD_NW + i]) {
-                    r->dw[(size_t)j * BTF__RD_NW + i] = INFINITY, r->rw[(size_t)j * BTF__RD_NW + i] = 0;
+            for (int i = 0; i < r->nw && mine == BTF_OK; i++) {
+                if (r->mw && !r->mw[(size_t)j * r->nw + i]) {
+                    r->dw[(size_t)j * r->nw + i] = INFINITY, r->rw[(size_t)j * r->nw + i] = 0;
                     continue;
                 }
-                r->dw[(size_t)j * BTF__RD_NW + i] = btf__rd_wt(r, j, r->gw[i], q);
+                if (i >= BTF__RD_NW) {
+                    mine = btf__rd_wt_lossy_candidate(r, j, i, q, &e);
+                    continue;
+                }
+                r->dw[(size_t)j * r->nw + i] = btf__rd_wt(r, j, r->gw[i], q);
                 if (btf__rd_wt_interpolated(i))
                     continue; /* the rate interpolated below */
                 long long rate = btf__rd_wt_rate(r, q, &e);
                 mine = rate < 0 ? BTF_ERR_NOMEM : BTF_OK;
-                r->rw[(size_t)j * BTF__RD_NW + i] = rate;
+                r->rw[(size_t)j * r->nw + i] = rate;
             }
 #pragma omp critical(btf__rd_result)
         btf__rd_first_error(mine, &e, &res, err);
@@ -402,7 +475,7 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
     /* even noise steps 2 .. NW-2: their rates, at 10 zlib passes (each of both
      * codings) of the 18 */
     for (int j = 0; res == BTF_OK && j < r->C; j++) {
-        size_t o = (size_t)j * BTF__RD_NW;
+        size_t o = (size_t)j * r->nw;
         btf__rd_interpolate(r->rw + o, NULL, r->mw ? r->mw + o : NULL, 1, BTF__RD_NW - 1, btf__rd_wt_interpolated);
     }
     return res;
@@ -435,9 +508,9 @@ static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long
     int kept = 0;
     for (int j = 0; j < r->C; j++) {
         int a = btf__rd_best(r->dt + (size_t)j * r->nt, r->rt + (size_t)j * r->nt, r->nt, lambda);
-        int b = btf__rd_best(r->dw + (size_t)j * BTF__RD_NW, r->rw + (size_t)j * BTF__RD_NW, BTF__RD_NW, lambda);
-        double dj = r->dt[(size_t)j * r->nt + a] + r->dw[(size_t)j * BTF__RD_NW + b];
-        long long sj = r->rt[(size_t)j * r->nt + a] + r->rw[(size_t)j * BTF__RD_NW + b];
+        int b = btf__rd_best(r->dw + (size_t)j * r->nw, r->rw + (size_t)j * r->nw, r->nw, lambda);
+        double dj = r->dt[(size_t)j * r->nt + a] + r->dw[(size_t)j * r->nw + b];
+        long long sj = r->rt[(size_t)j * r->nt + a] + r->rw[(size_t)j * r->nw + b];
         d += dj;
         if (!keep || j == 0 || dj + lambda * (double)sj < r->energy[j])
             s += sj, kept++;
@@ -451,16 +524,14 @@ static double btf__rd_at(const btf__rd *r, double lambda, int *it, int *iw, long
     return d;
 }
 
-/* With lossy candidates, the texture candidate of component j after a on the way
- * to less error: of those with less error than a, the one removing the most error
- * per byte added (fewer bytes: at once); -1 when none has less. */
-static int btf__rd_next_tex(const btf__rd *r, int j, int a)
+/* With lossy candidates, the candidate of a ladder (n errors d and rates s) after a on
+ * the way to less error: of those with less error than a, the one removing the most
+ * error per byte added (fewer bytes: at once); -1 when none has less. */
+static int btf__rd_next(const double *d, const long long *s, int n, int a)
 {
-    const double *d = r->dt + (size_t)j * r->nt;
-    const long long *s = r->rt + (size_t)j * r->nt;
     int best = -1;
     double bg = 0.0;
-    for (int i = 0; i < r->nt; i++) {
+    for (int i = 0; i < n; i++) {
         if (!(d[i] < d[a]))
             continue;
         double g = s[i] > s[a] ? (d[a] - d[i]) / (double)(s[i] - s[a]) : INFINITY;
@@ -475,10 +546,10 @@ static int btf__rd_next_tex(const btf__rd *r, int j, int a)
  * at the finest step. */
 static int btf__rd_notch(const btf__rd *r, int j, int tex, const int *at, double *dd, long long *ds, int *to)
 {
-    int n = tex ? r->nt : BTF__RD_NW, a = *at;
+    int n = tex ? r->nt : r->nw, a = *at;
     const double *d = (tex ? r->dt : r->dw) + (size_t)j * n;
     const long long *s = (tex ? r->rt : r->rw) + (size_t)j * n;
-    *to = tex && r->nt > BTF__RD_NT ? btf__rd_next_tex(r, j, a) : a - 1;
+    *to = n > (tex ? BTF__RD_NT : BTF__RD_NW) ? btf__rd_next(d, s, n, a) : a - 1;
     if (*to < 0)
         return 0;
     *dd = d[a] - d[*to], *ds = s[*to] - s[a];
@@ -495,8 +566,8 @@ static void btf__rd_fill(const btf__rd *r, double lambda, long long max_bytes, i
     if (!kept)
         return; /* lambda's choice stands */
     for (int j = 0; j < r->C; j++) { /* as btf__rd_at decided at lambda */
-        double dj = r->dt[(size_t)j * r->nt + it[j]] + r->dw[(size_t)j * BTF__RD_NW + iw[j]];
-        long long sj = r->rt[(size_t)j * r->nt + it[j]] + r->rw[(size_t)j * BTF__RD_NW + iw[j]];
+        double dj = r->dt[(size_t)j * r->nt + it[j]] + r->dw[(size_t)j * r->nw + iw[j]];
+        long long sj = r->rt[(size_t)j * r->nt + it[j]] + r->rw[(size_t)j * r->nw + iw[j]];
         kept[j] = j == 0 || dj + lambda * (double)sj < r->energy[j];
     }
     for (;;) {
@@ -564,10 +635,10 @@ static int btf__rd_near(btf__rd *r)
     const btf_rd_result *nr = r->par->near;
     if (!nr || nr->n_comp < 1 || nr->n_comp > r->C || !nr->tex_noise || !nr->wt_noise)
         return 0;
-    r->mt = malloc((size_t)r->C * r->nt), r->mw = malloc((size_t)r->C * BTF__RD_NW);
+    r->mt = malloc((size_t)r->C * r->nt), r->mw = malloc((size_t)r->C * r->nw);
     if (!r->mt || !r->mw)
         return -1;
-    memset(r->mt, 1, (size_t)r->C * r->nt), memset(r->mw, 1, (size_t)r->C * BTF__RD_NW);
+    memset(r->mt, 1, (size_t)r->C * r->nt), memset(r->mw, 1, (size_t)r->C * r->nw);
     for (int j = 0; j < nr->n_comp; j++) {
         int a = btf__rd_nearest(r->gt, BTF__RD_NT, nr->tex_noise[j]);
         int lo = a - BTF_RD_NEAR_NOTCHES, hi = a + BTF_RD_NEAR_NOTCHES;
@@ -575,11 +646,11 @@ static int btf__rd_near(btf__rd *r)
         for (int i = 0; i < BTF__RD_NT; i++)
             r->mt[(size_t)j * r->nt + i] = (i >= lo && i <= hi) || i == -BTF__RD_TEX_LO;
         btf__rd_near_lossy(r, j, nr->tex_quality ? nr->tex_quality[j] : -1);
-        int b = btf__rd_nearest(r->gw, BTF__RD_NW, nr->wt_noise[j]);
+        int b = btf__rd_nearest(r->gw, BTF__RD_NW, nr->wt_noise[j]); /* lossy weights: every level measured */
         int wlo = b - BTF_RD_NEAR_NOTCHES, whi = b + BTF_RD_NEAR_NOTCHES; /* widened to encoded ends */
         wlo = wlo < 1 ? 0 : wlo - !(wlo % 2), whi = whi >= BTF__RD_NW - 1 ? BTF__RD_NW - 1 : whi + !(whi % 2);
         for (int i = 0; i < BTF__RD_NW; i++)
-            r->mw[(size_t)j * BTF__RD_NW + i] = (i >= wlo && i <= whi) || i == 0;
+            r->mw[(size_t)j * r->nw + i] = (i >= wlo && i <= whi) || i == 0;
     }
     return 0;
 }
@@ -595,7 +666,7 @@ static void btf__rd_key(const btf__rd *r, double key[8])
             sum += (double)pb->t[(size_t)j * r->rows] * (j + 1) + (double)pb->w[(size_t)j * pb->cols] * (b + 1);
         }
     double k[8] = {r->C, r->nb, r->W, r->H, (double)r->V * 65536.0 + r->L, r->par->tex_noise,
-                   r->par->png_only + 2.0 * r->ch + 8.0 * r->nt, sum};
+                   r->par->png_only + 2.0 * r->ch + 8.0 * r->nt + 1024.0 * r->nw, sum};
     memcpy(key, k, sizeof k);
 }
 
@@ -606,7 +677,7 @@ static btf_result btf__rd_ladder_use(btf__rd *r, btf_error *err)
     btf_rd_ladder *l = r->par->ladder;
     double key[8];
     btf__rd_key(r, key);
-    size_t nt = (size_t)r->C * r->nt, nw = (size_t)r->C * BTF__RD_NW, c = (size_t)r->C;
+    size_t nt = (size_t)r->C * r->nt, nw = (size_t)r->C * r->nw, c = (size_t)r->C;
     if (l && l->n_comp == r->C && !memcmp(l->key, key, sizeof key)) {
         memcpy(r->dt, l->dt, nt * sizeof(double)), memcpy(r->rt, l->rt, nt * sizeof(long long));
         memcpy(r->dw, l->dw, nw * sizeof(double)), memcpy(r->rw, l->rw, nw * sizeof(long long));
@@ -630,7 +701,7 @@ static btf_result btf__rd_ladder_use(btf__rd *r, btf_error *err)
     memcpy(l->dw, r->dw, nw * sizeof(double)), memcpy(l->rw, r->rw, nw * sizeof(long long));
     memcpy(l->energy, r->energy, c * sizeof(double));
     memcpy(l->key, key, sizeof key);
-    l->n_comp = r->C, l->n_tex = r->nt, l->n_wt = BTF__RD_NW;
+    l->n_comp = r->C, l->n_tex = r->nt, l->n_wt = r->nw;
     return BTF_OK;
 }
 
@@ -647,6 +718,7 @@ void btf_rd_result_free(btf_rd_result *r)
     if (!r)
         return;
     free(r->tex_noise), free(r->wt_noise), free(r->comp_bytes), free(r->tex_bytes), free(r->tex_quality);
+    free(r->wt_quality);
     memset(r, 0, sizeof *r);
 }
 
@@ -693,11 +765,11 @@ static int btf__rd_refine(btf__rd *r, const int *it, const int *iw, btf_error *e
     uint16_t *q = malloc((size_t)r->V * r->L * 3 * sizeof(uint16_t));
     int n = 0;
     if (!r->exact_t)
-        r->exact_t = calloc((size_t)r->C * r->nt, 1), r->exact_w = calloc((size_t)r->C * BTF__RD_NW, 1);
+        r->exact_t = calloc((size_t)r->C * r->nt, 1), r->exact_w = calloc((size_t)r->C * r->nw, 1);
     if (!atlas || !buf || !eb || !q || !r->exact_t || !r->exact_w)
         n = -1, btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (refine)");
     for (int j = 0; n >= 0 && j < r->C; j++) {
-        size_t t = (size_t)j * r->nt + it[j], w = (size_t)j * BTF__RD_NW + iw[j];
+        size_t t = (size_t)j * r->nt + it[j], w = (size_t)j * r->nw + iw[j];
         if (it[j] >= BTF__RD_NT && btf__rd_tex_interpolated(it[j]) && !r->exact_t[t]) {
             if (btf__rd_lossy_candidate(r, (int)t, atlas, buf, eb, err) != BTF_OK)
                 n = -1;
@@ -739,7 +811,7 @@ static void btf__rd_choose(const btf__rd *r, btf_rd_result *out, int *it, int *i
         btf__rd_fill(r, out->lambda, par->max_bytes, it, iw, &out->bytes_rd);
         out->d_rd = 0.0;
         for (int j = 0; j < r->C; j++)
-            out->d_rd += r->dt[(size_t)j * r->nt + it[j]] + r->dw[(size_t)j * BTF__RD_NW + iw[j]];
+            out->d_rd += r->dt[(size_t)j * r->nt + it[j]] + r->dw[(size_t)j * r->nw + iw[j]];
     }
 }
 
@@ -758,21 +830,23 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
     if (par->bits != 0 && par->bits != 8 && par->bits != 16)
         return btf_fail(err, BTF_ERR_ARG, "rate-distortion: %d-bit textures (8 or 16)", par->bits);
     r.nt = BTF__RD_NT + (par->lossy && r.ch == 1 && !par->png_only ? BTF__RD_NQ : 0);
+    r.nw = BTF__RD_NW + (par->lossy_weights && !par->png_only ? BTF__RD_NQW : 0);
     r.dt = calloc((size_t)r.C * r.nt, sizeof(double));
-    r.dw = calloc((size_t)r.C * BTF__RD_NW, sizeof(double));
+    r.dw = calloc((size_t)r.C * r.nw, sizeof(double));
     r.energy = calloc((size_t)r.C, sizeof(double));
     r.rt = calloc((size_t)r.C * r.nt, sizeof(long long));
-    r.rw = calloc((size_t)r.C * BTF__RD_NW, sizeof(long long));
+    r.rw = calloc((size_t)r.C * r.nw, sizeof(long long));
     r.gt = calloc(BTF__RD_NT, sizeof(float)), r.gw = calloc(BTF__RD_NW, sizeof(float));
     out->tex_noise = calloc((size_t)r.C, sizeof(float));
     out->wt_noise = calloc((size_t)r.C, sizeof(float));
     out->comp_bytes = calloc((size_t)r.C, sizeof(long long));
     out->tex_bytes = calloc((size_t)r.C, sizeof(long long));
     out->tex_quality = calloc((size_t)r.C, sizeof(int));
+    out->wt_quality = calloc((size_t)r.C, sizeof(int));
     int *it = calloc((size_t)r.C, sizeof(int)), *iw = calloc((size_t)r.C, sizeof(int));
     btf_result res = BTF_OK;
     if (!r.dt || !r.dw || !r.energy || !r.rt || !r.rw || !r.gt || !r.gw || !out->tex_noise || !out->wt_noise ||
-        !out->comp_bytes || !out->tex_bytes || !out->tex_quality || !it || !iw)
+        !out->comp_bytes || !out->tex_bytes || !out->tex_quality || !out->wt_quality || !it || !iw)
         res = btf_fail(err, BTF_ERR_NOMEM, "rate-distortion: out of memory (%d components)", r.C);
     for (int i = 0; res == BTF_OK && i < BTF__RD_NT; i++)
         r.gt[i] = par->tex_noise * powf(2.0f, 0.5f * (float)(BTF__RD_TEX_LO + i));
@@ -786,8 +860,8 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         /* reference: every texture at tex_noise (ladder index -LO), 16-bit weights (index 0) */
         out->d_target = 0.0, out->bytes_equal = 0;
         for (int j = 0; j < r.C; j++) {
-            out->d_target += r.dt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.dw[(size_t)j * BTF__RD_NW];
-            out->bytes_equal += r.rt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.rw[(size_t)j * BTF__RD_NW];
+            out->d_target += r.dt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.dw[(size_t)j * r.nw];
+            out->bytes_equal += r.rt[(size_t)j * r.nt - BTF__RD_TEX_LO] + r.rw[(size_t)j * r.nw];
         }
         for (int pass = 0; res == BTF_OK && pass < BTF__RD_REFINE_PASSES; pass++) {
             btf__rd_choose(&r, out, it, iw);
@@ -800,10 +874,12 @@ btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_err
         out->n_comp = r.C;
         for (int j = 0; j < r.C; j++) {
             int lossy = it[j] >= BTF__RD_NT; /* full-range codes, a lossy file */
-            out->tex_noise[j] = lossy ? 0.0f : r.gt[it[j]], out->wt_noise[j] = r.gw[iw[j]];
+            int wlossy = iw[j] >= BTF__RD_NW; /* full-range codes, a lossy file */
+            out->tex_noise[j] = lossy ? 0.0f : r.gt[it[j]], out->wt_noise[j] = wlossy ? 0.0f : r.gw[iw[j]];
+            out->wt_quality[j] = wlossy ? btf_lossy_ladder(BTF_LOSSY_WEBP, iw[j] - BTF__RD_NW) : -1;
             out->tex_quality[j] = lossy ? btf_lossy_ladder(par->lossy, it[j] - BTF__RD_NT) : -1;
             out->tex_bytes[j] = r.rt[(size_t)j * r.nt + it[j]];
-            out->comp_bytes[j] = out->tex_bytes[j] + r.rw[(size_t)j * BTF__RD_NW + iw[j]];
+            out->comp_bytes[j] = out->tex_bytes[j] + r.rw[(size_t)j * r.nw + iw[j]];
         }
     }
     free(it), free(iw);

@@ -8,7 +8,7 @@
  * lossy, a component's texture may instead be a lossy WebP or AVIF of its full-range codes
  * (btf_rd_result.tex_quality), its error then estimated from that sample too.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0};  // equal-noise error, lossless WebP, every step measured
+ *     btf_rd_params par = {model, cols, rows, 0.5f, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0, 0};  // equal-noise error, lossless WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -98,6 +98,12 @@ typedef struct btf_rd_params {
     /* > 0 (with lossy): every lossy candidate's rate counted this many times over,
      * against the lossless steps' (BTF_RD_LOSSY_LEVELS when spatial levels follow) */
     double lossy_rate_scale;
+    /* 1 (not png_only): each component's weights may also be a lossy WebP of their
+     * full-range 8-bit codes (btf_rd_wt_lossy) at one of the BTF_LOSSY_LADDER WebP
+     * qualities, a candidate beside the weight steps chosen by the same lambda, its
+     * error measured on its decode (btf_rd_result.wt_quality); 0: steps only (a
+     * package that spatial levels will follow: version 4 keeps its weights lossless) */
+    int lossy_weights;
 } btf_rd_params;
 
 /* What one allocation chose and measured; owned by the caller (btf_rd_result_free). */
@@ -115,9 +121,21 @@ typedef struct btf_rd_result {
     int *tex_quality;       /* n_comp: -1, or the lossy level of component j's texture (WebP quality
                              * 0..100, AVIF quantiser 0..63: btf_rd_params.lossy's encoding)
                              * (full-range codes: its tex_noise is 0) */
+    int *wt_quality;        /* n_comp: -1, or the WebP quality of component j's lossy weights
+                             * (btf_rd_wt_lossy; its wt_noise is 0) */
 } btf_rd_result;
 
 btf_result btf_rd_allocate(const btf_rd_params *par, btf_rd_result *out, btf_error *err);
+
+/* Component j's weights of model m as a lossy WebP at quality 0..100 (a version-3
+ * wt-JJ.webp, doc/package-format.md section 5.5): each block's weights mapped onto
+ * 0..255 by their full range (btf_rd_range, into ranges: n_blocks x {lo, step}),
+ * pixel (l, v) sample c holding view v, light l, channel c, encoded
+ * (btf_webp_encode_rgb_lossy) into *file (malloc'd, *n bytes) and decoded as every
+ * reader decodes it into q (V*L*3 codes). The one rule of the writer and the
+ * allocation. */
+btf_result btf_rd_wt_lossy(const btf_pca_model *m, int j, int quality, float *ranges, uint16_t *q, uint8_t **file,
+                           size_t *n, btf_error *err);
 void btf_rd_result_free(btf_rd_result *r);
 void btf_rd_ladder_free(btf_rd_ladder *l);
 

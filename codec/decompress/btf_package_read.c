@@ -48,7 +48,7 @@ static btf_result btf__read_w8_webp(const btf_files *fs, const char *path, int L
     *px = malloc(n);
     btf_result r = *px ? btf_fs_read_with(fs, path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     if (r == BTF_OK)
-        r = btf_webp_decode_rgb((const uint8_t *)z, nz, path, L, V, *px, err);
+        r = btf_webp_decode_rgb((const uint8_t *)z, nz, path, L, V, 0, *px, err);
     free(z);
     if (r != BTF_OK)
         free(*px), *px = NULL;

@@ -56,8 +56,9 @@ int btf_wtz_fits_webp(const uint16_t *q, int V, int L);
  * BTF_ERR_RANGE) as an opaque lossless RGB WebP of L x V pixels, pixel (l, v) holding
  * channels 0, 1, 2 of view v and light l, into *out (malloc'd, *len bytes). */
 btf_result btf_wtz_encode_webp(const uint16_t *q, int V, int L, uint8_t **out, size_t *len, btf_error *err);
-/* Reads a wt-JJ.webp of len bytes (at most btf_wtz_max_bytes) into q (V*L*3):
- * lossless, L x V, every pixel opaque; BTF_ERR_FORMAT naming name otherwise. */
+/* Reads a wt-JJ.webp of len bytes (at most btf_wtz_max_bytes) into q (V*L*3): L x V,
+ * lossless with every pixel opaque, or lossy (its RGB decode: the codes of section
+ * 5.5's lossy weights); BTF_ERR_FORMAT naming name otherwise. */
 btf_result btf_wtz_decode_webp(const uint8_t *data, size_t len, int V, int L, uint16_t *q, const char *name,
                                btf_error *err);
 /* The extension of coding kind's files: ".z", ".pz" or ".webp" (static strings). */

@@ -207,6 +207,29 @@ btf_result btf_webp_encode_grey_lossy(const uint8_t *grey, int w, int h, int qua
     return btf__encode(&cfg, &pic, out, n, err);
 }
 
+btf_result btf_webp_encode_rgb_lossy(const uint8_t *rgb, int w, int h, int quality, uint8_t **out, size_t *n,
+                                     btf_error *err)
+{
+    *out = NULL, *n = 0;
+    btf_result r = btf__check_size(w, h, err);
+    if (r != BTF_OK)
+        return r;
+    if (quality < 0 || quality > 100)
+        return btf_fail(err, BTF_ERR_ARG, "webp: quality %d is outside 0..100", quality);
+    WebPConfig cfg;
+    WebPPicture pic;
+    if (!WebPConfigInit(&cfg) || !WebPPictureInit(&pic))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "webp: libwebp version mismatch");
+    cfg.quality = (float)quality, cfg.method = BTF_WEBP_LOSSY_METHOD;
+    cfg.sns_strength = 0, cfg.filter_strength = 0; /* as for the grey atlases: the image is data */
+    pic.use_argb = 0, pic.width = w, pic.height = h;
+    if (!WebPPictureImportRGB(&pic, rgb, 3 * w)) {
+        WebPPictureFree(&pic);
+        return btf_fail(err, BTF_ERR_NOMEM, "webp: out of memory (%dx%d)", w, h);
+    }
+    return btf__encode(&cfg, &pic, out, n, err);
+}
+
 /* A WebP that btf_webp_check accepts and whose header says w x h, decoded into *px
  * (malloc'd; the caller frees it): RGB for a lossy file (*ch 3), RGBA for a lossless
  * one (*ch 4); nothing allocated before the check and the size pass. */
@@ -247,15 +270,17 @@ btf_result btf_webp_decode_grey(const uint8_t *data, size_t n, const char *what,
     return r;
 }
 
-btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
-                               btf_error *err)
+btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, int lossy_ok,
+                               uint8_t *rgb, btf_error *err)
 {
     uint8_t *px = NULL;
     int ch = 0;
     btf_result r = btf__decode_px(data, n, what, w, h, &px, &ch, err);
-    if (r == BTF_OK && ch != 4)
+    if (r == BTF_OK && ch != 4 && !lossy_ok)
         r = btf_fail(err, BTF_ERR_FORMAT, "%s: a lossy WebP where a lossless one (VP8L) is required", what);
-    for (size_t i = 0; r == BTF_OK && i < (size_t)w * (size_t)h; i++) {
+    if (r == BTF_OK && ch == 3)
+        memcpy(rgb, px, (size_t)w * (size_t)h * 3);
+    for (size_t i = 0; r == BTF_OK && ch == 4 && i < (size_t)w * (size_t)h; i++) {
         if (px[4 * i + 3] != 255)
             r = btf_fail(err, BTF_ERR_FORMAT, "%s: pixel %zu is not opaque (alpha %u)", what, i, px[4 * i + 3]);
         memcpy(rgb + 3 * i, px + 4 * i, 3);

@@ -11,7 +11,7 @@
  *         free(file);
  *     }
  *
- * Limitations: grey only (but the lossless RGB pair for weights); a lossy file holds 220 grey levels (its Y plane's 16..235),
+ * Limitations: grey only (but the RGB pair for weights, lossless or lossy); a lossy file holds 220 grey levels (its Y plane's 16..235),
  * so a lossy round trip is never exact, and the decoded value of a lossy file is R of
  * libwebp's RGB decode (G differs from R by one on about 1% of the pixels). No
  * extended (VP8X) files: no alpha, animation or metadata.
@@ -54,12 +54,19 @@ btf_result btf_webp_decode_grey(const uint8_t *data, size_t n, const char *what,
  * (every sample kept exactly) into *out (malloc'd, *n bytes; the caller frees it):
  * the weights files wt-JJ.webp (doc/package-format.md section 5.5). */
 btf_result btf_webp_encode_rgb(const uint8_t *rgb, int w, int h, uint8_t **out, size_t *n, btf_error *err);
-/* Decodes a lossless WebP that btf_webp_check accepts, whose header says w x h and
- * whose every pixel is opaque, into rgb (the caller's 3*w*h bytes). BTF_ERR_FORMAT
- * (naming what) for a lossy file, another size or a pixel with alpha below 255; the
+/* Encodes w x h RGB bytes as a lossy WebP at quality 0..100 (libwebp: method 6, no
+ * spatial noise shaping, no deblocking filter; libwebp's RGB to YUV 4:2:0) into *out
+ * (malloc'd, *n bytes): the lossy weights files wt-JJ.webp (doc/package-format.md
+ * section 5.5). */
+btf_result btf_webp_encode_rgb_lossy(const uint8_t *rgb, int w, int h, int quality, uint8_t **out, size_t *n,
+                                     btf_error *err);
+/* Decodes a WebP that btf_webp_check accepts and whose header says w x h into rgb
+ * (the caller's 3*w*h bytes): a lossless file must have every pixel opaque; a lossy
+ * one (only with lossy_ok) gives libwebp's RGB decode. BTF_ERR_FORMAT (naming what)
+ * for a lossy file without lossy_ok, another size or a pixel with alpha below 255; the
  * check and the size before anything is decoded. */
-btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
-                               btf_error *err);
+btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, int lossy_ok,
+                               uint8_t *rgb, btf_error *err);
 /* libwebp's R of a decoded Y at U = V = 128 (its VP8YUVToR), 0..255. */
 int btf_webp_r_of_y(int y);
 /* The Y (0..255) whose btf_webp_r_of_y is nearest q (ties: the smaller Y); the lossy

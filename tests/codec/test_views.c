@@ -14,6 +14,7 @@
 #include "btf_views.h"
 #include "fixtures.h"
 #include "btf_input.h"
+#include "btf_lossy.h"
 
 /* Every file of package a equals the same file of package b (and b has no other). */
 static void expect_same_package(const char *a, const char *b, const char *what)
@@ -208,7 +209,8 @@ Test(views, commands_stream_and_match_the_library)
     btf_pca_options po = {0};
     po.k = 3, po.components = 4;
     btf_package_options ko = {0};
-    ko.name = "pkg", ko.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE, ko.rd = 1; /* as btf compress writes it */
+    ko.name = "pkg", ko.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE, ko.rd = 1; /* as btf compress writes it: */
+    ko.lossy = BTF_LOSSY_WEBP;                                               /* lossy where it wins */
     cr_assert_eq(btf_package_compress(loaded, &po, &ko, ref, NULL, &err), BTF_OK, "%s", err.msg);
     expect_same_package(ref, pkg, "btf compress of a dome directory");
     btf_free(loaded), btf_free(m);

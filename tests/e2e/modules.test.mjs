@@ -115,6 +115,22 @@ const webpHead = (tag, w, h, n = 64) => {
   return b;
 };
 
+// The head of a lossy (VP8) WebP of w x h as the format spells it (RFC 9649): a shown key
+// frame of version 0 whose first partition (`part` bytes) fits its chunk, then zeros.
+const vp8Head = (w, h, n = 64, part = 20) => {
+  const b = Buffer.alloc(n);
+  b.write('RIFF', 0);
+  b.writeUInt32LE(n - 8, 4);
+  b.write('WEBP', 8);
+  b.write('VP8 ', 12);
+  b.writeUInt32LE(n - 20, 16);
+  const tag = 0 | (0 << 1) | (1 << 4) | (part << 5); // key frame, version 0, shown
+  b[20] = tag & 255, b[21] = (tag >> 8) & 255, b[22] = (tag >> 16) & 255;
+  b[23] = 0x9d, b[24] = 0x01, b[25] = 0x2a;
+  b.writeUInt16LE(w, 26), b.writeUInt16LE(h, 28);
+  return b;
+};
+
 // Version 3 of the same package (doc/package-format.md section 11): wt-JJ.z weights.
 describe('btf-package.js version 3', () => {
     // q -> wt-JJ.z written from the format text: zigzag differences along the lights, two byte planes, zlib.
@@ -273,6 +289,24 @@ describe('btf-package.js version 3', () => {
       assert.throws(() => pkgMod.checkWeightsWebp(p, c, b), (e) => /^package m: wt-00\.webp/.test(e.message) &&
         re.test(e.message), String(re));
   });
+  it('takes a lossy (VP8) wt-JJ.webp where lossy weights are allowed, checked as the C reader checks it', () => {
+    const p = pkgMod.parseManifest(v3w()), c = p.chunks[0];
+    pkgMod.checkWeightsWebp(p, c, vp8Head(81, 81), c.wt, true);
+    const scaled = vp8Head(81, 81);
+    scaled[27] |= 0x40; // a horizontal scale of 1
+    const inter = vp8Head(81, 81);
+    inter[20] |= 1; // an inter frame
+    const bad = [
+      [vp8Head(80, 81), /WebP of 80x81, expected 81x81/],
+      [scaled, /VP8 frame scaled or empty/],
+      [inter, /not a key frame/],
+      [vp8Head(81, 81, 64, 40), /first partition of 40 bytes overruns/],
+      [Buffer.from(vp8Head(81, 81)).fill(0, 23, 26), /bad VP8 start code/],
+    ];
+    for (const [b, re] of bad)
+      assert.throws(() => pkgMod.checkWeightsWebp(p, c, b, c.wt, true), (e) => /^package m: wt-00\.webp/.test(e.message) &&
+        re.test(e.message), String(re));
+  });
   it('decodes the wt-JJ.z and wt-JJ.pz files btf compress --rd writes, every weight within its block range; ' +
      'its wt-JJ.webp files pass the check', async (t) => {
     const btf = BTF;
@@ -284,7 +318,7 @@ describe('btf-package.js version 3', () => {
       const p = pkgMod.parseManifest(m);
       for (const c of p.chunks) {
         if (c.wt.endsWith('.webp')) { // an image: decoded by the browser (rd.test.mjs)
-          pkgMod.checkWeightsWebp(p, c, fs.readFileSync(path.join(dir, 'p', c.wt)));
+          pkgMod.checkWeightsWebp(p, c, fs.readFileSync(path.join(dir, 'p', c.wt)), c.wt, true);
           continue;
         }
         const w = await pkgMod.decodeWeights(p, c, fs.readFileSync(path.join(dir, 'p', c.wt)));
