@@ -6,7 +6,8 @@
 // delays one run, never all) the first frame comes at most 1 s after the first chunk's
 // bytes arrived, the last chunk within 1.25x the link time of what the page took through
 // the link (script, list, manifest, chunks) plus 1 s of the page's request for the
-// script, and the whole picture within 1.5 s of the last chunk (every run within 3x);
+// script, and the whole picture within 1.5 s of the last chunk, or of the first frame
+// where every chunk came before it (every run within 3x);
 // every picture drawn reaches the screen (the GPU passes its frame), the first within
 // 2 s of its draw and each later one within 1 s; a reload streams at most 5% of the
 // chunk bytes and takes at most 5% of the link's, nothing below the viewer moves
@@ -136,7 +137,10 @@ function report(name, runs) {
 // the first chunk, the last chunk after the script request against the link time of what
 // the page took (+ the page's own requests), the complete picture after the last chunk
 // (the frame in flight, then the last one: on this machine's software GL a frame of 24
-// components at 640 x 640 device pixels takes 0.3-0.5 s while chunks arrive).
+// components at 640 x 640 device pixels takes 0.3-0.5 s while chunks arrive); where
+// every chunk came before the first frame (a warm browser on this link: the last chunk
+// 0.1-0.3 s after the first, while the first frame builds its program, 0.5-0.7 s), after
+// that frame, which has its own bound (1 s after the first chunk).
 // Then what reached the screen (`shown`: when the GPU had passed a picture's frame): the
 // first picture within 2 s of its draw (it includes the driver's build of the program:
 // 0.5-0.6 s here) and every later one within 1 s (0.2-0.25 s here; a page whose frames
@@ -149,7 +153,8 @@ const TIMINGS = {
     [(r) => Math.max(0, ...r.first.times.drawn.slice(1).map((_, i) => lag(r, i + 1))), () => 1000],
   'last chunk within 1.25 x the link time + 1 s of the script request':
     [(r) => r.first.lastChunk - r.first.scriptRequest, (r) => 1.25 * r.linkMs + 1000],
-  'complete within 1.5 s of the last chunk': [(r) => r.first.complete - r.first.lastChunk, () => 1500],
+  'complete within 1.5 s of the last chunk (or of the first frame, when that is later)':
+    [(r) => r.first.complete - Math.max(r.first.lastChunk, r.first.firstFrame), () => 1500],
 };
 
 const median = (xs) => {
