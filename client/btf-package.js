@@ -152,7 +152,7 @@ function parseChunk(name, c, i, nb, lv, version, mv) {
   return {
     id: i, component, level, contrib: c.contrib, files: c.files.slice(), tex, wt, wt8, predictor: c.predictor,
     bytes: Number.isFinite(c.bytes) ? c.bytes : 0,
-    rmse: c.rmse, lab: c.lab, psnr: c.psnr, deltaE: c.delta_e76,
+    rmse: c.rmse, lab: c.lab, psnr: c.psnr ?? psnrOf(c.rmse), deltaE: c.delta_e76,
     texRange: own ? parseRanges(name, c.tex_range, nb, i, 'tex_range') : r.tex,
     wtRange: own || c.wt_range !== undefined ? parseRanges(name, c.wt_range, nb, i, 'wt_range') : r.wt,
     wt8Step: lv.wt8Step[component] || 257,
@@ -516,9 +516,16 @@ export function chunksWithinBytes(pkg, maxBytes) {
   return pkg.chunks.length;
 }
 
+// A chunk's PSNR from its RMSE (0..255 scale), where the manifest leaves it out
+// (version 3, doc/package-format.md section 9.3): 20 log10(255 / rmse), 999 at 0.
+function psnrOf(rmse) {
+  if (!Number.isFinite(rmse)) return undefined;
+  return rmse > 0 ? 20 * Math.log10(255 / rmse) : 999;
+}
+
 // Error the decoder reaches with chunks [0, n): the manifest's promise.
 export function promisedError(pkg, n) {
   const c = pkg.chunks[Math.min(n, pkg.chunks.length) - 1];
   if (!c) return null;
-  return {chunks: n, lab: c.lab, rmse: c.rmse, psnr: c.psnr};
+  return {chunks: n, lab: c.lab, rmse: c.rmse, psnr: c.psnr};  // (parseChunk filled a missing psnr)
 }

@@ -260,6 +260,8 @@ static btf_result btf__chunk_numbers(const cJSON *c, btf_chunk_info *ci, const c
         if (v)
             *nums[i].d = v->valuedouble;
     }
+    if (!cJSON_GetObjectItemCaseSensitive(c, "psnr")) /* version 3 leaves it out: 20 log10(255 / rmse) */
+        ci->psnr = ci->rmse > 0.0 ? 20.0 * log10(255.0 / ci->rmse) : 999.0;
     return BTF_OK;
 }
 
@@ -697,7 +699,8 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
     cJSON_AddItemToObject(c, "rmse", btf__num(p, ci->rmse));
     if (!btf_package_has_levels(p))
         cJSON_AddItemToObject(c, "lab", btf__num(p, ci->lab));
-    cJSON_AddItemToObject(c, "psnr", btf__num(p, ci->psnr));
+    if (p->version != 3) /* version 3: a reader computes it from rmse */
+        cJSON_AddItemToObject(c, "psnr", btf__num(p, ci->psnr));
     if (!btf_package_has_levels(p))
         cJSON_AddItemToObject(c, "delta_e76", btf__num(p, ci->delta_e76));
     cJSON_AddItemToObject(c, "rmse_float", btf__num(p, ci->rmse_float));

@@ -1656,6 +1656,30 @@ Test(rd, lossy_weights_where_they_win_and_the_error_as_predicted)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
+/* Version 3's manifest leaves each chunk's psnr out (doc/package-format.md section
+ * 9.3); the reader gives 20 log10(255 / rmse), as version 1 writes it. */
+Test(rd, version3_leaves_psnr_out_and_the_reader_computes_it)
+{
+    char tmp[256], out[512], path[600];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/p", tmp);
+    btf *src = fx_material(BTF_GEN_TILES, 16, rings, 3);
+    btf_rd_result rr;
+    compress_lossy(src, 4, BTF_LOSSY_WEBP, out, &rr);
+    snprintf(path, sizeof path, "%s/manifest.json", out);
+    uint8_t *text = NULL;
+    size_t n = maybe_file(path, &text);
+    cr_assert(n > 0 && strstr((char *)text, "\"rmse\"") && !strstr((char *)text, "\"psnr\""), "%.*s", (int)n, text);
+    free(text);
+    btf_package *p = fx_package(out, NULL, 0);
+    for (int i = 0; i < p->n_chunks; i++)
+        cr_assert_float_eq(p->chunk[i].psnr, 20.0 * log10(255.0 / p->chunk[i].rmse), 1e-9, "chunk %d", i);
+    btf_package_free(p);
+    btf_rd_result_free(&rr);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
 /* Budgets with lossy textures: --max-bytes fits (manifest and chunk files) and has
  * less error than the lossless package within the same bytes; --max-error meets its
  * error (the manifest's CIELab, which the search reads) with fewer bytes than the

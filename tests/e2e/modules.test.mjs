@@ -223,6 +223,17 @@ describe('btf-package.js version 3', () => {
     m.chunks.forEach((c, j) => { c.files = [`tex-0${j}.webp`, `wt-0${j}.webp`]; });
     return m;
   };
+  it('gives a version-3 chunk without psnr 20 log10(255 / rmse), as version 1 writes it', () => {
+    const m = v3();
+    m.chunks.forEach((c, j) => { c.rmse = 10 + j; delete c.psnr; });
+    m.chunks[0].rmse = 0;
+    const p = pkgMod.parseManifest(m);
+    assert.equal(p.chunks[0].psnr, 999);
+    for (const c of p.chunks.slice(1)) assert.ok(Math.abs(c.psnr - 20 * Math.log10(255 / c.rmse)) < 1e-12, `${c.psnr}`);
+    const given = v3();
+    given.chunks[1].psnr = 12.5; // one the manifest gives is kept
+    assert.equal(pkgMod.parseManifest(given).chunks[1].psnr, 12.5);
+  });
   it('takes wt-JJ.webp as a version-3 chunk\'s weights and tex-JJ.webp as its texture, nowhere else', () => {
     const p = pkgMod.parseManifest(v3w());
     assert.equal(p.chunks[1].wt, 'wt-01.webp');
