@@ -176,22 +176,34 @@ int btf_webp_y_of_q(int q)
     return best;
 }
 
-btf_result btf_webp_encode_grey_lossy(const uint8_t *grey, int w, int h, int quality, uint8_t **out, size_t *n,
-                                      btf_error *err)
+/* The lossy encoder's settings for w x h data at quality 0..100 into cfg, pic
+ * initialised (nothing allocated): method 6, no spatial noise shaping and no
+ * deblocking filter, both aimed at the eye, where these images are data. */
+static btf_result btf__lossy_setup(int w, int h, int quality, WebPConfig *cfg, WebPPicture *pic, btf_error *err)
 {
-    *out = NULL, *n = 0;
     btf_result r = btf__check_size(w, h, err);
     if (r != BTF_OK)
         return r;
     if (quality < 0 || quality > 100)
         return btf_fail(err, BTF_ERR_ARG, "webp: quality %d is outside 0..100", quality);
+    if (!WebPConfigInit(cfg) || !WebPPictureInit(pic))
+        return btf_fail(err, BTF_ERR_UNSUPPORTED, "webp: libwebp version mismatch");
+    cfg->quality = (float)quality, cfg->method = BTF_WEBP_LOSSY_METHOD;
+    cfg->sns_strength = 0, cfg->filter_strength = 0;
+    pic->use_argb = 0, pic->width = w, pic->height = h;
+    return BTF_OK;
+}
+
+btf_result btf_webp_encode_grey_lossy(const uint8_t *grey, int w, int h, int quality, uint8_t **out, size_t *n,
+                                      btf_error *err)
+{
     WebPConfig cfg;
     WebPPicture pic;
-    if (!WebPConfigInit(&cfg) || !WebPPictureInit(&pic))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "webp: libwebp version mismatch");
-    cfg.quality = (float)quality, cfg.method = BTF_WEBP_LOSSY_METHOD;
-    cfg.sns_strength = 0, cfg.filter_strength = 0; /* both aim at the eye; the atlas is data */
-    pic.use_argb = 0, pic.colorspace = WEBP_YUV420, pic.width = w, pic.height = h;
+    *out = NULL, *n = 0;
+    btf_result r = btf__lossy_setup(w, h, quality, &cfg, &pic, err);
+    if (r != BTF_OK)
+        return r;
+    pic.colorspace = WEBP_YUV420;
     if (!WebPPictureAlloc(&pic))
         return btf_fail(err, BTF_ERR_NOMEM, "webp: out of memory (%dx%d)", w, h);
     uint8_t tab[256];
@@ -210,19 +222,12 @@ btf_result btf_webp_encode_grey_lossy(const uint8_t *grey, int w, int h, int qua
 btf_result btf_webp_encode_rgb_lossy(const uint8_t *rgb, int w, int h, int quality, uint8_t **out, size_t *n,
                                      btf_error *err)
 {
-    *out = NULL, *n = 0;
-    btf_result r = btf__check_size(w, h, err);
-    if (r != BTF_OK)
-        return r;
-    if (quality < 0 || quality > 100)
-        return btf_fail(err, BTF_ERR_ARG, "webp: quality %d is outside 0..100", quality);
     WebPConfig cfg;
     WebPPicture pic;
-    if (!WebPConfigInit(&cfg) || !WebPPictureInit(&pic))
-        return btf_fail(err, BTF_ERR_UNSUPPORTED, "webp: libwebp version mismatch");
-    cfg.quality = (float)quality, cfg.method = BTF_WEBP_LOSSY_METHOD;
-    cfg.sns_strength = 0, cfg.filter_strength = 0; /* as for the grey atlases: the image is data */
-    pic.use_argb = 0, pic.width = w, pic.height = h;
+    *out = NULL, *n = 0;
+    btf_result r = btf__lossy_setup(w, h, quality, &cfg, &pic, err);
+    if (r != BTF_OK)
+        return r;
     if (!WebPPictureImportRGB(&pic, rgb, 3 * w)) {
         WebPPictureFree(&pic);
         return btf_fail(err, BTF_ERR_NOMEM, "webp: out of memory (%dx%d)", w, h);
