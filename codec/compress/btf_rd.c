@@ -43,6 +43,7 @@ _Static_assert(BTF__RD_NW % 2 == 0, "weight ladder: its last noise step at an od
 #define BTF__RD_NQW BTF_LOSSY_LADDER
 #define BTF__RD_REFINE_PASSES 8 /* choices at most, each after measuring what the last chose interpolated */
 _Static_assert(BTF__RD_NQ % 2 == 1, "lossy ladder: both ends at even levels, encoded");
+_Static_assert(BTF__RD_NQW % 2 == 1, "lossy weight ladder: both ends at even levels, encoded");
 
 /* Measured candidates of one allocation; lives for one btf_rd_allocate call. */
 typedef struct btf__rd {
@@ -163,11 +164,12 @@ static int btf__rd_tex_interpolated(int i)
     return (i < BTF__RD_NT ? i : i - BTF__RD_NT) % 2 == 1;
 }
 
-/* 1 when weight candidate i (0 .. NW-1) has its rate interpolated: an even noise step
- * between the first and the last (its error is exact). */
+/* 1 when weight candidate i (0 .. nw-1) has its rate interpolated: an even noise step
+ * between the first and the last (its error is exact), or an odd lossy level (its
+ * rate and error). */
 static int btf__rd_wt_interpolated(int i)
 {
-    return i > 1 && i < BTF__RD_NW - 1 && i % 2 == 0;
+    return i >= BTF__RD_NW ? (i - BTF__RD_NW) % 2 == 1 : i > 1 && i < BTF__RD_NW - 1 && i % 2 == 0;
 }
 
 /* Candidates i of one component's ladder (rate, with d its error too; mask NULL or the
@@ -457,8 +459,8 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
                     r->dw[(size_t)j * r->nw + i] = INFINITY, r->rw[(size_t)j * r->nw + i] = 0;
                     continue;
                 }
-                if (i >= BTF__RD_NW) {
-                    mine = btf__rd_wt_lossy_candidate(r, j, i, q, &e);
+                if (i >= BTF__RD_NW) { /* an odd level's rate and error interpolated below */
+                    mine = btf__rd_wt_interpolated(i) ? BTF_OK : btf__rd_wt_lossy_candidate(r, j, i, q, &e);
                     continue;
                 }
                 r->dw[(size_t)j * r->nw + i] = btf__rd_wt(r, j, r->gw[i], q);
@@ -473,10 +475,12 @@ static btf_result btf__rd_measure(btf__rd *r, btf_error *err)
         free(q);
     }
     /* even noise steps 2 .. NW-2: their rates, at 10 zlib passes (each of both
-     * codings) of the 18 */
+     * codings) of the 18; odd lossy levels: rates and errors, at 7 encodings of 13 */
     for (int j = 0; res == BTF_OK && j < r->C; j++) {
         size_t o = (size_t)j * r->nw;
-        btf__rd_interpolate(r->rw + o, NULL, r->mw ? r->mw + o : NULL, 1, BTF__RD_NW - 1, btf__rd_wt_interpolated);
+        const unsigned char *mask = r->mw ? r->mw + o : NULL;
+        btf__rd_interpolate(r->rw + o, NULL, mask, 1, BTF__RD_NW - 1, btf__rd_wt_interpolated);
+        btf__rd_interpolate(r->rw + o, r->dw + o, mask, BTF__RD_NW + 1, r->nw - 1, btf__rd_wt_interpolated);
     }
     return res;
 }
@@ -751,8 +755,8 @@ static void btf__rd_fix_rates(btf__rd *r)
 }
 
 /* The chosen candidates (it, iw) whose rates (and a lossy level's error) were
- * interpolated, measured now (an odd lossy level encoded and decoded, an even weight
- * step coded both ways), so that what the allocation chooses is what the writer
+ * interpolated, measured now (an odd lossy level, of a texture or of weights,
+ * encoded and decoded, an even weight step coded both ways), so that what the allocation chooses is what the writer
  * writes; returns how many, -1 on an error (in err). The lossless texture steps keep
  * their interpolated odd rates, as before. */
 static int btf__rd_refine(btf__rd *r, const int *it, const int *iw, btf_error *err)
@@ -776,7 +780,9 @@ static int btf__rd_refine(btf__rd *r, const int *it, const int *iw, btf_error *e
             else
                 r->rt[t] = llround((double)r->rt[t] * btf__rd_rate_factor(r, j, it[j])), r->exact_t[t] = 1, n++;
         }
-        if (n >= 0 && btf__rd_wt_interpolated(iw[j]) && !r->exact_w[w]) {
+        if (n >= 0 && iw[j] >= BTF__RD_NW && btf__rd_wt_interpolated(iw[j]) && !r->exact_w[w]) {
+            n = btf__rd_wt_lossy_candidate(r, j, iw[j], q, err) != BTF_OK ? -1 : n + 1, r->exact_w[w] = 1;
+        } else if (n >= 0 && btf__rd_wt_interpolated(iw[j]) && !r->exact_w[w]) {
             btf__rd_wt(r, j, r->gw[iw[j]], q);
             r->rw[w] = btf__rd_wt_rate(r, q, err);
             n = r->rw[w] < 0 ? -1 : n + 1, r->exact_w[w] = 1;
