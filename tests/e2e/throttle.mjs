@@ -116,7 +116,8 @@ export function clsRecorder() {
 // A phone's browser already runs its GPU process (it composites with it); a headless
 // Chromium launched for one visit starts it at the page's first WebGL context, which then
 // blocks that page's main thread for 0.24-1.1 s on this 2-core host (a second context:
-// 11-108 ms), delaying every message of the stream by as much. One context on a blank
+// 11-108 ms), delaying every message of the stream by as much, and the stream itself
+// once its flow-control window (256 KiB before the rate is known) waits for acks. One context on a blank
 // page first (no request: the HTTP cache stays empty), so a timed visit times the page
 // and not the browser's start.
 export async function warmGpu(page) {
@@ -169,6 +170,7 @@ export async function measureLink(ctx, {btfdPort, pagesUrl, page: pageName, bps,
   const link = await startThrottle({target: btfdPort, bps, delayMs});
   try {
     const page = ctx.pages()[0] || await ctx.newPage();
+    await warmGpu(page); // as a phone's browser is (a cold one holds the page's acks back)
     await page.goto(`${pagesUrl}${pageName}.html?link=${link.port}`);
     const t0 = Date.now();
     for (;;) {
