@@ -527,5 +527,5 @@ function psnrOf(rmse) {
 export function promisedError(pkg, n) {
   const c = pkg.chunks[Math.min(n, pkg.chunks.length) - 1];
   if (!c) return null;
-  return {chunks: n, lab: c.lab, rmse: c.rmse, psnr: c.psnr};  // (parseChunk filled a missing psnr)
+  return {chunks: n, lab: c.lab, rmse: c.rmse, psnr: c.psnr};
 }

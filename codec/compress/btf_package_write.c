@@ -74,7 +74,6 @@ typedef struct btf__writer {
     uint8_t **lossy;      /* C: component j's lossy WebP or AVIF file (malloc'd, lossy_n[j] bytes; its atlas
                            * holds its decode), NULL for a lossless texture */
     size_t *lossy_n;
-    int *wquality;        /* C: -1, or the WebP quality of component j's lossy weights (version 3, btf_rd_result) */
     uint8_t **wlossy;     /* C: component j's lossy weights file (malloc'd, wlossy_n[j] bytes; qwt[j] holds its
                            * decode, wt_range[j] its ranges), NULL for weights on steps */
     size_t *wlossy_n;
@@ -112,7 +111,7 @@ static void btf__writer_free(btf__writer *w)
         free(w->lossy[j]);
     for (int j = 0; w->wlossy && j < w->C; j++)
         free(w->wlossy[j]);
-    free(w->wquality), free(w->wlossy), free(w->wlossy_n);
+    free(w->wlossy), free(w->wlossy_n);
     free(w->tex_ext), free(w->wt_ext), free(w->prev_view), free(w->est_bytes), free(w->quality), free(w->lossy), free(w->lossy_n);
     free(w->Pq), free(w->Pf), free(w->Qq), free(w->Qf);
     free(w->Tqd), free(w->Tfd), free(w->Wd), free(w->Ad), free(w->D), free(w->TT), free(w->WW);
@@ -146,10 +145,9 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->prev_view = malloc((size_t)w->V * sizeof *w->prev_view);
     w->quality = malloc((size_t)C * sizeof(int));
     w->lossy = calloc((size_t)C, sizeof *w->lossy), w->lossy_n = calloc((size_t)C, sizeof(size_t));
-    w->wquality = malloc((size_t)C * sizeof(int));
     w->wlossy = calloc((size_t)C, sizeof *w->wlossy), w->wlossy_n = calloc((size_t)C, sizeof(size_t));
-    for (int j = 0; w->quality && w->wquality && j < C; j++)
-        w->quality[j] = -1, w->wquality[j] = -1;
+    for (int j = 0; w->quality && j < C; j++)
+        w->quality[j] = -1;
     w->Pq = calloc((size_t)C, sizeof(double)), w->Pf = calloc((size_t)C, sizeof(double));
     w->Qq = calloc(C2, sizeof(double)), w->Qf = calloc(C2, sizeof(double));
     w->TT = calloc(C2, sizeof(double)), w->WW = calloc(C2, sizeof(double));
@@ -162,7 +160,7 @@ static btf_result btf__writer_init(btf__writer *w, const btf_views *src, const b
     w->stride = stride;
     w->sub_w = (w->W + stride - 1) / stride, w->sub_h = (w->H + stride - 1) / stride;
     w->ref = btf_big_alloc((size_t)w->sub_w * w->sub_h * w->V * w->L * 3 * sizeof(float));
-    int ok = w->ref && w->tnoise && w->tex_ext && w->wt_ext && w->prev_view && w->quality && w->lossy && w->lossy_n && w->wquality && w->wlossy && w->wlossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
+    int ok = w->ref && w->tnoise && w->tex_ext && w->wt_ext && w->prev_view && w->quality && w->lossy && w->lossy_n && w->wlossy && w->wlossy_n && w->wnoise && w->atlas && w->qwt && w->tex_range && w->wt_range && w->Pq && w->Pf &&
              w->Qq && w->Qf && w->TT &&
              w->WW && w->Tqd && w->Tfd && w->Wd && w->Ad && w->D;
     for (int j = 0; ok && j < C; j++) {
@@ -752,13 +750,15 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     memcpy(w->tnoise, rr.tex_noise, (size_t)w->C * sizeof(float));
     memcpy(w->wnoise, rr.wt_noise, (size_t)w->C * sizeof(float));
     memcpy(w->quality, rr.tex_quality, (size_t)w->C * sizeof(int));
-    memcpy(w->wquality, rr.wt_quality, (size_t)w->C * sizeof(int));
     w->codec = o->lossy;
     w->rd_json = btf__rd_json(&rr, o->lossy);
     if (c->estimate && (w->est_bytes = malloc((size_t)w->C * sizeof(long long))) != NULL)
         memcpy(w->est_bytes, rr.comp_bytes, (size_t)w->C * sizeof(long long));
     if (c->estimate && !w->est_bytes)
         r = btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (estimates)");
+    for (int j = 0; r == BTF_OK && j < w->C; j++) /* lossy weights: their file and its decode */
+        if (rr.wt_quality[j] >= 0)
+            r = btf_rd_wt_lossy(m, j, rr.wt_quality[j], w->wt_range[j], w->qwt[j], &w->wlossy[j], &w->wlossy_n[j], err);
     if (keep)
         *keep = rr;
     else
@@ -766,9 +766,6 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     if (r != BTF_OK)
         return r;
     r = btf__lossy_atlases(w, m, err);
-    for (int j = 0; r == BTF_OK && j < w->C; j++) /* lossy weights: their file and its decode */
-        if (w->wquality[j] >= 0)
-            r = btf_rd_wt_lossy(m, j, w->wquality[j], w->wt_range[j], w->qwt[j], &w->wlossy[j], &w->wlossy_n[j], err);
     float *A = r == BTF_OK ? btf_big_alloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
     if (r == BTF_OK && !A)
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");

@@ -756,9 +756,9 @@ static void btf__rd_fix_rates(btf__rd *r)
 
 /* The chosen candidates (it, iw) whose rates (and a lossy level's error) were
  * interpolated, measured now (an odd lossy level, of a texture or of weights,
- * encoded and decoded, an even weight step coded both ways), so that what the allocation chooses is what the writer
- * writes; returns how many, -1 on an error (in err). The lossless texture steps keep
- * their interpolated odd rates, as before. */
+ * encoded and decoded, an even weight step coded both ways), so that what the
+ * allocation chooses is what the writer writes; returns how many, -1 on an error (in
+ * err). The lossless texture steps keep their interpolated odd rates, as before. */
 static int btf__rd_refine(btf__rd *r, const int *it, const int *iw, btf_error *err)
 {
     if (btf__rd_prepare(r, err) != BTF_OK) /* a ladder reused from par->ladder measured nothing here */
