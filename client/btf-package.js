@@ -401,14 +401,14 @@ export async function dequantWeightsR(pkg, chunk, buf, q8) {
 }
 
 // Weights as a WebP: version 3's wt-JJ.webp (section 5.5: the 16-bit weight codes, every
-// one at most 255, lossless; or lossy, its decode the codes) and version 4's wt-JJ-8.webp
-// (section 5.2: the 8-bit weights, lossless only), each L x V opaque pixels, pixel (l, v)
+// one at most 255) and version 4's wt-JJ-8.webp (section 5.2: the 8-bit weights), each
+// L x V pixels, lossless (every pixel opaque) or lossy (its decode the codes), pixel (l, v)
 // holding channels 0, 1, 2 of view v and light l in R, G, B. The bytes of file f (default:
 // the chunk's 16-bit weights), checked before an image decoder sees them as the C reader
-// does: a simple-format file (RIFF WEBP, one VP8L chunk, or with lossyOk one VP8 key frame,
-// filling it) whose header says L x V; another kind (VP8X) or another size fails naming
-// the package and file.
-export function checkWeightsWebp(pkg, chunk, buf, f = chunk.wt, lossyOk = false) {
+// does: a simple-format file (RIFF WEBP, one VP8L chunk or one VP8 key frame, filling it)
+// whose header says L x V; another kind (VP8X) or another size fails naming the package
+// and file.
+export function checkWeightsWebp(pkg, chunk, buf, f = chunk.wt) {
   const b = buf instanceof Uint8Array ? buf : new Uint8Array(buf), n = b.length;
   const tag = (o) => String.fromCharCode(b[o], b[o + 1], b[o + 2], b[o + 3]);
   const le32 = (o) => (b[o] | (b[o + 1] << 8) | (b[o + 2] << 16) | (b[o + 3] << 24)) >>> 0;
@@ -418,7 +418,6 @@ export function checkWeightsWebp(pkg, chunk, buf, f = chunk.wt, lossyOk = false)
     fail(pkg.name, `${f}: not a WebP file (no RIFF/WEBP signature)`);
   if (n < 25) fail(pkg.name, `${f}: WebP file of ${n} bytes is truncated`);
   if (le32(4) + 8 !== n) fail(pkg.name, `${f}: RIFF size ${le32(4)} does not match the file's ${n} bytes`);
-  if (tag(12) === 'VP8 ' && !lossyOk) fail(pkg.name, `${f}: a lossy WebP where a lossless one (VP8L) is required`);
   const [w, h] = tag(12) === 'VP8 ' ? vp8Size(pkg, f, b, n, le32) : vp8lSize(pkg, f, b, n, tag, le32);
   if (w !== L || h !== V) fail(pkg.name, `${f}: WebP of ${w}x${h}, expected ${L}x${V}`);
 }

@@ -59,11 +59,11 @@ export class ChunkUploads {
     });
   }
 
-  // A weights WebP `name` of a chunk (wt-JJ.webp, lossless or lossy; wt-JJ-8.webp, lossless):
-  // its bytes checked as the C reader checks them (checkWeightsWebp), then decoded with its
+  // A weights WebP `name` of a chunk (wt-JJ.webp or wt-JJ-8.webp, lossless or lossy): its
+  // bytes checked as the C reader checks them (checkWeightsWebp), then decoded with its
   // alpha kept (a lossy file decodes opaque).
   weightsImage(chunk, name, data) {
-    checkWeightsWebp(this.pkg, chunk, data(name), name, name === chunk.wt); // version 3's may be lossy
+    checkWeightsWebp(this.pkg, chunk, data(name), name);
     return this.image(name, data, true);
   }
 

@@ -95,7 +95,7 @@ static void compress_usage(FILE *f)
             "                   steps, weights deflated (wt-JJ.z); a component's texture a lossy\n"
             "                   WebP of its full-range codes where that costs fewer bytes for its\n"
             "                   error (8 bits, not with --png), its coarse levels too at the same\n"
-            "                   quality; its weights likewise a lossy WebP (not with --levels);\n"
+            "                   quality; its weights likewise a lossy WebP;\n"
             "                   with --levels version 4;\n"
             "                   with --bits 16 steps down to 1/65535 of a block's range (PNG\n"
             "                   textures, no --levels)\n"

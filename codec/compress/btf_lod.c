@@ -324,8 +324,9 @@ static btf_result btf__errors(btf__lod *s, btf_error *err)
 }
 
 
-/* Codings of a component's 16-bit weights (doc/package-format.md sections 5.1, 5.3, 9.3, 5.4). */
-enum { BTF__W16_BIN, BTF__W16_RES, BTF__W16_Z, BTF__W16_PZ };
+/* Codings of a component's 16-bit weights (doc/package-format.md sections 5.1, 5.3, 9.3,
+ * 5.4), or NONE: version 4 writes no 16-bit file where the 8-bit weights are they (7.1). */
+enum { BTF__W16_BIN, BTF__W16_RES, BTF__W16_Z, BTF__W16_PZ, BTF__W16_NONE };
 
 static btf_result btf__copy_file(const char *from, const char *to, btf_error *err)
 {
@@ -462,6 +463,38 @@ static btf_result btf__w8_webp(btf__lod *s, int a, const uint8_t *q, const char 
     return r;
 }
 
+/* Version 4 over a version-3 source whose wt-JJ.webp is a lossy WebP (WebP allowed):
+ * that file, byte for byte, as component a's wt-JJ-8.webp with s_c = 1 and its decode
+ * as the 8-bit codes (doc/package-format.md section 5.2), which are the 16-bit codes
+ * too (the residual wt-JJ-r.z is zeros); *kept = 0 for any other source file. */
+static btf_result btf__w8_lossy(btf__lod *s, int a, const char *in_dir, const char *tmp, int *kept, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    const char *w = btf__src_file(&p->chunk[a], 1);
+    char from[8400], to[8400], name[BTF_PACKAGE_NAME_MAX + 8], *data = NULL;
+    size_t nd = 0;
+    *kept = 0;
+    if (!s->webp || !s->resid || btf_wtz_kind_of(w) != BTF_WTZ_WEBP)
+        return BTF_OK;
+    snprintf(from, sizeof from, "%s/%s", in_dir, w);
+    btf_result r = btf_fs_read(from, btf_wtz_max_bytes(V, L), &data, &nd, err);
+    uint8_t *q = NULL;
+    if (r == BTF_OK && btf_lossy_codec_of((const uint8_t *)data, nd) == BTF_LOSSY_WEBP) {
+        q = malloc((size_t)V * L * 3);
+        r = q ? btf_webp_decode_rgb((const uint8_t *)data, nd, from, L, V, q, err)
+              : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+        btf__w8_name_as(s, a, 1, name, sizeof name);
+        snprintf(to, sizeof to, "%s/%s", tmp, name);
+        if (r == BTF_OK)
+            r = btf_fs_write_atomic(to, data, nd, err);
+        if (r == BTF_OK)
+            s->w8q[a] = q, q = NULL, s->w8step[a] = 1, s->w8webp[a] = 1, s->w8bytes[a] = (long long)nd, *kept = 1;
+    }
+    free(q), free(data);
+    return r;
+}
+
 /* Component a's weights requantised to 8 bits (q8 = round(q16 / s_c), the same lo),
  * as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2) at path; version
  * 4 without png_only: replaced by wt-JJ-8.webp where that is smaller (btf__w8_webp). */
@@ -546,9 +579,24 @@ static btf_result btf__encode_w16(const btf__lod *s, int a, const uint16_t *q, i
     return r;
 }
 
+/* 1 in version 4 when component a's 8-bit weights are its 16-bit codes q exactly (s_c
+ * = 1, q8 = q16: its wt-JJ-r.z would be zeros, and both dequantise to the same floats),
+ * so its level-0 chunk needs no weights file (doc/package-format.md section 7.1). */
+static int btf__w16_redundant(const btf__lod *s, int a, const uint16_t *q)
+{
+    size_t n = (size_t)s->p->views.n_dirs * s->p->lights.n_dirs * 3;
+    if (!s->resid || !s->w8q[a] || s->w8step[a] != 1)
+        return 0;
+    for (size_t k = 0; k < n; k++)
+        if (s->w8q[a][k] != q[k])
+            return 0;
+    return 1;
+}
+
 /* Component a's 16-bit weights into tmp in the smallest coding a version allows:
- * version 2 wt-JJ.bin; version 4 also wt-JJ-r.z (with 8-bit weights), wt-JJ.z and wt-JJ.pz.
- * Fills w16res[a] and wbytes[a]. */
+ * version 2 wt-JJ.bin; version 4 also wt-JJ-r.z (with 8-bit weights), wt-JJ.z and wt-JJ.pz,
+ * or none where the 8-bit weights are they (btf__w16_redundant). Fills w16res[a] and
+ * wbytes[a]. */
 static btf_result btf__write_w16(btf__lod *s, int a, const char *in_dir, const char *tmp, btf_error *err)
 {
     char from[8400], to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
@@ -557,6 +605,11 @@ static btf_result btf__write_w16(btf__lod *s, int a, const char *in_dir, const c
     size_t nbest = 0;
     snprintf(from, sizeof from, "%s/%s", in_dir, btf__src_file(&s->p->chunk[a], 1));
     btf_result r = btf__read_q16(s, from, &q, err);
+    if (r == BTF_OK && btf__w16_redundant(s, a, q)) {
+        s->w16res[a] = BTF__W16_NONE, s->wbytes[a] = 0;
+        free(q);
+        return BTF_OK;
+    }
     for (int c = BTF__W16_BIN; r == BTF_OK && c <= (s->resid ? BTF__W16_PZ : BTF__W16_BIN); c++) {
         uint8_t *z = NULL;
         size_t nz = 0;
@@ -742,7 +795,10 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
     char to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
     btf_result r = BTF_OK;
     for (int a = 0; r == BTF_OK && a < s->C; a++) {
-        if (btf__first_level(s, a) > 0) {
+        int kept = 0;
+        if (btf__first_level(s, a) > 0)
+            r = btf__w8_lossy(s, a, in_dir, tmp, &kept, err);
+        if (r == BTF_OK && !kept && btf__first_level(s, a) > 0) {
             btf__w8_name(s, a, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
             s->w8step[a] = btf__w8_step(s, a);
@@ -779,7 +835,7 @@ static void btf__lod_chunk(const btf__lod *s, int k, char *seen, btf_chunk_info 
         btf__w8_name(s, a, c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
         *bytes += s->w8bytes[a];
     }
-    if (l == 0 || (!seen[a] && s->w8bytes[a] == 0)) { /* level 0 carries the 16-bit weights */
+    if ((l == 0 || (!seen[a] && s->w8bytes[a] == 0)) && s->w16res[a] != BTF__W16_NONE) { /* level 0: the 16-bit weights */
         btf__w16_name(s, a, s->w16res[a], c->files[c->n_files++], BTF_PACKAGE_NAME_MAX);
         *bytes += s->wbytes[a];
     }

@@ -37,7 +37,7 @@ _Static_assert(BTF__RD_NW % 2 == 0, "weight ladder: its last noise step at an od
  * encoding): the candidates NT .. NT + NQ - 1 of each component's texture ladder,
  * full-range 8-bit codes. */
 #define BTF__RD_NQ BTF_LOSSY_LADDER
-/* Lossy weights (with lossy textures, not under levels: btf_rd_params.lossy_weights):
+/* Lossy weights (with lossy textures: btf_rd_params.lossy_weights):
  * the candidates NW .. NW + NQW - 1 of each component's weight ladder, its weights as a
  * lossy WebP of full-range 8-bit codes (btf_rd_wt_lossy) at the WebP ladder's levels. */
 #define BTF__RD_NQW BTF_LOSSY_LADDER
@@ -311,7 +311,7 @@ btf_result btf_rd_wt_lossy(const btf_pca_model *m, int j, int quality, float *ra
     }
     btf_result r = btf_webp_encode_rgb_lossy(rgb, L, V, quality, file, n, err);
     if (r == BTF_OK)
-        r = btf_webp_decode_rgb(*file, *n, "weights: lossy candidate", L, V, 1, rgb, err);
+        r = btf_webp_decode_rgb(*file, *n, "weights: lossy candidate", L, V, rgb, err);
     for (size_t i = 0; r == BTF_OK && i < np; i++)
         q[i] = rgb[i];
     if (r != BTF_OK)

@@ -101,8 +101,8 @@ typedef struct btf_rd_params {
     /* 1 (not png_only): each component's weights may also be a lossy WebP of their
      * full-range 8-bit codes (btf_rd_wt_lossy) at one of the BTF_LOSSY_LADDER WebP
      * qualities, a candidate beside the weight steps chosen by the same lambda, its
-     * error measured on its decode (btf_rd_result.wt_quality); 0: steps only (a
-     * package that spatial levels will follow: version 4 keeps its weights lossless) */
+     * error measured on its decode (btf_rd_result.wt_quality; with spatial levels the
+     * same file becomes version 4's wt-JJ-8.webp); 0: steps only */
     int lossy_weights;
 } btf_rd_params;
 

@@ -38,8 +38,9 @@ static const char *btf__chunk_file(const btf_chunk_info *ci, const char *ext, in
 }
 
 
-/* Version 4's wt-JJ-8.webp at path into a new *px (V*L*3 bytes, malloc'd): a lossless
- * RGB WebP of L x V pixels, pixel (l, v) holding index (v*L + l)*3 + c as sample c. */
+/* Version 4's wt-JJ-8.webp at path into a new *px (V*L*3 bytes, malloc'd): an RGB WebP
+ * of L x V pixels (lossless, or lossy: its decode), pixel (l, v) holding index
+ * (v*L + l)*3 + c as sample c. */
 static btf_result btf__read_w8_webp(const btf_files *fs, const char *path, int L, int V, uint8_t **px,
                                     btf_error *err)
 {
@@ -48,7 +49,7 @@ static btf_result btf__read_w8_webp(const btf_files *fs, const char *path, int L
     *px = malloc(n);
     btf_result r = *px ? btf_fs_read_with(fs, path, max, &z, &nz, err) : btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", path);
     if (r == BTF_OK)
-        r = btf_webp_decode_rgb((const uint8_t *)z, nz, path, L, V, 0, *px, err);
+        r = btf_webp_decode_rgb((const uint8_t *)z, nz, path, L, V, *px, err);
     free(z);
     if (r != BTF_OK)
         free(*px), *px = NULL;
@@ -56,7 +57,7 @@ static btf_result btf__read_w8_webp(const btf_files *fs, const char *path, int L
 }
 
 /* Coarse weights (doc/package-format.md section 5.2): an 8-bit grey PNG of 3L x V
- * pixels, or in version 4 an RGB lossless WebP of L x V (wt-JJ-8.webp), Wt = lo +
+ * pixels, or in version 4 an RGB WebP of L x V (wt-JJ-8.webp), Wt = lo +
  * wt8_step * step * q with the 16-bit [lo, step]. */
 static btf_result btf__load_weights8(btf_package *p, const btf_files *fs, const char *dir, int i, const char *wf,
                                      float *wt, btf_error *err)

@@ -699,7 +699,7 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
     cJSON_AddItemToObject(c, "rmse", btf__num(p, ci->rmse));
     if (!btf_package_has_levels(p))
         cJSON_AddItemToObject(c, "lab", btf__num(p, ci->lab));
-    if (p->version != 3) /* version 3: a reader computes it from rmse */
+    if (p->version < 3) /* versions 3 and 4: a reader computes it from rmse */
         cJSON_AddItemToObject(c, "psnr", btf__num(p, ci->psnr));
     if (!btf_package_has_levels(p))
         cJSON_AddItemToObject(c, "delta_e76", btf__num(p, ci->delta_e76));

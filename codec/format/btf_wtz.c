@@ -144,7 +144,7 @@ btf_result btf_wtz_decode_webp(const uint8_t *data, size_t len, int V, int L, ui
     uint8_t *rgb = malloc(n);
     if (!rgb)
         return btf_fail(err, BTF_ERR_NOMEM, "%s: out of memory", name);
-    btf_result r = btf_webp_decode_rgb(data, len, name, L, V, 1, rgb, err);
+    btf_result r = btf_webp_decode_rgb(data, len, name, L, V, rgb, err);
     for (size_t i = 0; r == BTF_OK && i < n; i++)
         q[i] = rgb[i];
     free(rgb);

@@ -275,14 +275,12 @@ btf_result btf_webp_decode_grey(const uint8_t *data, size_t n, const char *what,
     return r;
 }
 
-btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, int lossy_ok,
-                               uint8_t *rgb, btf_error *err)
+btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
+                               btf_error *err)
 {
     uint8_t *px = NULL;
     int ch = 0;
     btf_result r = btf__decode_px(data, n, what, w, h, &px, &ch, err);
-    if (r == BTF_OK && ch != 4 && !lossy_ok)
-        r = btf_fail(err, BTF_ERR_FORMAT, "%s: a lossy WebP where a lossless one (VP8L) is required", what);
     if (r == BTF_OK && ch == 3)
         memcpy(rgb, px, (size_t)w * (size_t)h * 3);
     for (size_t i = 0; r == BTF_OK && ch == 4 && i < (size_t)w * (size_t)h; i++) {

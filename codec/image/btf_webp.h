@@ -62,11 +62,11 @@ btf_result btf_webp_encode_rgb_lossy(const uint8_t *rgb, int w, int h, int quali
                                      btf_error *err);
 /* Decodes a WebP that btf_webp_check accepts and whose header says w x h into rgb
  * (the caller's 3*w*h bytes): a lossless file must have every pixel opaque; a lossy
- * one (only with lossy_ok) gives libwebp's RGB decode. BTF_ERR_FORMAT (naming what)
- * for a lossy file without lossy_ok, another size or a pixel with alpha below 255; the
- * check and the size before anything is decoded. */
-btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, int lossy_ok,
-                               uint8_t *rgb, btf_error *err);
+ * one gives libwebp's RGB decode. BTF_ERR_FORMAT (naming what) for another size or a
+ * lossless pixel with alpha below 255; the check and the size before anything is
+ * decoded. */
+btf_result btf_webp_decode_rgb(const uint8_t *data, size_t n, const char *what, int w, int h, uint8_t *rgb,
+                               btf_error *err);
 /* libwebp's R of a decoded Y at U = V = 128 (its VP8YUVToR), 0..255. */
 int btf_webp_r_of_y(int y);
 /* The Y (0..255) whose btf_webp_r_of_y is nearest q (ties: the smaller Y); the lossy

@@ -716,8 +716,7 @@ Test(rd, wtz_webp_layout_round_trip_and_refusals)
     cr_assert_neq(kind, BTF_WTZ_WEBP);
     free(z);
     q[11] = 3;
-    /* a lossy WebP (section 5.5): its codes are libwebp's own RGB decode of it; where
-     * only a lossless one may be (version 4's wt-JJ-8.webp) it is refused */
+    /* a lossy WebP (section 5.5): its codes are libwebp's own RGB decode of it */
     uint8_t *rgba = malloc((size_t)V * L * 4), *bad = NULL;
     for (size_t i = 0; i < (size_t)V * L; i++)
         rgba[4 * i] = (uint8_t)q[3 * i], rgba[4 * i + 1] = (uint8_t)q[3 * i + 1], rgba[4 * i + 2] = (uint8_t)q[3 * i + 2],
@@ -734,8 +733,6 @@ Test(rd, wtz_webp_layout_round_trip_and_refusals)
     for (size_t i = 0; i < (size_t)V * L * 3; i++)
         cr_assert_eq(back[i], dec[i], "code %zu: %u, libwebp's decode %u", i, back[i], dec[i]);
     WebPFree(dec);
-    cr_assert_eq(btf_webp_decode_rgb(lossy, nb, "wt-01-8.webp", L, V, 0, rgb8, &err), BTF_ERR_FORMAT);
-    cr_assert(strstr(err.msg, "lossy"), "%s", err.msg);
     free(rgb8);
     WebPFree(lossy);
     rgba[4 * 5 + 3] = 254;
@@ -1081,18 +1078,19 @@ Test(rd, cli_defaults_to_rate_distortion_and_plain_stays_reachable)
 }
 
 /* A budget with levels: under --max-error the levels leave level 0 as the budget
- * without them made it (the same values; levels keep lossless textures, so the
- * package without them is asked for --lossless); under --max-bytes the levelled
- * package, manifest included, fits. */
+ * without them made it (the same values; both --lossless: the allocation weighs a
+ * lossy texture's rate with its coarse levels, so with lossy candidates the two
+ * would choose apart); under --max-bytes the levelled package, manifest included,
+ * fits. */
 Test(rd, a_budget_with_levels_keeps_level_0_and_fits_the_bytes)
 {
     char tmp[256], a[512], b[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     snprintf(a, sizeof a, "%s/a", tmp);
     snprintf(b, sizeof b, "%s/b", tmp);
-    char *err_only[] = {"--k", "3", "--max-error", "3", "--lossless"}, *err_lv[] = {"--k", "3", "--max-error", "3", "--levels", "2"};
+    char *err_only[] = {"--k", "3", "--max-error", "3", "--lossless"}, *err_lv[] = {"--k", "3", "--max-error", "3", "--levels", "2", "--lossless"};
     cr_assert_eq(cli_version(a, err_only, 5), 3);
-    cr_assert_eq(cli_version(b, err_lv, 6), 4);
+    cr_assert_eq(cli_version(b, err_lv, 7), 4);
     btf_package *pa = fx_package(a, NULL, 0), *pb = fx_package(b, NULL, 0);
     expect_same_values(pa, pb);
     long long limit = written_bytes(pa, a) * 11 / 10;
@@ -1656,25 +1654,108 @@ Test(rd, lossy_weights_where_they_win_and_the_error_as_predicted)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
-/* Version 3's manifest leaves each chunk's psnr out (doc/package-format.md section
- * 9.3); the reader gives 20 log10(255 / rmse), as version 1 writes it. */
-Test(rd, version3_leaves_psnr_out_and_the_reader_computes_it)
+/* The chunk of package p that carries component j's file ending ext, -1 if none. */
+static int chunk_with(const btf_package *p, int j, const char *ext)
 {
-    char tmp[256], out[512], path[600];
+    size_t e = strlen(ext);
+    for (int i = 0; i < p->n_chunks; i++)
+        for (int f = 0; p->chunk[i].component == j && f < p->chunk[i].n_files; f++) {
+            size_t m = strlen(p->chunk[i].files[f]);
+            if (m > e && !strcmp(p->chunk[i].files[f] + m - e, ext))
+                return i;
+        }
+    return -1;
+}
+
+/* Lossy weights under spatial levels (doc/package-format.md sections 5.2 and 10.7): the
+ * allocation of a package that levels will follow (btf compress --levels) still chooses
+ * them; the level builder keeps each lossy wt-JJ.webp, byte for byte, as the
+ * component's wt-JJ-8.webp with s_c = 1, so the first (coarse) chunk of the component
+ * draws with its final weights, and no chunk carries 16-bit weights for it (they would
+ * be the same codes); every value of the levelled package at all chunks equals the
+ * version-3 package's. */
+Test(rd, levels_keep_the_lossy_weights_as_they_are)
+{
+    char tmp[256], out[512], lv[512], path[1024];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     snprintf(out, sizeof out, "%s/p", tmp);
+    snprintf(lv, sizeof lv, "%s/lv", tmp);
+    btf_dirset d = btf_dirset_ubo2003();
+    btf *src = fx_gen(BTF_GEN_TILES, 16, &d, BTF_U8);
+    btf_pca_options po = {0};
+    po.k = 27, po.components = 6;
+    btf_package_options ko = {0};
+    ko.rd = 1, ko.lossy = BTF_LOSSY_WEBP, ko.tex_noise = 2.0f, ko.levels = 1; /* as btf compress --levels */
+    btf_lod_options lo = {0};
+    lo.levels = 2, lo.residual = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, out, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+    cr_assert_eq(b->version, 4);
+    int lossy = 0, L = a->lights.n_dirs, V = a->views.n_dirs;
+    for (int i = 0; i < a->n_chunks; i++) {
+        int j = a->chunk[i].component;
+        uint8_t *f = NULL, *g = NULL;
+        snprintf(path, sizeof path, "%s/%s", out, a->chunk[i].files[1]);
+        size_t n = maybe_file(path, &f);
+        int c8 = chunk_with(b, j, "-8.webp");
+        if (btf_lossy_codec_of(f, n) != BTF_LOSSY_WEBP) {
+            free(f);
+            continue;
+        }
+        lossy++;
+        cr_assert_geq(c8, 0, "component %d: no wt-JJ-8.webp", j);
+        cr_assert_gt(b->chunk[c8].level, 0, "component %d: its weights in a coarse chunk", j);
+        cr_assert_eq(b->chunk[c8].wt8_step, 1.0);
+        snprintf(path, sizeof path, "%s/%s", lv, b->chunk[c8].files[1]);
+        cr_assert_eq(maybe_file(path, &g), n, "%s", path);
+        cr_assert_eq(memcmp(f, g, n), 0, "component %d: the lossy file as it was", j);
+        for (size_t k = 0; k < (size_t)V * L * 3; k++)
+            cr_assert_eq(b->wt[c8][k], a->wt[i][k], "component %d weight %zu: the coarse chunk's", j, k);
+        for (int e = 0; e < b->n_chunks; e++)
+            if (b->chunk[e].component == j && e != c8) {
+                cr_assert_eq(b->chunk[e].n_files, 1, "component %d: chunk %d carries no weights", j, e);
+                cr_assert_eq(memcmp(b->wt[e], a->wt[i], (size_t)V * L * 3 * sizeof(float)), 0);
+            }
+        free(f), free(g);
+    }
+    cr_assert_geq(lossy, 1, "no lossy weights under levels: the test no longer covers them");
+    expect_same_values(a, b);
+    btf_package_free(a), btf_package_free(b);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
+/* Versions 3 and 4 leave each chunk's psnr out of the manifest (doc/package-format.md
+ * sections 3.5 and 9.3); the reader gives 20 log10(255 / rmse), as version 1 writes it. */
+Test(rd, versions3_and_4_leave_psnr_out_and_the_reader_computes_it)
+{
+    char tmp[256], out[512], lv[512], path[600];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/p", tmp);
+    snprintf(lv, sizeof lv, "%s/lv", tmp);
     btf *src = fx_material(BTF_GEN_TILES, 16, rings, 3);
     btf_rd_result rr;
     compress_lossy(src, 4, BTF_LOSSY_WEBP, out, &rr);
-    snprintf(path, sizeof path, "%s/manifest.json", out);
-    uint8_t *text = NULL;
-    size_t n = maybe_file(path, &text);
-    cr_assert(n > 0 && strstr((char *)text, "\"rmse\"") && !strstr((char *)text, "\"psnr\""), "%.*s", (int)n, text);
-    free(text);
-    btf_package *p = fx_package(out, NULL, 0);
-    for (int i = 0; i < p->n_chunks; i++)
-        cr_assert_float_eq(p->chunk[i].psnr, 20.0 * log10(255.0 / p->chunk[i].rmse), 1e-9, "chunk %d", i);
-    btf_package_free(p);
+    btf_lod_options lo = {0};
+    lo.levels = 2, lo.residual = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    for (int v = 3; v <= 4; v++) {
+        const char *dir = v == 3 ? out : lv;
+        snprintf(path, sizeof path, "%s/manifest.json", dir);
+        uint8_t *text = NULL;
+        size_t n = maybe_file(path, &text);
+        cr_assert(n > 0 && strstr((char *)text, "\"rmse\"") && !strstr((char *)text, "\"psnr\""), "%.*s", (int)n,
+                  text);
+        free(text);
+        btf_package *p = fx_package(dir, NULL, 0);
+        cr_assert_eq(p->version, v);
+        for (int i = 0; i < p->n_chunks; i++)
+            cr_assert_float_eq(p->chunk[i].psnr, 20.0 * log10(255.0 / p->chunk[i].rmse), 1e-9, "chunk %d", i);
+        btf_package_free(p);
+    }
     btf_rd_result_free(&rr);
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);

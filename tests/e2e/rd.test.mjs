@@ -6,7 +6,8 @@
 // headless Chromium against a real btfd: each streams completely and draws the image
 // its version-1 twin (the same source, equal-noise steps, raw weights: --plain) draws,
 // up to quantisation; the client's decode of each lossy texture and of each wt-JJ.webp
-// (lossless or lossy) is the C reader's, exactly, and a wt-JJ.webp not opaque is refused.
+// (lossless or lossy) is the C reader's, exactly, and a wt-JJ.webp not opaque is refused;
+// version 4's lossy wt-JJ-8.webp (the same files under levels) draws as well.
 import assert from 'node:assert/strict';
 import {spawnSync} from 'node:child_process';
 import fs from 'node:fs';
@@ -40,6 +41,8 @@ before(async () => {
     'tiles-rdl': ['tiles', 4, 2], 'tiles-lossy': ['tiles', 4, 0, ['--tex-noise', '1']],
     // coarser: lossy weights win too (section 5.5)
     'tiles-lossyw': ['tiles', 4, 0, ['--tex-noise', '2']],
+    // and with levels: those files as wt-JJ-8.webp, no 16-bit weights after them (5.2, 7.1)
+    'tiles-lossywl': ['tiles', 4, 2, ['--tex-noise', '2']],
     // fine steps: weight codes above 255, so wt-JJ.pz or wt-JJ.z (no wt-JJ.webp)
     'tiles-fine': ['tiles', 4, 0, ['--tex-noise', '0.05']],
     // and with levels: a lossy component's coarse levels lossy too (package-format.md
@@ -145,7 +148,7 @@ async function weightsAsReader(name) {
     const pkg = P.parseManifest(m), pr = P.parseManifest(mr), out = [];
     for (const c of pkg.chunks.filter((x) => wt[x.wt])) {
       const file = bytes(wt[c.wt]);
-      P.checkWeightsWebp(pkg, c, file, c.wt, true);
+      P.checkWeightsWebp(pkg, c, file, c.wt);
       const d = await decodeImage(file, 'image/webp', true);
       const w = P.dequantWeightsW(pkg, c, d.width, d.height, d.rgba);
       const rc = pr.chunks.find((x) => x.component === c.component && x.wt);
@@ -179,8 +182,8 @@ describe('version 3 (wt-JJ.z, wt-JJ.pz or wt-JJ.webp weights)', () => {
     console.log(`# ${webp.length} wt-JJ.webp weights files among the version-3 packages drawn`);
     const zlib = weightFiles('tiles-fine').filter((f) => /^wt-.*\.p?z$/.test(f));
     assert.ok(zlib.length >= 1, 'a version-3 package drawn carries wt-JJ.pz or wt-JJ.z weights (the test covers them)');
-    const shots = await drawAll(['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl', 'tiles-fine', 'tiles-lossyw'],
-      ['tiles-rdl', 'tiles-lossyl']);
+    const shots = await drawAll(['tiles', 'tiles-rd', 'tiles-rdl', 'tiles-lossy', 'tiles-lossyl', 'tiles-fine', 'tiles-lossyw',
+      'tiles-lossywl'], ['tiles-rdl', 'tiles-lossyl', 'tiles-lossywl']);
     // Finer steps than the default's: closer to the float model, the same bound.
     const df = meanAbsDiff(shots.tiles, shots['tiles-fine']);
     console.log(`# version 3 with ${zlib.length} zlib weights files vs version 1: mean |difference| ${df.toFixed(3)} of 255`);
@@ -214,6 +217,15 @@ describe('version 3 (wt-JJ.z, wt-JJ.pz or wt-JJ.webp weights)', () => {
     const dw = meanAbsDiff(shots.tiles, shots['tiles-lossyw']);
     console.log(`# ${lw.length} lossy weights files (noise 2): mean |difference| ${dw.toFixed(3)} of 255 from version 1`);
     assert.ok(dw < 3, `lossy weights within 3 levels of version 1 (${dw})`); // 0.81 measured; a wrong decode: tens
+    // Under levels the lossy files are the coarse chunks' wt-JJ-8.webp, and no chunk
+    // after them carries weights for those components: drawn with the 8-bit weights.
+    const wl = manifestOf('tiles-lossywl').chunks, wlDir = path.join(lib.lib, 'tiles-lossywl');
+    const lw8 = wl.flatMap((c) => c.files).filter((f) => f.endsWith('-8.webp') && isLossy(wlDir, f));
+    assert.ok(lw8.length >= 1, 'the levelled package has lossy wt-JJ-8.webp weights (the test covers them)');
+    assert.ok(wl.some((c) => c.level === 0 && c.files.length === 1), 'a level-0 chunk without weights');
+    const dwl = meanAbsDiff(shots.tiles, shots['tiles-lossywl']);
+    console.log(`# ${lw8.length} lossy wt-JJ-8.webp under levels: mean |difference| ${dwl.toFixed(3)} of 255 from version 1`);
+    assert.ok(dwl < 3, `lossy weights under levels within 3 levels of version 1 (${dwl})`);
     assertClean(desktop);
   });
 });
