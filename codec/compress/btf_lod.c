@@ -409,12 +409,13 @@ static int btf__first_level(const btf__lod *s, int a)
 }
 
 /* Step multiplier s_c of component a's 8-bit weights (doc/package-format.md section
- * 5.2): the largest whole s with s * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a)
- * in every block, so the coarse weights add at most that RMS noise (0..255 scale) per
- * component (the equal-noise allocation of section 4 applied to weights), but at
- * least ceil(q16max / 255) so that 255 codes reach the component's largest 16-bit
- * code (257 for weights spanning the 16 bits; far fewer under rate-distortion steps),
- * at most 65535. */
+ * 10.6): 1 when every 16-bit code is at most 255 (the 8-bit weights are then the 16-bit
+ * ones, and no 16-bit file follows: btf__w16_redundant); else the largest whole s with
+ * s * step16 <= BTF__W8_NOISE/255 * sqrt(12) / rms(T_a) in every block, so the coarse
+ * weights add at most that RMS noise (0..255 scale) per component (the equal-noise
+ * allocation of section 4 applied to weights), but at least ceil(q16max / 255) so
+ * that 255 codes reach the component's largest 16-bit code (257 for weights spanning
+ * the 16 bits), at most 65535. */
 #define BTF__W8_NOISE 0.25
 static int btf__w8_step(const btf__lod *s, int a)
 {
@@ -436,6 +437,8 @@ static int btf__w8_step(const btf__lod *s, int a)
         qmax = q > qmax ? q : qmax;
     }
     double lo = ceil(qmax / 255.0);
+    if (lo <= 1.0)
+        return 1;
     m = floor(m) > lo ? floor(m) : lo;
     return m < 1.0 ? 1 : m > 65535.0 ? 65535 : (int)m;
 }

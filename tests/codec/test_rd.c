@@ -909,6 +909,54 @@ Test(rd, version3_takes_residual_levels_that_keep_its_values)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
+/* A component whose 16-bit weight codes all fit 255 (read back from the version-3
+ * package's weights and ranges) gets s_c = 1 under levels: its coarse chunk's 8-bit
+ * weights are its final weights, and no later chunk carries 16-bit ones
+ * (doc/package-format.md sections 10.6 and 7.1); one whose codes do not has its
+ * 16-bit weights at level 0. */
+Test(rd, codes_within_8_bits_are_the_coarse_weights_exactly)
+{
+    char tmp[256], out[512], lv[512];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/m", tmp);
+    snprintf(lv, sizeof lv, "%s/lv", tmp);
+    btf *src = fx_material(BTF_GEN_KNIT, 64, rings, 3);
+    compress_ok(src, 12, 1, out, NULL); /* minor components too, whose noise rule allows s_c > 1 */
+    btf_free(src);
+    btf_lod_options lo = {0};
+    lo.levels = 2, lo.residual = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+    int L = a->lights.n_dirs, V = a->views.n_dirs, fit = 0;
+    for (int i = 0; i < a->n_chunks; i++) {
+        int j = a->chunk[i].component, first = -1, files16 = 0;
+        double qmax = 0.0;
+        for (size_t k = 0; k < (size_t)V * L * 3; k++) {
+            const float *rg = a->chunk[i].wt_range + 2 * a->blocks->block_of_view[k / (3 * (size_t)L)];
+            double q = rg[1] > 0.0f ? rint(((double)a->wt[i][k] - rg[0]) / rg[1]) : 0.0;
+            qmax = q > qmax ? q : qmax;
+        }
+        for (int e = 0; e < b->n_chunks; e++)
+            if (b->chunk[e].component == j) {
+                first = first < 0 ? e : first;
+                files16 += e != first && b->chunk[e].n_files > 1;
+            }
+        cr_assert_geq(first, 0);
+        if (qmax <= 255.0) {
+            fit++;
+            cr_assert_eq(b->chunk[first].wt8_step, 1.0, "component %d: codes up to %g", j, qmax);
+            cr_assert_eq(files16, 0, "component %d: its 8-bit weights are its 16-bit ones", j);
+        } else
+            cr_assert_eq(files16, 1, "component %d: codes up to %g need 16-bit weights", j, qmax);
+    }
+    cr_log_info("%d of %d components within 8 bits", fit, a->n_chunks);
+    cr_assert_geq(fit, 1, "no component within 8 bits: the test no longer covers them");
+    expect_same_values(a, b);
+    btf_package_free(a), btf_package_free(b);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
 /* Number of the package's chunk files (p in dir) whose name ends ext. */
 static int files_ending(const btf_package *p, const char *ext)
 {
