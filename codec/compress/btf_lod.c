@@ -422,6 +422,14 @@ static int btf__w8_step(const btf__lod *s, int a)
     const btf_package *p = s->p;
     int L = p->lights.n_dirs, V = p->views.n_dirs;
     double m = 65535.0, qmax = 0.0;
+    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
+        const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
+        double q = rg[1] > 0.0f ? rint(((double)p->wt[a][k] - rg[0]) / rg[1]) : 0.0;
+        qmax = q > qmax ? q : qmax;
+    }
+    double lo = ceil(qmax / 255.0);
+    if (lo <= 1.0)
+        return 1;
     for (int b = 0; b < s->nb; b++) {
         const float *t = p->tex[a] + (size_t)b * s->W * s->H;
         double e = 0.0;
@@ -431,14 +439,6 @@ static int btf__w8_step(const btf__lod *s, int a)
         if (rms > 0.0 && st > 0.0 && BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st < m)
             m = BTF__W8_NOISE / 255.0 * sqrt(12.0) / rms / st;
     }
-    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
-        const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
-        double q = rg[1] > 0.0f ? rint(((double)p->wt[a][k] - rg[0]) / rg[1]) : 0.0;
-        qmax = q > qmax ? q : qmax;
-    }
-    double lo = ceil(qmax / 255.0);
-    if (lo <= 1.0)
-        return 1;
     m = floor(m) > lo ? floor(m) : lo;
     return m < 1.0 ? 1 : m > 65535.0 ? 65535 : (int)m;
 }
@@ -466,10 +466,25 @@ static btf_result btf__w8_webp(btf__lod *s, int a, const uint8_t *q, const char 
     return r;
 }
 
+/* Component a's weights requantised to 8 bits at its step multiplier s->w8step[a]
+ * (q8 = round(q16 / s_c), the same lo): V*L*3 codes, malloc'd; NULL without memory. */
+static uint8_t *btf__w8_codes(const btf__lod *s, int a)
+{
+    const btf_package *p = s->p;
+    int L = p->lights.n_dirs, V = p->views.n_dirs;
+    uint8_t *q = malloc((size_t)V * L * 3);
+    for (size_t k = 0; q && k < (size_t)V * L * 3; k++) {
+        const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
+        double x = rg[1] > 0.0f ? ((double)p->wt[a][k] - rg[0]) / ((double)s->w8step[a] * rg[1]) : 0.0;
+        q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
+    }
+    return q;
+}
+
 /* Version 4 over a version-3 source whose wt-JJ.webp is a lossy WebP (WebP allowed):
- * that file, byte for byte, as component a's wt-JJ-8.webp with s_c = 1 and its decode
- * as the 8-bit codes (doc/package-format.md section 5.2), which are the 16-bit codes
- * too (the residual wt-JJ-r.z is zeros); *kept = 0 for any other source file. */
+ * that file, byte for byte, as component a's wt-JJ-8.webp with s_c = 1 (doc/package-format.md
+ * section 5.2); its 8-bit codes are the 16-bit ones the reader decoded from it (the
+ * residual wt-JJ-r.z would be zeros); *kept = 0 for any other source file. */
 static btf_result btf__w8_lossy(btf__lod *s, int a, const char *in_dir, const char *tmp, int *kept, btf_error *err)
 {
     const btf_package *p = s->p;
@@ -482,37 +497,27 @@ static btf_result btf__w8_lossy(btf__lod *s, int a, const char *in_dir, const ch
         return BTF_OK;
     snprintf(from, sizeof from, "%s/%s", in_dir, w);
     btf_result r = btf_fs_read(from, btf_wtz_max_bytes(V, L), &data, &nd, err);
-    uint8_t *q = NULL;
     if (r == BTF_OK && btf_lossy_codec_of((const uint8_t *)data, nd) == BTF_LOSSY_WEBP) {
-        q = malloc((size_t)V * L * 3);
-        r = q ? btf_webp_decode_rgb((const uint8_t *)data, nd, from, L, V, q, err)
-              : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
+        s->w8step[a] = 1;
         btf__w8_name_as(s, a, 1, name, sizeof name);
         snprintf(to, sizeof to, "%s/%s", tmp, name);
+        s->w8q[a] = btf__w8_codes(s, a);
+        r = s->w8q[a] ? btf_fs_write_atomic(to, data, nd, err) : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
         if (r == BTF_OK)
-            r = btf_fs_write_atomic(to, data, nd, err);
-        if (r == BTF_OK)
-            s->w8q[a] = q, q = NULL, s->w8step[a] = 1, s->w8webp[a] = 1, s->w8bytes[a] = (long long)nd, *kept = 1;
+            s->w8webp[a] = 1, s->w8bytes[a] = (long long)nd, *kept = 1;
     }
-    free(q), free(data);
+    free(data);
     return r;
 }
 
-/* Component a's weights requantised to 8 bits (q8 = round(q16 / s_c), the same lo),
- * as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2) at path; version
+/* Component a's 8-bit weights (btf__w8_codes) as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2) at path; version
  * 4 without png_only: replaced by wt-JJ-8.webp where that is smaller (btf__w8_webp). */
 static btf_result btf__write_w8(btf__lod *s, int a, const char *tmp, const char *path, btf_error *err)
 {
-    const btf_package *p = s->p;
-    int L = p->lights.n_dirs, V = p->views.n_dirs;
-    uint8_t *q = malloc((size_t)V * L * 3);
+    int L = s->p->lights.n_dirs, V = s->p->views.n_dirs;
+    uint8_t *q = btf__w8_codes(s, a);
     if (!q)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
-    for (size_t k = 0; k < (size_t)V * L * 3; k++) {
-        const float *rg = p->chunk[a].wt_range + 2 * p->blocks->block_of_view[k / (3 * (size_t)L)];
-        double x = rg[1] > 0.0f ? ((double)p->wt[a][k] - rg[0]) / ((double)s->w8step[a] * rg[1]) : 0.0;
-        q[k] = (uint8_t)(x < 0.0 ? 0 : x > 255.0 ? 255 : lround(x));
-    }
     s->w8q[a] = q; /* version 4 codes the 16-bit weights over these */
     btf_result r = btf_image_write_flags(path, 3 * L, V, 1, 8, q, BTF_IMAGE_PNG_SMALLEST, err);
     s->w8bytes[a] = btf_fs_size(path);
@@ -798,10 +803,10 @@ static btf_result btf__write_files(btf__lod *s, const char *in_dir, const char *
     char to[8400], name[BTF_PACKAGE_NAME_MAX + 8];
     btf_result r = BTF_OK;
     for (int a = 0; r == BTF_OK && a < s->C; a++) {
-        int kept = 0;
-        if (btf__first_level(s, a) > 0)
+        int kept = 0, coarse = btf__first_level(s, a) > 0; /* its first chunk carries 8-bit weights */
+        if (coarse)
             r = btf__w8_lossy(s, a, in_dir, tmp, &kept, err);
-        if (r == BTF_OK && !kept && btf__first_level(s, a) > 0) {
+        if (r == BTF_OK && !kept && coarse) {
             btf__w8_name(s, a, name, sizeof name);
             snprintf(to, sizeof to, "%s/%s", tmp, name);
             s->w8step[a] = btf__w8_step(s, a);
