@@ -873,19 +873,16 @@ static long long weights_z_bytes(const btf_package *p, const char *dir)
     return s;
 }
 
-/* A version-3 package takes residual levels (version 4, asked for or not); its
- * level 0 keeps every value, and its 16-bit weights take the smallest coding, so
- * never more than version 3's codes as wt-JJ.z (version 3 may keep a wt-JJ.webp,
- * which version 4 does not write). */
-/* A version-3 package of kind (16x16, k 3) in tmp/m and its 2 levels (btf_lod_build,
- * residual as given) in tmp/lv, both read into *a and *b; out and lv get the paths. */
-static void levelled_pair(btf_gen_kind kind, int residual, const char *tmp, char *out, char *lv, btf_package **a,
-                          btf_package **b)
+/* A version-3 package of kind (size x size, k 3, C components) in tmp/m and its 2
+ * levels (btf_lod_build, residual as given) in tmp/lv, both read into *a and *b; out
+ * and lv get the paths. */
+static void levelled_pair(btf_gen_kind kind, int size, int C, int residual, const char *tmp, char *out, char *lv,
+                          btf_package **a, btf_package **b)
 {
     snprintf(out, 512, "%s/m", tmp);
     snprintf(lv, 512, "%s/lv", tmp);
-    btf *src = fx_material(kind, 16, rings, 3);
-    compress_ok(src, 3, 1, out, NULL);
+    btf *src = fx_material(kind, size, rings, 3);
+    compress_ok(src, C, 1, out, NULL);
     btf_free(src);
     btf_lod_options lo = {0};
     lo.levels = 2, lo.residual = residual;
@@ -894,12 +891,16 @@ static void levelled_pair(btf_gen_kind kind, int residual, const char *tmp, char
     *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
 }
 
+/* A version-3 package takes residual levels (version 4, asked for or not); its
+ * level 0 keeps every value, and its 16-bit weights take the smallest coding, so
+ * never more than version 3's codes as wt-JJ.z (version 3 may keep a wt-JJ.webp,
+ * which version 4 does not write). */
 Test(rd, version3_takes_residual_levels_that_keep_its_values)
 {
     char tmp[256], out[512], lv[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     btf_package *a, *b;
-    levelled_pair(BTF_GEN_KNIT, 0, tmp, out, lv, &a, &b); /* residual 0: a version-3 source's default */
+    levelled_pair(BTF_GEN_KNIT, 16, 3, 0, tmp, out, lv, &a, &b); /* residual 0: a version-3 source's default */
     cr_assert_eq(a->version, 3);
     cr_assert_eq(b->version, 4);
     cr_assert_eq(b->n_levels, 2);
@@ -918,16 +919,9 @@ Test(rd, codes_within_8_bits_are_the_coarse_weights_exactly)
 {
     char tmp[256], out[512], lv[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
-    snprintf(out, sizeof out, "%s/m", tmp);
-    snprintf(lv, sizeof lv, "%s/lv", tmp);
-    btf *src = fx_material(BTF_GEN_KNIT, 64, rings, 3);
-    compress_ok(src, 12, 1, out, NULL); /* minor components too, whose noise rule allows s_c > 1 */
-    btf_free(src);
-    btf_lod_options lo = {0};
-    lo.levels = 2, lo.residual = 1;
-    btf_error err = {0};
-    cr_assert_eq(btf_lod_build(out, lv, &lo, NULL, &err), BTF_OK, "%s", err.msg);
-    btf_package *a = fx_package(out, NULL, 0), *b = fx_package(lv, NULL, 0);
+    btf_package *a, *b;
+    /* 64x64, 12 components: minor components too, whose noise rule allows s_c > 1 */
+    levelled_pair(BTF_GEN_KNIT, 64, 12, 1, tmp, out, lv, &a, &b);
     int L = a->lights.n_dirs, V = a->views.n_dirs, fit = 0;
     for (int i = 0; i < a->n_chunks; i++) {
         int j = a->chunk[i].component, first = -1, files16 = 0;
@@ -977,7 +971,7 @@ Test(rd, png_only_packages_hold_no_webp_weights)
     char tmp[256], out[512], lv[512];
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     btf_package *a, *b;
-    levelled_pair(BTF_GEN_TILES, 1, tmp, out, lv, &a, &b);
+    levelled_pair(BTF_GEN_TILES, 16, 3, 1, tmp, out, lv, &a, &b);
     cr_assert_gt(files_ending(a, ".webp"), 0);
     cr_assert_gt(files_ending(b, "-8.webp"), 0);
     btf_package_free(a), btf_package_free(b);
@@ -1010,7 +1004,7 @@ Test(rd, version4_coarse_weights_as_webp_decode_as_specified)
     cr_assert(fx_tmpdir(tmp, sizeof tmp));
     btf_package *a, *b;
     btf_error err = {0};
-    levelled_pair(BTF_GEN_TILES, 1, tmp, out, lv, &a, &b);
+    levelled_pair(BTF_GEN_TILES, 16, 3, 1, tmp, out, lv, &a, &b);
     cr_assert_eq(b->version, 4);
     expect_same_values(a, b);
     int L = b->lights.n_dirs, V = b->views.n_dirs, found = 0;
