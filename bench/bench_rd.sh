@@ -38,7 +38,7 @@ fi
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/bench_rd.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 
-lab() { "$BTF" eval "$1" "$2" --json --no-curve | jq -r .lab_mae; } # one decode of the whole package
+source bench/lib.sh
 echo "# material: thesis bytes / Lab | v1 (--max-bytes) bytes / Lab / ratio | v3png (--rd --png) | v3 (--rd --max-bytes) bytes / Lab / ratio / k, chunks | floor: 16-bit k 3, C 8 Lab (ratio)"
 variants=${RD_VARIANTS:-v1 v3png v3}
 first_v3=
@@ -46,13 +46,9 @@ for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
     [[ $name == "$spec" ]] && name=$(echo "$spec" | tr ':/' '--')
     echo "bench_rd: $name" >&2
-    if [[ $src == *@* ]]; then # a thesis package at SIZE: its reconstruction, as a DFMF file
-        "$BTF" import-thesis "${src%@*}" "$tmp/$name.btf" --size "${src##*@}" >/dev/null
-        src=$tmp/$name.btf
-    fi
-    "$BTF" export-thesis "$src" "$tmp/$name-thesis" --k 3 --components 8 >/dev/null
-    tb=$(find "$tmp/$name-thesis" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
-    tl=$(lab "$src" "$tmp/$name-thesis")
+    src=$(thesis_source "$src" "$tmp" "$name")
+    tb=$(thesis_baseline "$src" "$tmp/$name-thesis")
+    tl=$(whole_lab "$src" "$tmp/$name-thesis")
     for v in $variants; do
         case $v in
         v1) "$BTF" compress "$src" "$tmp/$name-v1" --max-bytes "$tb" --plain --quiet ;;
@@ -66,7 +62,7 @@ for spec in "${mats[@]}"; do
     for v in $variants; do
         d=$tmp/$name-$v
         b=$(find "$d" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
-        l=$(lab "$src" "$d")
+        l=$(whole_lab "$src" "$d")
         r=$(awk -v a="$l" -v t="$tl" 'BEGIN { printf "%.3f", a / t }')
         echo "rd_${name}_${v}_bytes $b B"
         echo "rd_${name}_${v}_lab $(printf %.4f "$l") lab"
@@ -82,7 +78,7 @@ for spec in "${mats[@]}"; do
     fi
     # the floor at k 3, C 8: 16-bit steps, no centring (the best rank-8 blocks)
     "$BTF" compress "$src" "$tmp/$name-floor" --k 3 --components 8 --bits 16 --center none --plain --quiet
-    fl=$(lab "$src" "$tmp/$name-floor")
+    fl=$(whole_lab "$src" "$tmp/$name-floor")
     rm -rf "$tmp/$name-floor"
     fr=$(awk -v a="$fl" -v t="$tl" 'BEGIN { printf "%.3f", a / t }')
     echo "rd_${name}_float8_lab $(printf %.4f "$fl") lab"
@@ -110,10 +106,10 @@ if [[ -n $first_v3 ]] && command -v oiiotool >/dev/null && oiiotool --help 2>/de
             b=$((b + $(stat -c %s "$tmp/t.webp")))
             oiiotool "$tmp/t.webp" --ch R --chnames Y -d uint8 -o "$f"
         done
-        l=$(lab "$src" "$d")
+        l=$(whole_lab "$src" "$d")
         "$BTF" compress "$src" "$tmp/png$q" --max-bytes "$b" --rd --quiet
         pb=$(find "$tmp/png$q" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
-        pl=$(lab "$src" "$tmp/png$q")
+        pl=$(whole_lab "$src" "$tmp/png$q")
         echo "rd_webp_q${q}_bytes $b B"
         echo "rd_webp_q${q}_lab $(printf %.4f "$l") lab"
         echo "rd_webp_q${q}_png_bytes $pb B"

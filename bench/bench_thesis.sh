@@ -35,7 +35,7 @@ done
 [[ ${THESIS_LARGE:-0} == 1 ]] && mats+=(tiles256=gen:tiles:256:3631 knit256=gen:knit:256:3652 stone256=gen:stone:256:3653)
 [[ -n ${THESIS_MATERIALS:-} ]] && read -r -a mats <<<"$THESIS_MATERIALS"
 
-lab() { printf %.4f "$("$BTF" eval "$1" "$2" --json --no-curve | jq -r .lab_mae)"; } # the whole package, once
+lab() { printf %.4f "$(whole_lab "$1" "$2")"; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; }
 # CPU seconds of `btf ARGS...` (user + system).
 cpu_of() { { /usr/bin/time -f "%U %S" "$BTF" "$@" >/dev/null; } 2>&1 | tail -1 | awk '{ printf "%.1f", $1 + $2 }'; }
@@ -45,12 +45,8 @@ echo "# material | thesis format: bytes, CIELab | ours at its bytes: CIELab (x i
 for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
     echo "bench_thesis: $name" >&2
-    if [[ $src == *@* ]]; then # a thesis package at SIZE: its reconstruction, as a DFMF file
-        "$BTF" import-thesis "${src%@*}" "$tmp/$name.btf" --size "${src##*@}" >/dev/null
-        src=$tmp/$name.btf
-    fi
-    "$BTF" export-thesis "$src" "$tmp/$name-thesis" --k 3 --components 8 >/dev/null
-    tb=$(find "$tmp/$name-thesis" -type f -printf '%s\n' | awk '{ s += $1 } END { print s }')
+    src=$(thesis_source "$src" "$tmp" "$name")
+    tb=$(thesis_baseline "$src" "$tmp/$name-thesis")
     tl=$(lab "$src" "$tmp/$name-thesis")
     rm -rf "$tmp/$name-thesis"
     pc=$(cpu_of compress "$src" "$tmp/$name-plain" --plain --no-thumbnail --quiet)
