@@ -9,8 +9,8 @@
 # same run (3 asked). One line per material starting "# " is the table's row; the last
 # two lines count the materials meeting each goal.
 # Default: generated tiles, knit and stone at 64x64 (seeds no test uses) and the
-# thesis's wool and corduroy at 64x64 where ../shared/data has them (about 25
-# minutes); THESIS_LARGE=1 adds tiles, knit and stone at 256x256 (about 15 minutes
+# thesis's wool and corduroy at 64x64 where ../shared/data has them (about 12
+# minutes on 2 cores); THESIS_LARGE=1 adds tiles, knit and stone at 256x256 (about 15 minutes
 # each). THESIS_MATERIALS="NAME=SOURCE ..." replaces the list (SOURCE as `btf
 # compress` reads it, or THESIS_DIR@SIZE for a thesis package at SIZE).
 # Run by bench/run.sh (results: bench/results/thesis.txt); needs `make build`, jq and
