@@ -93,10 +93,12 @@ function fromBase64(s) {
 }
 
 // Version 2 "ranges" (section 10): per component, base64 of B x 4 float32 LE
-// (tex lo, tex step, wt lo, wt step) -> [{tex: Float32Array(2B), wt: Float32Array(2B)}].
+// (tex lo, tex step, wt lo, wt step) -> [{tex: Float32Array(2B), wt: Float32Array(2B)}],
+// null for an empty entry (a component no chunk has).
 function parseCompactRanges(name, list, nBlocks) {
   if (!Array.isArray(list) || list.length < 1) fail(name, '"ranges" needs one entry per component');
   return list.map((e, c) => {
+    if (e === '') return null; // a component without chunks (section 3.4)
     let bytes = null;
     if (typeof e === 'string' && e.length === 4 * Math.ceil((16 * nBlocks) / 3)) {
       try { bytes = fromBase64(e); } catch { bytes = null; }
@@ -117,13 +119,16 @@ function parseCompactRanges(name, list, nBlocks) {
   });
 }
 
-// Version-2 and 4 header: levels (tiles divisible by 2^(levels-1)), ranges, weights8_step.
+// Version-2 and 4 header: levels (tiles divisible by 2^(levels-1)), ranges, weights8_step;
+// version 3: ranges, when the chunks leave theirs out.
 function parseLevels(name, m, nb) {
+  const compact = () => (m.ranges === undefined ? null : parseCompactRanges(name, m.ranges, nb));
+  if (m.version === 3) return {levels: 1, ranges: compact(), wt8Step: []}; // version 3: "ranges" optional
   if (m.version !== 2 && m.version !== 4) return {levels: 1, ranges: null, wt8Step: []};
   if (m.version === 4 && m.bits !== 8) fail(name, 'version 4 (residual levels) needs "bits": 8');
   if (!isInt(m.levels, 1, 15) || m.width % (1 << (m.levels - 1)) || m.height % (1 << (m.levels - 1)))
     fail(name, '"levels" is invalid for the texture size');
-  const ranges = m.ranges === undefined ? null : parseCompactRanges(name, m.ranges, nb);
+  const ranges = compact();
   const w8 = m.weights8_step === undefined ? [] : m.weights8_step;
   if (!Array.isArray(w8) || !w8.every((v) => isInt(v, 0, 65535))) fail(name, '"weights8_step" is invalid');
   return {levels: m.levels, ranges, wt8Step: w8.map((v) => v || 257)};
@@ -146,7 +151,7 @@ function parseChunk(name, c, i, nb, lv, version, mv) {
   if (!isInt(level, 0, lv.levels - 1)) fail(name, `chunk ${i} "level" is out of range`);
   const component = version >= 2 || c.component !== undefined ? c.component : i;
   if (version >= 2 && !isInt(component, 0, MAX_CHUNKS - 1)) fail(name, `chunk ${i} "component" is invalid`);
-  const own = c.tex_range !== undefined || version < 2;
+  const own = c.tex_range !== undefined || (version < 2 && !lv.ranges);
   const r = own ? null : lv.ranges && lv.ranges[component];
   if (!own && !r) fail(name, `chunk ${i}: no "ranges" entry for component ${component}`);
   return {

@@ -496,10 +496,11 @@ static int btf__rd_best(const double *d, const long long *rate, int n, double la
 }
 
 /* Manifest bytes of a version-3 package with n chunks (an estimate for the byte
- * budget: two ranges of about 55 characters per block and chunk, plus the header). */
+ * budget: the header's ranges of 16 bytes per block and chunk in base64, the chunk's
+ * other fields, plus the header). */
 static long long btf__rd_manifest_bytes(const btf__rd *r, int n)
 {
-    return 2048 + (long long)n * (300 + 120LL * r->nb) + 8LL * r->V;
+    return 2048 + (long long)n * (150 + 22LL * r->nb) + 8LL * r->V;
 }
 
 /* Total quantisation distortion and bytes at slope lambda; choices into it, iw when

@@ -323,7 +323,7 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
         r = btf__parse_pred(c, p, id, path, err);
     if (r != BTF_OK)
         return r;
-    if (btf_package_has_levels(p) && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
+    if ((btf_package_has_levels(p) || (p->version == 3 && ranges)) && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
         return btf__component_ranges(ranges, ci, p->blocks->n_blocks, path, id, err);
     r = btf__parse_ranges(c, "tex_range", p->blocks->n_blocks, &ci->tex_range, path, id, err);
     if (r == BTF_OK)
@@ -668,6 +668,12 @@ static cJSON *btf__ranges_b64(const btf_package *p)
     return arr;
 }
 
+/* 1 when the ranges travel in the header's "ranges" (versions 2, 3 and 4), 0 in each chunk. */
+static int btf__header_ranges(const btf_package *p)
+{
+    return btf_package_has_levels(p) || p->version == 3;
+}
+
 /* Version 2 header additions: levels, lod, ranges, weights8_step. */
 static void btf__print_levels(const btf_package *p, cJSON *m)
 {
@@ -704,10 +710,11 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
     if (!btf_package_has_levels(p))
         cJSON_AddItemToObject(c, "delta_e76", btf__num(p, ci->delta_e76));
     cJSON_AddItemToObject(c, "rmse_float", btf__num(p, ci->rmse_float));
-    if (!btf_package_has_levels(p)) {
+    if (!btf__header_ranges(p)) {
         cJSON_AddItemToObject(c, "tex_range", btf__ranges_json(ci->tex_range, p->blocks->n_blocks));
         cJSON_AddItemToObject(c, "wt_range", btf__ranges_json(ci->wt_range, p->blocks->n_blocks));
-    } else {
+    }
+    if (btf_package_has_levels(p)) {
         cJSON_AddNumberToObject(c, "level", ci->level);
         cJSON_AddItemToObject(c, "contrib", btf__num(p, ci->contrib));
         cJSON_AddItemToObject(c, "rmse_full", btf__num(p, ci->rmse_full));
@@ -727,6 +734,8 @@ char *btf_manifest_print(const btf_package *p, btf_error *err)
         btf__print_header(p, m);
         if (btf_package_has_levels(p))
             btf__print_levels(p, m);
+        else if (btf__header_ranges(p))
+            cJSON_AddItemToObject(m, "ranges", btf__ranges_b64(p));
         cJSON *budget = p->budget ? cJSON_Parse(p->budget) : NULL;
         if (budget)
             cJSON_AddItemToObject(m, "budget", budget);

@@ -1803,6 +1803,84 @@ Test(rd, versions3_and_4_leave_psnr_out_and_the_reader_computes_it)
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
 
+/* Version 3's ranges travel in the header's "ranges" (doc/package-format.md sections
+ * 3.4 and 9.3: base64 of float32, about 0.4x the bytes of the per-chunk decimal
+ * arrays), not in each chunk. Rewritten by this test into version 1's per-chunk
+ * tex_range / wt_range (each float as the shortest decimal that reads back as
+ * itself), the same package must read bit for bit the same: the reader still takes
+ * the older form, and the header held exactly the writer's ranges. A chunk whose
+ * component's entry is empty or short is refused. */
+Test(rd, version3_ranges_travel_in_the_header_and_the_older_form_still_reads)
+{
+    char tmp[256], out[512], path[600];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(out, sizeof out, "%s/p", tmp);
+    snprintf(path, sizeof path, "%s/manifest.json", out);
+    btf *src = fx_material(BTF_GEN_TILES, 16, rings, 3);
+    btf_rd_result rr;
+    compress_lossy(src, 4, BTF_LOSSY_WEBP, out, &rr);
+    btf_package *a = fx_package(out, NULL, 0);
+    int nb = a->blocks->n_blocks;
+    cr_assert_eq(a->version, 3);
+    cr_assert_gt(nb, 1, "the test needs several blocks");
+    char *text = fx_read(path, NULL), *orig = strdup(text);
+    cJSON *m = cJSON_Parse(text);
+    cJSON *hr = cJSON_GetObjectItem(m, "ranges"), *chunks = cJSON_GetObjectItem(m, "chunks");
+    cr_assert_eq(cJSON_GetArraySize(hr), a->n_comp, "one \"ranges\" entry per component");
+    for (int c = 0; c < a->n_comp; c++)
+        cr_assert_eq(strlen(cJSON_GetArrayItem(hr, c)->valuestring), (size_t)(4 * ((16 * nb + 2) / 3)));
+    for (int i = 0; i < a->n_chunks; i++) {
+        cJSON *c = cJSON_GetArrayItem(chunks, i);
+        cr_assert(!cJSON_GetObjectItem(c, "tex_range") && !cJSON_GetObjectItem(c, "wt_range"), "chunk %d", i);
+        for (int w = 0; w < 2; w++) { /* the older form, written here */
+            const float *rg = w ? a->chunk[i].wt_range : a->chunk[i].tex_range;
+            cJSON *arr = cJSON_AddArrayToObject(c, w ? "wt_range" : "tex_range");
+            for (int b = 0; b < nb; b++) {
+                char num[2][40];
+                for (int t = 0; t < 2; t++)
+                    for (int digits = 1; digits <= 9; digits++) {
+                        snprintf(num[t], sizeof num[t], "%.*g", digits, rg[2 * b + t]);
+                        if (strtof(num[t], NULL) == rg[2 * b + t])
+                            break;
+                    }
+                cJSON *pair = cJSON_CreateArray();
+                cJSON_AddItemToArray(pair, cJSON_CreateRaw(num[0]));
+                cJSON_AddItemToArray(pair, cJSON_CreateRaw(num[1]));
+                cJSON_AddItemToArray(arr, pair);
+            }
+        }
+    }
+    cJSON_DeleteItemFromObject(m, "ranges");
+    char *older = cJSON_PrintUnformatted(m);
+    fx_write_text(path, older);
+    btf_package *b = fx_package(out, NULL, 0);
+    for (int i = 0; i < a->n_chunks; i++) {
+        cr_assert_eq(memcmp(a->chunk[i].tex_range, b->chunk[i].tex_range, (size_t)nb * 2 * sizeof(float)), 0);
+        cr_assert_eq(memcmp(a->chunk[i].wt_range, b->chunk[i].wt_range, (size_t)nb * 2 * sizeof(float)), 0);
+    }
+    expect_same_values(a, b);
+    btf_package_free(b);
+    cJSON_Delete(m);
+    const char *bad[] = {"\"\"", "\"AAAA\""}; /* component 0's entry empty; short */
+    for (int k = 0; k < 2; k++) {
+        m = cJSON_Parse(orig);
+        cJSON_ReplaceItemInArray(cJSON_GetObjectItem(m, "ranges"), 0, cJSON_CreateRaw(bad[k]));
+        char *t = cJSON_PrintUnformatted(m);
+        fx_write_text(path, t);
+        btf_package *p = NULL;
+        btf_error err = {0};
+        cr_assert_eq(btf_package_read(out, 0, &p, &err), BTF_ERR_FORMAT, "entry %s", bad[k]);
+        cr_assert(strstr(err.msg, "\"ranges\" entry 0"), "%s", err.msg);
+        free(t);
+        cJSON_Delete(m);
+    }
+    free(text), free(orig), free(older);
+    btf_package_free(a);
+    btf_rd_result_free(&rr);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
+
 /* Budgets with lossy textures: --max-bytes fits (manifest and chunk files) and has
  * less error than the lossless package within the same bytes; --max-error meets its
  * error (the manifest's CIELab, which the search reads) with fewer bytes than the
@@ -2022,8 +2100,9 @@ Test(rd, levels_over_lossy_textures_keep_the_decoded_values)
 /* A written winner well under the budget, whose allocation expected to fill it (its
  * rates of interpolated steps ran above the files), is fitted again to the budget
  * plus what it left: more of the budget spent, at less error, and the better write
- * kept (tiles 32 x 32, 31 views, k 3, 16 components, as measured when this was
- * written: 185,626 -> 197,787 of 200,000 bytes, CIELab 0.5472 -> 0.5467). The
+ * kept (tiles 32 x 32, 31 views, k 3, up to 16 components, as measured when this was
+ * written: 12 chunks, 58,137 -> 59,803 of 60,000 bytes, CIELab 1.0565 -> 1.0333; before the
+ * manifest estimate counted version 3's header ranges, 200,000 bytes did it). The
  * package on disk is the one reported. */
 Test(rd, a_written_winner_under_the_budget_is_fitted_again)
 {
@@ -2033,14 +2112,13 @@ Test(rd, a_written_winner_under_the_budget_is_fitted_again)
     btf *src = fx_material(BTF_GEN_TILES, 32, rings31, 3);
     btf_pca_options po = {0};
     po.center = BTF_CENTER_NONE;
-    const long long budget = 200000;
+    const long long budget = 60000;
     btf_budget_result res;
     search_k3(src, &po, budget, 16, out, &res);
-    cr_log_info("first write %lld bytes, CIELab %.4f; kept %lld bytes, CIELab %.4f", res.first.bytes, res.first.lab,
-                res.bytes, res.lab);
+    cr_log_info("first write %lld bytes, %d chunks, CIELab %.4f; kept %lld bytes, %d chunks, CIELab %.4f",
+                res.first.bytes, res.first.n_chunks, res.first.lab, res.bytes, res.n_chunks, res.lab);
     cr_assert_eq(res.refits, 1, "fitted again");
-    cr_expect_lt(res.first.bytes, budget - budget / 50, "the first write left more than 2%%");
-    cr_expect_eq(res.first.n_chunks, 16);
+    cr_expect_lt(res.first.bytes, budget - budget / 100, "the first write left more than 1%%");
     cr_expect_gt(res.bytes, res.first.bytes, "the second spends more of the budget");
     cr_expect_lt(res.lab, res.first.lab, "at less error");
     btf_package *p = fx_package(out, NULL, 0);

@@ -346,16 +346,18 @@ describe('btf-package.js version 3', () => {
 
 // Version 2 of the same package: 2 components x 2 levels, compact "ranges", 8-bit
 // coarse weights (doc/package-format.md section 10).
+// Component c's "ranges" entry: 27 blocks of (c + b, 0.01 (b + 1), -2.5 - c, 1e-4 (b + 1)).
+function compactRanges(c) {
+  const f = new Float32Array(27 * 4);
+  for (let b = 0; b < 27; b++) f.set([c + b, 0.01 * (b + 1), -2.5 - c, 1e-4 * (b + 1)], 4 * b);
+  return Buffer.from(f.buffer).toString('base64');
+}
+
 function manifestV2() {
   const m = manifest();
-  const rng = (c) => {
-    const f = new Float32Array(27 * 4);
-    for (let b = 0; b < 27; b++) f.set([c + b, 0.01 * (b + 1), -2.5 - c, 1e-4 * (b + 1)], 4 * b);
-    return Buffer.from(f.buffer).toString('base64');
-  };
   m.version = 2;
   m.levels = 2;
-  m.ranges = [rng(0), rng(1)];
+  m.ranges = [compactRanges(0), compactRanges(1)];
   m.weights8_step = [257, 514];
   m.chunks = [
     {component: 0, level: 1, files: ['tex-00-l1.png', 'wt-00-8.png'], bytes: 10, rmse: 9, contrib: 50},
@@ -364,6 +366,55 @@ function manifestV2() {
     {component: 1, level: 0, files: ['tex-01.png', 'wt-01.bin'], bytes: 21, rmse: 4, contrib: 0.5}];
   return m;
 }
+
+// Version 3 as written since 2026-12-07: the ranges in the header (section 9.3), one
+// entry per component, empty for a component no chunk has (a budget cut it).
+function manifestV3() {
+  const m = manifest();
+  m.version = 3;
+  m.ranges = [compactRanges(0), compactRanges(1), ''];
+  for (const c of m.chunks) {
+    c.files[1] = c.files[1].replace('.bin', '.z');
+    delete c.tex_range;
+    delete c.wt_range;
+  }
+  return m;
+}
+
+describe('btf-package.js version 3', () => {
+  it('takes the ranges from the header by component, bit-exact, and still reads them per chunk', () => {
+    const p = pkgMod.parseManifest(manifestV3());
+    assert.equal(p.manifestVersion, 3);
+    assert.equal(p.chunks[1].texRange[10], Math.fround(1 + 5));
+    assert.equal(p.chunks[1].texRange[11], Math.fround(0.01 * 6));
+    assert.equal(p.chunks[1].wtRange[10], Math.fround(-3.5));
+    assert.equal(p.chunks[0].wtRange[11], Math.fround(1e-4 * 6));
+    const older = manifestV3(); // the per-chunk form of version 1, which writers before wrote
+    delete older.ranges;
+    for (const c of older.chunks) {
+      const j = c.component;
+      c.tex_range = Array.from({length: 27}, (_, b) => [j + b, Math.fround(0.01 * (b + 1))]);
+      c.wt_range = Array.from({length: 27}, (_, b) => [-2.5 - j, Math.fround(1e-4 * (b + 1))]);
+    }
+    const q = pkgMod.parseManifest(older);
+    for (let i = 0; i < 2; i++) {
+      assert.deepEqual(q.chunks[i].texRange, p.chunks[i].texRange, `chunk ${i}`);
+      assert.deepEqual(q.chunks[i].wtRange, p.chunks[i].wtRange, `chunk ${i}`);
+    }
+  });
+
+  it('refuses a chunk whose component has no entry, an empty one or a short one', () => {
+    const bad = [
+      (m) => { delete m.ranges; }, (m) => { m.ranges[1] = ''; }, (m) => { m.ranges = [m.ranges[0]]; },
+      (m) => { m.ranges[0] = m.ranges[0].slice(4); }, (m) => { m.chunks[1].component = 2; },
+    ];
+    bad.forEach((f, i) => {
+      const m = manifestV3();
+      f(m);
+      assert.throws(() => pkgMod.parseManifest(m), /package m:/, `case ${i}`);
+    });
+  });
+});
 
 describe('btf-package.js version 2', () => {
   it('parses levels, per-component ranges and the 8-bit weight steps', () => {
