@@ -75,6 +75,8 @@ static int btf__budget_ks(const btf_budget *b, int views, int *ks)
         s++;
     for (int i = s; i < nu; i++)
         ks[n++] = up[i];
+    if (s > 0 && up[s] == 3 * up[s - 1] && n < BTF_BUDGET_MAX_K - s) /* 5 between 9 and 3 */
+        ks[n++] = (int)lround(sqrt((double)up[s] * up[s - 1]));
     for (int i = s - 1; i >= 0; i--)
         ks[n++] = up[i];
     return n;
@@ -572,8 +574,15 @@ static btf_result btf__budget_grown(btf__search *s, int c, int *i, btf_error *er
     n = n < BTF_BUDGET_MAX_COMPONENTS ? n : BTF_BUDGET_MAX_COMPONENTS;
     n = btf__fit_components(s->src, s->pca, was.k, n);
     *i = -1;
-    if (n <= was.components)
+    if (n <= was.components || s->rs.n_candidates >= BTF_BUDGET_MAX_CANDIDATES - 2)
         return BTF_OK;
+    for (int j = 0; j < s->rs.n_candidates; j++) { /* measured already (grown in the walk): as it was */
+        const btf_budget_choice *m = &s->rs.candidate[j];
+        if (m->k == was.k && m->components == n && m->center == was.center && m->rd_fit == was.rd_fit) {
+            *i = j;
+            return BTF_OK;
+        }
+    }
     *i = s->rs.n_candidates;
     s->rs.candidate[*i] = (btf_budget_choice){.k = was.k, .components = n, .rd_fit = was.rd_fit, .center = was.center};
     return btf__budget_eval(s, *i, was.n_chunks + 1, BTF__BUDGET_GROWN_EDGE, err);
@@ -659,7 +668,9 @@ static btf_result btf__budget_walk(btf__search *sr, const int *ks, int nk, int n
             r = btf__budget_grown(sr, c, &g, err);
         else if (r == BTF_OK && btf__budget_overtaken(sr, c, prev, prev_met))
             r = btf__budget_grown(sr, prev, &gp, err);
-        int won = sr->best == c || (g >= 0 && sr->best == g);
+        else if (r == BTF_OK && down && sr->best == c && btf__budget_short(sr, c, BTF__BUDGET_GROW_REACH))
+            r = btf__budget_grow(sr, err); /* a smaller k that won: grown while it wins, before the next */
+        int won = sr->best == c || (g >= 0 && sr->best == g) || (gp < 0 && sr->best > c);
         up_won |= up && won, up_lost |= up && !won, down_lost |= down && !won;
     }
     return r;
