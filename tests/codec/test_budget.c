@@ -516,8 +516,8 @@ Test(budget, a_best_overtaken_by_meeting_the_target_is_tried_with_more)
 /* A smaller k that wins keeping every component it has is grown (1.5x the
  * components) while the grown one wins and keeps them all, before the walk goes on
  * to the next smaller k: at the thesis format's bytes the generated tiles 3621 at
- * 64x64 went from k 3 with 16 components (CIELab 1.146) to k 5 with 36 (1.003), which
- * its 16 lost to k 3 (doc/performance.md section 3). Here, ks 15, 3, 1 under 50,000
+ * 64x64 went from k 3 with 16 components (CIELab 1.146) to k 5 with 36 (1.003), whose
+ * 16 had lost to k 3 (doc/performance.md section 3). Here, ks 15, 3, 1 under 50,000
  * bytes with the rate-distortion steps: k 3 wins with all 16 kept and is grown to 24
  * before k 1 is measured. */
 Test(budget, a_smaller_k_that_wins_keeping_every_component_is_grown_before_the_next)
