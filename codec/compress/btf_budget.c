@@ -50,10 +50,12 @@
  * default walk's: 9 (or the largest of the others below it), then the larger ones
  * ascending (27, 81, ... each 3x the last below the view count; then half the view
  * count, rounded up, where the last of those leaves more than two blocks; then the
- * view count: one basis for every view), then the smaller ones descending (3, 1).
- * The two-block k: on 81 views k 41 took 0.95-0.97x the bytes of k 27 on generated
- * tiles at 64x64 under the thesis format's error (k 81: 1.17x), 1.3x on a stone
- * (doc/performance.md section 4, "Two blocks"). */
+ * view count: one basis for every view), then the smaller ones descending (5, the
+ * step between 9 and 3, then 3, 1). The two-block k: on 81 views k 41 took
+ * 0.95-0.97x the bytes of k 27 on generated tiles at 64x64 under the thesis format's
+ * error (k 81: 1.17x), 1.3x on a stone (doc/performance.md section 4, "Two blocks");
+ * k 5: at the thesis format's bytes 0.87x the error of k 3 on the tiles 3621 and
+ * 0.98x on the knit 3622, grown (section 3, "k 5"). */
 static int btf__budget_ks(const btf_budget *b, int views, int *ks)
 {
     int n = 0;
@@ -650,7 +652,10 @@ static int btf__budget_overtaken(const btf__search *s, int c, int prev, int prev
  * to k 9 at 16 components and wins at 24). Likewise the best before a candidate that
  * takes its place by meeting an error target it missed (btf__budget_overtaken): the
  * knit at 256x256 under CIELab 2.4 kept all 16 components at k 9 and missed by 10%,
- * and k 3 met it with 2.1x the bytes. */
+ * and k 3 met it with 2.1x the bytes. A smaller k that takes the best's place keeping
+ * every component (within the same reach of an error target) is grown while it wins
+ * (btf__budget_grow) before the next smaller k: at the thesis format's bytes the
+ * tiles 3621 at 64x64, k 5 with 16 components lost to k 3 with 16, and won with 36. */
 static btf_result btf__budget_walk(btf__search *sr, const int *ks, int nk, int n, int fit, btf_error *err)
 {
     int prune = btf__budget_prunes(sr->b), up_won = 0, up_lost = 0, down_lost = 0;
