@@ -288,6 +288,14 @@ static btf_result btf__parse_pred(const cJSON *c, const btf_package *p, int id, 
     return BTF_OK;
 }
 
+/* 1 when the ranges travel in the header's "ranges" (versions 2, 3 and 4), 0 in each
+ * chunk (version 1; a version-3 reader takes that form too, which writers before
+ * 2026-12-07 wrote). */
+static int btf__header_ranges(const btf_package *p)
+{
+    return btf_package_has_levels(p) || p->version == 3;
+}
+
 static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_package *p, int id, const char *path,
                                    btf_error *err)
 {
@@ -323,7 +331,8 @@ static btf_result btf__parse_chunk(const cJSON *c, const cJSON *root, btf_packag
         r = btf__parse_pred(c, p, id, path, err);
     if (r != BTF_OK)
         return r;
-    if ((btf_package_has_levels(p) || (p->version == 3 && ranges)) && !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
+    if (btf__header_ranges(p) && (ranges || btf_package_has_levels(p)) &&
+        !cJSON_GetObjectItemCaseSensitive(c, "tex_range"))
         return btf__component_ranges(ranges, ci, p->blocks->n_blocks, path, id, err);
     r = btf__parse_ranges(c, "tex_range", p->blocks->n_blocks, &ci->tex_range, path, id, err);
     if (r == BTF_OK)
@@ -666,12 +675,6 @@ static cJSON *btf__ranges_b64(const btf_package *p)
     }
     free(raw);
     return arr;
-}
-
-/* 1 when the ranges travel in the header's "ranges" (versions 2, 3 and 4), 0 in each chunk. */
-static int btf__header_ranges(const btf_package *p)
-{
-    return btf_package_has_levels(p) || p->version == 3;
 }
 
 /* Version 2 header additions: levels, lod, ranges, weights8_step. */
