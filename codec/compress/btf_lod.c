@@ -510,8 +510,9 @@ static btf_result btf__w8_lossy(btf__lod *s, int a, const char *in_dir, const ch
     return r;
 }
 
-/* Component a's 8-bit weights (btf__w8_codes) as a grey PNG of 3L x V pixels (doc/package-format.md section 5.2) at path; version
- * 4 without png_only: replaced by wt-JJ-8.webp where that is smaller (btf__w8_webp). */
+/* Component a's 8-bit weights (btf__w8_codes) as a grey PNG of 3L x V pixels
+ * (doc/package-format.md section 5.2) at path; version 4 without png_only: replaced by
+ * wt-JJ-8.webp where that is smaller (btf__w8_webp). */
 static btf_result btf__write_w8(btf__lod *s, int a, const char *tmp, const char *path, btf_error *err)
 {
     int L = s->p->lights.n_dirs, V = s->p->views.n_dirs;

@@ -154,30 +154,30 @@ Test(budget, max_error_below_the_default_steps_is_met_with_finer_ones)
     fx_rmtree(dir);
 }
 
-/* 1 when candidate c beats bc under b (within a byte budget: an empty prefix loses,
- * else the lower error; for an error target: meeting it, then fewer bytes, else the
- * lower error). */
-static int beats(const btf_budget *b, const btf_budget_choice *c, const btf_budget_choice *bc)
+/* 1 when candidate c beats bc under b by the factor edge (within a byte budget: an
+ * empty prefix loses, else the lower error; for an error target: meeting it, then
+ * fewer bytes, else the lower error). */
+static int beats_by(const btf_budget *b, const btf_budget_choice *c, const btf_budget_choice *bc, double edge)
 {
     int met = c->lab <= b->max_error, best_met = bc->lab <= b->max_error;
-    return b->max_bytes > 0 ? c->n_chunks > 0 && (bc->n_chunks == 0 || c->lab < bc->lab)
+    return b->max_bytes > 0 ? c->n_chunks > 0 && (bc->n_chunks == 0 || c->lab < edge * bc->lab)
            : met != best_met ? met
-           : met             ? c->bytes < bc->bytes
-                             : c->lab < bc->lab;
+           : met             ? (double)c->bytes < edge * (double)bc->bytes
+                             : c->lab < edge * bc->lab;
 }
 
-/* 1 when g, grown from was, takes the place of bc: as beats, but with more chunks
- * kept than was and by 1% (the search's BTF__BUDGET_GROWN_EDGE). */
+/* beats_by with no edge: how the walk ranks a candidate of another k. */
+static int beats(const btf_budget *b, const btf_budget_choice *c, const btf_budget_choice *bc)
+{
+    return beats_by(b, c, bc, 1.0);
+}
+
+/* 1 when g, grown from was, takes the place of bc: with more chunks kept than was and
+ * by 1% (the search's BTF__BUDGET_GROWN_EDGE). */
 static int grown_beats(const btf_budget *b, const btf_budget_choice *g, const btf_budget_choice *was,
                        const btf_budget_choice *bc)
 {
-    int met = g->lab <= b->max_error, best_met = bc->lab <= b->max_error;
-    if (g->n_chunks <= was->n_chunks)
-        return 0;
-    return b->max_bytes > 0 ? bc->n_chunks == 0 || g->lab < 0.99 * bc->lab
-           : met != best_met ? met
-           : met             ? g->bytes < 0.99 * bc->bytes
-                             : g->lab < 0.99 * bc->lab;
+    return g->n_chunks > was->n_chunks && beats_by(b, g, bc, 0.99);
 }
 
 /* Of the candidates c[idx[0..n)] (best: the index of the best among them), the one
@@ -212,6 +212,14 @@ static int walk_best(const btf_budget *b, const btf_budget_result *r, int n)
     return best;
 }
 
+/* Candidate i of r in the test's log. */
+static void log_candidate(const btf_budget_result *r, int i)
+{
+    const btf_budget_choice *c = &r->candidate[i];
+    cr_log_info("candidate %d: k %d, %d components, %d chunks, CIELab %.4f, %lld bytes", i, c->k, c->components,
+                c->n_chunks, c->lab, c->bytes);
+}
+
 /* The candidates of r before its first centred one measure the nk ks of order in
  * turn, each maybe followed by its growth (the same k again); their indices into idx,
  * their count returned. */
@@ -226,8 +234,7 @@ static int expect_ks(const btf_budget_result *r, const int *order, int nk, int *
             at++;
         }
         idx[n] = i, n++;
-        cr_log_info("candidate %d: k %d, %d components, %d chunks, CIELab %.4f, %lld bytes", i, r->candidate[i].k,
-                    r->candidate[i].components, r->candidate[i].n_chunks, r->candidate[i].lab, r->candidate[i].bytes);
+        log_candidate(r, i);
     }
     cr_expect_eq(at, nk, "%d ks measured", at);
     return n;
@@ -300,7 +307,8 @@ Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
     static const int order[5] = {9, 15, 5, 3, 1};
     int idx[BTF_BUDGET_MAX_CANDIDATES], n = expect_ks(&res, order, 5, idx);
     cr_expect_eq(res.n_candidates, n + 1 + (runner_up(&b, res.candidate, idx, n, walk_best(&b, &res, n)) >= 0),
-                 "k 9, 15, 5, 3, 1 (a smaller k that wins grown), the best of them (and a close runner-up) with row centring");
+                 "k 9, 15, 5, 3, 1 (a smaller k that wins grown), the best of them (and a close runner-up) "
+                 "with row centring");
     for (int i = 0; i < res.n_candidates; i++)
         if (res.candidate[i].n_chunks > 0)
             cr_expect_geq(res.candidate[i].lab + 1e-12, res.lab, "k %d beats the choice", res.candidate[i].k);
@@ -536,8 +544,7 @@ Test(budget, a_smaller_k_that_wins_keeping_every_component_is_grown_before_the_n
     cr_assert_eq(btf_budget_compress(src, NULL, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     const btf_budget_choice *c = res.candidate;
     for (int i = 0; i < res.n_candidates; i++)
-        cr_log_info("candidate %d: k %d, %d components, %d chunks, CIELab %.4f", i, c[i].k, c[i].components,
-                    c[i].n_chunks, c[i].lab);
+        log_candidate(&res, i);
     cr_assert(c[1].k == 3 && c[1].components == 16 && c[1].n_chunks == 16 && beats(&b, &c[1], &c[0]),
               "k 3 wins over k 15 keeping all 16 components: the case this test needs");
     cr_expect(c[2].k == 3 && c[2].components == 24, "k 3 grown to 24 before k 1: k %d, %d", c[2].k, c[2].components);

@@ -2100,10 +2100,10 @@ Test(rd, levels_over_lossy_textures_keep_the_decoded_values)
 /* A written winner well under the budget, whose allocation expected to fill it (its
  * rates of interpolated steps ran above the files), is fitted again to the budget
  * plus what it left: more of the budget spent, at less error, and the better write
- * kept (tiles 32 x 32, 31 views, k 3, up to 16 components, as measured when this was
- * written: 12 chunks, 58,137 -> 59,803 of 60,000 bytes, CIELab 1.0565 -> 1.0333; before the
- * manifest estimate counted version 3's header ranges, 200,000 bytes did it). The
- * package on disk is the one reported. */
+ * kept (tiles 32 x 32, 31 views, k 3, up to 16 components, as measured when this
+ * was written: 12 chunks, 58,137 -> 59,803 of 60,000 bytes, CIELab 1.0565 -> 1.0333;
+ * before the manifest estimate counted version 3's header ranges, 200,000 bytes did
+ * it). The package on disk is the one reported. */
 Test(rd, a_written_winner_under_the_budget_is_fitted_again)
 {
     char tmp[256], out[512];
