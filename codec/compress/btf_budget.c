@@ -535,6 +535,42 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
     return BTF_OK;
 }
 
+/* Prefix n of p (read from the best's directory) measured as btf eval measures it,
+ * into *c; 1 when it meets the error target. */
+static int btf__budget_exact_at(const btf__search *s, btf_package *p, int n, btf_budget_choice *c, btf_result *r,
+                                btf_error *err)
+{
+    btf_metrics m;
+    if ((*r = btf_package_compare(p, n, s->src, &m, err)) != BTF_OK)
+        return 0;
+    c->n_chunks = n, c->lab = m.lab_thesis, c->rmse = m.rmse, c->bytes = btf__prefix_bytes(p, n);
+    return m.lab_thesis <= s->b->max_error;
+}
+
+/* Under an error target, the written winner's prefix measured as btf eval measures
+ * it (every texel and pair; the manifest's errors are a texel sample's, which can
+ * land a little either side of the truth): the fewest chunks that meet the target
+ * that way, found from the sample's choice up or down; with none left it is
+ * reported unmet (the search then tries finer steps). */
+static btf_result btf__budget_exact(btf__search *s, btf_budget_choice *got, int *met, btf_error *err)
+{
+    if (s->b->max_error <= 0 || !*met || got->n_chunks < 1)
+        return BTF_OK;
+    btf_package *p = NULL;
+    btf_result r = btf_package_read(s->dir[s->best], 0, &p, err);
+    if (r != BTF_OK)
+        return r;
+    btf_budget_choice t = *got;
+    int n = got->n_chunks;
+    *met = btf__budget_exact_at(s, p, n, got, &r, err);
+    while (r == BTF_OK && !*met && n < p->n_chunks) /* up: the sample said met too soon */
+        *met = btf__budget_exact_at(s, p, ++n, got, &r, err);
+    while (r == BTF_OK && *met && n > 1 && btf__budget_exact_at(s, p, n - 1, &t, &r, err))
+        *got = t, n--; /* down: the sample said met too late */
+    btf_package_free(p);
+    return r;
+}
+
 /* The candidates were measured on a window or only estimated (rd): the best one is
  * compressed from the whole material now (on the whole material with rd, from its
  * kept model and ladder: the same steps), and its best prefix read off the files as
@@ -769,6 +805,8 @@ static btf_result btf__budget_search_once(const btf *src, const btf_pca_options 
         r = btf__budget_grow(sr, err);
     if (r == BTF_OK && sr->best >= 0 && (po.rd || sr->screen != src))
         r = btf__budget_write_best(sr, err);
+    if (r == BTF_OK && sr->best >= 0)
+        r = btf__budget_exact(sr, &sr->rs.candidate[sr->best], &sr->best_met, err);
     rs = sr->rs;
     int best = sr->best, best_met = sr->best_met;
     if (r == BTF_OK && best < 0) {

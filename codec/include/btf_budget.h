@@ -37,7 +37,10 @@
  * read off the files as written (fitted again once when the chunks its allocation
  * kept came out over the budget, each texture's rates scaled by its atlas as
  * written over its estimate), cut to the chosen prefix, and it replaces OUT like
- * btf_package_compress. With max_error, steps are the equal-noise ones of
+ * btf_package_compress. With max_error the written winner's chunk count is then
+ * settled on its error over every texel and pair (btf_package_compare, what btf eval
+ * reports; the manifest's per-chunk errors are a texel sample's): the fewest chunks
+ * meeting the target that way, the result's lab that error. Its steps are the equal-noise ones of
  * opt->tex_noise: when no candidate meets the error with them, the whole search runs
  * again with half, then a quarter of the noise (finer steps; BTF_BUDGET_FINER rounds),
  * each into OUT.finer-PID, replacing OUT when it meets the error with fewer bytes (or

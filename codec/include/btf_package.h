@@ -26,6 +26,7 @@
 #include "btf.h"
 #include "btf_pca.h"
 #include "btf_blocks.h"
+#include "btf_metrics.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -211,6 +212,11 @@ void btf_package_value(const btf_package *p, int view, int light, int x, int y, 
 /* Whole-BTF reconstruction (BTF_F32) of the source from the first n loaded chunks,
  * as btf_package_value. */
 btf_result btf_package_reconstruct(const btf_package *p, int n, btf **out, btf_error *err);
+/* The error of the first n loaded chunks (1..n_loaded) against ref (the source: same
+ * size and direction sets) over every texel and (view, light) pair, as btf_compare
+ * of btf_package_reconstruct's BTF gives it (btf eval's numbers), with one view in
+ * memory at a time on OpenMP's threads. */
+btf_result btf_package_compare(const btf_package *p, int n, const btf *ref, btf_metrics *out, btf_error *err);
 
 /* Index of the loaded chunk (among the first n; n <= 0: all loaded) of component c
  * whose level is closest to `level` from below (finer), else the coarsest loaded

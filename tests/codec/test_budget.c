@@ -104,6 +104,51 @@ Test(budget, max_error_is_reached_with_the_fewest_chunks)
     fx_rmtree(dir);
 }
 
+/* Under an error target the chosen prefix is the fewest chunks whose error, as btf
+ * eval measures it (every texel and pair, here btf_compare of the whole decode),
+ * meets the target, and the record states that error: at 32x32 the writer's error
+ * sample is every 2nd texel in x and y, which lands a little either side of it. */
+Test(budget, an_error_target_is_met_as_every_texel_measures_it)
+{
+    static const btf_ring rings[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 0.0f}};
+    char dir[64], out[128], ref[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    snprintf(ref, sizeof ref, "%s/ref", dir);
+    btf *src = fx_material(BTF_GEN_TILES, 32, rings, 3);
+    btf_package *p = reference(src, 1, ref);
+    for (int t = 2; t < p->n_chunks - 2; t += 3) {
+        btf_budget b = {0};
+        b.max_error = p->chunk[t].lab, b.k[0] = 1, b.n_k = 1;
+        btf_pca_options po = {0};
+        po.center = BTF_CENTER_NONE;
+        btf_budget_result res;
+        btf_error err = {0};
+        cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+        btf_package *got = fx_package(out, NULL, 0);
+        btf *rec = NULL;
+        btf_metrics m, fewer = {0};
+        cr_assert_eq(btf_package_reconstruct(got, 0, &rec, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_compare(src, rec, NULL, &m, &err), BTF_OK, "%s", err.msg);
+        btf_free(rec);
+        if (got->n_chunks > 1) {
+            cr_assert_eq(btf_package_reconstruct(got, got->n_chunks - 1, &rec, &err), BTF_OK, "%s", err.msg);
+            cr_assert_eq(btf_compare(src, rec, NULL, &fewer, &err), BTF_OK, "%s", err.msg);
+            btf_free(rec);
+        }
+        cr_log_info("target %.5f: %d chunks, every texel %.5f (one fewer %.5f), the sample %.5f", b.max_error,
+                    got->n_chunks, m.lab_thesis, fewer.lab_thesis, got->chunk[got->n_chunks - 1].lab);
+        cr_expect(res.met);
+        cr_expect_leq(m.lab_thesis, b.max_error, "target %.5f", b.max_error);
+        cr_expect_float_eq(res.lab, m.lab_thesis, 1e-9 * m.lab_thesis, "the record: %.6f", res.lab);
+        cr_expect(got->n_chunks == 1 || fewer.lab_thesis > b.max_error, "one chunk fewer: %.5f", fewer.lab_thesis);
+        btf_package_free(got);
+    }
+    btf_package_free(p);
+    btf_free(src);
+    fx_rmtree(dir);
+}
+
 /* An error target below what the default steps reach (the least error of any prefix
  * of the reference, every component compressed at the same steps) is met by searching
  * again with finer steps, no temporary left behind; the record says which steps; a

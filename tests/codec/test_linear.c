@@ -161,6 +161,9 @@ Test(linear, default_settings_errors_on_the_source_scale)
             cr_assert_eq(btf_package_reconstruct(p, n, &rec, &err), BTF_OK, "%s", err.msg);
             cr_assert_eq(btf_compare(src, rec, NULL, &m, &err), BTF_OK, "%s", err.msg);
             cr_expect_float_eq(p->chunk[n - 1].lab, m.lab_thesis, 1e-4, "%s, %d chunks", sub[lin], n);
+            btf_metrics mv; /* a view at a time, encoded back to sRGB the same way */
+            cr_assert_eq(btf_package_compare(p, n, src, &mv, &err), BTF_OK, "%s", err.msg);
+            cr_expect_float_eq(mv.lab_thesis, m.lab_thesis, 1e-9 * m.lab_thesis, "%s, %d chunks", sub[lin], n);
             if (n == p->n_chunks) /* a usable package: the knit's error at k 3, C 8 is about 1 */
                 cr_expect_lt(m.lab_thesis, 3.0, "%s: Lab %g", sub[lin], m.lab_thesis);
             btf_free(rec);

@@ -126,8 +126,22 @@ Test(package, error_curve_monotone_and_equal_to_direct_measurement)
         cr_assert_float_eq(c->rmse, mt.rmse, 1e-4 * mt.rmse + 1e-6, "chunk %d: %g vs %g", n - 1, c->rmse, mt.rmse);
         cr_assert_float_eq(c->lab, mt.lab_thesis, 1e-3 * mt.lab_thesis + 1e-6, "chunk %d", n - 1);
         cr_assert_leq(c->rmse_float, c->rmse + 1e-9, "quantisation cannot beat the float PCA here");
+        /* the same measurement a view at a time: the same values, sums in another order */
+        btf_metrics mv;
+        cr_assert_eq(btf_package_compare(p, n, src, &mv, &err), BTF_OK, "%s", err.msg);
+        cr_assert_float_eq(mv.lab_thesis, mt.lab_thesis, 1e-9 * mt.lab_thesis, "chunk %d", n - 1);
+        cr_assert_float_eq(mv.rmse, mt.rmse, 1e-9 * mt.rmse, "chunk %d", n - 1);
+        cr_assert_eq(mv.pixels, mt.pixels);
         btf_free(rec);
     }
+    btf_metrics mv;
+    btf_error err = {0};
+    cr_expect_eq(btf_package_compare(p, 0, src, &mv, &err), BTF_ERR_ARG, "no chunk is refused");
+    cr_expect_eq(btf_package_compare(p, p->n_loaded + 1, src, &mv, &err), BTF_ERR_ARG, "more than loaded");
+    btf *other = make_material(8);
+    cr_expect_eq(btf_package_compare(p, 1, other, &mv, &err), BTF_ERR_ARG, "another size");
+    cr_expect(strstr(err.msg, "sizes differ"), "%s", err.msg);
+    btf_free(other);
     btf_package_free(p);
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
