@@ -45,6 +45,10 @@
  * version 3's header ranges, the same write comes out 1.2% under (480,373 B, 1.1490),
  * and fitted again at 1% takes 485,045 B at 1.1460 (doc/performance.md section 3). */
 #define BTF__BUDGET_SLACK 100
+/* Under an error target, the bisection over byte budgets of btf__budget_fit_error:
+ * at most this many trials, from half the equal-noise winner's bytes up to them
+ * (the last step about 3% of them) */
+#define BTF__BUDGET_FIT_TRIALS 5
 
 /* The candidate k values, within 1..views: the budget's in its order, else the
  * default walk's: 9 (or the largest of the others below it), then the larger ones
@@ -645,6 +649,44 @@ static btf_result btf__budget_grow(btf__search *s, btf_error *err)
     return r;
 }
 
+/* Under an error target, the best candidate's model (its k, components, centring)
+ * with its steps fitted to a byte budget instead of the equal-noise error (rd_fit:
+ * the truncation and the quantisation traded at one slope), the budget bisected for
+ * the fewest bytes whose best prefix still meets the target; a trial that does takes
+ * the best's place, and s->fit_bytes keeps its budget for the final write. Two
+ * misses from the top (no win by 1/8 of the bytes) end it. Only the winning trial
+ * stays in the record. On the generated tiles 3621 at 64x64 under the thesis
+ * format's error the equal-noise steps took 92.5 KB at k 41 with 16 components,
+ * fitted steps of the same model 66 KB (doc/performance.md section 3). */
+static btf_result btf__budget_fit_error(btf__search *s, btf_error *err)
+{
+    if (!s->po.rd || s->b->max_error <= 0 || s->best < 0 || !s->best_met)
+        return BTF_OK;
+    const btf_budget_choice b = s->rs.candidate[s->best];
+    const int first = s->rs.n_candidates;
+    long long hi = b.bytes, lo = hi / 2, won = 0;
+    btf_result r = BTF_OK;
+    for (int t = 0; r == BTF_OK && t < BTF__BUDGET_FIT_TRIALS && first + t < BTF_BUDGET_MAX_CANDIDATES - 2 &&
+                    (won || t < 2);
+         t++) {
+        int i = first + t, was = s->best;
+        s->fit_bytes = lo + (hi - lo) / 2;
+        s->rs.candidate[i] = (btf_budget_choice){.k = b.k, .components = b.components, .rd_fit = 1, .center = b.center};
+        r = btf__budget_eval(s, i, 1, 1.0, err);
+        if (s->best != was)
+            won = s->fit_bytes, hi = s->fit_bytes;
+        else
+            lo = s->fit_bytes;
+    }
+    if (won && s->best != first) { /* the winner into the first trial's slot */
+        s->rs.candidate[first] = s->rs.candidate[s->best], s->all_kept[first] = s->all_kept[s->best];
+        s->best = first;
+    }
+    s->rs.n_candidates = first + (won ? 1 : 0);
+    s->fit_bytes = won;
+    return r;
+}
+
 /* The candidates are measured on the centre window of half the material's width
  * and height where a side has at least BTF_BUDGET_SCREEN_MIN texels (a quarter of
  * the texels: the PCA, the ladders, the quantisation pass and the files cost about
@@ -803,10 +845,19 @@ static btf_result btf__budget_search_once(const btf *src, const btf_pca_options 
     }
     if (r == BTF_OK && budget->max_components <= 0)
         r = btf__budget_grow(sr, err);
+    if (r == BTF_OK)
+        r = btf__budget_fit_error(sr, err);
     if (r == BTF_OK && sr->best >= 0 && (po.rd || sr->screen != src))
         r = btf__budget_write_best(sr, err);
     if (r == BTF_OK && sr->best >= 0)
         r = btf__budget_exact(sr, &sr->rs.candidate[sr->best], &sr->best_met, err);
+    if (r == BTF_OK && sr->best >= 0 && !sr->best_met && sr->fit_bytes > 0) {
+        /* fitted steps that miss the target as written (every texel, every chunk): once more with 5% more bytes */
+        sr->fit_bytes += sr->fit_bytes / 20;
+        r = btf__budget_write_best(sr, err);
+        if (r == BTF_OK)
+            r = btf__budget_exact(sr, &sr->rs.candidate[sr->best], &sr->best_met, err);
+    }
     rs = sr->rs;
     int best = sr->best, best_met = sr->best_met;
     if (r == BTF_OK && best < 0) {

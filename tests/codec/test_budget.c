@@ -11,11 +11,14 @@
 #include "btf_gen.h"
 #include "fixtures.h"
 
-static btf *material(void)
+/* Generated tiles of size x size texels under 15 directions. */
+static btf *material_of(int size)
 {
     static const btf_ring r[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 0.0f}};
-    return fx_material(BTF_GEN_TILES, 16, r, 3);
+    return fx_material(BTF_GEN_TILES, size, r, 3);
 }
+
+static btf *material(void) { return material_of(16); }
 
 /* Bytes on disk of a package: every regular file in dir. */
 static long long dir_bytes(const char *dir)
@@ -110,12 +113,11 @@ Test(budget, max_error_is_reached_with_the_fewest_chunks)
  * sample is every 2nd texel in x and y, which lands a little either side of it. */
 Test(budget, an_error_target_is_met_as_every_texel_measures_it)
 {
-    static const btf_ring rings[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 0.0f}};
     char dir[64], out[128], ref[128];
     cr_assert(fx_tmpdir(dir, sizeof dir));
     snprintf(out, sizeof out, "%s/p", dir);
     snprintf(ref, sizeof ref, "%s/ref", dir);
-    btf *src = fx_material(BTF_GEN_TILES, 32, rings, 3);
+    btf *src = material_of(32);
     btf_package *p = reference(src, 1, ref);
     for (int t = 2; t < p->n_chunks - 2; t += 3) {
         btf_budget b = {0};

@@ -2129,3 +2129,48 @@ Test(rd, a_written_winner_under_the_budget_is_fitted_again)
     btf_free(src);
     cr_assert_eq(fx_rmtree(tmp), 0);
 }
+
+/* Under an error target the winner's model is compressed again with its steps fitted
+ * to byte budgets (bisected, btf_budget.h): the package meets the target over every
+ * texel (btf_compare of its whole decode) with fewer bytes than the same model at the
+ * equal-noise steps, the record's candidate it started from. The target: half-way
+ * down the error curve of the equal-noise package of the same k and components. */
+Test(rd, an_error_target_takes_steps_fitted_to_fewer_bytes)
+{
+    char tmp[256], ref[512], out[512];
+    cr_assert(fx_tmpdir(tmp, sizeof tmp));
+    snprintf(ref, sizeof ref, "%s/ref", tmp);
+    snprintf(out, sizeof out, "%s/e", tmp);
+    btf *src = fx_material(BTF_GEN_TILES, 32, rings31, 3);
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 16, po.center = BTF_CENTER_NONE;
+    btf_package_options ko = {0};
+    ko.rd = 1;
+    btf_error err = {0};
+    cr_assert_eq(btf_package_compress(src, &po, &ko, ref, NULL, &err), BTF_OK, "%s", err.msg);
+    btf_package *p = fx_package(ref, NULL, 0);
+    btf_budget b = {0};
+    b.max_error = p->chunk[p->n_chunks / 4].lab, b.max_components = 16, b.k[0] = 3, b.n_k = 1;
+    btf_package_free(p);
+    btf_budget_result res;
+    cr_assert_eq(btf_budget_compress(src, &po, &ko, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    const btf_budget_choice *eq = &res.candidate[0];
+    cr_assert(!eq->rd_fit, "the walk's candidate has the equal-noise steps");
+    for (int i = 0; i < res.n_candidates; i++)
+        cr_log_info("candidate %d: %s, %d chunks, %lld bytes, CIELab %.4f", i, res.candidate[i].rd_fit ? "fitted" : "equal noise",
+                    res.candidate[i].n_chunks, res.candidate[i].bytes, res.candidate[i].lab);
+    cr_expect(res.met && res.rd_fit, "chose %s steps", res.rd_fit ? "fitted" : "equal-noise");
+    cr_expect_lt(res.bytes, eq->bytes, "%lld bytes, the equal-noise steps %lld", res.bytes, eq->bytes);
+    p = fx_package(out, NULL, 0);
+    cr_expect_eq(written_bytes(p, out), res.bytes);
+    btf *rec = NULL;
+    btf_metrics m;
+    cr_assert_eq(btf_package_reconstruct(p, 0, &rec, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_compare(src, rec, NULL, &m, &err), BTF_OK, "%s", err.msg);
+    cr_expect_leq(m.lab_thesis, b.max_error, "CIELab %.4f, target %.4f", m.lab_thesis, b.max_error);
+    cr_expect(p->budget && strstr(p->budget, "\"rd_steps\":\"fitted\""), "%s", p->budget ? p->budget : "none");
+    btf_free(rec);
+    btf_package_free(p);
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(tmp), 0);
+}
