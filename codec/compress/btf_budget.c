@@ -653,8 +653,8 @@ static btf_result btf__budget_grow(btf__search *s, btf_error *err)
  * with its steps fitted to a byte budget instead of the equal-noise error (rd_fit:
  * the truncation and the quantisation traded at one slope), the budget bisected for
  * the fewest bytes whose best prefix still meets the target; a trial that does takes
- * the best's place, and s->fit_bytes keeps its budget for the final write. Two
- * misses from the top (no win by 1/8 of the bytes) end it. Only the winning trial
+ * the best's place, and s->fit_bytes keeps its budget for the final write. Three
+ * misses from the top (no win by 1/16 of the bytes) end it. Only the winning trial
  * stays in the record. On the generated tiles 3621 at 64x64 under the thesis
  * format's error the equal-noise steps took 92.5 KB at k 41 with 16 components,
  * fitted steps of the same model 66 KB (doc/performance.md section 3). */
@@ -667,7 +667,7 @@ static btf_result btf__budget_fit_error(btf__search *s, btf_error *err)
     long long hi = b.bytes, lo = hi / 2, won = 0;
     btf_result r = BTF_OK;
     for (int t = 0; r == BTF_OK && t < BTF__BUDGET_FIT_TRIALS && first + t < BTF_BUDGET_MAX_CANDIDATES - 2 &&
-                    (won || t < 2);
+                    (won || t < 3);
          t++) {
         int i = first + t, was = s->best;
         s->fit_bytes = lo + (hi - lo) / 2;

@@ -37,7 +37,10 @@
  * read off the files as written (fitted again once when the chunks its allocation
  * kept came out over the budget, each texture's rates scaled by its atlas as
  * written over its estimate), cut to the chosen prefix, and it replaces OUT like
- * btf_package_compress. With max_error the written winner's chunk count is then
+ * btf_package_compress. With max_error and rd the winner's model is first compressed
+ * again with its steps fitted to byte budgets (bisected for the fewest bytes whose
+ * best prefix meets the target: btf__budget_fit_error), a trial that meets it taking
+ * the winner's place. With max_error the written winner's chunk count is then
  * settled on its error over every texel and pair (btf_package_compare, what btf eval
  * reports; the manifest's per-chunk errors are a texel sample's): the fewest chunks
  * meeting the target that way, the result's lab that error. Its steps are the equal-noise ones of
