@@ -1,54 +1,61 @@
 /* btf_package_compare.c - a package's error against its source over every texel
- * and (view, light) pair, one view in memory at a time (btf_package.h). */
+ * and (view, light) pair, a tile of texels of one view in memory at a time
+ * (btf_package.h). */
 #include "btf_package.h"
 #include "btf_common.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-/* Image (view, light) of ref as byte/255 floats into a (W * H * 3). */
-static void btf__ref_image(const btf *ref, int v, int l, float *a)
+enum { BTF__COMPARE_TILE = 1024 }; /* texels a pass: their textures stay in cache over every light */
+
+/* m texels from texel i0 of image (view v, light l) of ref as byte/255 floats into a. */
+static void btf__ref_texels(const btf *ref, int v, int l, size_t i0, size_t m, float *a)
 {
-    size_t n = (size_t)ref->width * ref->height * 3u, at = btf_index(ref, v, l, 0, 0, 0);
+    size_t at = btf_index(ref, v, l, 0, 0, 0) + 3u * i0;
     if (ref->storage == BTF_F32) {
-        memcpy(a, (const float *)ref->data + at, n * sizeof(float));
+        memcpy(a, (const float *)ref->data + at, 3u * m * sizeof(float));
         return;
     }
     const uint8_t *s = (const uint8_t *)ref->data + at;
-    for (size_t i = 0; i < n; i++)
+    for (size_t i = 0; i < 3u * m; i++)
         a[i] = s[i] * (1.0f / 255.0f);
 }
 
-/* Image (view v, light l) of the first n chunks into b (W * H * 3): btf_package_value
- * of every texel, a chunk at a time where the package has one level (the same sums in
- * the same order, so the same floats). */
-static void btf__package_image(const btf_package *p, int n, int v, int l, float *b)
+/* m texels from texel i0 of (view v, light l) from the first n chunks into b:
+ * btf_package_value of each, a chunk at a time where the package has one level (the
+ * same sums in the same order, so the same floats). */
+static void btf__package_texels(const btf_package *p, int n, int v, int l, size_t i0, size_t m, float *b)
 {
-    size_t texels = (size_t)p->width * p->height;
     if (p->n_levels > 1) {
-        for (int y = 0; y < p->height; y++)
-            for (int x = 0; x < p->width; x++)
-                btf_package_value(p, v, l, x, y, n, b + ((size_t)y * p->width + x) * 3u);
+        for (size_t i = 0; i < m; i++)
+            btf_package_value(p, v, l, (int)((i0 + i) % (size_t)p->width), (int)((i0 + i) / (size_t)p->width), n,
+                              b + 3u * i);
         return;
     }
-    memset(b, 0, texels * 3u * sizeof(float));
-    size_t wi = ((size_t)v * p->lights.n_dirs + l) * 3u, at = (size_t)p->blocks->block_of_view[v] * texels;
+    memset(b, 0, 3u * m * sizeof(float));
+    size_t wi = ((size_t)v * p->lights.n_dirs + l) * 3u;
+    size_t at = (size_t)p->blocks->block_of_view[v] * p->width * p->height + i0;
     for (int j = 0; j < n; j++) {
         const float *t = p->tex[j] + at, w0 = p->wt[j][wi], w1 = p->wt[j][wi + 1], w2 = p->wt[j][wi + 2];
-        for (size_t i = 0; i < texels; i++)
+        for (size_t i = 0; i < m; i++)
             b[3 * i] += t[i] * w0, b[3 * i + 1] += t[i] * w1, b[3 * i + 2] += t[i] * w2;
     }
-    btf_package_to_source(p, b, texels * 3u);
+    btf_package_to_source(p, b, 3u * m);
 }
 
-/* Sums of every light of view v: a and b are one image each of scratch. */
+/* Sums of every light of view v, a tile of texels at a time: a and b hold a tile each. */
 static void btf__compare_view(const btf_package *p, int n, const btf *ref, int v, float *a, float *b,
                               btf_metrics_acc *acc)
 {
-    for (int l = 0; l < ref->lights.n_dirs; l++) {
-        btf__ref_image(ref, v, l, a);
-        btf__package_image(p, n, v, l, b);
-        btf_metrics_add(acc, a, b, (size_t)ref->width * ref->height);
+    size_t texels = (size_t)ref->width * ref->height;
+    for (size_t i0 = 0; i0 < texels; i0 += BTF__COMPARE_TILE) {
+        size_t m = texels - i0 < BTF__COMPARE_TILE ? texels - i0 : BTF__COMPARE_TILE;
+        for (int l = 0; l < ref->lights.n_dirs; l++) {
+            btf__ref_texels(ref, v, l, i0, m, a);
+            btf__package_texels(p, n, v, l, i0, m, b);
+            btf_metrics_add(acc, a, b, m);
+        }
     }
 }
 
@@ -74,11 +81,11 @@ btf_result btf_package_compare(const btf_package *p, int n, const btf *ref, btf_
     if (r != BTF_OK)
         return r;
     int V = ref->views.n_dirs, failed = 0;
-    size_t floats = (size_t)ref->width * ref->height * 3u;
+    size_t floats = 3u * BTF__COMPARE_TILE;
     btf_metrics_acc *part = calloc((size_t)V, sizeof *part);
     if (!part)
         return btf_fail(err, BTF_ERR_NOMEM, "package compare: out of memory");
-#pragma omp parallel if (floats * (size_t)ref->lights.n_dirs * (size_t)V >= BTF_METRICS_THREAD_MIN_PIXELS)
+#pragma omp parallel if ((size_t)ref->width * ref->height * ref->lights.n_dirs * (size_t)V >= BTF_METRICS_THREAD_MIN_PIXELS)
     {
         float *a = malloc(floats * sizeof(float)), *b = malloc(floats * sizeof(float));
         if (!a || !b) {
@@ -100,7 +107,7 @@ btf_result btf_package_compare(const btf_package *p, int n, const btf *ref, btf_
     }
     free(part);
     if (failed)
-        return btf_fail(err, BTF_ERR_NOMEM, "package compare: out of memory (%zu floats a view)", 2 * floats);
+        return btf_fail(err, BTF_ERR_NOMEM, "package compare: out of memory (%zu floats a thread)", 2 * floats);
     btf_metrics_finish(&acc, out);
     return BTF_OK;
 }

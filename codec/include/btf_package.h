@@ -214,8 +214,8 @@ void btf_package_value(const btf_package *p, int view, int light, int x, int y, 
 btf_result btf_package_reconstruct(const btf_package *p, int n, btf **out, btf_error *err);
 /* The error of the first n loaded chunks (1..n_loaded) against ref (the source: same
  * size and direction sets) over every texel and (view, light) pair, as btf_compare
- * of btf_package_reconstruct's BTF gives it (btf eval's numbers), with one view in
- * memory at a time on OpenMP's threads. */
+ * of btf_package_reconstruct's BTF gives it (btf eval's numbers), a tile of 1024
+ * texels of one view in memory at a time on OpenMP's threads. */
 btf_result btf_package_compare(const btf_package *p, int n, const btf *ref, btf_metrics *out, btf_error *err);
 
 /* Index of the loaded chunk (among the first n; n <= 0: all loaded) of component c
