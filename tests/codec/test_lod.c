@@ -125,6 +125,9 @@ Test(lod, prefix_errors_match_reconstruction)
     btf_package *full = fx_package(dir, "v2", 0);
     int V = full->views.n_dirs, L = full->lights.n_dirs;
     int probes[] = {1, 3, COMPS + 2, full->n_chunks};
+    btf *all = NULL; /* the whole package's decode, the reference of the comparisons below */
+    btf_error aerr = {0};
+    cr_assert_eq(btf_package_reconstruct(full, 0, &all, &aerr), BTF_OK, "%s", aerr.msg);
     for (size_t k = 0; k < sizeof probes / sizeof probes[0]; k++) {
         int n = probes[k];
         double e = 0.0;
@@ -141,7 +144,18 @@ Test(lod, prefix_errors_match_reconstruction)
         double rmse = 255.0 * sqrt(e / ((double)V * L * SIZE * SIZE * 3));
         /* float32 texels and weights: agreement to 1e-3 of the 0..255 scale plus 0.1 % */
         cr_assert_float_eq(rmse, manifest_num(dir, "v2", n - 1, "rmse_full"), 1e-3 + 1e-3 * rmse, "prefix %d", n);
+        /* btf_package_compare on a levelled package: as btf_compare of the whole decodes */
+        btf *rec = NULL;
+        btf_metrics m, mv;
+        btf_error err = {0};
+        cr_assert_eq(btf_package_reconstruct(full, n, &rec, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_compare(all, rec, NULL, &m, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_package_compare(full, n, all, &mv, &err), BTF_OK, "%s", err.msg);
+        cr_assert_float_eq(mv.rmse, m.rmse, 1e-9 * m.rmse + 1e-12, "prefix %d", n);
+        cr_assert_float_eq(mv.lab_thesis, m.lab_thesis, 1e-9 * m.lab_thesis + 1e-12, "prefix %d", n);
+        btf_free(rec);
     }
+    btf_free(all);
     btf_package_free(full);
     cr_assert_eq(fx_rmtree(dir), 0);
 }
