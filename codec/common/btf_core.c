@@ -106,16 +106,21 @@ void btf_set(btf *b, int view, int light, int x, int y, int c, float v)
     ((uint8_t *)b->data)[i] = btf_to_u8(v);
 }
 
-void btf_get_image(const btf *b, int view, int light, float *dst)
+void btf_get_texels(const btf *b, int view, int light, size_t first, size_t n, float *dst)
 {
-    size_t n = btf_image_samples(b), base = btf_index(b, view, light, 0, 0, 0);
+    size_t base = btf_index(b, view, light, 0, 0, 0) + 3u * first;
     if (b->storage == BTF_U8) {
         const uint8_t *s = (const uint8_t *)b->data + base;
-        for (size_t i = 0; i < n; i++)
+        for (size_t i = 0; i < 3u * n; i++)
             dst[i] = s[i] * (1.0f / 255.0f);
     } else {
-        memcpy(dst, (const float *)b->data + base, n * sizeof(float));
+        memcpy(dst, (const float *)b->data + base, 3u * n * sizeof(float));
     }
+}
+
+void btf_get_image(const btf *b, int view, int light, float *dst)
+{
+    btf_get_texels(b, view, light, 0, (size_t)b->width * b->height, dst);
 }
 
 btf_result btf_downsample(const btf *src, int factor, btf **out, btf_error *err)

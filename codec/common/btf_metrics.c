@@ -283,20 +283,9 @@ typedef struct btf__cmp_job {
     btf__sums *partial;
 } btf__cmp_job;
 
-/* Copies n pixels of image data starting at sample offset `at` into dst as floats. */
-static void btf__load_f32(const btf *b, size_t at, size_t n, float *dst)
+static void btf__sum_image(const btf *ref, const btf *test, int v, int l, btf__sums *s)
 {
-    if (b->storage == BTF_F32) {
-        memcpy(dst, (const float *)b->data + at, n * 3u * sizeof(float));
-        return;
-    }
-    const uint8_t *s = (const uint8_t *)b->data + at;
-    for (size_t i = 0; i < 3u * n; i++)
-        dst[i] = s[i] * (1.0f / 255.0f);
-}
-
-static void btf__sum_image(const btf *ref, const btf *test, size_t base, btf__sums *s)
-{
+    size_t base = btf_index(ref, v, l, 0, 0, 0);
     size_t n = (size_t)ref->width * (size_t)ref->height;
     if (ref->storage == BTF_U8 && test->storage == BTF_U8) {
         btf__sum_u8(s, (const uint8_t *)ref->data + base, (const uint8_t *)test->data + base, n);
@@ -310,8 +299,8 @@ static void btf__sum_image(const btf *ref, const btf *test, size_t base, btf__su
     float a[3 * CHUNK], b[3 * CHUNK];
     for (size_t i = 0; i < n; i += CHUNK) {
         size_t m = n - i < CHUNK ? n - i : CHUNK;
-        btf__load_f32(ref, base + 3u * i, m, a);
-        btf__load_f32(test, base + 3u * i, m, b);
+        btf_get_texels(ref, v, l, i, m, a);
+        btf_get_texels(test, v, l, i, m, b);
         btf__sum_f32(s, a, NULL, b, m);
     }
 }
@@ -326,7 +315,7 @@ static void btf__cmp_run(const btf__cmp_job *j, size_t total_pixels)
         int v = j->subset ? j->subset->views[i] : i / j->ref->lights.n_dirs;
         int l = j->subset ? j->subset->lights[i] : i % j->ref->lights.n_dirs;
         btf__sums s = {0};
-        btf__sum_image(j->ref, j->test, btf_index(j->ref, v, l, 0, 0, 0), &s);
+        btf__sum_image(j->ref, j->test, v, l, &s);
         j->partial[i] = s;
     }
 }

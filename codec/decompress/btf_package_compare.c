@@ -9,19 +9,6 @@
 
 enum { BTF__COMPARE_TILE = 1024 }; /* texels a pass: their textures stay in cache over every light */
 
-/* m texels from texel i0 of image (view v, light l) of ref as byte/255 floats into a. */
-static void btf__ref_texels(const btf *ref, int v, int l, size_t i0, size_t m, float *a)
-{
-    size_t at = btf_index(ref, v, l, 0, 0, 0) + 3u * i0;
-    if (ref->storage == BTF_F32) {
-        memcpy(a, (const float *)ref->data + at, 3u * m * sizeof(float));
-        return;
-    }
-    const uint8_t *s = (const uint8_t *)ref->data + at;
-    for (size_t i = 0; i < 3u * m; i++)
-        a[i] = s[i] * (1.0f / 255.0f);
-}
-
 /* m texels from texel i0 of (view v, light l) from the first n chunks into b:
  * btf_package_value of each, a chunk at a time where the package has one level (the
  * same sums in the same order, so the same floats). */
@@ -52,7 +39,7 @@ static void btf__compare_view(const btf_package *p, int n, const btf *ref, int v
     for (size_t i0 = 0; i0 < texels; i0 += BTF__COMPARE_TILE) {
         size_t m = texels - i0 < BTF__COMPARE_TILE ? texels - i0 : BTF__COMPARE_TILE;
         for (int l = 0; l < ref->lights.n_dirs; l++) {
-            btf__ref_texels(ref, v, l, i0, m, a);
+            btf_get_texels(ref, v, l, i0, m, a);
             btf__package_texels(p, n, v, l, i0, m, b);
             btf_metrics_add(acc, a, b, m);
         }

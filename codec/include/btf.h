@@ -186,6 +186,9 @@ static inline uint8_t btf_to_u8(float v)
 }
 /* Copies one (view, light) image into dst (width*height*3 floats, byte/255 scale). */
 void btf_get_image(const btf *b, int view, int light, float *dst);
+/* Copies n texels (row-major, from texel index `first` = y*width + x) of one
+ * (view, light) image into dst (n*3 floats, byte/255 scale). */
+void btf_get_texels(const btf *b, int view, int light, size_t first, size_t n, float *dst);
 
 /* Spatial box downsampling by an integer factor (width and height must divide). */
 btf_result btf_downsample(const btf *src, int factor, btf **out, btf_error *err);
