@@ -39,13 +39,17 @@ int btf_area_weights(int n_in, int n_out, int *first, int *cnt, float *w, int ma
  * cols[c * texels + i] = px[3 i + c] * (1/255), the scale of btf_get. */
 void btf_views_put_u8(const uint8_t *px, size_t texels, float *cols);
 
-/* A buffer of bytes for free(): from 8 MiB up aligned to 2 MiB and marked for
- * transparent huge pages (madvise; a hint the kernel may ignore), so that filling
- * it takes one page fault per 2 MiB instead of per 4 KiB. A 64x64 material's block
- * matrix of every view (322 MB) is filled several times per budget search. NULL
- * when out of memory. btf_big_calloc zeroes it (NULL also when n * size overflows). */
+/* A buffer of bytes for free() or btf_big_free(): from 8 MiB up aligned to 2 MiB and
+ * marked for transparent huge pages (madvise; a hint the kernel may ignore), so that
+ * filling it takes one page fault per 2 MiB instead of per 4 KiB. A 64x64 material's
+ * block matrix of every view (322 MB) is filled several times per budget search. NULL
+ * when out of memory. btf_big_calloc zeroes it (NULL also when n * size overflows).
+ * btf_big_free(p, bytes) (bytes as asked) keeps one buffer of 8 MiB to 1 GiB, the
+ * largest freed, for the next btf_big_alloc it can hold: a block matrix filled again
+ * then skips the kernel's zeroing of fresh pages (its contents are left as they were). */
 void *btf_big_alloc(size_t bytes);
 void *btf_big_calloc(size_t n, size_t size);
+void btf_big_free(void *p, size_t bytes);
 
 /* Monotonic clock in seconds (CLOCK_MONOTONIC): for durations only. */
 double btf_seconds(void);

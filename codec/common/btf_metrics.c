@@ -6,8 +6,8 @@
  * Speed: 8-bit inputs decode through a 256-entry table; float inputs that are
  * exact byte values use the same table, other floats a 4096-segment linear
  * interpolation of the curve (abs. error < 3e-8 in linear light, < 1e-4 in L).
- * The Lab step runs four pixels at a time through GCC/Clang vector extensions
- * (SSE2 on x86-64, generic code elsewhere); its cube root is a bit-trick guess
+ * The float decode and the Lab step run four pixels at a time through GCC/Clang
+ * vector extensions (SSE2 on x86-64, generic code elsewhere); the cube root is a bit-trick guess
  * refined by two Halley steps (float precision). btf_compare splits the (view, light) images over OpenMP's
  * threads (OMP_NUM_THREADS) and sums per-image partials in image order,
  * so the result does not depend on the thread count.
@@ -43,23 +43,6 @@ static void btf__init_tables(void)
 
 static void btf__tables(void) { pthread_once(&btf__tables_once, btf__init_tables); }
 
-/* Linear light of a byte/255-scale value (clamped to 0..1). */
-static inline float btf__lin_of(float v)
-{
-    if (!(v > 0.0f)) /* also NaN */
-        return 0.0f;
-    if (v >= 1.0f)
-        return 1.0f;
-    float s = v * 255.0f;
-    int q = (int)(s + 0.5f);
-    if (fabsf(s - (float)q) < 1e-4f)
-        return btf__lin8[q];
-    float p = v * (float)BTF__LIN_SEGMENTS;
-    int i = (int)p;
-    float t = p - (float)i;
-    return btf__lin_tab[i] + t * (btf__lin_tab[i + 1] - btf__lin_tab[i]);
-}
-
 /* ---------------------------------------------------------------- Lab */
 
 #define BTF__XN 0.95047f
@@ -75,11 +58,12 @@ typedef struct btf__sums {
 } btf__sums;
 
 #define BTF__BLOCK 64
-/* Pixel pairs waiting for the Lab step, planar linear light ([0] ref, [1] test;
- * with ref_lab the ref's L, a, b in r, g, b [0]); stack value of one summing call. */
+/* Pixel pairs waiting for the Lab step, planar ([0] ref, [1] test): linear light, or
+ * with raw byte/255-scale values linearised at the flush; with ref_lab the ref's L,
+ * a, b in r, g, b [0]. Stack value of one summing call. */
 typedef struct btf__lab_block {
     float r[2][BTF__BLOCK], g[2][BTF__BLOCK], b[2][BTF__BLOCK];
-    int n, ref_lab;
+    int n, ref_lab, raw;
 } btf__lab_block;
 
 /* Four lanes at a time through GCC/Clang vector extensions (SSE2 on x86-64). */
@@ -91,6 +75,28 @@ static inline btf__v4 btf__v4_set(float x) { return (btf__v4){x, x, x, x}; }
 static inline btf__v4 btf__v4_select(btf__v4i mask, btf__v4 a, btf__v4 b)
 {
     return (btf__v4)(((btf__v4i)a & mask) | ((btf__v4i)b & ~mask));
+}
+
+/* Linear light of four byte/255-scale values: 0 below 0 (and NaN), 1 from 1, the
+ * byte table for a value within 1e-4 of a byte, else the segment interpolation (its
+ * loads one lane at a time). */
+static inline btf__v4 btf__v4_lin(btf__v4 v)
+{
+    btf__v4i pos = v > btf__v4_set(0.0f), one = v >= btf__v4_set(1.0f);
+    btf__v4 c = btf__v4_select(pos & ~one, v, btf__v4_set(0.0f)); /* in [0, 1): safe indices */
+    btf__v4 s = c * btf__v4_set(255.0f);
+    btf__v4i q = __builtin_convertvector(s + btf__v4_set(0.5f), btf__v4i);
+    btf__v4 dq = (btf__v4)((btf__v4i)(s - __builtin_convertvector(q, btf__v4)) & 0x7fffffff);
+    btf__v4i exact = dq < btf__v4_set(1e-4f);
+    btf__v4 p = c * btf__v4_set((float)BTF__LIN_SEGMENTS);
+    btf__v4i i = __builtin_convertvector(p, btf__v4i);
+    btf__v4 t = p - __builtin_convertvector(i, btf__v4);
+    btf__v4 lo, hi, e8;
+    for (int k = 0; k < 4; k++)
+        lo[k] = btf__lin_tab[i[k]], hi[k] = btf__lin_tab[i[k] + 1], e8[k] = btf__lin8[q[k]];
+    btf__v4 lin = btf__v4_select(exact, e8, lo + t * (hi - lo));
+    lin = btf__v4_select(one, btf__v4_set(1.0f), lin);
+    return btf__v4_select(pos, lin, btf__v4_set(0.0f));
 }
 
 /* Lab f() of four values: cube root (bit-trick guess, two Halley steps) or the linear toe. */
@@ -131,6 +137,17 @@ static void btf__flush(btf__lab_block *q, btf__sums *s)
             q->r[k][q->n] = q->g[k][q->n] = q->b[k][q->n] = 0.0f;
         q->n++;
     }
+    if (q->raw) /* byte/255-scale values to linear light, four at a time */
+        for (int k = q->ref_lab ? 1 : 0; k < 2; k++)
+            for (int i = 0; i < q->n; i += 4) {
+                float *ch[3] = {&q->r[k][i], &q->g[k][i], &q->b[k][i]};
+                for (int c = 0; c < 3; c++) {
+                    btf__v4 v;
+                    memcpy(&v, ch[c], sizeof v);
+                    v = btf__v4_lin(v);
+                    memcpy(ch[c], &v, sizeof v);
+                }
+            }
     float dsum[BTF__BLOCK], dsq[BTF__BLOCK];
     for (int i = 0; i < q->n; i += 4) {
         btf__v4 la[3], lb[3], v[3];
@@ -176,7 +193,7 @@ static void btf__sum_u8(btf__sums *s, const uint8_t *a, const uint8_t *b, size_t
 {
     uint64_t sabs = 0, ssq = 0;
     btf__lab_block q;
-    q.n = 0, q.ref_lab = 0;
+    q.n = 0, q.ref_lab = 0, q.raw = 0;
     for (size_t i = 0; i < n; i++, a += 3, b += 3) {
         int d0 = a[0] - b[0], d1 = a[1] - b[1], d2 = a[2] - b[2];
         if ((d0 | d1 | d2) == 0)
@@ -196,7 +213,7 @@ static void btf__sum_u8(btf__sums *s, const uint8_t *a, const uint8_t *b, size_t
 static void btf__sum_f32(btf__sums *s, const float *a, const float *a_lab, const float *b, size_t n)
 {
     btf__lab_block q;
-    q.n = 0, q.ref_lab = a_lab != NULL;
+    q.n = 0, q.ref_lab = a_lab != NULL, q.raw = 1; /* linearised at the flush */
     for (size_t i = 0; i < n; i++, a += 3, b += 3) {
         double d0 = ((double)a[0] - b[0]) * 255.0, d1 = ((double)a[1] - b[1]) * 255.0,
                d2 = ((double)a[2] - b[2]) * 255.0;
@@ -204,13 +221,7 @@ static void btf__sum_f32(btf__sums *s, const float *a, const float *a_lab, const
         s->sq += d0 * d0 + d1 * d1 + d2 * d2;
         if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2])
             continue;
-        float la[3] = {0.0f, 0.0f, 0.0f};
-        if (a_lab)
-            memcpy(la, a_lab + 3 * i, sizeof la);
-        else
-            la[0] = btf__lin_of(a[0]), la[1] = btf__lin_of(a[1]), la[2] = btf__lin_of(a[2]);
-        float lb[3] = {btf__lin_of(b[0]), btf__lin_of(b[1]), btf__lin_of(b[2])};
-        btf__queue(&q, s, la, lb);
+        btf__queue(&q, s, a_lab ? a_lab + 3 * i : a, b);
     }
     btf__flush(&q, s);
 }
@@ -225,10 +236,10 @@ void btf_metrics_lab(const float *rgb, size_t n_pixels, float *lab)
         size_t m = n_pixels - i < 4 ? n_pixels - i : 4;
         for (size_t k = 0; k < m; k++)
             for (int c = 0; c < 3; c++)
-                p[c][k] = btf__lin_of(rgb[3 * (i + k) + c]);
+                p[c][k] = rgb[3 * (i + k) + c];
         btf__v4 r, g, b, out[3];
         memcpy(&r, p[0], sizeof r), memcpy(&g, p[1], sizeof g), memcpy(&b, p[2], sizeof b);
-        btf__v4_lab(r, g, b, out);
+        btf__v4_lab(btf__v4_lin(r), btf__v4_lin(g), btf__v4_lin(b), out);
         for (size_t k = 0; k < m; k++)
             for (int c = 0; c < 3; c++)
                 lab[3 * (i + k) + c] = out[c][k];

@@ -783,7 +783,8 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     if (r != BTF_OK)
         return r;
     r = btf__lossy_atlases(w, m, err);
-    float *A = r == BTF_OK ? btf_big_alloc((size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float)) : NULL;
+    size_t nA = (size_t)w->rows * 3 * w->L * w->blocks->k * sizeof(float);
+    float *A = r == BTF_OK ? btf_big_alloc(nA) : NULL;
     if (r == BTF_OK && !A)
         return btf_fail(err, BTF_ERR_NOMEM, "package: out of memory (block matrix)");
     for (int b = 0; r == BTF_OK && b < w->blocks->n_blocks; b++) {
@@ -791,7 +792,7 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
         if (r == BTF_OK)
             r = btf__on_block(w, b, A, &m->block[b], err);
     }
-    free(A);
+    btf_big_free(A, nA);
     return r;
 }
 

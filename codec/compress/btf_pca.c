@@ -431,9 +431,10 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
     }
     m->block = calloc((size_t)m->blocks->n_blocks, sizeof *m->block);
     int rows = src->width * src->height, maxcols = 3 * src->lights.n_dirs * m->blocks->k;
-    float *A = btf_big_alloc((size_t)rows * maxcols * sizeof(float));
+    size_t nA = (size_t)rows * maxcols * sizeof(float);
+    float *A = btf_big_alloc(nA);
     if (!m->block || !A) {
-        free(A);
+        btf_big_free(A, nA);
         btf_pca_model_free(m);
         return btf_fail(err, BTF_ERR_NOMEM, "compress: cannot allocate a %d x %d block matrix", rows, maxcols);
     }
@@ -450,7 +451,7 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
         if (!out) /* only the callback wanted it */
             btf_pca_block_clear(&m->block[b]);
     }
-    free(A);
+    btf_big_free(A, nA);
     if (r != BTF_OK || !out) {
         btf_pca_model_free(m);
         return r;

@@ -158,3 +158,32 @@ Test(core, big_buffers_are_aligned_zeroed_and_bounded)
     cr_expect(one && !memcmp(one, "\0\0\0\0\0\0\0\0\0\0\0\0\0\0", 15), "15 zero bytes");
     free(small), free(one);
 }
+
+/* btf_big_free keeps one buffer of 8 MiB to 1 GiB, the larger of two freed, for the
+ * next btf_big_alloc it can hold (a block matrix filled again then takes no fresh
+ * pages); a smaller buffer, and one that no kept buffer holds, are new ones. */
+Test(core, a_freed_big_buffer_is_taken_again)
+{
+    size_t n = (size_t)9 << 20;
+    void *drain = btf_big_alloc(n); /* whatever an earlier test left kept */
+    btf_big_free(drain, 1);
+    unsigned char *a = btf_big_alloc(n), *b = btf_big_alloc(2 * n);
+    cr_assert(a && b);
+    a[n - 1] = 7;
+    btf_big_free(a, n);
+    btf_big_free(b, 2 * n); /* the larger one is kept, a freed */
+    unsigned char *c = btf_big_alloc(n + 1);
+    cr_expect_eq(c, b, "a request it holds takes the kept buffer");
+    unsigned char *d = btf_big_alloc(n);
+    cr_expect_neq(d, b, "nothing kept: a new buffer");
+    cr_expect_eq((uintptr_t)d % ((uintptr_t)2 << 20), 0, "a new buffer on a 2 MiB boundary");
+    btf_big_free(c, n + 1);
+    unsigned char *e = btf_big_alloc(3 * n);
+    cr_expect_neq(e, c, "the kept buffer is too small for it");
+    cr_expect_eq(btf_big_alloc(n), c, "still kept after a request it could not hold");
+    btf_big_free(c, n), btf_big_free(d, n), btf_big_free(e, 3 * n);
+    void *small = btf_big_alloc(16);
+    btf_big_free(small, 16); /* a plain buffer: freed, not kept */
+    cr_expect_eq(btf_big_alloc(n), e, "the 27 MiB one is kept, not the 16 bytes");
+    free(e);
+}
