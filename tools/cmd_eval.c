@@ -44,7 +44,9 @@ static void eval_usage(FILE *f)
                "\n"
                "Error of TEST against REF (anything btf_load_any reads; same size and\n"
                "direction sets). Values are treated as sRGB-encoded 8-bit, D65. When TEST is\n"
-               "a package directory, also the error after each chunk (the curve versus bytes).\n"
+               "a package directory, also the error after each chunk (the curve versus bytes),\n"
+               "each decoded a tile of texels at a time (memory: REF and the package's files;\n"
+               "with --pairs or --downsample, a whole decode of the package in memory).\n"
                "  --pairs all        every (view, light) pair (default)\n"
                "  --pairs measured   the pairs measured in REF: the same as all for two BTFs\n"
                "                     (differs for packages, decodable between directions)\n"
@@ -59,7 +61,7 @@ static void eval_usage(FILE *f)
                "  --sampling S       direction set of image-directory inputs: ubo2003, dome151 or a\n"
                "                     JSON file (default: the built-in set the file names fit)\n"
                "  --fill-missing     interpolate missing images of image directories, with a warning\n"
-               "  --no-curve         a package: only the metrics of all its chunks (one decode\n"
+               "  --no-curve         a package: only the metrics of all its chunks (one pass\n"
                "                     instead of one per chunk: C times faster with C chunks;\n"
                "                     with --json, chunk holds the last entry only)\n"
                "Metrics: rgb_mae, rgb_rmse (0..255 scale), psnr (dB; 999 = identical),\n"
@@ -225,10 +227,15 @@ static int eval_is_package(const char *path)
     return n > 0 && (size_t)n < sizeof buf && stat(buf, &st) == 0 && S_ISREG(st.st_mode);
 }
 
-/* Decode of the first n chunks of p (box-filtered like REF with --downsample) vs ref. */
+/* Decode of the first n chunks of p (box-filtered like REF with --downsample) vs ref:
+ * every pair a tile of texels at a time (btf_package_compare: the same numbers, no
+ * whole decode in memory, 5 GB at 256x256), the decode itself with --pairs or
+ * --downsample. */
 static btf_result eval_package_prefix(const eval_opts *o, const eval_pairs *pl, const btf *ref,
                                       const btf_package *p, int n, btf_metrics *m, btf_error *err)
 {
+    if (!pl->n && o->src.downsample <= 1)
+        return btf_package_compare(p, n, ref, m, err);
     btf *rec = NULL, *small = NULL;
     btf_result r = btf_package_reconstruct(p, n, &rec, err);
     if (r == BTF_OK && o->src.downsample > 1) {

@@ -224,6 +224,27 @@ Test(cli, eval_json_has_the_error_curve)
     cr_assert_eq((int)num(j, "chunks"), 4);
     const cJSON *list = cJSON_GetObjectItemCaseSensitive(j, "chunk");
     cr_assert_eq(cJSON_GetArraySize(list), 4);
+    /* each point (decoded a tile of texels at a time) is btf_compare of that prefix's
+     * whole decode, to the sums' order (1e-9) */
+    btf *src = NULL;
+    btf_package *p = NULL;
+    btf_error err = {{0}};
+    btf_load_options lo = {0};
+    cr_assert_eq(btf_source_load("gen:knit:16", &lo, &src, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
+    for (int n = 1; n <= 4; n++) {
+        btf *rec = NULL;
+        btf_metrics m;
+        cr_assert_eq(btf_package_reconstruct(p, n, &rec, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_compare(src, rec, NULL, &m, &err), BTF_OK, "%s", err.msg);
+        const cJSON *c = cJSON_GetArrayItem(list, n - 1);
+        cr_assert_float_eq(num(c, "rgb_rmse"), m.rmse, 1e-9 * m.rmse, "chunk %d", n - 1);
+        cr_assert_float_eq(num(c, "lab_mae"), m.lab_thesis, 1e-9 * m.lab_thesis, "chunk %d", n - 1);
+        cr_assert_float_eq(num(c, "delta_e76"), m.delta_e76, 1e-9 * m.delta_e76, "chunk %d", n - 1);
+        btf_free(rec);
+    }
+    btf_package_free(p);
+    btf_free(src);
     double prev = 1e9;
     for (int i = 0; i < 4; i++) {
         const cJSON *c = cJSON_GetArrayItem(list, i);
