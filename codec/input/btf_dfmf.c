@@ -13,7 +13,8 @@
  * colour model 0, float32 scalars, directions in canonical order. Full rank stores
  * the data exactly (one factor is the identity); a truncated rank uses the Gram
  * matrix of the smaller side (cblas_ssyrk) and LAPACKE_ssyevr for its top
- * eigenpairs: the best rank-K approximation in the Frobenius norm.
+ * eigenpairs: the best rank-K approximation in the Frobenius norm. A first factor
+ * that is exactly the identity is decoded as a copy of the second (the same floats).
  */
 #include <cblas.h>
 #include <errno.h>
@@ -420,7 +421,20 @@ typedef struct dfmf_channel {
     int k;      /* components */
     float *U;   /* rows x k, row-major */
     float *SxV; /* cols x k, row-major */
+    int u_identity; /* 1: U is the identity (a full-rank file as btf_save_dfmf writes it) */
 } dfmf_channel;
+
+/* 1 when U (rows x k) is the identity. */
+static int u_is_identity(const float *U, uint32_t rows, int k)
+{
+    if ((uint32_t)k != rows)
+        return 0;
+    for (size_t i = 0; i < rows; i++)
+        for (size_t j = 0; j < (size_t)k; j++)
+            if (U[i * k + j] != (i == j ? 1.0f : 0.0f))
+                return 0;
+    return 1;
+}
 
 static btf_result read_channel(dfmf_reader *r, const dfmf_header *h, int c, dfmf_channel *ch)
 {
@@ -468,6 +482,7 @@ static btf_result read_channel(dfmf_reader *r, const dfmf_header *h, int c, dfmf
     res = rd_scalars(r, ssize, (size_t)rows * k, ch->U, "U");
     if (res == BTF_OK)
         res = rd_scalars(r, ssize, (size_t)cols * k, ch->SxV, "SxV");
+    ch->u_identity = res == BTF_OK && u_is_identity(ch->U, rows, ch->k);
     return res;
 }
 
@@ -494,11 +509,18 @@ static void decode_rows(const dfmf_header *h, const dfmf_channel *ch, int r0, in
     size_t T = (size_t)h->width * h->height;
     for (int c = 0; c < 3; c++) {
         float *o = buf + (size_t)c * n * T;
-        if (ch[c].k == 0)
+        if (ch[c].k == 0) {
             memset(o, 0, sizeof(float) * (size_t)n * T);
-        else
+        } else if (ch[c].u_identity) { /* rows r0.. of SxV^T: the product's floats, without its work */
+            for (size_t t = 0; t < T; t++) {
+                const float *s = ch[c].SxV + t * (size_t)ch[c].k + r0;
+                for (int i = 0; i < n; i++)
+                    o[(size_t)i * T + t] = s[i];
+            }
+        } else {
             cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, n, (int)T, ch[c].k, 1.0f,
                         ch[c].U + (size_t)r0 * ch[c].k, ch[c].k, ch[c].SxV, ch[c].k, 0.0f, o, (int)T);
+        }
     }
 }
 

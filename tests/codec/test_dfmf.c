@@ -283,6 +283,8 @@ static void put_scalar(bytes *b, int ssize, float v)
 typedef struct hand_spec {
     int version, ssize, model;
     const char *sig;
+    int k;              /* 0: rank 1 with hU, hS; else rank k with U and S below */
+    const float *U, *S; /* per channel 2 x k (rows x components), then 2 x k (texels x components) */
 } hand_spec;
 
 static const float hU[3][2] = {{0.5f, -1.25f}, {2.0f, 0.75f}, {-0.5f, 1.5f}};
@@ -321,19 +323,21 @@ static bytes hand_file(hand_spec s)
         for (int i = 0; i < 9; i++)
             put_f32(&b, i % 4 == 0);
     }
-    put_u32(&b, 1);
+    put_u32(&b, s.k ? (uint32_t)s.k : 1u); /* components at most */
     put_u32(&b, (uint32_t)s.model);
     for (int i = 0; i < 12; i++)
         put_f32(&b, 0.0f);
+    int k = s.k ? s.k : 1;
     for (int c = 0; c < 3; c++) {
         uint8_t ss = (uint8_t)s.ssize;
         put(&b, &ss, 1);
-        put_u32(&b, 1), put_u32(&b, 2), put_u32(&b, 2);
-        put_scalar(&b, s.ssize, 1.0f);
-        for (int r = 0; r < 2; r++)
-            put_scalar(&b, s.ssize, hU[c][r]);
-        for (int t = 0; t < 2; t++)
-            put_scalar(&b, s.ssize, hS[c][t]);
+        put_u32(&b, (uint32_t)k), put_u32(&b, 2), put_u32(&b, 2);
+        for (int j = 0; j < k; j++)
+            put_scalar(&b, s.ssize, 1.0f);
+        for (int i = 0; i < 2 * k; i++)
+            put_scalar(&b, s.ssize, s.k ? s.U[c * 2 * k + i] : hU[c][i]);
+        for (int i = 0; i < 2 * k; i++)
+            put_scalar(&b, s.ssize, s.k ? s.S[c * 2 * k + i] : hS[c][i]);
     }
     return b;
 }
@@ -380,12 +384,43 @@ static void check_hand(hand_spec s)
     remove_file(path);
 }
 
+/* A square first factor decodes as the product whatever it holds: the identity (a
+ * full-rank file as btf_save_dfmf writes it, decoded by a copy), and one that is not
+ * quite (a permutation, one off-diagonal entry), each against the product by hand. */
+Test(dfmf, a_square_first_factor_is_the_identity_only_when_it_is)
+{
+    static const float S[3 * 4] = {0.25f, -0.5f, 0.75f, 0.125f, 1.5f, 0.5f, -0.25f, 1.0f, 0.5f, 0.5f, -0.75f, 0.25f};
+    static const float Us[3][3 * 4] = {
+        {1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1},          /* the identity */
+        {0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0},          /* rows swapped */
+        {1, 0, 0, 1, 1, 0, 0.5f, 1, 1, 0, 0, 1}};      /* channel 1: one off-diagonal entry */
+    for (int u = 0; u < 3; u++) {
+        bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .sig = "!DFMF08FCR", .k = 2, .U = Us[u], .S = S});
+        char path[512];
+        tmp_file(path, sizeof path, "square.btf");
+        write_bytes(path, f.p, f.n);
+        btf *b = NULL;
+        btf_error e = {0};
+        cr_assert_eq(btf_load_dfmf(path, NULL, &b, &e), BTF_OK, "%s", e.msg);
+        for (int c = 0; c < 3; c++)
+            for (int l = 0; l < 2; l++)
+                for (int t = 0; t < 2; t++) {
+                    const float *U = Us[u] + c * 4, *V = S + c * 4;
+                    double want = (double)U[l * 2] * V[t * 2] + (double)U[l * 2 + 1] * V[t * 2 + 1];
+                    cr_expect_float_eq(btf_get(b, 0, l, t, 0, c), want, 1e-6, "U %d c %d l %d t %d", u, c, l, t);
+                }
+        btf_free(b);
+        free(f.p);
+        remove_file(path);
+    }
+}
+
 Test(dfmf, hand_built_versions_scalars_and_colour_models)
 {
-    check_hand((hand_spec){1, 8, 0, "!DFMF08FCR"});
-    check_hand((hand_spec){2, 2, 0, "!DFMF08FCR"});
-    check_hand((hand_spec){3, 4, 11, "!DFMF08FC"}); /* no rotations */
-    check_hand((hand_spec){4, 2, 11, "!DFMF08FCR"});
+    check_hand((hand_spec){.version = 1, .ssize = 8, .model = 0, .sig = "!DFMF08FCR"});
+    check_hand((hand_spec){.version = 2, .ssize = 2, .model = 0, .sig = "!DFMF08FCR"});
+    check_hand((hand_spec){.version = 3, .ssize = 4, .model = 11, .sig = "!DFMF08FC"}); /* no rotations */
+    check_hand((hand_spec){.version = 4, .ssize = 2, .model = 11, .sig = "!DFMF08FCR"});
 }
 
 /* ------------------------------------------------------------ broken files */
@@ -419,7 +454,7 @@ static void expect_bad(const void *p, size_t n, btf_result want, const char *nee
 
 Test(dfmf, truncated_at_every_offset)
 {
-    bytes f = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     btf_error e = {0};
     cr_assert_eq(load_bytes(f.p, f.n, &e), BTF_OK, "%s", e.msg);
     /* one assertion at the end: Criterion assertions are slow in tight loops */
@@ -456,7 +491,7 @@ Test(dfmf, truncated_at_every_offset)
 
 Test(dfmf, trailing_bytes_and_foreign_signatures)
 {
-    bytes f = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     put(&f, "x", 1);
     expect_bad(f.p, f.n, BTF_ERR_FORMAT, "trailing");
     static const char *foreign[] = {"!FMF12FCER", "!PVF06FC", "!BDIF06R2!", "!FMF06FCR"};
@@ -474,7 +509,7 @@ Test(dfmf, trailing_bytes_and_foreign_signatures)
     free(f.p);
 }
 
-/* Offsets in hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"}), from the layout:
+/* Offsets in hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"}), from the layout:
  * signature 10, size 4, version 4, 240 text, 16 floats, cosine 4, xml 4+5,
  * channels 4 + 3*(4+2) -> views at 309; view 0 theta, phi, light count at 321,
  * 2 lights, width 341, height 345, rotations 349 (+36), components 389, model 393,
@@ -491,7 +526,7 @@ static void patch_u32(bytes *f, size_t off, uint32_t v)
 
 static void expect_patched(size_t off, uint32_t v, btf_result want, const char *needle)
 {
-    bytes f = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     patch_u32(&f, off, v);
     expect_bad(f.p, f.n, want, needle);
     free(f.p);
@@ -500,7 +535,7 @@ static void expect_patched(size_t off, uint32_t v, btf_result want, const char *
 Test(dfmf, absurd_header_counts)
 {
     /* the offsets are right: the unpatched values read back */
-    bytes f = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     uint32_t v;
     memcpy(&v, f.p + OFF_VIEWS, 4);
     cr_assert_eq(v, 1u);
@@ -527,7 +562,7 @@ Test(dfmf, absurd_header_counts)
     expect_patched(OFF_CH0 + 1, 2, BTF_ERR_RANGE, "components"); /* channel k > header k */
     expect_patched(OFF_CH0 + 5, 3, BTF_ERR_FORMAT, "channel 0 is 3 x 2");
     expect_patched(OFF_CH0 + 9, 0x40000000u, BTF_ERR_FORMAT, "channel 0 is 2 x 1073741824");
-    bytes g = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes g = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     g.p[OFF_CH0] = 3;
     expect_bad(g.p, g.n, BTF_ERR_FORMAT, "scalar size 3");
     /* consistent counts whose matrices the file does not hold */
@@ -541,7 +576,7 @@ Test(dfmf, absurd_header_counts)
 Test(dfmf, non_ring_directions_and_nan)
 {
     /* lights at theta 40: phi 90 and phi 100 -> not equally spaced */
-    bytes f = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     /* change light 0 (the pole) into theta 40 deg, phi 100 deg */
     size_t light0 = OFF_NLIGHTS + 4;
     float th = 0.6981317f, ph = 1.7453293f;
@@ -553,7 +588,7 @@ Test(dfmf, non_ring_directions_and_nan)
     expect_bad(f.p, f.n, BTF_ERR_UNSUPPORTED, "not equally spaced");
     free(f.p);
     /* a NaN factor */
-    bytes g = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes g = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     float nan = NAN;
     memcpy(g.p + OFF_CH0 + 13 + 4, &nan, 4); /* after the header and S: U[0][0] */
     expect_bad(g.p, g.n, BTF_ERR_NUMERIC, "non-finite");
@@ -575,7 +610,7 @@ Test(dfmf, writer_refuses_bad_arguments)
 Test(dfmf, file_order_is_mapped_to_canonical_order)
 {
     /* swap the two light directions in the file: the pole becomes file light 1 */
-    bytes f = hand_file((hand_spec){4, 4, 0, "!DFMF08FCR"});
+    bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .model = 0, .sig = "!DFMF08FCR"});
     uint8_t tmp[8];
     memcpy(tmp, f.p + OFF_NLIGHTS + 4, 8);
     memmove(f.p + OFF_NLIGHTS + 4, f.p + OFF_NLIGHTS + 12, 8);
