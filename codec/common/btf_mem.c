@@ -1,5 +1,6 @@
 /* btf_mem.c - large buffers (block matrices, whole materials) on transparent huge
- * pages where the kernel offers them on request. */
+ * pages where the kernel offers them on request, and one freed buffer kept for the
+ * next request it can hold. */
 #include "btf_common.h"
 
 #include <pthread.h>

@@ -13,8 +13,8 @@
  * colour model 0, float32 scalars, directions in canonical order. Full rank stores
  * the data exactly (one factor is the identity); a truncated rank uses the Gram
  * matrix of the smaller side (cblas_ssyrk) and LAPACKE_ssyevr for its top
- * eigenpairs: the best rank-K approximation in the Frobenius norm. A first factor
- * that is exactly the identity is decoded as a copy of the second (the same floats).
+ * eigenpairs: the best rank-K approximation in the Frobenius norm. A factor that is
+ * exactly the identity is decoded as a copy of the other (the same floats).
  */
 #include <cblas.h>
 #include <errno.h>
@@ -421,17 +421,18 @@ typedef struct dfmf_channel {
     int k;      /* components */
     float *U;   /* rows x k, row-major */
     float *SxV; /* cols x k, row-major */
-    int u_identity; /* 1: U is the identity (a full-rank file as btf_save_dfmf writes it) */
+    /* 1: U (or SxV) is the identity, as btf_save_dfmf writes a full rank */
+    int u_identity, sxv_identity;
 } dfmf_channel;
 
-/* 1 when U (rows x k) is the identity. */
-static int u_is_identity(const float *U, uint32_t rows, int k)
+/* 1 when M (rows x k) is the identity. */
+static int is_identity(const float *M, uint32_t rows, int k)
 {
     if ((uint32_t)k != rows)
         return 0;
     for (size_t i = 0; i < rows; i++)
         for (size_t j = 0; j < (size_t)k; j++)
-            if (U[i * k + j] != (i == j ? 1.0f : 0.0f))
+            if (M[i * k + j] != (i == j ? 1.0f : 0.0f))
                 return 0;
     return 1;
 }
@@ -482,7 +483,8 @@ static btf_result read_channel(dfmf_reader *r, const dfmf_header *h, int c, dfmf
     res = rd_scalars(r, ssize, (size_t)rows * k, ch->U, "U");
     if (res == BTF_OK)
         res = rd_scalars(r, ssize, (size_t)cols * k, ch->SxV, "SxV");
-    ch->u_identity = res == BTF_OK && u_is_identity(ch->U, rows, ch->k);
+    ch->u_identity = res == BTF_OK && is_identity(ch->U, rows, ch->k);
+    ch->sxv_identity = res == BTF_OK && !ch->u_identity && is_identity(ch->SxV, cols, ch->k);
     return res;
 }
 
@@ -517,6 +519,8 @@ static void decode_rows(const dfmf_header *h, const dfmf_channel *ch, int r0, in
                 for (int i = 0; i < n; i++)
                     o[(size_t)i * T + t] = s[i];
             }
+        } else if (ch[c].sxv_identity) { /* rows r0.. of U, likewise */
+            memcpy(o, ch[c].U + (size_t)r0 * T, sizeof(float) * (size_t)n * T);
         } else {
             cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, n, (int)T, ch[c].k, 1.0f,
                         ch[c].U + (size_t)r0 * ch[c].k, ch[c].k, ch[c].SxV, ch[c].k, 0.0f, o, (int)T);

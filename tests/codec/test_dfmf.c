@@ -384,18 +384,20 @@ static void check_hand(hand_spec s)
     remove_file(path);
 }
 
-/* A square first factor decodes as the product whatever it holds: the identity (a
- * full-rank file as btf_save_dfmf writes it, decoded by a copy), and one that is not
- * quite (a permutation, one off-diagonal entry), each against the product by hand. */
-Test(dfmf, a_square_first_factor_is_the_identity_only_when_it_is)
+/* A square factor decodes as the product whatever it holds: the identity (a
+ * full-rank file as btf_save_dfmf writes it, decoded by a copy of the other), and one
+ * that is not quite (a permutation, one off-diagonal entry in one channel), either
+ * factor, each against the product by hand. */
+Test(dfmf, a_square_factor_is_the_identity_only_when_it_is)
 {
-    static const float S[3 * 4] = {0.25f, -0.5f, 0.75f, 0.125f, 1.5f, 0.5f, -0.25f, 1.0f, 0.5f, 0.5f, -0.75f, 0.25f};
-    static const float Us[3][3 * 4] = {
-        {1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1},          /* the identity */
-        {0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0},          /* rows swapped */
-        {1, 0, 0, 1, 1, 0, 0.5f, 1, 1, 0, 0, 1}};      /* channel 1: one off-diagonal entry */
-    for (int u = 0; u < 3; u++) {
-        bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .sig = "!DFMF08FCR", .k = 2, .U = Us[u], .S = S});
+    static const float M[3 * 4] = {0.25f, -0.5f, 0.75f, 0.125f, 1.5f, 0.5f, -0.25f, 1.0f, 0.5f, 0.5f, -0.75f, 0.25f};
+    static const float sq[3][3 * 4] = {
+        {1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1},     /* the identity */
+        {0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0},     /* rows swapped */
+        {1, 0, 0, 1, 1, 0, 0.5f, 1, 1, 0, 0, 1}}; /* channel 1: one off-diagonal entry */
+    for (int u = 0; u < 6; u++) {
+        const float *U = u < 3 ? sq[u] : M, *S = u < 3 ? M : sq[u - 3];
+        bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .sig = "!DFMF08FCR", .k = 2, .U = U, .S = S});
         char path[512];
         tmp_file(path, sizeof path, "square.btf");
         write_bytes(path, f.p, f.n);
@@ -405,9 +407,9 @@ Test(dfmf, a_square_first_factor_is_the_identity_only_when_it_is)
         for (int c = 0; c < 3; c++)
             for (int l = 0; l < 2; l++)
                 for (int t = 0; t < 2; t++) {
-                    const float *U = Us[u] + c * 4, *V = S + c * 4;
-                    double want = (double)U[l * 2] * V[t * 2] + (double)U[l * 2 + 1] * V[t * 2 + 1];
-                    cr_expect_float_eq(btf_get(b, 0, l, t, 0, c), want, 1e-6, "U %d c %d l %d t %d", u, c, l, t);
+                    const float *a = U + c * 4, *s = S + c * 4;
+                    double want = (double)a[l * 2] * s[t * 2] + (double)a[l * 2 + 1] * s[t * 2 + 1];
+                    cr_expect_float_eq(btf_get(b, 0, l, t, 0, c), want, 1e-6, "case %d c %d l %d t %d", u, c, l, t);
                 }
         btf_free(b);
         free(f.p);
