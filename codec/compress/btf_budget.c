@@ -539,23 +539,28 @@ static btf_result btf__budget_refit(btf__search *s, btf_budget_choice *got, int 
     return BTF_OK;
 }
 
-/* Prefix n of p (read from the best's directory) measured as btf eval measures it,
- * into *c; 1 when it meets the error target. */
-static int btf__budget_exact_at(const btf__search *s, btf_package *p, int n, btf_budget_choice *c, btf_result *r,
-                                btf_error *err)
+/* Prefixes lo..hi of p (clipped to 1..n_chunks) measured as btf eval measures them,
+ * in one pass, into lab[n] and rmse[n] (NAN until measured). */
+static btf_result btf__budget_exact_span(const btf__search *s, btf_package *p, int lo, int hi, double *lab,
+                                         double *rmse, btf_error *err)
 {
-    btf_metrics m;
-    if ((*r = btf_package_compare(p, n, s->src, &m, err)) != BTF_OK)
-        return 0;
-    c->n_chunks = n, c->lab = m.lab_thesis, c->rmse = m.rmse, c->bytes = btf__prefix_bytes(p, n);
-    return m.lab_thesis <= s->b->max_error;
+    int ns[3], count = 0;
+    for (int n = lo < 1 ? 1 : lo; n <= hi && n <= p->n_chunks && count < 3; n++)
+        if (isnan(lab[n]))
+            ns[count++] = n;
+    btf_metrics m[3];
+    btf_result r = count ? btf_package_compare_prefixes(p, ns, count, s->src, m, err) : BTF_OK;
+    for (int i = 0; r == BTF_OK && i < count; i++)
+        lab[ns[i]] = m[i].lab_thesis, rmse[ns[i]] = m[i].rmse;
+    return r;
 }
 
 /* Under an error target, the written winner's prefix measured as btf eval measures
  * it (every texel and pair; the manifest's errors are a texel sample's, which can
  * land a little either side of the truth): the fewest chunks that meet the target
- * that way, found from the sample's choice up or down; with none left it is
- * reported unmet (the search then tries finer steps). */
+ * that way, found from the sample's choice up or down, the chunk counts around it
+ * three at a time in one pass; with none left it is reported unmet (the search then
+ * tries finer steps). */
 static btf_result btf__budget_exact(btf__search *s, btf_budget_choice *got, int *met, btf_error *err)
 {
     if (s->b->max_error <= 0 || !*met || got->n_chunks < 1)
@@ -564,13 +569,29 @@ static btf_result btf__budget_exact(btf__search *s, btf_budget_choice *got, int 
     btf_result r = btf_package_read(s->dir[s->best], 0, &p, err);
     if (r != BTF_OK)
         return r;
-    btf_budget_choice t = *got;
-    int n = got->n_chunks;
-    *met = btf__budget_exact_at(s, p, n, got, &r, err);
-    while (r == BTF_OK && !*met && n < p->n_chunks) /* up: the sample said met too soon */
-        *met = btf__budget_exact_at(s, p, ++n, got, &r, err);
-    while (r == BTF_OK && *met && n > 1 && btf__budget_exact_at(s, p, n - 1, &t, &r, err))
-        *got = t, n--; /* down: the sample said met too late */
+    double *lab = malloc(sizeof(double) * ((size_t)p->n_chunks + 1)), *rmse = malloc(sizeof(double) * ((size_t)p->n_chunks + 1));
+    if (!lab || !rmse)
+        r = btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
+    for (int i = 0; r == BTF_OK && i <= p->n_chunks; i++)
+        lab[i] = rmse[i] = NAN;
+    int n = got->n_chunks < p->n_chunks ? got->n_chunks : p->n_chunks;
+    if (r == BTF_OK)
+        r = btf__budget_exact_span(s, p, n - 1, n + 1, lab, rmse, err);
+    while (r == BTF_OK && lab[n] > s->b->max_error && n < p->n_chunks) /* up: the sample said met too soon */
+        if (isnan(lab[++n]))
+            r = btf__budget_exact_span(s, p, n, n + 2, lab, rmse, err);
+    while (r == BTF_OK && lab[n] <= s->b->max_error && n > 1) { /* down: the sample said met too late */
+        if (isnan(lab[n - 1]))
+            r = btf__budget_exact_span(s, p, n - 3, n - 1, lab, rmse, err);
+        if (r != BTF_OK || !(lab[n - 1] <= s->b->max_error))
+            break;
+        n--;
+    }
+    if (r == BTF_OK) {
+        *met = lab[n] <= s->b->max_error;
+        got->n_chunks = n, got->lab = lab[n], got->rmse = rmse[n], got->bytes = btf__prefix_bytes(p, n);
+    }
+    free(lab), free(rmse);
     btf_package_free(p);
     return r;
 }

@@ -217,6 +217,12 @@ btf_result btf_package_reconstruct(const btf_package *p, int n, btf **out, btf_e
  * of btf_package_reconstruct's BTF gives it (btf eval's numbers), a tile of 1024
  * texels of one view in memory at a time on OpenMP's threads. */
 btf_result btf_package_compare(const btf_package *p, int n, const btf *ref, btf_metrics *out, btf_error *err);
+/* The same for count prefixes in one pass (out[i]: the first ns[i] chunks; count
+ * 1..BTF_PACKAGE_COMPARE_MAX): the reference read and its Lab found once, the chunks
+ * summed once up to the largest; each out[i] equals btf_package_compare's. */
+#define BTF_PACKAGE_COMPARE_MAX 64
+btf_result btf_package_compare_prefixes(const btf_package *p, const int *ns, int count, const btf *ref,
+                                        btf_metrics *out, btf_error *err);
 
 /* Index of the loaded chunk (among the first n; n <= 0: all loaded) of component c
  * whose level is closest to `level` from below (finer), else the coarsest loaded

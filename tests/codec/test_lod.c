@@ -153,6 +153,12 @@ Test(lod, prefix_errors_match_reconstruction)
         cr_assert_eq(btf_package_compare(full, n, all, &mv, &err), BTF_OK, "%s", err.msg);
         cr_assert_float_eq(mv.rmse, m.rmse, 1e-9 * m.rmse + 1e-12, "prefix %d", n);
         cr_assert_float_eq(mv.lab_thesis, m.lab_thesis, 1e-9 * m.lab_thesis + 1e-12, "prefix %d", n);
+        /* with the first prefix in the same pass: the same numbers as alone */
+        int ns[2] = {1, n};
+        btf_metrics mp[2];
+        cr_assert_eq(btf_package_compare_prefixes(full, ns, 2, all, mp, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(mp[1].lab_thesis, mv.lab_thesis, "prefix %d", n);
+        cr_assert_eq(mp[1].rmse, mv.rmse, "prefix %d", n);
         btf_free(rec);
     }
     btf_free(all);

@@ -136,6 +136,20 @@ Test(package, error_curve_monotone_and_equal_to_direct_measurement)
     }
     btf_metrics mv;
     btf_error err = {0};
+    /* several prefixes in one pass, in any order, one twice: each as measured alone */
+    int ns[5] = {6, 2, 4, 2, 1};
+    btf_metrics mp[5];
+    cr_assert_eq(btf_package_compare_prefixes(p, ns, 5, src, mp, &err), BTF_OK, "%s", err.msg);
+    for (int i = 0; i < 5; i++) {
+        cr_assert_eq(btf_package_compare(p, ns[i], src, &mv, &err), BTF_OK, "%s", err.msg);
+        cr_expect_eq(mp[i].lab_thesis, mv.lab_thesis, "prefix %d: %.17g vs %.17g", ns[i], mp[i].lab_thesis, mv.lab_thesis);
+        cr_expect_eq(mp[i].rmse, mv.rmse, "prefix %d", ns[i]);
+        cr_expect_eq(mp[i].delta_e76, mv.delta_e76, "prefix %d", ns[i]);
+    }
+    cr_expect_neq(mp[0].lab_thesis, mp[1].lab_thesis, "6 chunks and 2 differ");
+    int bad[2] = {1, p->n_loaded + 1};
+    cr_expect_eq(btf_package_compare_prefixes(p, bad, 2, src, mp, &err), BTF_ERR_ARG, "one prefix too long");
+    cr_expect_eq(btf_package_compare_prefixes(p, ns, 0, src, mp, &err), BTF_ERR_ARG, "no prefix");
     cr_expect_eq(btf_package_compare(p, 0, src, &mv, &err), BTF_ERR_ARG, "no chunk is refused");
     cr_expect_eq(btf_package_compare(p, p->n_loaded + 1, src, &mv, &err), BTF_ERR_ARG, "more than loaded");
     btf *other = make_material(8);
