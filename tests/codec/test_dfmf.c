@@ -348,6 +348,15 @@ static void write_bytes(const char *path, const void *p, size_t n)
     fx_write(path, p, n);
 }
 
+/* f written to a fresh file (its path into path) and loaded into *b; asserts it loads. */
+static void load_hand(const bytes *f, const char *name, char *path, size_t cap, btf **b)
+{
+    tmp_file(path, cap, name);
+    write_bytes(path, f->p, f->n);
+    btf_error e = {0};
+    cr_assert_eq(btf_load_dfmf(path, NULL, b, &e), BTF_OK, "%s: %s", name, e.msg);
+}
+
 static void check_hand(hand_spec s)
 {
     bytes f = hand_file(s);
@@ -399,11 +408,8 @@ Test(dfmf, a_square_factor_is_the_identity_only_when_it_is)
         const float *U = u < 3 ? sq[u] : M, *S = u < 3 ? M : sq[u - 3];
         bytes f = hand_file((hand_spec){.version = 4, .ssize = 4, .sig = "!DFMF08FCR", .k = 2, .U = U, .S = S});
         char path[512];
-        tmp_file(path, sizeof path, "square.btf");
-        write_bytes(path, f.p, f.n);
         btf *b = NULL;
-        btf_error e = {0};
-        cr_assert_eq(btf_load_dfmf(path, NULL, &b, &e), BTF_OK, "%s", e.msg);
+        load_hand(&f, "square.btf", path, sizeof path, &b);
         for (int c = 0; c < 3; c++)
             for (int l = 0; l < 2; l++)
                 for (int t = 0; t < 2; t++) {
@@ -618,11 +624,8 @@ Test(dfmf, file_order_is_mapped_to_canonical_order)
     memmove(f.p + OFF_NLIGHTS + 4, f.p + OFF_NLIGHTS + 12, 8);
     memcpy(f.p + OFF_NLIGHTS + 12, tmp, 8);
     char path[512];
-    tmp_file(path, sizeof path, "order.btf");
-    write_bytes(path, f.p, f.n);
     btf *b = NULL;
-    btf_error e = {0};
-    cr_assert_eq(btf_load_dfmf(path, NULL, &b, &e), BTF_OK, "%s", e.msg);
+    load_hand(&f, "order.btf", path, sizeof path, &b);
     float th, ph;
     btf_dirset_angles(&b->lights, 0, &th, &ph);
     cr_expect_eq(th, 0.0f, "canonical light 0 is the pole");
