@@ -7,10 +7,11 @@
  * exact byte values use the same table, other floats a 4096-segment linear
  * interpolation of the curve (abs. error < 3e-8 in linear light, < 1e-4 in L).
  * The float decode and the Lab step run four pixels at a time through GCC/Clang
- * vector extensions (SSE2 on x86-64, generic code elsewhere); the cube root is a bit-trick guess
- * refined by two Halley steps (float precision). btf_compare splits the (view, light) images over OpenMP's
- * threads (OMP_NUM_THREADS) and sums per-image partials in image order,
- * so the result does not depend on the thread count.
+ * vector extensions (SSE2 on x86-64, generic code elsewhere); the cube root is a
+ * bit-trick guess refined by two Halley steps (float precision). btf_compare splits
+ * the (view, light) images over OpenMP's threads (OMP_NUM_THREADS) and sums
+ * per-image partials in image order, so the result does not depend on the thread
+ * count.
  */
 #include "btf_metrics.h"
 
