@@ -569,10 +569,11 @@ static btf_result btf__budget_exact(btf__search *s, btf_budget_choice *got, int 
     btf_result r = btf_package_read(s->dir[s->best], 0, &p, err);
     if (r != BTF_OK)
         return r;
-    double *lab = malloc(sizeof(double) * ((size_t)p->n_chunks + 1)), *rmse = malloc(sizeof(double) * ((size_t)p->n_chunks + 1));
+    size_t slots = (size_t)p->n_chunks + 1; /* by chunk count */
+    double *lab = malloc(slots * sizeof(double)), *rmse = malloc(slots * sizeof(double));
     if (!lab || !rmse)
         r = btf_fail(err, BTF_ERR_NOMEM, "budget: out of memory");
-    for (int i = 0; r == BTF_OK && i <= p->n_chunks; i++)
+    for (size_t i = 0; r == BTF_OK && i < slots; i++)
         lab[i] = rmse[i] = NAN;
     int n = got->n_chunks < p->n_chunks ? got->n_chunks : p->n_chunks;
     if (r == BTF_OK)
