@@ -277,11 +277,8 @@ static double lab_eval(const labref *r, const btf_blocks *bl, int C, const int *
         free(test);
     }
     btf_metrics_acc all = {0};
-    for (int i = 0; i < r->n_img; i++) {
-        all.sum_abs += acc[i].sum_abs, all.sum_sq += acc[i].sum_sq;
-        all.sum_lab += acc[i].sum_lab, all.sum_de += acc[i].sum_de;
-        all.samples += acc[i].samples, all.pixels += acc[i].pixels;
-    }
+    for (int i = 0; i < r->n_img; i++)
+        btf_metrics_merge(&all, &acc[i]);
     free(acc);
     btf_metrics m;
     btf_metrics_finish(&all, &m);

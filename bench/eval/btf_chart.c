@@ -162,13 +162,6 @@ static long long btf__chart_file_bytes(const char *dir, const char *name)
 /* Produces one decoded (view, light) image, width*height*3 floats, byte/255 scale. */
 typedef void (*btf__chart_image_fn)(const void *ctx, const btf *src, int view, int light, float *out);
 
-/* Adds b's sums into a. */
-static void btf__chart_acc_add(btf_metrics_acc *a, const btf_metrics_acc *b)
-{
-    a->sum_abs += b->sum_abs, a->sum_sq += b->sum_sq, a->sum_lab += b->sum_lab, a->sum_de += b->sum_de;
-    a->samples += b->samples, a->pixels += b->pixels;
-}
-
 /* Error of fn's images against src over every (view, light) pair, on `threads`
  * OpenMP threads (0: OpenMP's default, OMP_NUM_THREADS). */
 static btf_result btf__chart_error(const btf *src, btf__chart_image_fn fn, const void *ctx, int threads,
@@ -193,7 +186,7 @@ static btf_result btf__chart_error(const btf *src, btf__chart_image_fn fn, const
                 btf_metrics_add(&acc, ref, dec, n / 3);
             }
 #pragma omp critical(btf__chart_sum)
-        btf__chart_acc_add(&all, &acc);
+        btf_metrics_merge(&all, &acc);
         free(ref);
         free(dec);
     }

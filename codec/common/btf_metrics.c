@@ -268,6 +268,13 @@ void btf_metrics_add_lab(btf_metrics_acc *acc, const float *ref_rgb, const float
     acc->pixels += n_pixels;
 }
 
+void btf_metrics_merge(btf_metrics_acc *acc, const btf_metrics_acc *other)
+{
+    acc->sum_abs += other->sum_abs, acc->sum_sq += other->sum_sq;
+    acc->sum_lab += other->sum_lab, acc->sum_de += other->sum_de;
+    acc->samples += other->samples, acc->pixels += other->pixels;
+}
+
 void btf_metrics_finish(const btf_metrics_acc *acc, btf_metrics *out)
 {
     if (!out)

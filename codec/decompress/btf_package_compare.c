@@ -57,26 +57,20 @@ static void btf__compare_prefixes(const btf_package *p, const int *ns, int count
     }
 }
 
-/* Sums of every light of view v for every prefix (acc[i * V + v]), a tile of texels
- * at a time; the reference's Lab once per tile and light. */
+/* Sums of every light of view v for every prefix (acc[i]), a tile of texels at a
+ * time; the reference's Lab once per tile and light. */
 static void btf__compare_view(const btf_package *p, const int *ns, int count, const btf *ref, int v,
                               btf__tile_bufs *t, btf_metrics_acc *acc)
 {
-    int V = ref->views.n_dirs;
     size_t texels = (size_t)ref->width * ref->height;
-    btf_metrics_acc *mine = acc + v; /* prefix i's at mine[i * V] */
-    btf_metrics_acc one[BTF_PACKAGE_COMPARE_MAX];
-    memset(one, 0, sizeof one);
     for (size_t i0 = 0; i0 < texels; i0 += BTF__COMPARE_TILE) {
         size_t m = texels - i0 < BTF__COMPARE_TILE ? texels - i0 : BTF__COMPARE_TILE;
         for (int l = 0; l < ref->lights.n_dirs; l++) {
             btf_get_texels(ref, v, l, i0, m, t->a);
             btf_metrics_lab(t->a, m, t->a_lab);
-            btf__compare_prefixes(p, ns, count, v, l, i0, m, t, one);
+            btf__compare_prefixes(p, ns, count, v, l, i0, m, t, acc);
         }
     }
-    for (int i = 0; i < count; i++)
-        mine[(size_t)i * V] = one[i];
 }
 
 static btf_result btf__compare_check(const btf_package *p, const int *ns, int count, const btf *ref, btf_error *err)
@@ -121,17 +115,13 @@ btf_result btf_package_compare_prefixes(const btf_package *p, const int *ns, int
 #pragma omp for schedule(dynamic, 1)
         for (int v = 0; v < V; v++)
             if (buf)
-                btf__compare_view(p, ns, count, ref, v, &t, part);
+                btf__compare_view(p, ns, count, ref, v, &t, part + (size_t)v * count);
         free(buf);
     }
     for (int i = 0; i < count && !failed; i++) {
         btf_metrics_acc acc = {0};
-        for (int v = 0; v < V; v++) { /* in view order: the same sums whatever the thread count */
-            const btf_metrics_acc *q = &part[(size_t)i * V + v];
-            acc.sum_abs += q->sum_abs, acc.sum_sq += q->sum_sq;
-            acc.sum_lab += q->sum_lab, acc.sum_de += q->sum_de;
-            acc.samples += q->samples, acc.pixels += q->pixels;
-        }
+        for (int v = 0; v < V; v++) /* in view order: the same sums whatever the thread count */
+            btf_metrics_merge(&acc, &part[(size_t)v * count + i]);
         btf_metrics_finish(&acc, &out[i]);
     }
     free(part);

@@ -47,6 +47,8 @@ void btf_metrics_lab(const float *rgb, size_t n_pixels, float *lab);
  * same sums, the reference converted once for many tests (a package's error curve). */
 void btf_metrics_add_lab(btf_metrics_acc *acc, const float *ref_rgb, const float *ref_lab, const float *test_rgb,
                          size_t n_pixels);
+/* Adds other's sums into acc (partial sums of one measurement, e.g. per thread). */
+void btf_metrics_merge(btf_metrics_acc *acc, const btf_metrics_acc *other);
 void btf_metrics_finish(const btf_metrics_acc *acc, btf_metrics *out);
 
 
