@@ -41,6 +41,7 @@ static void compress_usage(FILE *f)
     fprintf(f,
             "usage: btf compress IN OUT [--k K] [--components C] [--bits 8|16]\n"
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
+            "                           [--clipped fit|keep]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
             "                           [--max-bytes N | --max-error E] [--full-search] [--plain] [--lossless] [--avif]\n"
@@ -61,6 +62,9 @@ static void compress_usage(FILE *f)
             "  --grouping G     consecutive: K consecutive views in canonical order (default);\n"
             "                   spatial: a view and its K-1 nearest unassigned views\n"
             "  --center M       none: best rank-C blocks (default); row: thesis, component 0 = mean\n"
+            "  --clipped M      fit: a sample stored at 0 or 255 may lie beyond it in the model\n"
+            "                   (what a clipped capture or import hides; the display clips again)\n"
+            "                   (default); keep: fitted as stored, as the thesis method does\n"
             "  --method M       PCA route (default auto: Gram up to 2048 columns, else randomized)\n"
             "  --downsample F   box-filter the input by F on load\n"
             "  --sampling S     direction set of an image-directory input: ubo2003, dome151 or a\n"
@@ -132,7 +136,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A lossless!O avif!V png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c clipped:K levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A lossless!O avif!V png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -140,6 +144,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
 {
     static const char *const groupings[] = {"consecutive", "spatial"};
     static const char *const centers[] = {"none", "row"};
+    static const char *const clipped[] = {"fit", "keep"};
     compress_opts *o = ctx;
     btf_args_pca_dst pca = {&o->pca.k,      &o->pca.components,     &o->src.downsample,
                             &o->pca.method, BTF_PACKAGE_MAX_CHUNKS, &o->budget};
@@ -151,6 +156,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
         break;
     case 'g': rc = btf_args_enum(a, v, groupings, 2, &e), o->pca.grouping = (btf_grouping)(e + 1); break;
     case 'c': rc = btf_args_enum(a, v, centers, 2, &e), o->pca.center = (btf_center)(e + 1); break;
+    case 'K': rc = btf_args_enum(a, v, clipped, 2, &e), o->pca.clipped = (btf_clipped)(e + 1); break;
     case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->lod.levels); break;
     case 'D': o->lod.residual = 1; break;
     case 'n': o->name = v; break;

@@ -7,12 +7,14 @@
 #include <cblas.h>
 #include <lapacke.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define BTF__AUTO_GRAM_MAX_COLS 2048
 #define BTF__RSVD_OVERSAMPLE 8
 #define BTF__RSVD_POWER 2
+#define BTF__CLIP_STEPS 8        /* subspace steps of the clipped-sample fit */
 
 /* ---------------------------------------------------------------- options */
 
@@ -284,15 +286,12 @@ static btf_result btf__block_alloc(btf_pca_block *out, int rows, int cols, int C
     return BTF_OK;
 }
 
-btf_result btf_pca_block_compute(const float *A, int rows, int cols, int C, btf_pca_method method,
-                                 btf_center center, btf_pca_block *out, btf_error *err)
+/* Allocates out for C components of A and fills what needs no decomposition: the
+ * energy and, centred, component 0 (the row mean, weight 1); op reads A (centred by
+ * that mean), *off is the first component left to find. */
+static btf_result btf__block_start(const float *A, int rows, int cols, int C, btf_center center,
+                                   btf_pca_block *out, btf__op *op, int *off, btf_error *err)
 {
-    if (!A || !out || rows < 1 || cols < 1)
-        return btf_fail(err, BTF_ERR_ARG, "PCA: empty block");
-    int mn = rows < cols ? rows : cols;
-    if (C < 1 || C > mn)
-        return btf_fail(err, BTF_ERR_RANGE, "components C = %d: must be 1..%d for a %d x %d block", C, mn, rows,
-                        cols);
     btf_result r = btf__block_alloc(out, rows, cols, C, err);
     if (r != BTF_OK)
         return r;
@@ -305,24 +304,35 @@ btf_result btf_pca_block_compute(const float *A, int rows, int cols, int C, btf_
         btf_pca_block_clear(out);
         return btf_fail(err, BTF_ERR_NUMERIC, "PCA: block data is not finite");
     }
-    btf__op op = {A, rows, cols, NULL};
-    int off = 0;
+    *op = (btf__op){A, rows, cols, NULL};
+    *off = 0;
     if (center == BTF_CENTER_ROW) { /* component 0 = row mean, weight 1 */
-        float *ones = malloc((size_t)cols * sizeof(float));
-        if (!ones) {
-            btf_pca_block_clear(out);
-            return btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory");
-        }
         for (int c = 0; c < cols; c++)
-            ones[c] = 1.0f / (float)cols;
-        cblas_sgemv(CblasColMajor, CblasNoTrans, rows, cols, 1.0f, A, rows, ones, 1, 0.0f, out->t, 1);
-        free(ones);
+            out->w[c] = 1.0f / (float)cols;
+        cblas_sgemv(CblasColMajor, CblasNoTrans, rows, cols, 1.0f, A, rows, out->w, 1, 0.0f, out->t, 1);
         for (int c = 0; c < cols; c++)
             out->w[c] = 1.0f;
         out->sigma[0] = 1.0f;
-        op.m = out->t;
-        off = 1;
+        op->m = out->t;
+        *off = 1;
     }
+    return BTF_OK;
+}
+
+btf_result btf_pca_block_compute(const float *A, int rows, int cols, int C, btf_pca_method method,
+                                 btf_center center, btf_pca_block *out, btf_error *err)
+{
+    if (!A || !out || rows < 1 || cols < 1)
+        return btf_fail(err, BTF_ERR_ARG, "PCA: empty block");
+    int mn = rows < cols ? rows : cols;
+    if (C < 1 || C > mn)
+        return btf_fail(err, BTF_ERR_RANGE, "components C = %d: must be 1..%d for a %d x %d block", C, mn, rows,
+                        cols);
+    btf__op op;
+    int off;
+    btf_result r = btf__block_start(A, rows, cols, C, center, out, &op, &off, err);
+    if (r != BTF_OK)
+        return r;
     int p = C - off;
     if (p == 0)
         return BTF_OK;
@@ -347,7 +357,185 @@ btf_result btf_pca_block_compute(const float *A, int rows, int cols, int C, btf_
     return r;
 }
 
+/* Out again as the PCA of A within the orthonormal basis V (cols x p): the
+ * Rayleigh-Ritz step, components in descending order. */
+static btf_result btf__block_ritz(const float *A, int rows, int cols, int C, btf_center center, const float *V,
+                                  btf_pca_block *out, btf_error *err)
+{
+    btf__op op;
+    int off, found = 0;
+    btf_pca_block_clear(out);
+    btf_result r = btf__block_start(A, rows, cols, C, center, out, &op, &off, err);
+    if (r != BTF_OK)
+        return r;
+    int p = C - off;
+    float *Y = malloc((size_t)rows * p * sizeof(float)), *G = malloc((size_t)p * p * sizeof(float));
+    float *Q = malloc((size_t)p * p * sizeof(float)), *R = malloc((size_t)cols * p * sizeof(float));
+    float *ev = malloc((size_t)p * sizeof(float)), *tmp = malloc((size_t)p * sizeof(float));
+    int *supp = malloc(2 * (size_t)p * sizeof(int));
+    if (!Y || !G || !Q || !R || !ev || !tmp || !supp)
+        r = btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (clipped samples)");
+    if (r == BTF_OK) {
+        btf__op_mul(&op, V, p, Y, tmp);
+        cblas_ssyrk(CblasColMajor, CblasUpper, CblasTrans, p, rows, 1.0f, Y, rows, 0.0f, G, p);
+        if (LAPACKE_ssyevr(LAPACK_COL_MAJOR, 'V', 'A', 'U', p, G, p, 0.0f, 0.0f, 0, 0, 0.0f, &found, ev, Q, p,
+                           supp) != 0 ||
+            found != p)
+            r = btf_fail(err, BTF_ERR_NUMERIC, "PCA: ssyevr failed (clipped samples)");
+    }
+    for (int j = 0; r == BTF_OK && j < p; j++) /* ascending -> descending */
+        cblas_sgemv(CblasColMajor, CblasNoTrans, cols, p, 1.0f, V, cols, Q + (size_t)(p - 1 - j) * p, 1, 0.0f,
+                    R + (size_t)j * cols, 1);
+    if (r == BTF_OK)
+        r = btf__finish(&op, p, R, out, off, err);
+    free(Y), free(G), free(Q), free(R), free(ev), free(tmp), free(supp);
+    if (r != BTF_OK)
+        btf_pca_block_clear(out);
+    return r;
+}
+
+/* ---------------------------------------------------------------- clipped samples */
+
+/* A block's samples exactly at an end of the stored range (0 or 1), where a capture
+ * or an import may have clipped the value; owned by btf__clip_fit for one block. */
+typedef struct btf__clipped {
+    size_t n;
+    size_t *at;          /* n indices into A */
+    unsigned char *high; /* n: 1 at the top end, 0 at the bottom */
+} btf__clipped;
+
+static void btf__clipped_free(btf__clipped *c) { free(c->at), free(c->high), memset(c, 0, sizeof *c); }
+
+static btf_result btf__clipped_find(const float *A, size_t n, btf__clipped *c, btf_error *err)
+{
+    memset(c, 0, sizeof *c);
+    size_t count = 0;
+    for (size_t i = 0; i < n; i++)
+        count += A[i] == 0.0f || A[i] == 1.0f;
+    if (count == 0)
+        return BTF_OK;
+    c->at = malloc(count * sizeof *c->at), c->high = malloc(count);
+    if (!c->at || !c->high) {
+        btf__clipped_free(c);
+        return btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (%zu clipped samples)", count);
+    }
+    for (size_t i = 0; i < n; i++)
+        if (A[i] == 0.0f || A[i] == 1.0f)
+            c->high[c->n] = A[i] == 1.0f, c->at[c->n++] = i;
+    return BTF_OK;
+}
+
+/* Moves each clipped sample to the model's value (m + Y V^T, p terms) where that lies
+ * beyond its end of the range, else back onto the end. */
+static void btf__clip_fill(float *A, int rows, int cols, const btf__clipped *c, const float *m, const float *Y,
+                           const float *V, int p)
+{
+    for (size_t q = 0; q < c->n; q++) {
+        size_t i = c->at[q];
+        int row = (int)(i % (size_t)rows), col = (int)(i / (size_t)rows);
+        float v = m ? m[row] : 0.0f;
+        for (int j = 0; j < p; j++)
+            v += Y[(size_t)j * rows + row] * V[(size_t)j * cols + col];
+        A[i] = c->high[q] ? (v > 1.0f ? v : 1.0f) : (v < 0.0f ? v : 0.0f);
+    }
+}
+
+static void btf__row_means(const float *A, int rows, int cols, const float *inv_cols, float *m)
+{
+    cblas_sgemv(CblasColMajor, CblasNoTrans, rows, cols, 1.0f, A, rows, inv_cols, 1, 0.0f, m, 1);
+}
+
+/* The fit's steps: each fills the clipped samples from the model and takes one
+ * subspace step from the last basis. */
+static btf_result btf__clip_steps(float *A, int rows, int cols, int p, int centred, const btf__clipped *c,
+                                  float *V, btf_error *err)
+{
+    float *Y = malloc((size_t)rows * p * sizeof(float)), *m = centred ? malloc((size_t)rows * sizeof(float)) : NULL;
+    float *ones = malloc((size_t)cols * sizeof(float)), *inv = malloc((size_t)cols * sizeof(float));
+    float *tau = malloc((size_t)p * sizeof(float)), *tmp = malloc((size_t)p * sizeof(float));
+    btf_result r = BTF_OK;
+    if (!Y || (centred && !m) || !ones || !inv || !tau || !tmp)
+        r = btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (clipped samples)");
+    for (int i = 0; r == BTF_OK && i < cols; i++)
+        ones[i] = 1.0f, inv[i] = 1.0f / (float)cols;
+    btf__op op = {A, rows, cols, m};
+    const int steps = BTF__CLIP_STEPS;
+    if (r == BTF_OK && btf__orth(V, cols, p, tau) != 0)
+        r = btf_fail(err, BTF_ERR_NUMERIC, "PCA: QR factorisation failed (clipped samples)");
+    if (r == BTF_OK && m)
+        btf__row_means(A, rows, cols, inv, m);
+    for (int s = 0; r == BTF_OK && s <= steps; s++) {
+        btf__op_mul(&op, V, p, Y, tmp);
+        btf__clip_fill(A, rows, cols, c, m, Y, V, p);
+        if (s == steps)
+            break;
+        if (m)
+            btf__row_means(A, rows, cols, inv, m);
+        btf__op_mul_t(&op, Y, p, V, tmp, ones);
+        if (btf__orth(V, cols, p, tau) != 0)
+            r = btf_fail(err, BTF_ERR_NUMERIC, "PCA: QR factorisation failed (clipped samples)");
+    }
+    free(Y), free(m), free(ones), free(inv), free(tau), free(tmp);
+    return r;
+}
+
+/* Fits out (A's PCA) again with A's clipped samples free to lie beyond their end of
+ * the range (doc/package-format.md section 10.2), then puts them back: A is
+ * unchanged, out->energy is A's. */
+static btf_result btf__clip_fit(float *A, int rows, int cols, const btf_pca_options *o, btf_pca_block *out,
+                                btf_error *err)
+{
+    int off = o->center == BTF_CENTER_ROW, p = o->components - off;
+    size_t n = (size_t)rows * cols;
+    if (o->clipped == BTF_CLIPPED_KEEP || p < 1)
+        return BTF_OK;
+    btf__clipped c;
+    btf_result r = btf__clipped_find(A, n, &c, err);
+    if (r != BTF_OK || (double)c.n < (double)n * BTF_PCA_CLIPPED_MIN_SHARE) {
+        btf__clipped_free(&c);
+        return r;
+    }
+    float *V = malloc((size_t)cols * p * sizeof(float));
+    if (!V) {
+        btf__clipped_free(&c);
+        return btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (clipped samples)");
+    }
+    memcpy(V, out->w + (size_t)off * cols, (size_t)cols * p * sizeof(float));
+    r = btf__clip_steps(A, rows, cols, p, off, &c, V, err);
+    if (r == BTF_OK)
+        r = btf__block_ritz(A, rows, cols, o->components, o->center, V, out, err);
+    free(V);
+    double e = out->energy;
+    for (size_t q = 0; q < c.n; q++) {
+        size_t i = c.at[q];
+        e -= (double)A[i] * A[i];
+        A[i] = c.high[q] ? 1.0f : 0.0f;
+        e += (double)A[i] * A[i];
+    }
+    if (r == BTF_OK)
+        out->energy = e;
+    btf__clipped_free(&c);
+    return r;
+}
+
 /* ---------------------------------------------------------------- whole BTF */
+
+double btf_pca_clipped_share(const btf *src)
+{
+    if (!src || src->count == 0)
+        return 0.0;
+    size_t n = 0;
+    if (src->storage == BTF_U8) {
+        const uint8_t *d = src->data;
+        for (size_t i = 0; i < src->count; i++)
+            n += d[i] == 0 || d[i] == 255;
+    } else {
+        const float *d = src->data;
+        for (size_t i = 0; i < src->count; i++)
+            n += d[i] == 0.0f || d[i] == 1.0f;
+    }
+    return (double)n / (double)src->count;
+}
 
 void btf_pca_model_free(btf_pca_model *m)
 {
@@ -444,6 +632,8 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
         cols = 3 * src->lights.n_dirs * (m->blocks->start[b + 1] - m->blocks->start[b]);
         if (r == BTF_OK)
             r = btf_pca_block_compute(A, rows, cols, o.components, o.method, o.center, &m->block[b], err);
+        if (r == BTF_OK)
+            r = btf__clip_fit(A, rows, cols, &o, &m->block[b], err);
         if (r == BTF_OK && fn)
             r = fn(ctx, b, A, &m->block[b], err);
         if (r == BTF_OK && o.progress)

@@ -41,12 +41,22 @@ typedef enum btf_pca_method {
 } btf_pca_method;
 
 /* Options; zero means default. Plain value. */
+typedef enum btf_clipped {
+    BTF_CLIPPED_DEFAULT = 0, /* = BTF_CLIPPED_FIT */
+    BTF_CLIPPED_FIT,         /* samples at 0 or 1 may lie beyond it in the model */
+    BTF_CLIPPED_KEEP         /* every sample fitted as stored (the thesis method) */
+} btf_clipped;
+
+/* A block with fewer than this share of its samples at 0 or 1 is fitted as stored. */
+#define BTF_PCA_CLIPPED_MIN_SHARE 1e-4
+
 typedef struct btf_pca_options {
     int k;                  /* views per block, 1..n_views; 0 = 3 */
     int components;         /* C including component 0; 0 = 8 */
     btf_grouping grouping;
     btf_pca_method method;
     btf_center center;
+    btf_clipped clipped;
     /* Optional: called after each block with blocks done and the total (progress
      * display); NULL = none. progress_ctx is passed through, owned by the caller. */
     void (*progress)(void *ctx, int done, int total);
@@ -90,6 +100,9 @@ typedef struct btf_pca_model {
     btf_pca_block *block;  /* n_blocks */
 } btf_pca_model;
 
+/* The share of src's samples exactly at 0 or 1 (byte/255 scale): those the clipped
+ * fit may move (doc/package-format.md section 10.2). */
+double btf_pca_clipped_share(const btf *src);
 /* Checks options against the source (k, C in range, finite data). */
 btf_result btf_pca_check(const btf *src, const btf_pca_options *opt, btf_error *err);
 /* The same checks without reading any data (a non-finite sample fails its block). */
