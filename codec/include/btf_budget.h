@@ -69,9 +69,11 @@ extern "C" {
 #define BTF_BUDGET_SCREEN_EDGE 0.03
 #define BTF_BUDGET_FINER 2 /* max_error out of the default steps' reach: searches again at 1/2, 1/4 the noise */
 #define BTF_BUDGET_MAX_GROW 4        /* growth rounds: 16 -> 24 -> 36 -> 56 -> 64 */
+#define BTF_BUDGET_MAX_SHRINK 3      /* rounds of the best at the count it keeps (clipped samples) */
 /* each k and its growth in the walk (a smaller k that wins: every round), the centred
- * retries (the best, a close runner-up), the growth rounds */
-#define BTF_BUDGET_MAX_CANDIDATES (BTF_BUDGET_MAX_K * (1 + BTF_BUDGET_MAX_GROW) + 2 + BTF_BUDGET_MAX_GROW)
+ * retries (the best, a close runner-up), the growth and shrinking rounds */
+#define BTF_BUDGET_MAX_CANDIDATES \
+    (BTF_BUDGET_MAX_K * (1 + BTF_BUDGET_MAX_GROW) + 2 + BTF_BUDGET_MAX_GROW + BTF_BUDGET_MAX_SHRINK)
 
 /* What to meet; plain value. Exactly one of max_bytes, max_error is set. */
 typedef struct btf_budget {

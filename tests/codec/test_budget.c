@@ -20,6 +20,15 @@ static btf *material_of(int size)
 
 static btf *material(void) { return material_of(16); }
 
+/* The walk's candidates alone: the tiles' highlights are clipped at 1, and where the
+ * PCA fits them the search also measures its best at the count it keeps
+ * (btf__budget_shrink, tested on its own below). */
+static const btf_pca_options *walk_only(void)
+{
+    static const btf_pca_options po = {.clipped = BTF_CLIPPED_KEEP};
+    return &po;
+}
+
 /* Bytes on disk of a package: every regular file in dir. */
 static long long dir_bytes(const char *dir)
 {
@@ -299,7 +308,7 @@ static void expect_pruned_like(const btf *src, btf_budget b, const btf_budget_re
     b.full_search = 0;
     btf_budget_result res;
     btf_error err = {0};
-    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_budget_compress(src, walk_only(), NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     int end = 0; /* all's walk: its candidates before the centred retry */
     while (end < all->n_candidates && all->candidate[end].center != BTF_CENTER_ROW)
         end++;
@@ -350,7 +359,7 @@ Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
     btf_budget_result res;
     btf_error err = {0};
     b.full_search = 1; /* every default k */
-    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_budget_compress(src, walk_only(), NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     static const int order[5] = {9, 15, 5, 3, 1};
     int idx[BTF_BUDGET_MAX_CANDIDATES], n = expect_ks(&res, order, 5, idx);
     cr_expect_eq(res.n_candidates, n + 1 + (runner_up(&b, res.candidate, idx, n, walk_best(&b, &res, n)) >= 0),
@@ -363,7 +372,7 @@ Test(budget, candidates_are_compared_and_a_hopeless_budget_is_refused)
     expect_pruned_like(src, b, &all, out); /* here k 15 loses to k 9, k 3 beats it and k 1 beats k 3 */
     btf_budget e = {0};
     e.max_error = 0.8, e.full_search = 1;
-    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &e, out, &all, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_budget_compress(src, walk_only(), NULL, &e, out, &all, &err), BTF_OK, "%s", err.msg);
     n = expect_ks(&all, order, 5, idx);
     cr_assert_eq(all.n_candidates, n + 1 + (runner_up(&e, all.candidate, idx, n, walk_best(&e, &all, n)) >= 0));
     cr_expect(all.candidate[1].k == 15 && all.candidate[1].bytes < all.candidate[0].bytes &&
@@ -395,7 +404,7 @@ Test(budget, the_best_candidate_is_retried_with_row_centring)
     b.max_bytes = 60000, b.k[0] = 1, b.k[1] = 3, b.n_k = 2;
     btf_budget_result res;
     btf_error err = {0};
-    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_budget_compress(src, walk_only(), NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     const btf_budget_choice *c = res.candidate, *best = c[0].lab <= c[1].lab ? &c[0] : &c[1];
     const btf_budget_choice *other = best == &c[0] ? &c[1] : &c[0];
     cr_assert_eq(res.n_candidates, other->lab <= 1.03 * best->lab ? 4 : 3, "a close runner-up is retried too");
@@ -413,7 +422,7 @@ Test(budget, the_best_candidate_is_retried_with_row_centring)
     cr_expect(p->budget && strstr(p->budget, "\"center\":\"row\""), "the record lists the centred candidate: %s",
               p->budget ? p->budget : "none");
     btf_package_free(p);
-    btf_pca_options po = {0}; /* a centring of the caller's: no retry */
+    btf_pca_options po = *walk_only(); /* a centring of the caller's: no retry */
     po.center = BTF_CENTER_NONE;
     cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
     cr_expect_eq(res.n_candidates, 2);
@@ -439,7 +448,7 @@ Test(budget, a_close_runner_up_is_retried_with_row_centring_too)
         b.max_bytes = budgets[n], b.k[0] = 1, b.k[1] = 3, b.n_k = 2;
         btf_budget_result res;
         btf_error err = {0};
-        cr_assert_eq(btf_budget_compress(src, NULL, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(btf_budget_compress(src, walk_only(), NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
         const btf_budget_choice *c = res.candidate;
         int best = c[0].lab <= c[1].lab ? 0 : 1, other = 1 - best;
         int near = c[other].n_chunks > 0 && c[other].lab <= 1.03 * c[best].lab;
@@ -517,7 +526,7 @@ Test(budget, two_blocks_are_tried_between_three_and_one)
     e.max_error = 0.8, e.full_search = 1;
     btf_budget_result all;
     btf_error err = {0};
-    cr_assert_eq(btf_budget_compress(src, NULL, NULL, &e, out, &all, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_budget_compress(src, walk_only(), NULL, &e, out, &all, &err), BTF_OK, "%s", err.msg);
     static const int order[6] = {9, 11, 21, 5, 3, 1};
     int idx[BTF_BUDGET_MAX_CANDIDATES];
     expect_ks(&all, order, 6, idx); /* the full search's ks in order, each maybe followed by its growth */
@@ -601,6 +610,48 @@ Test(budget, a_smaller_k_that_wins_keeping_every_component_is_grown_before_the_n
         best = grown_beats(&b, &c[i], &c[i - 1], &c[best]) ? i : best;
     }
     cr_expect(i < res.n_candidates && c[i].k == 1, "then k 1");
+    btf_free(src);
+    fx_rmtree(dir);
+}
+
+/* Where the source has clipped samples (the tiles' highlights at 1) and the PCA fits
+ * them, the best keeping n chunks of C > n components is measured again with n
+ * components, and again while that wins; with --clipped keep it is not. */
+Test(budget, a_best_keeping_fewer_chunks_is_measured_at_that_count_where_samples_are_clipped)
+{
+    char dir[64], out[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    btf *src = material();
+    double share = btf_pca_clipped_share(src);
+    cr_assert_geq(share, BTF_PCA_CLIPPED_MIN_SHARE, "the tiles have clipped highlights (%g)", share);
+    btf_budget b = {0};
+    b.max_bytes = 30000, b.k[0] = 3, b.n_k = 1;
+    btf_pca_options po = {0};
+    po.center = BTF_CENTER_NONE; /* no centred retry: the walk is one candidate */
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    for (int i = 0; i < res.n_candidates; i++)
+        log_candidate(&res, i);
+    const btf_budget_choice *c = res.candidate;
+    cr_assert_lt(c[0].n_chunks, c[0].components, "this budget keeps fewer chunks than the 16 components");
+    cr_assert_geq(res.n_candidates, 2, "the best measured again at its count");
+    int best = 0;
+    for (int i = 1; i < res.n_candidates; i++) {
+        cr_expect_eq(c[i].components, c[best].n_chunks, "candidate %d: the best's count %d, got %d", i,
+                     c[best].n_chunks, c[i].components);
+        cr_expect(c[i].k == 3 && c[i].center == c[0].center && c[i].rd_fit == c[0].rd_fit, "candidate %d", i);
+        int won = c[i].n_chunks > 0 && c[i].lab < c[best].lab;
+        if (i + 1 < res.n_candidates)
+            cr_expect(won && c[i].n_chunks < c[i].components, "a shrink after candidate %d, which did not win", i);
+        best = won ? i : best;
+    }
+    cr_expect_eq(res.components, c[best].components);
+    cr_expect_float_eq(res.lab, c[best].lab, 1e-12);
+    po.clipped = BTF_CLIPPED_KEEP;
+    cr_assert_eq(btf_budget_compress(src, &po, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(res.n_candidates, 1, "fitted as stored: the walk's one candidate only");
     btf_free(src);
     fx_rmtree(dir);
 }
