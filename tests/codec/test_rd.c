@@ -2143,7 +2143,12 @@ Test(rd, an_error_target_takes_steps_fitted_to_fewer_bytes)
     snprintf(out, sizeof out, "%s/e", tmp);
     btf *src = fx_material(BTF_GEN_TILES, 32, rings31, 3);
     btf_pca_options po = {0};
-    po.k = 3, po.components = 16, po.center = BTF_CENTER_NONE;
+    /* the components fitted as stored: with this small material's highlights fitted as
+     * clipped (btf_pca.c) the equal-noise candidate needs 6 chunks over every texel
+     * (CIELab 1.3256, 38,297 bytes, against the target 1.5418), and the bisection's
+     * three trials (26.2-30.5 KB) miss by 0.6-7%, which ends it by its rule before a
+     * trial near the top (doc/performance.md section 3, "Clipped samples fitted") */
+    po.k = 3, po.components = 16, po.center = BTF_CENTER_NONE, po.clipped = BTF_CLIPPED_KEEP;
     btf_package_options ko = {0};
     ko.rd = 1;
     btf_error err = {0};
