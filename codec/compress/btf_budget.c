@@ -330,7 +330,7 @@ typedef struct btf__search {
     const char *out;
     char dir[BTF_BUDGET_MAX_CANDIDATES][BTF_FS_PATH_MAX];
     int all_kept[BTF_BUDGET_MAX_CANDIDATES]; /* 1: the candidate's best prefix is all its chunks */
-    int clipped; /* 1: the PCA fits the screened source's clipped samples (btf__budget_shrink) */
+    int clipped; /* 1: a byte budget, and the PCA fits the screened source's clipped samples (btf__budget_shrink) */
     btf_budget_result rs;
     int best, best_met;
     /* with rd: [0] the best candidate's PCA model, measured steps and chosen steps
@@ -686,7 +686,9 @@ static btf_result btf__budget_grow(btf__search *s, btf_error *err)
 static btf_result btf__budget_shrink(btf__search *s, btf_error *err)
 {
     btf_result r = BTF_OK;
-    for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_SHRINK && s->clipped && s->b->max_bytes > 0 && s->best >= 0 &&
+    if (!s->clipped)
+        return r;
+    for (int g = 0; r == BTF_OK && g < BTF_BUDGET_MAX_SHRINK && s->best >= 0 &&
                     s->rs.n_candidates < BTF_BUDGET_MAX_CANDIDATES - 2;
          g++) {
         const btf_budget_choice was = s->rs.candidate[s->best];
@@ -883,7 +885,8 @@ static btf_result btf__budget_search_once(const btf *src, const btf_pca_options 
         sr->hook.write_hook = hook->write_hook, sr->hook.hook_ctx = hook->hook_ctx;
     if (r == BTF_OK)
         r = btf__budget_screen(sr, err);
-    sr->clipped = sr->pca.clipped != BTF_CLIPPED_KEEP && btf_pca_clipped_share(sr->screen) >= BTF_PCA_CLIPPED_MIN_SHARE;
+    sr->clipped = budget->max_bytes > 0 && sr->pca.clipped != BTF_CLIPPED_KEEP &&
+                  btf_pca_clipped_share(sr->screen) >= BTF_PCA_CLIPPED_MIN_SHARE;
     int ks[BTF_BUDGET_MAX_K], nk = btf__budget_ks(budget, src->views.n_dirs, ks);
     int fit = po.rd && budget->max_bytes > 0; /* version 3: steps fitted to the bytes */
     int n0 = budget->max_components > 0 ? budget->max_components : BTF_BUDGET_COMPONENTS;

@@ -406,14 +406,19 @@ typedef struct btf__clipped {
 
 static void btf__clipped_free(btf__clipped *c) { free(c->at), free(c->high), memset(c, 0, sizeof *c); }
 
-static btf_result btf__clipped_find(const float *A, size_t n, btf__clipped *c, btf_error *err)
+/* How many of the n floats at A are exactly 0 or 1. */
+static size_t btf__count_at_ends(const float *A, size_t n)
 {
-    memset(c, 0, sizeof *c);
     size_t count = 0;
     for (size_t i = 0; i < n; i++)
         count += A[i] == 0.0f || A[i] == 1.0f;
-    if (count == 0)
-        return BTF_OK;
+    return count;
+}
+
+/* The count (from btf__count_at_ends) clipped samples of A (n floats) into c. */
+static btf_result btf__clipped_find(const float *A, size_t n, size_t count, btf__clipped *c, btf_error *err)
+{
+    memset(c, 0, sizeof *c);
     c->at = malloc(count * sizeof *c->at), c->high = malloc(count);
     if (!c->at || !c->high) {
         btf__clipped_free(c);
@@ -459,15 +464,14 @@ static btf_result btf__clip_steps(float *A, int rows, int cols, int p, int centr
     for (int i = 0; r == BTF_OK && i < cols; i++)
         ones[i] = 1.0f, inv[i] = 1.0f / (float)cols;
     btf__op op = {A, rows, cols, m};
-    const int steps = BTF__CLIP_STEPS;
     if (r == BTF_OK && btf__orth(V, cols, p, tau) != 0)
         r = btf_fail(err, BTF_ERR_NUMERIC, "PCA: QR factorisation failed (clipped samples)");
     if (r == BTF_OK && m)
         btf__row_means(A, rows, cols, inv, m);
-    for (int s = 0; r == BTF_OK && s <= steps; s++) {
+    for (int s = 0; r == BTF_OK && s <= BTF__CLIP_STEPS; s++) {
         btf__op_mul(&op, V, p, Y, tmp);
         btf__clip_fill(A, rows, cols, c, m, Y, V, p);
-        if (s == steps)
+        if (s == BTF__CLIP_STEPS)
             break;
         if (m)
             btf__row_means(A, rows, cols, inv, m);
@@ -489,12 +493,13 @@ static btf_result btf__clip_fit(float *A, int rows, int cols, const btf_pca_opti
     size_t n = (size_t)rows * cols;
     if (o->clipped == BTF_CLIPPED_KEEP || p < 1)
         return BTF_OK;
+    size_t count = btf__count_at_ends(A, n);
+    if (count == 0 || (double)count < (double)n * BTF_PCA_CLIPPED_MIN_SHARE)
+        return BTF_OK;
     btf__clipped c;
-    btf_result r = btf__clipped_find(A, n, &c, err);
-    if (r != BTF_OK || (double)c.n < (double)n * BTF_PCA_CLIPPED_MIN_SHARE) {
-        btf__clipped_free(&c);
+    btf_result r = btf__clipped_find(A, n, count, &c, err);
+    if (r != BTF_OK)
         return r;
-    }
     float *V = malloc((size_t)cols * p * sizeof(float));
     if (!V) {
         btf__clipped_free(&c);
@@ -530,9 +535,7 @@ double btf_pca_clipped_share(const btf *src)
         for (size_t i = 0; i < src->count; i++)
             n += d[i] == 0 || d[i] == 255;
     } else {
-        const float *d = src->data;
-        for (size_t i = 0; i < src->count; i++)
-            n += d[i] == 0.0f || d[i] == 1.0f;
+        n = btf__count_at_ends(src->data, src->count);
     }
     return (double)n / (double)src->count;
 }

@@ -40,7 +40,6 @@ typedef enum btf_pca_method {
     BTF_PCA_SVD             /* full LAPACKE_sgesdd: the slow baseline */
 } btf_pca_method;
 
-/* Options; zero means default. Plain value. */
 typedef enum btf_clipped {
     BTF_CLIPPED_DEFAULT = 0, /* = BTF_CLIPPED_FIT */
     BTF_CLIPPED_FIT,         /* samples at 0 or 1 may lie beyond it in the model */
@@ -53,6 +52,7 @@ typedef enum btf_clipped {
  * have 0.19-0.96%. */
 #define BTF_PCA_CLIPPED_MIN_SHARE 2e-3
 
+/* Options; zero means default. Plain value. */
 typedef struct btf_pca_options {
     int k;                  /* views per block, 1..n_views; 0 = 3 */
     int components;         /* C including component 0; 0 = 8 */
