@@ -107,7 +107,7 @@ void btf_source_warn(const char *cmd, const char *spec, int n_filled, int n_imag
 static btf_result source_options(const btf_source_args *a, btf_dirset *set, btf_load_options *lo, btf_error *err)
 {
     memset(lo, 0, sizeof *lo);
-    lo->downsample = a->downsample, lo->fill_missing = a->fill_missing;
+    lo->downsample = a->downsample, lo->fill_missing = a->fill_missing, lo->storage = a->storage;
     if (!a->sampling)
         return BTF_OK;
     lo->sampling = set;

@@ -29,6 +29,7 @@ typedef struct eval_opts {
     btf_source_args src; /* --downsample, --sampling, --fill-missing (both inputs) */
     int csv, json;
     int no_curve; /* --no-curve: the whole package only, not every prefix */
+    int displayed; /* --displayed: TEST's values as the 8-bit codes a display stores */
 } eval_opts;
 
 /* Explicit pair list from --pairs V:L,...; malloc'd arrays owned by the caller. */
@@ -41,9 +42,12 @@ static void eval_usage(FILE *f)
 {
     fprintf(f, "usage: btf eval REF TEST [--pairs all|measured|V:L[,V:L...]] [--csv | --json]\n"
                "                [--downsample N] [--sampling S] [--fill-missing] [--no-curve]\n"
+               "                [--displayed]\n"
                "\n"
                "Error of TEST against REF (anything btf_load_any reads; same size and\n"
-               "direction sets). Values are treated as sRGB-encoded 8-bit, D65. When TEST is\n"
+               "direction sets). Values are treated as sRGB-encoded 8-bit, D65. TEST is\n"
+               "measured as decoded (floats; a thesis package's reconstruction too, not rounded\n"
+               "as its import stores it). When TEST is\n"
                "a package directory, also the error after each chunk (the curve versus bytes),\n"
                "every prefix in one pass a tile of texels at a time (memory: REF and the\n"
                "package's files; with --pairs or --downsample, a whole decode per prefix).\n"
@@ -64,6 +68,9 @@ static void eval_usage(FILE *f)
                "  --no-curve         a package: only the metrics of all its chunks (the curve's\n"
                "                     pass for one prefix instead of C: about half the time;\n"
                "                     with --json, chunk holds the last entry only)\n"
+               "  --displayed        TEST's values rounded to the 8-bit codes a page's canvas\n"
+               "                     shows (clamped to 0..1, then to 1/255 steps) before they\n"
+               "                     are measured: the error a viewer sees\n"
                "Metrics: rgb_mae, rgb_rmse (0..255 scale), psnr (dB; 999 = identical),\n"
                "lab_mae (thesis: mean of |dL|,|da|,|db| over pixels and channels),\n"
                "delta_e76 (mean CIE 1976 Delta E).\n");
@@ -82,6 +89,7 @@ static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'c': o->csv = 1; break;
     case 'j': o->json = 1; break;
     case 'n': o->no_curve = 1; break;
+    case 'D': o->displayed = 1; break;
     case 'd': return btf_args_int(a, v, 1, 64, &o->src.downsample);
     }
     return 0;
@@ -90,7 +98,7 @@ static int eval_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error, -1 help printed. */
 static int eval_parse(int argc, char **argv, eval_opts *o)
 {
-    static const btf_args_spec spec = {"eval", "pairs:p downsample:d sampling:s fill-missing!F csv!c json!j no-curve!n", eval_usage, 2};
+    static const btf_args_spec spec = {"eval", "pairs:p downsample:d sampling:s fill-missing!F csv!c json!j no-curve!n displayed!D", eval_usage, 2};
     memset(o, 0, sizeof *o);
     o->pairs = "all";
     int rc = btf_args_parse(&spec, argc, argv, eval_option, o);
@@ -135,11 +143,17 @@ bad:
     return 2;
 }
 
-/* Loads path into *out; 0 ok, 1 failure (message printed). */
-static int eval_load(const char *path, const eval_opts *o, btf **out)
+/* Loads path into *out (test: read as TEST, a thesis package's reconstruction as
+ * floats, not rounded to the 8-bit samples its import stores); 0 ok, 1 failure
+ * (message printed). */
+static int eval_load(const char *path, const eval_opts *o, int test, btf **out)
 {
     btf_error err = {0};
-    btf_result r = btf_source_load_args("eval", path, &o->src, out, &err);
+    btf_source_args a = o->src;
+    btf_input_kind kind;
+    if (test && btf_input_kind_of(path, &kind, &err) == BTF_OK && kind == BTF_INPUT_THESIS)
+        a.storage = BTF_F32;
+    btf_result r = btf_source_load_args("eval", path, &a, out, &err);
     if (r == BTF_OK)
         r = btf_check_finite(*out, &err);
     if (r != BTF_OK) {
@@ -186,7 +200,7 @@ static void eval_print(const eval_opts *o, cJSON *j, const btf_metrics *m, int n
         return;
     }
     printf("ref        %s\n", o->ref_path);
-    printf("test       %s\n", o->test_path);
+    printf("test       %s%s\n", o->test_path, o->displayed ? "  (as displayed: 8-bit codes)" : "");
     printf("pairs      %d of %d (view, light)\n", n_pairs, all_pairs);
     printf("pixels     %zu\n", m->pixels);
     printf("rgb_mae    %.4f  (0..255 scale)\n", m->mae);
@@ -196,11 +210,21 @@ static void eval_print(const eval_opts *o, cJSON *j, const btf_metrics *m, int n
     printf("delta_e76  %.4f  (CIELab, mean CIE 1976 Delta E)\n", m->delta_e76);
 }
 
+/* --displayed: b's values as the 8-bit codes a display stores (a BTF_U8 holds
+ * nothing else). */
+static void eval_displayed(btf *b)
+{
+    if (b->storage == BTF_F32)
+        btf_metrics_displayed(b->data, b->count);
+}
+
 /* TEST is a BTF: load, compare over all pairs or the listed ones (pl->n > 0), print. */
 static int eval_btf(const eval_opts *o, const eval_pairs *pl, const btf *ref, cJSON *j)
 {
     btf *test = NULL;
-    int rc = eval_load(o->test_path, o, &test);
+    int rc = eval_load(o->test_path, o, 1, &test);
+    if (rc == 0 && o->displayed)
+        eval_displayed(test);
     if (rc == 0) {
         btf_pair_subset sub = {pl->views, pl->lights, pl->n};
         btf_metrics m;
@@ -235,8 +259,9 @@ static btf_result eval_package_prefixes(const eval_opts *o, const eval_pairs *pl
                                         const btf_package *p, const int *ns, int count, btf_metrics *m,
                                         btf_error *err)
 {
+    btf_compare_options co = {.displayed = o->displayed};
     if (!pl->n && o->src.downsample <= 1)
-        return btf_package_compare_prefixes(p, ns, count, ref, m, err);
+        return btf_package_compare_with(p, ns, count, ref, &co, m, err);
     btf_result r = BTF_OK;
     for (int i = 0; r == BTF_OK && i < count; i++) {
         btf *rec = NULL, *small = NULL;
@@ -246,6 +271,8 @@ static btf_result eval_package_prefixes(const eval_opts *o, const eval_pairs *pl
             btf_free(rec);
             rec = small;
         }
+        if (r == BTF_OK && o->displayed)
+            eval_displayed(rec);
         btf_pair_subset sub = {pl->views, pl->lights, pl->n};
         if (r == BTF_OK)
             r = btf_compare(ref, rec, pl->n ? &sub : NULL, &m[i], err);
@@ -341,6 +368,7 @@ static cJSON *eval_json_start(const eval_opts *o)
     cJSON_AddStringToObject(j, "ref", o->ref_path);
     cJSON_AddStringToObject(j, "test", o->test_path);
     cJSON_AddStringToObject(j, "path", o->test_path);
+    cJSON_AddBoolToObject(j, "displayed", o->displayed);
     return j;
 }
 
@@ -354,7 +382,7 @@ static int eval_main(void *opts)
         rc = eval_parse_pairs(o->pairs, &pl);
     btf *ref = NULL;
     if (rc == 0)
-        rc = eval_load(o->ref_path, o, &ref);
+        rc = eval_load(o->ref_path, o, 0, &ref);
     cJSON *j = eval_json_start(o);
     if (rc == 0 && eval_is_package(o->test_path)) /* TEST is a package directory */
         rc = eval_package(o, &pl, ref, j);

@@ -250,7 +250,7 @@ static int build_one(const library_opts *o, const library_job *j)
     snprintf(out, sizeof out, "%s/%s", o->out, j->name);
     btf_package_options pkg = o->pkg;
     pkg.name = j->name;
-    btf_source_args sa = {o->downsample, o->sampling, 0};
+    btf_source_args sa = {.downsample = o->downsample, .sampling = o->sampling};
     btf_lod_options lod = {0};
     lod.levels = o->levels;
     btf_views views;

@@ -275,6 +275,12 @@ void btf_metrics_merge(btf_metrics_acc *acc, const btf_metrics_acc *other)
     acc->samples += other->samples, acc->pixels += other->pixels;
 }
 
+void btf_metrics_displayed(float *v, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        v[i] = (float)btf_to_u8(v[i]) / 255.0f;
+}
+
 void btf_metrics_finish(const btf_metrics_acc *acc, btf_metrics *out)
 {
     if (!out)

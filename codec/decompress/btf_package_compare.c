@@ -19,9 +19,11 @@ static void btf__package_texels(const btf_package *p, int n, int v, int l, size_
 }
 
 /* Per-thread buffers of one tile (malloc'd, 3 * BTF__COMPARE_TILE floats each): the
- * reference, its Lab, a prefix's decode and the running sum of the chunks. */
+ * reference, its Lab, a prefix's decode and the running sum of the chunks; displayed:
+ * each decode rounded to the 8-bit codes a display stores before it is measured. */
 typedef struct btf__tile_bufs {
     float *a, *a_lab, *b, *sum;
+    int displayed;
 } btf__tile_bufs;
 
 /* Adds the decode of prefix ns[i] (tile of m texels from i0 of (v, l)) to acc[i] for
@@ -34,6 +36,8 @@ static void btf__compare_prefixes(const btf_package *p, const int *ns, int count
     if (p->n_levels > 1) {
         for (int i = 0; i < count; i++) {
             btf__package_texels(p, ns[i], v, l, i0, m, t->b);
+            if (t->displayed)
+                btf_metrics_displayed(t->b, 3u * m);
             btf_metrics_add_lab(&acc[i], t->a, t->a_lab, t->b, m);
         }
         return;
@@ -52,6 +56,8 @@ static void btf__compare_prefixes(const btf_package *p, const int *ns, int count
             if (ns[i] == j + 1) {
                 memcpy(t->b, t->sum, 3u * m * sizeof(float));
                 btf_package_to_source(p, t->b, 3u * m);
+                if (t->displayed)
+                    btf_metrics_displayed(t->b, 3u * m);
                 btf_metrics_add_lab(&acc[i], t->a, t->a_lab, t->b, m);
             }
     }
@@ -91,8 +97,8 @@ static btf_result btf__compare_check(const btf_package *p, const int *ns, int co
     return BTF_OK;
 }
 
-btf_result btf_package_compare_prefixes(const btf_package *p, const int *ns, int count, const btf *ref,
-                                        btf_metrics *out, btf_error *err)
+btf_result btf_package_compare_with(const btf_package *p, const int *ns, int count, const btf *ref,
+                                    const btf_compare_options *o, btf_metrics *out, btf_error *err)
 {
     if (!p || !ns || !ref || !out)
         return btf_fail(err, BTF_ERR_ARG, "btf_package_compare: NULL argument");
@@ -107,7 +113,7 @@ btf_result btf_package_compare_prefixes(const btf_package *p, const int *ns, int
 #pragma omp parallel if ((size_t)ref->width * ref->height * ref->lights.n_dirs * (size_t)V >= BTF_METRICS_THREAD_MIN_PIXELS)
     {
         float *buf = malloc(4 * floats * sizeof(float));
-        btf__tile_bufs t = {buf, buf + floats, buf + 2 * floats, buf + 3 * floats};
+        btf__tile_bufs t = {buf, buf + floats, buf + 2 * floats, buf + 3 * floats, o && o->displayed};
         if (!buf) {
 #pragma omp atomic write
             failed = 1;
@@ -130,7 +136,13 @@ btf_result btf_package_compare_prefixes(const btf_package *p, const int *ns, int
     return BTF_OK;
 }
 
+btf_result btf_package_compare_prefixes(const btf_package *p, const int *ns, int count, const btf *ref,
+                                        btf_metrics *out, btf_error *err)
+{
+    return btf_package_compare_with(p, ns, count, ref, NULL, out, err);
+}
+
 btf_result btf_package_compare(const btf_package *p, int n, const btf *ref, btf_metrics *out, btf_error *err)
 {
-    return btf_package_compare_prefixes(p, &n, 1, ref, out, err);
+    return btf_package_compare_with(p, &n, 1, ref, NULL, out, err);
 }

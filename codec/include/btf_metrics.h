@@ -5,7 +5,8 @@
  *     printf("PSNR %.2f dB, CIELab %.3f\n", m.psnr, m.lab_thesis);
  *
  * Values are treated as sRGB-encoded 8-bit (btf_get scale * 255), D65 white,
- * clamped to 0..255 before the Lab conversion (as a display would show them);
+ * clamped to 0..255 before the Lab conversion (as a display would show them; not
+ * rounded to its 8-bit codes unless the caller does so: btf_metrics_displayed);
  * MAE/RMSE/PSNR use the unclamped values on the 0..255 scale.
  */
 #ifndef BTF_METRICS_H
@@ -50,6 +51,10 @@ void btf_metrics_add_lab(btf_metrics_acc *acc, const float *ref_rgb, const float
 /* Adds other's sums into acc (partial sums of one measurement, e.g. per thread). */
 void btf_metrics_merge(btf_metrics_acc *acc, const btf_metrics_acc *other);
 void btf_metrics_finish(const btf_metrics_acc *acc, btf_metrics *out);
+/* Each of the n values at v (byte/255 scale) as the 8-bit code a display stores
+ * (btf_to_u8) over 255: what a page's RGBA8 canvas shows of a decode (btf eval
+ * --displayed). */
+void btf_metrics_displayed(float *v, size_t n);
 
 
 /* Optional subset of (view, light) pairs; NULL compares all. Owned by the caller. */

@@ -223,6 +223,13 @@ btf_result btf_package_compare(const btf_package *p, int n, const btf *ref, btf_
 #define BTF_PACKAGE_COMPARE_MAX 64
 btf_result btf_package_compare_prefixes(const btf_package *p, const int *ns, int count, const btf *ref,
                                         btf_metrics *out, btf_error *err);
+/* What a comparison measures; zero (or NULL) = the decoded floats. The caller's value. */
+typedef struct btf_compare_options {
+    int displayed; /* 1: each decoded value as the 8-bit code a display stores (btf_metrics_displayed) */
+} btf_compare_options;
+/* btf_package_compare_prefixes as o says. */
+btf_result btf_package_compare_with(const btf_package *p, const int *ns, int count, const btf *ref,
+                                    const btf_compare_options *o, btf_metrics *out, btf_error *err);
 
 /* Index of the loaded chunk (among the first n; n <= 0: all loaded) of component c
  * whose level is closest to `level` from below (finer), else the coarsest loaded

@@ -3,8 +3,10 @@
  * codes and their place in every --help, the progress callback of the PCA loop. */
 #include <criterion/criterion.h>
 #include <cjson/cJSON.h>
+#include <math.h>
 
 #include "btf_cli.h"
+#include "btf_input.h"
 #include "btf_output.h"
 #include "btf_package.h"
 #include "btf_source.h"
@@ -273,6 +275,119 @@ Test(cli, eval_json_has_the_error_curve)
     cJSON_Delete(j);
     char *both[] = {"eval", "--json", "--csv", "gen:knit:16", pkg, NULL};
     cr_assert_eq(run_captured(cmd_eval, 5, both, 2, out, sizeof out), 2, "--json with --csv");
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* The first n chunks of p as a page's canvas stores them: each decoded value
+ * through a BTF_U8 (btf_set rounds as an 8-bit image writer does). */
+static btf *displayed_decode(const btf_package *p, int n)
+{
+    btf *rec = NULL, *u8 = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_reconstruct(p, n, &rec, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_create(rec->width, rec->height, &rec->lights, &rec->views, BTF_U8, &u8, &err), BTF_OK, "%s",
+                 err.msg);
+    for (int v = 0; v < rec->views.n_dirs; v++)
+        for (int l = 0; l < rec->lights.n_dirs; l++)
+            for (int y = 0; y < rec->height; y++)
+                for (int x = 0; x < rec->width; x++)
+                    for (int c = 0; c < 3; c++)
+                        btf_set(u8, v, l, x, y, c, btf_get(rec, v, l, x, y, c));
+    btf_free(rec);
+    return u8;
+}
+
+/* --displayed: every prefix (a tile of texels at a time, levelled or not) and the
+ * --pairs route (whole decodes) measure what btf_compare finds against the decode
+ * stored as 8-bit codes, computed here by another route; and the displayed error is
+ * not the decoded floats' (the rounding changes what is measured). */
+Test(cli, eval_displayed_measures_the_8_bit_codes_a_page_shows)
+{
+    char dir[256], pkg[400], lev[400], out[65536];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    compress_small(dir, "p", "3");
+    snprintf(pkg, sizeof pkg, "%s/p", dir);
+    snprintf(lev, sizeof lev, "%s/lev", dir);
+    char *lv[] = {"lod", pkg, lev, "--levels", "2", "--quiet", NULL};
+    cr_assert_eq(run_captured(cmd_lod, 6, lv, 2, out, sizeof out), 0);
+    btf *src = NULL;
+    btf_error err = {{0}};
+    btf_load_options lo = {0};
+    cr_assert_eq(btf_source_load("gen:knit:16", &lo, &src, &err), BTF_OK, "%s", err.msg);
+    const char *pkgs[] = {pkg, lev};
+    for (int k = 0; k < 2; k++) {
+        char *argv[] = {"eval", "--json", "--displayed", "gen:knit:16", (char *)pkgs[k], NULL};
+        cr_assert_eq(run_captured(cmd_eval, 5, argv, 1, out, sizeof out), 0);
+        cJSON *j = parse_only_object(out);
+        cr_assert(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "displayed")));
+        const cJSON *list = cJSON_GetObjectItemCaseSensitive(j, "chunk");
+        btf_package *p = NULL;
+        cr_assert_eq(btf_package_read(pkgs[k], 0, &p, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(cJSON_GetArraySize(list), p->n_chunks);
+        for (int n = 1; n <= p->n_chunks; n++) {
+            btf *u8 = displayed_decode(p, n);
+            btf_metrics m, f;
+            cr_assert_eq(btf_compare(src, u8, NULL, &m, &err), BTF_OK, "%s", err.msg);
+            const cJSON *c = cJSON_GetArrayItem(list, n - 1);
+            cr_assert_float_eq(num(c, "lab_mae"), m.lab_thesis, 1e-9 * m.lab_thesis, "%s chunk %d", pkgs[k], n - 1);
+            /* a code as the float code/255 is within 6e-8 of it: 1e-6 of an RMSE over 1 */
+            cr_assert_float_eq(num(c, "rgb_rmse"), m.rmse, 1e-6 * m.rmse, "%s chunk %d", pkgs[k], n - 1);
+            cr_assert_eq(btf_package_compare(p, n, src, &f, &err), BTF_OK, "%s", err.msg);
+            cr_assert(fabs(f.lab_thesis - m.lab_thesis) > 1e-6 * m.lab_thesis, "rounding changed nothing");
+            btf_free(u8);
+        }
+        /* --pairs: each prefix decoded whole, then rounded */
+        char *pairs[] = {"eval", "--json", "--no-curve", "--displayed", "--pairs", "0:0,40:12,80:3",
+                         "gen:knit:16", (char *)pkgs[k], NULL};
+        cr_assert_eq(run_captured(cmd_eval, 8, pairs, 1, out, sizeof out), 0);
+        cJSON *w = parse_only_object(out);
+        btf *u8 = displayed_decode(p, 0);
+        int vs[] = {0, 40, 80}, ls[] = {0, 12, 3};
+        btf_pair_subset sub = {vs, ls, 3};
+        btf_metrics m;
+        cr_assert_eq(btf_compare(src, u8, &sub, &m, &err), BTF_OK, "%s", err.msg);
+        cr_assert_float_eq(num(w, "lab_mae"), m.lab_thesis, 1e-9 * m.lab_thesis, "%s, three pairs", pkgs[k]);
+        btf_free(u8);
+        btf_package_free(p);
+        cJSON_Delete(w);
+        cJSON_Delete(j);
+    }
+    btf_free(src);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* A thesis package as TEST is measured as its reconstruction in floats, as a
+ * package's decode is (not rounded to the bytes its import stores); with --displayed
+ * as those bytes. Both computed here from btf_import_thesis at each storage. */
+Test(cli, eval_reads_a_thesis_package_as_floats)
+{
+    char dir[256], th[400], out[65536];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(th, sizeof th, "%s/th", dir);
+    char *ex[] = {"export-thesis", "gen:knit:16", th, "--k", "3", "--components", "4", NULL};
+    cr_assert_eq(run_captured(cmd_export_thesis, 7, ex, 1, out, sizeof out), 0);
+    btf *src = NULL, *f32 = NULL, *u8 = NULL;
+    btf_error err = {{0}};
+    btf_load_options lo = {0};
+    cr_assert_eq(btf_source_load("gen:knit:16", &lo, &src, &err), BTF_OK, "%s", err.msg);
+    lo.storage = BTF_F32;
+    cr_assert_eq(btf_import_thesis(th, &lo, &f32, &err), BTF_OK, "%s", err.msg);
+    lo.storage = BTF_U8;
+    cr_assert_eq(btf_import_thesis(th, &lo, &u8, &err), BTF_OK, "%s", err.msg);
+    btf_metrics mf, mu;
+    cr_assert_eq(btf_compare(src, f32, NULL, &mf, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_compare(src, u8, NULL, &mu, &err), BTF_OK, "%s", err.msg);
+    cr_assert(fabs(mf.lab_thesis - mu.lab_thesis) > 1e-6 * mu.lab_thesis, "the import's rounding changed nothing");
+    const btf_metrics *want[] = {&mf, &mu};
+    for (int d = 0; d < 2; d++) {
+        char *argv[] = {"eval", "--json", "gen:knit:16", th, d ? "--displayed" : NULL, NULL};
+        cr_assert_eq(run_captured(cmd_eval, 4 + d, argv, 1, out, sizeof out), 0);
+        cJSON *j = parse_only_object(out);
+        cr_assert_float_eq(num(j, "lab_mae"), want[d]->lab_thesis, 1e-9 * want[d]->lab_thesis, "displayed %d", d);
+        cr_assert_float_eq(num(j, "rgb_rmse"), want[d]->rmse, 1e-6 * want[d]->rmse, "displayed %d", d);
+        cJSON_Delete(j);
+    }
+    btf_free(src), btf_free(f32), btf_free(u8);
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
