@@ -108,6 +108,7 @@ static btf_result source_options(const btf_source_args *a, btf_dirset *set, btf_
 {
     memset(lo, 0, sizeof *lo);
     lo->downsample = a->downsample, lo->fill_missing = a->fill_missing, lo->storage = a->storage;
+    lo->width = a->width, lo->height = a->height;
     if (!a->sampling)
         return BTF_OK;
     lo->sampling = set;

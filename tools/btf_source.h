@@ -28,6 +28,7 @@ typedef struct btf_source_args {
     const char *sampling; /* --sampling S; NULL: inferred from the input (btf_load_ubo2003_dir) */
     int fill_missing;     /* --fill-missing: interpolate missing images, with a warning */
     btf_storage storage;  /* 0: the loader's own (btf_load_options.storage) */
+    int width, height;    /* 0: native; else a thesis package's size (btf_load_options.width) */
 } btf_source_args;
 
 /* Loads spec as the input options say; on success warns on stderr ("btf CMD:

@@ -46,8 +46,8 @@ static void eval_usage(FILE *f)
                "\n"
                "Error of TEST against REF (anything btf_load_any reads; same size and\n"
                "direction sets). Values are treated as sRGB-encoded 8-bit, D65. TEST is\n"
-               "measured as decoded (floats; a thesis package's reconstruction too, not rounded\n"
-               "as its import stores it). When TEST is\n"
+               "measured as decoded (floats; a thesis package's reconstruction too, at REF's\n"
+               "size, not rounded as its import stores it). When TEST is\n"
                "a package directory, also the error after each chunk (the curve versus bytes),\n"
                "every prefix in one pass a tile of texels at a time (memory: REF and the\n"
                "package's files; with --pairs or --downsample, a whole decode per prefix).\n"
@@ -143,16 +143,16 @@ bad:
     return 2;
 }
 
-/* Loads path into *out (test: read as TEST, a thesis package's reconstruction as
- * floats, not rounded to the 8-bit samples its import stores); 0 ok, 1 failure
- * (message printed). */
-static int eval_load(const char *path, const eval_opts *o, int test, btf **out)
+/* Loads path into *out (ref: NULL, or the reference TEST is read against: a thesis
+ * package is then reconstructed at its size, in floats, not rounded to the 8-bit
+ * samples its import stores); 0 ok, 1 failure (message printed). */
+static int eval_load(const char *path, const eval_opts *o, const btf *ref, btf **out)
 {
     btf_error err = {0};
     btf_source_args a = o->src;
     btf_input_kind kind;
-    if (test && btf_input_kind_of(path, &kind, &err) == BTF_OK && kind == BTF_INPUT_THESIS)
-        a.storage = BTF_F32;
+    if (ref && btf_input_kind_of(path, &kind, &err) == BTF_OK && kind == BTF_INPUT_THESIS)
+        a.storage = BTF_F32, a.width = ref->width, a.height = ref->height;
     btf_result r = btf_source_load_args("eval", path, &a, out, &err);
     if (r == BTF_OK)
         r = btf_check_finite(*out, &err);
@@ -222,7 +222,7 @@ static void eval_displayed(btf *b)
 static int eval_btf(const eval_opts *o, const eval_pairs *pl, const btf *ref, cJSON *j)
 {
     btf *test = NULL;
-    int rc = eval_load(o->test_path, o, 1, &test);
+    int rc = eval_load(o->test_path, o, ref, &test);
     if (rc == 0 && o->displayed)
         eval_displayed(test);
     if (rc == 0) {
@@ -382,7 +382,7 @@ static int eval_main(void *opts)
         rc = eval_parse_pairs(o->pairs, &pl);
     btf *ref = NULL;
     if (rc == 0)
-        rc = eval_load(o->ref_path, o, 0, &ref);
+        rc = eval_load(o->ref_path, o, NULL, &ref);
     cJSON *j = eval_json_start(o);
     if (rc == 0 && eval_is_package(o->test_path)) /* TEST is a package directory */
         rc = eval_package(o, &pl, ref, j);

@@ -357,8 +357,8 @@ Test(cli, eval_displayed_measures_the_8_bit_codes_a_page_shows)
 }
 
 /* A thesis package as TEST is measured as its reconstruction in floats, as a
- * package's decode is (not rounded to the bytes its import stores); with --displayed
- * as those bytes. Both computed here from btf_import_thesis at each storage. */
+ * package's decode is (not rounded to the bytes its import stores), at REF's size;
+ * with --displayed as those bytes. Each computed here from btf_import_thesis. */
 Test(cli, eval_reads_a_thesis_package_as_floats)
 {
     char dir[256], th[400], out[65536];
@@ -388,6 +388,18 @@ Test(cli, eval_reads_a_thesis_package_as_floats)
         cJSON_Delete(j);
     }
     btf_free(src), btf_free(f32), btf_free(u8);
+    /* against a smaller reference: reconstructed at its size */
+    lo = (btf_load_options){0};
+    cr_assert_eq(btf_source_load("gen:knit:8", &lo, &src, &err), BTF_OK, "%s", err.msg);
+    lo.storage = BTF_F32, lo.width = lo.height = 8;
+    cr_assert_eq(btf_import_thesis(th, &lo, &f32, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_compare(src, f32, NULL, &mf, &err), BTF_OK, "%s", err.msg);
+    char *small[] = {"eval", "--json", "gen:knit:8", th, NULL};
+    cr_assert_eq(run_captured(cmd_eval, 4, small, 1, out, sizeof out), 0);
+    cJSON *j = parse_only_object(out);
+    cr_assert_float_eq(num(j, "lab_mae"), mf.lab_thesis, 1e-9 * mf.lab_thesis);
+    cJSON_Delete(j);
+    btf_free(src), btf_free(f32);
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
