@@ -278,7 +278,7 @@ void btf_metrics_merge(btf_metrics_acc *acc, const btf_metrics_acc *other)
 void btf_metrics_displayed(float *v, size_t n)
 {
     for (size_t i = 0; i < n; i++)
-        v[i] = (float)btf_to_u8(v[i]) / 255.0f;
+        v[i] = (float)btf_to_u8(v[i]) * (1.0f / 255.0f); /* the float a BTF_U8 sample reads as (btf_get) */
 }
 
 void btf_metrics_finish(const btf_metrics_acc *acc, btf_metrics *out)

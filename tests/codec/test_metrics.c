@@ -531,12 +531,14 @@ Test(metrics, eval_thesis_materials_matches_compare, .init = cr_redirect_stdout)
     if (!fx_shared_path(wool, sizeof wool, "data/thesis-ubo2003/wool") ||
         !fx_shared_path(cord, sizeof cord, "data/thesis-ubo2003/corduroy"))
         cr_skip_test("thesis materials absent under BTF_SHARED");
-    /* Reference numbers: the same loads and btf_compare called directly. */
+    /* Reference numbers: the same loads and btf_compare called directly (TEST, a
+     * thesis package, reconstructed in floats, as a package's decode is measured). */
     btf_load_options o = {0};
     o.downsample = 16;
     btf *a = NULL, *b = NULL;
     btf_error e = {0};
     cr_assert_eq(btf_load_any(wool, &o, &a, &e), BTF_OK, "%s", e.msg);
+    o.storage = BTF_F32;
     cr_assert_eq(btf_load_any(cord, &o, &b, &e), BTF_OK, "%s", e.msg);
     int views[2] = {0, 40}, lights[2] = {0, 7};
     btf_pair_subset sub = {views, lights, 2};
@@ -561,14 +563,49 @@ Test(metrics, eval_identical_inputs_report_sentinel, .init = cr_redirect_stdout)
     char wool[4096];
     if (!fx_shared_path(wool, sizeof wool, "data/thesis-ubo2003/wool"))
         cr_skip_test("thesis wool absent under BTF_SHARED");
-    const char *argv[] = {"eval", wool, wool, "--downsample", "16", "--csv"};
-    cr_assert_eq(run_eval(6, argv), 0);
+    /* as displayed, a thesis package is its import's bytes: identical to REF */
+    const char *argv[] = {"eval", wool, wool, "--downsample", "16", "--csv", "--displayed"};
+    cr_assert_eq(run_eval(7, argv), 0);
     btf_metrics got;
     read_csv(cr_get_redirected_stdout(), &got);
     cr_expect_eq(got.psnr, 999.0);
     cr_expect_eq(got.mae, 0.0);
     cr_expect_eq(got.delta_e76, 0.0);
     cr_expect_eq(got.pixels, (size_t)16 * 16 * 81 * 81);
+}
+
+/* A thesis package as TEST is its reconstruction in floats, its import (REF) the same
+ * values rounded to bytes: every sample of REF is its TEST sample rounded, and btf
+ * eval measures that rounding (CIELab over 0), what btf_compare of the two gives. */
+Test(metrics, eval_of_a_thesis_package_against_its_import_is_its_rounding, .init = cr_redirect_stdout)
+{
+    char wool[4096];
+    if (!fx_shared_path(wool, sizeof wool, "data/thesis-ubo2003/wool"))
+        cr_skip_test("thesis wool absent under BTF_SHARED");
+    btf_load_options o = {0};
+    o.downsample = 16;
+    btf *a = NULL, *b = NULL;
+    btf_error e = {0};
+    cr_assert_eq(btf_load_any(wool, &o, &a, &e), BTF_OK, "%s", e.msg);
+    o.storage = BTF_F32;
+    cr_assert_eq(btf_load_any(wool, &o, &b, &e), BTF_OK, "%s", e.msg);
+    cr_assert(a->storage == BTF_U8 && b->storage == BTF_F32 && a->count == b->count);
+    const uint8_t *q = a->data;
+    const float *f = b->data;
+    size_t off = 0;
+    for (size_t i = 0; i < a->count; i++)
+        off += q[i] != btf_to_u8(f[i]);
+    cr_assert_eq(off, 0, "%zu samples of the import are not the reconstruction rounded", off);
+    btf_metrics want, got;
+    cr_assert_eq(btf_compare(a, b, NULL, &want, &e), BTF_OK, "%s", e.msg);
+    btf_free(a);
+    btf_free(b);
+    const char *argv[] = {"eval", wool, wool, "--downsample", "16", "--csv"};
+    cr_assert_eq(run_eval(6, argv), 0);
+    read_csv(cr_get_redirected_stdout(), &got);
+    cr_expect(got.lab_thesis > 0.01, "lab %f", got.lab_thesis);
+    cr_expect(fabs(got.lab_thesis - want.lab_thesis) < 1e-5, "lab %f vs %f", got.lab_thesis, want.lab_thesis);
+    cr_expect(fabs(got.rmse - want.rmse) < 1e-5, "rmse %f vs %f", got.rmse, want.rmse);
 }
 
 /* Saves b as DIR/NAME (.btf, full rank) and returns the path in buf. */

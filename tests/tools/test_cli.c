@@ -330,7 +330,8 @@ Test(cli, eval_displayed_measures_the_8_bit_codes_a_page_shows)
             cr_assert_eq(btf_compare(src, u8, NULL, &m, &err), BTF_OK, "%s", err.msg);
             const cJSON *c = cJSON_GetArrayItem(list, n - 1);
             cr_assert_float_eq(num(c, "lab_mae"), m.lab_thesis, 1e-9 * m.lab_thesis, "%s chunk %d", pkgs[k], n - 1);
-            /* a code as the float code/255 is within 6e-8 of it: 1e-6 of an RMSE over 1 */
+            /* two BTF_U8 are compared in whole codes; the decode's codes as floats carry
+             * float32's 6e-8 of a value: 1e-6 of an RMSE */
             cr_assert_float_eq(num(c, "rgb_rmse"), m.rmse, 1e-6 * m.rmse, "%s chunk %d", pkgs[k], n - 1);
             cr_assert_eq(btf_package_compare(p, n, src, &f, &err), BTF_OK, "%s", err.msg);
             cr_assert(fabs(f.lab_thesis - m.lab_thesis) > 1e-6 * m.lab_thesis, "rounding changed nothing");
