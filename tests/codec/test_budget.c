@@ -299,7 +299,7 @@ static int expect_ks(const btf_budget_result *r, const int *order, int nk, int *
 /* The default search without full_search walks the ks from the first (9): the larger
  * ones while each beats the best (one that loses keeping every component it has is
  * measured once more with more components first), then, only when no larger one won,
- * the smaller ones while each beats the best. all, the full search's candidates
+ * the smaller ones while each beats the best, and the smallest (k 1) in any case. all, the full search's candidates
  * (every default k in the walk's order, a larger one's growth after it, then the
  * centred retries), predicts which candidates it measures, their results (the same
  * settings measure the same) and its choice. */
@@ -312,11 +312,14 @@ static void expect_pruned_like(const btf *src, btf_budget b, const btf_budget_re
     int end = 0; /* all's walk: its candidates before the centred retry */
     while (end < all->n_candidates && all->candidate[end].center != BTF_CENTER_ROW)
         end++;
-    int walk[BTF_BUDGET_MAX_CANDIDATES], n = 0, best = 0, up_won = 0, k0 = all->candidate[0].k;
-    for (int pass = 0; pass < 3; pass++) /* the first k, the larger ks, then the smaller ones */
+    int walk[BTF_BUDGET_MAX_CANDIDATES], n = 0, best = 0, up_won = 0, k0 = all->candidate[0].k, kmin = k0;
+    for (int i = 0; i < end; i++)
+        kmin = all->candidate[i].k < kmin ? all->candidate[i].k : kmin;
+    for (int pass = 0, down_lost = 0; pass < 3; pass++) /* the first k, the larger ks, then the smaller ones */
         for (int i = 0, stop = pass == 2 && up_won; i < end && !stop; i++) {
             const btf_budget_choice *c = &all->candidate[i];
-            if ((pass == 0) != (c->k == k0) || (pass == 1 && c->k < k0) || (pass == 2 && c->k > k0))
+            if ((pass == 0) != (c->k == k0) || (pass == 1 && c->k < k0) || (pass == 2 && c->k > k0) ||
+                (pass == 2 && down_lost && c->k != kmin)) /* after a smaller k lost: the smallest only */
                 continue;
             int won = i == 0 || beats(&b, c, &all->candidate[best]);
             walk[n++] = i;
@@ -329,7 +332,8 @@ static void expect_pruned_like(const btf *src, btf_budget b, const btf_budget_re
                     best = g, won = 1;
             }
             up_won |= pass == 1 && won;
-            stop = pass > 0 && !won;
+            stop = pass == 1 && !won;
+            down_lost |= pass == 2 && !won;
         }
     int ru = runner_up(&b, all->candidate, walk, n, best); /* retried centred too */
     cr_assert_eq(res.n_candidates, n + 1 + (ru >= 0), "%d candidates measured and the centred retries, got %d", n,
