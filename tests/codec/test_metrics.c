@@ -525,6 +525,18 @@ static void read_csv(FILE *f, btf_metrics *m)
         }
 }
 
+/* REF and TEST (thesis packages) as `btf eval REF TEST --downsample 16` loads them:
+ * REF as its import stores it, TEST reconstructed in floats. */
+static void load_as_eval(const char *ref, const char *test, btf **a, btf **b)
+{
+    btf_load_options o = {0};
+    o.downsample = 16;
+    btf_error e = {0};
+    cr_assert_eq(btf_load_any(ref, &o, a, &e), BTF_OK, "%s", e.msg);
+    o.storage = BTF_F32;
+    cr_assert_eq(btf_load_any(test, &o, b, &e), BTF_OK, "%s", e.msg);
+}
+
 Test(metrics, eval_thesis_materials_matches_compare, .init = cr_redirect_stdout)
 {
     char wool[4096], cord[4096];
@@ -533,13 +545,9 @@ Test(metrics, eval_thesis_materials_matches_compare, .init = cr_redirect_stdout)
         cr_skip_test("thesis materials absent under BTF_SHARED");
     /* Reference numbers: the same loads and btf_compare called directly (TEST, a
      * thesis package, reconstructed in floats, as a package's decode is measured). */
-    btf_load_options o = {0};
-    o.downsample = 16;
     btf *a = NULL, *b = NULL;
     btf_error e = {0};
-    cr_assert_eq(btf_load_any(wool, &o, &a, &e), BTF_OK, "%s", e.msg);
-    o.storage = BTF_F32;
-    cr_assert_eq(btf_load_any(cord, &o, &b, &e), BTF_OK, "%s", e.msg);
+    load_as_eval(wool, cord, &a, &b);
     int views[2] = {0, 40}, lights[2] = {0, 7};
     btf_pair_subset sub = {views, lights, 2};
     btf_metrics want, got;
@@ -582,13 +590,9 @@ Test(metrics, eval_of_a_thesis_package_against_its_import_is_its_rounding, .init
     char wool[4096];
     if (!fx_shared_path(wool, sizeof wool, "data/thesis-ubo2003/wool"))
         cr_skip_test("thesis wool absent under BTF_SHARED");
-    btf_load_options o = {0};
-    o.downsample = 16;
     btf *a = NULL, *b = NULL;
     btf_error e = {0};
-    cr_assert_eq(btf_load_any(wool, &o, &a, &e), BTF_OK, "%s", e.msg);
-    o.storage = BTF_F32;
-    cr_assert_eq(btf_load_any(wool, &o, &b, &e), BTF_OK, "%s", e.msg);
+    load_as_eval(wool, wool, &a, &b);
     cr_assert(a->storage == BTF_U8 && b->storage == BTF_F32 && a->count == b->count);
     const uint8_t *q = a->data;
     const float *f = b->data;
