@@ -39,9 +39,9 @@ done
 [[ ${THESIS_LARGE:-0} == 1 ]] && mats+=(tiles256=gen:tiles:256:3631 knit256=gen:knit:256:3652 stone256=gen:stone:256:3653)
 [[ -n ${THESIS_MATERIALS:-} ]] && read -r -a mats <<<"$THESIS_MATERIALS"
 
-lab() { printf %.4f "$(whole_lab "$1" "$2")"; }
+lab() { printf %.4f "$(whole_lab "$@")"; }
 # btf eval --displayed: TEST as a page's 8-bit canvas shows it
-lab_shown() { printf %.4f "$("$BTF" eval "$1" "$2" --json --no-curve --displayed | jq -r .lab_mae)"; }
+lab_shown() { lab "$1" "$2" --displayed; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; }
 # CPU seconds of `btf ARGS...` (user + system).
 cpu_of() { { /usr/bin/time -f "%U %S" "$BTF" "$@" >/dev/null; } 2>&1 | tail -1 | awk '{ printf "%.1f", $1 + $2 }'; }

@@ -8,9 +8,9 @@ package_bytes() {
 }
 
 # The helpers below run "$BTF", the caller's btf binary.
-# whole_lab SRC DIR: btf eval's CIELab of package DIR against SRC, over every texel (one
-# decode of the whole package, no per-chunk curve).
-whole_lab() { "$BTF" eval "$1" "$2" --json --no-curve | jq -r .lab_mae; }
+# whole_lab SRC DIR [EVAL_ARGS...]: btf eval's CIELab of package DIR against SRC, over
+# every texel (one decode of the whole package, no per-chunk curve), e.g. --displayed.
+whole_lab() { "$BTF" eval "$1" "$2" --json --no-curve "${@:3}" | jq -r .lab_mae; }
 
 # thesis_source SPEC TMP NAME: SPEC as a source btf reads: SOURCE as it is, or
 # THESIS_DIR@SIZE (a thesis package at SIZE) as its reconstruction, imported into

@@ -26,6 +26,15 @@ typedef struct btf__tile_bufs {
     int displayed;
 } btf__tile_bufs;
 
+/* Adds the decode of a prefix in t->b (m texels; rounded first where t->displayed)
+ * to acc against the reference in t->a, t->a_lab. */
+static void btf__add_decode(btf__tile_bufs *t, size_t m, btf_metrics_acc *acc)
+{
+    if (t->displayed)
+        btf_metrics_displayed(t->b, 3u * m);
+    btf_metrics_add_lab(acc, t->a, t->a_lab, t->b, m);
+}
+
 /* Adds the decode of prefix ns[i] (tile of m texels from i0 of (v, l)) to acc[i] for
  * every i; a and a_lab hold the reference. Without levels one running sum of the
  * chunks, a chunk at a time, serves every prefix: the same sums in the same order as
@@ -36,9 +45,7 @@ static void btf__compare_prefixes(const btf_package *p, const int *ns, int count
     if (p->n_levels > 1) {
         for (int i = 0; i < count; i++) {
             btf__package_texels(p, ns[i], v, l, i0, m, t->b);
-            if (t->displayed)
-                btf_metrics_displayed(t->b, 3u * m);
-            btf_metrics_add_lab(&acc[i], t->a, t->a_lab, t->b, m);
+            btf__add_decode(t, m, &acc[i]);
         }
         return;
     }
@@ -56,9 +63,7 @@ static void btf__compare_prefixes(const btf_package *p, const int *ns, int count
             if (ns[i] == j + 1) {
                 memcpy(t->b, t->sum, 3u * m * sizeof(float));
                 btf_package_to_source(p, t->b, 3u * m);
-                if (t->displayed)
-                    btf_metrics_displayed(t->b, 3u * m);
-                btf_metrics_add_lab(&acc[i], t->a, t->a_lab, t->b, m);
+                btf__add_decode(t, m, &acc[i]);
             }
     }
 }

@@ -212,6 +212,28 @@ Test(cli, compress_json_describes_the_package)
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
+/* The decode of p's first n chunks (n <= 0: all): in floats, or (displayed) as a
+ * page's canvas stores it, each decoded value through a BTF_U8 (btf_set rounds as an
+ * 8-bit image writer does). */
+static btf *prefix_decode(const btf_package *p, int n, int displayed)
+{
+    btf *rec = NULL, *u8 = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_package_reconstruct(p, n, &rec, &err), BTF_OK, "%s", err.msg);
+    if (!displayed)
+        return rec;
+    cr_assert_eq(btf_create(rec->width, rec->height, &rec->lights, &rec->views, BTF_U8, &u8, &err), BTF_OK, "%s",
+                 err.msg);
+    for (int v = 0; v < rec->views.n_dirs; v++)
+        for (int l = 0; l < rec->lights.n_dirs; l++)
+            for (int y = 0; y < rec->height; y++)
+                for (int x = 0; x < rec->width; x++)
+                    for (int c = 0; c < 3; c++)
+                        btf_set(u8, v, l, x, y, c, btf_get(rec, v, l, x, y, c));
+    btf_free(rec);
+    return u8;
+}
+
 Test(cli, eval_json_has_the_error_curve)
 {
     char dir[256], pkg[400], out[65536];
@@ -235,9 +257,8 @@ Test(cli, eval_json_has_the_error_curve)
     cr_assert_eq(btf_source_load("gen:knit:16", &lo, &src, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(btf_package_read(pkg, 0, &p, &err), BTF_OK, "%s", err.msg);
     for (int n = 1; n <= 4; n++) {
-        btf *rec = NULL;
+        btf *rec = prefix_decode(p, n, 0);
         btf_metrics m;
-        cr_assert_eq(btf_package_reconstruct(p, n, &rec, &err), BTF_OK, "%s", err.msg);
         cr_assert_eq(btf_compare(src, rec, NULL, &m, &err), BTF_OK, "%s", err.msg);
         const cJSON *c = cJSON_GetArrayItem(list, n - 1);
         cr_assert_float_eq(num(c, "rgb_rmse"), m.rmse, 1e-9 * m.rmse, "chunk %d", n - 1);
@@ -278,25 +299,6 @@ Test(cli, eval_json_has_the_error_curve)
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
-/* The first n chunks of p as a page's canvas stores them: each decoded value
- * through a BTF_U8 (btf_set rounds as an 8-bit image writer does). */
-static btf *displayed_decode(const btf_package *p, int n)
-{
-    btf *rec = NULL, *u8 = NULL;
-    btf_error err = {{0}};
-    cr_assert_eq(btf_package_reconstruct(p, n, &rec, &err), BTF_OK, "%s", err.msg);
-    cr_assert_eq(btf_create(rec->width, rec->height, &rec->lights, &rec->views, BTF_U8, &u8, &err), BTF_OK, "%s",
-                 err.msg);
-    for (int v = 0; v < rec->views.n_dirs; v++)
-        for (int l = 0; l < rec->lights.n_dirs; l++)
-            for (int y = 0; y < rec->height; y++)
-                for (int x = 0; x < rec->width; x++)
-                    for (int c = 0; c < 3; c++)
-                        btf_set(u8, v, l, x, y, c, btf_get(rec, v, l, x, y, c));
-    btf_free(rec);
-    return u8;
-}
-
 /* --displayed: every prefix (a tile of texels at a time, levelled or not) and the
  * --pairs route (whole decodes) measure what btf_compare finds against the decode
  * stored as 8-bit codes, computed here by another route; and the displayed error is
@@ -325,7 +327,7 @@ Test(cli, eval_displayed_measures_the_8_bit_codes_a_page_shows)
         cr_assert_eq(btf_package_read(pkgs[k], 0, &p, &err), BTF_OK, "%s", err.msg);
         cr_assert_eq(cJSON_GetArraySize(list), p->n_chunks);
         for (int n = 1; n <= p->n_chunks; n++) {
-            btf *u8 = displayed_decode(p, n);
+            btf *u8 = prefix_decode(p, n, 1);
             btf_metrics m, f;
             cr_assert_eq(btf_compare(src, u8, NULL, &m, &err), BTF_OK, "%s", err.msg);
             const cJSON *c = cJSON_GetArrayItem(list, n - 1);
@@ -342,7 +344,7 @@ Test(cli, eval_displayed_measures_the_8_bit_codes_a_page_shows)
                          "gen:knit:16", (char *)pkgs[k], NULL};
         cr_assert_eq(run_captured(cmd_eval, 8, pairs, 1, out, sizeof out), 0);
         cJSON *w = parse_only_object(out);
-        btf *u8 = displayed_decode(p, 0);
+        btf *u8 = prefix_decode(p, 0, 1);
         int vs[] = {0, 40, 80}, ls[] = {0, 12, 3};
         btf_pair_subset sub = {vs, ls, 3};
         btf_metrics m;
