@@ -7,6 +7,7 @@
 #include "btf_cli.h"
 #include "btf_lod.h"
 #include "btf_output.h"
+#include "btf_source.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -16,6 +17,7 @@
 /* Parsed command line; stack value of cmd_lod, strings point into argv. */
 typedef struct lod_opts {
     const char *in, *out;
+    const char *source; /* --source SRC, or NULL */
     btf_lod_options lod;
     int quiet, json;
 } lod_opts;
@@ -23,7 +25,7 @@ typedef struct lod_opts {
 static void lod_usage(FILE *f)
 {
     fprintf(f, "usage: btf lod IN_PKG OUT_PKG [--levels N] [--threshold T] [--residual] [--png]\n"
-               "                              [--no-thumbnail] [--quiet] [--json]\n"
+               "                              [--source SRC] [--no-thumbnail] [--quiet] [--json]\n"
                "\n"
                "Writes OUT_PKG (a different directory) as package version 2: the version-1\n"
                "package IN_PKG plus per-component mip levels, chunks ordered coarse first.\n"
@@ -34,6 +36,11 @@ static void lod_usage(FILE *f)
                "                  the next coarser one (doc/package-format.md section 4.4); 8 bits only\n"
                "  --png           with --residual: every texture a PNG (default: each the smaller\n"
                "                  of a PNG and a lossless WebP, doc/package-format.md section 4)\n"
+               "  --source SRC    IN_PKG's source (anything `btf compress` reads): a lossy texture's\n"
+               "                  coarse levels then take the coarsest quality at which each\n"
+               "                  level's CIELab against SRC box-filtered to it stays at or below\n"
+               "                  level 0's, as `btf compress --levels` does (default: the\n"
+               "                  quality of its level 0; doc/package-format.md section 10.7)\n"
                "  --no-thumbnail  write no thumbnail.png (default: as `btf compress`, decoded from OUT_PKG)\n"
                "  --quiet         print nothing on success\n"
                "  --json          print one JSON object on stdout instead of the text: path\n"
@@ -61,6 +68,7 @@ static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
         break;
     case 'r': o->lod.residual = 1; break;
     case 'P': o->lod.png_only = 1; break;
+    case 's': o->source = v; break;
     case 'T': o->lod.thumbnail = 0; break;
     case 'q': o->quiet = 1; break;
     case 'j': o->json = 1; break;
@@ -71,7 +79,7 @@ static int lod_option(void *ctx, const btf_args *a, int c, const char *v)
 /* 0 ok, 2 usage error (message printed), -1 help printed. */
 static int lod_parse(int argc, char **argv, lod_opts *o)
 {
-    static const btf_args_spec spec = {"lod", "levels:l threshold:t residual!r png!P no-thumbnail!T quiet!q json!j", lod_usage, 2};
+    static const btf_args_spec spec = {"lod", "levels:l threshold:t residual!r png!P source:s no-thumbnail!T quiet!q json!j", lod_usage, 2};
     memset(o, 0, sizeof *o);
     o->lod.thumbnail = BTF_PACKAGE_THUMBNAIL_SIDE;
     return btf_args_parse(&spec, argc, argv, lod_option, o);
@@ -95,7 +103,16 @@ static int lod_main(void *opts)
     lod_opts *o = opts;
     btf_lod_stats st = {0};
     btf_error err = {0};
-    if (btf_lod_build(o->in, o->out, &o->lod, &st, &err) != BTF_OK) {
+    btf *src = NULL;
+    btf_source_args sa = {0};
+    if (o->source && btf_source_load_args("lod", o->source, &sa, &src, &err) != BTF_OK) {
+        fprintf(stderr, "btf lod: %s\n", err.msg);
+        return 1;
+    }
+    o->lod.source = src;
+    btf_result r = btf_lod_build(o->in, o->out, &o->lod, &st, &err);
+    btf_free(src);
+    if (r != BTF_OK) {
         fprintf(stderr, "btf lod: %s\n", err.msg);
         return 1;
     }

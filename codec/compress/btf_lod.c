@@ -18,6 +18,7 @@
 #include "btf_manifest.h"
 #include "btf_png.h"
 #include "btf_lossy.h"
+#include "btf_lod_error.h"
 #include "btf_webp.h"
 #include "btf_wtz.h"
 #include "btf_common.h"
@@ -26,6 +27,7 @@
 /* ---------------------------------------------------------------- builder */
 
 #define BTF__LOD_PATH 8400 /* a file path in the output's temporary directory */
+#define BTF__LOD_SAMPLE 256 /* texels of a level's error subsample (as the compressor's for level 0) */
 
 /* State of one btf_lod_build call. Index a = position of the component in the v1
  * chunk order; [a * nl + l] = its level l. */
@@ -39,7 +41,11 @@ typedef struct btf__lod {
                       * file is copied from a version-3 source */
     int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
     int *quality;    /* [a] version 4 from a version-3 source whose level 0 is a lossy WebP or AVIF: that file's
-                      * level (the source's "rd" record), which the coarse levels get too; -1: lossless levels */
+                      * level (the source's "rd" record), which the coarse levels start from; -1: lossless levels */
+    int *shift;      /* [l] the steps down the lossy ladder from quality[a] that level l's lossy files take
+                      * (btf__match_levels; 0 without a source) */
+    const btf *src;  /* btf_lod_options.source: the package's source, or NULL (the caller's) */
+    uint8_t **exact; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's atlas codes before lossy coding */
     int *codec;      /* [a] with quality[a] >= 0: level 0's encoding (BTF_LOSSY_WEBP or BTF_LOSSY_AVIF) */
     uint8_t **lossy; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's lossy file (its decode is
                       * the level's atlas and texels), NULL otherwise */
@@ -71,7 +77,9 @@ static void btf__lod_free(btf__lod *s)
     }
     for (int i = 0; s->lossy && i < s->C * s->nl; i++)
         free(s->lossy[i]);
-    free(s->lossy), free(s->lossy_n), free(s->quality), free(s->codec);
+    for (int i = 0; s->exact && i < s->C * s->nl; i++)
+        free(s->exact[i]);
+    free(s->lossy), free(s->lossy_n), free(s->quality), free(s->codec), free(s->exact), free(s->shift);
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
@@ -145,15 +153,23 @@ static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
     btf__dequant_level(s, a, l);
 }
 
-/* Level l of component a coded as a lossy file of codec[a] at quality[a] (kept in s->lossy), and
- * its atlas and texels replaced by the decode, which is what a reader gets. */
-static btf_result btf__lossy_level(btf__lod *s, int a, int l, btf_error *err)
+/* Level l of component a (its exact codes) coded as a lossy file of codec[a] at quality[a] taken
+ * `shift` steps down the ladder (kept in s->lossy), and its atlas and texels replaced by the
+ * decode, which is what a reader gets. */
+static btf_result btf__lossy_level(btf__lod *s, int a, int l, int shift, btf_error *err)
 {
     const btf_package *p = s->p;
     int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
     size_t k = (size_t)a * s->nl + l;
     uint8_t *px = s->atlas[k];
-    btf_result r = btf_lossy_encode(s->codec[a], px, aw, ah, s->quality[a], &s->lossy[k], &s->lossy_n[k], err);
+    int i = 0, q = s->quality[a];
+    while (i < BTF_LOSSY_LADDER - 1 && btf_lossy_ladder(s->codec[a], i) < q)
+        i++;
+    q = shift > 0 ? btf_lossy_ladder(s->codec[a], i - shift) : q; /* the ladder stops at its coarsest */
+    memcpy(px, s->exact[k], (size_t)aw * ah * s->ch);
+    free(s->lossy[k]);
+    s->lossy[k] = NULL;
+    btf_result r = btf_lossy_encode(s->codec[a], px, aw, ah, q, &s->lossy[k], &s->lossy_n[k], err);
     if (r == BTF_OK)
         r = btf_lossy_decode(s->lossy[k], s->lossy_n[k], "lod: lossy level", aw, ah, px, err);
     if (r == BTF_OK)
@@ -182,16 +198,87 @@ static btf_result btf__make_levels(btf__lod *s, btf_error *err)
                 return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
             }
             btf__quant_level(s, a, l, ex);
-            btf_result r = s->quality[a] >= 0 ? btf__lossy_level(s, a, l, err) : BTF_OK;
-            if (r != BTF_OK) {
+            size_t k = (size_t)a * s->nl + l, nb = (size_t)p->atlas_cols * w * p->atlas_rows * h * s->ch;
+            if (s->quality[a] >= 0 && (s->exact[k] = malloc(nb)) != NULL)
+                memcpy(s->exact[k], s->atlas[k], nb);
+            if (s->quality[a] >= 0 && !s->exact[k]) {
                 free(ex), free(ex2);
-                return r;
+                return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
             }
         }
     }
     int ok = ex && ex2;
     free(ex), free(ex2);
     return ok ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
+}
+
+/* Level l's lossy files, every lossy component `shift` steps down its ladder. */
+static btf_result btf__code_level(btf__lod *s, int l, int shift, btf_error *err)
+{
+    btf_result r = BTF_OK;
+    for (int a = 0; r == BTF_OK && a < s->C; a++)
+        if (s->quality[a] >= 0)
+            r = btf__lossy_level(s, a, l, shift, err);
+    return r;
+}
+
+/* CIELab of level l as coded now, on pr (btf_lod_error.h). */
+static double btf__level_lab(btf__lod *s, const btf_lod_probe *pr, int l)
+{
+    const float **tex = malloc((size_t)s->C * sizeof *tex);
+    for (int a = 0; tex && a < s->C; a++)
+        tex[a] = s->lev[a * s->nl + l];
+    double lab = tex ? btf_lod_probe_lab(pr, s->p, tex) : -1.0;
+    free(tex);
+    return lab;
+}
+
+/* The lossy files of every coarse level. With a source, level l takes the largest
+ * shift down the ladder (the same for each of its lossy components) whose CIELab
+ * against the source box-filtered to l, on l's texel subsample, stays at or below
+ * level 0's (package-format.md section 10.7): a coarse texel averages its block's
+ * errors, so at the level-0 quality a coarse level is more accurate than level 0
+ * (generated tiles at 128x128: 1.80, 1.41, 1.00 against 2.32), which a view that
+ * shows it does not need. The search bisects, the error rising with the shift. */
+static btf_result btf__match_levels(btf__lod *s, btf_error *err)
+{
+    int any = 0, top = 0;
+    for (int a = 0; a < s->C; a++)
+        if (s->quality[a] >= 0) {
+            int i = 0;
+            while (i < BTF_LOSSY_LADDER - 1 && btf_lossy_ladder(s->codec[a], i) < s->quality[a])
+                i++;
+            any = 1, top = i > top ? i : top;
+        }
+    btf_result r = BTF_OK;
+    double target = -1.0;
+    if (any && s->src) {
+        btf_lod_probe pr;
+        r = btf_lod_probe_make(s->src, s->p, 0, BTF__LOD_SAMPLE, &pr, err);
+        target = r == BTF_OK ? btf__level_lab(s, &pr, 0) : -1.0;
+        btf_lod_probe_free(&pr);
+    }
+    for (int l = 1; r == BTF_OK && any && l < s->nl; l++) {
+        int lo = 0, hi = target >= 0.0 ? top : 0, coded = -1;
+        btf_lod_probe pr = {0};
+        if (hi > 0)
+            r = btf_lod_probe_make(s->src, s->p, l, BTF__LOD_SAMPLE, &pr, err);
+        while (r == BTF_OK && lo < hi) {
+            int mid = (lo + hi + 1) / 2;
+            r = btf__code_level(s, l, mid, err);
+            coded = mid;
+            double lab = r == BTF_OK ? btf__level_lab(s, &pr, l) : -1.0;
+            if (lab >= 0.0 && lab <= target)
+                lo = mid;
+            else
+                hi = mid - 1;
+        }
+        btf_lod_probe_free(&pr);
+        if (r == BTF_OK && coded != lo)
+            r = btf__code_level(s, l, lo, err);
+        s->shift[l] = lo;
+    }
+    return r;
 }
 
 /* RMS (0..255) of component a's contribution at level l over its texels and every
@@ -921,11 +1008,13 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->w8webp = calloc((size_t)s->C, 1);
     s->isres = calloc(n, 1), s->kind = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
     s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
-    s->lossy_n = calloc(n, sizeof(size_t));
+    s->lossy_n = calloc(n, sizeof(size_t)), s->exact = calloc(n, sizeof *s->exact);
+    s->shift = calloc((size_t)s->nl, sizeof(int));
+    s->src = o ? o->source : NULL;
     s->prev_view = malloc((size_t)p->views.n_dirs * sizeof *s->prev_view);
     if (s->prev_view)
         btf_wtz_prev_views(p->blocks->block_of_view, p->views.n_dirs, s->prev_view);
-    if (!s->prev_view || !s->w8q || !s->w8webp || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n)
+    if (!s->prev_view || !s->w8q || !s->w8webp || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n || !s->exact || !s->shift)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     btf__coarse_quality(s, in_dir);
     return BTF_OK;
@@ -943,6 +1032,8 @@ btf_result btf_lod_build(const char *in_dir, const char *out_dir, const btf_lod_
     btf_result r = btf__lod_setup(&s, in_dir, opt, err);
     if (r == BTF_OK)
         r = btf__make_levels(&s, err);
+    if (r == BTF_OK)
+        r = btf__match_levels(&s, err);
     if (r == BTF_OK) {
         btf__contribs(&s);
         btf__lod_order(&s);

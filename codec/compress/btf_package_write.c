@@ -17,6 +17,7 @@
 #include "btf_manifest.h"
 #include "btf_metrics.h"
 #include "btf_rd.h"
+#include "btf_sample.h"
 #include "btf_lossy.h"
 #include "btf_wtz.h"
 #include "btf_color.h"
@@ -265,18 +266,10 @@ static void btf__accum_p(btf__writer *w, const float *A, int cols)
 }
 
 
-/* The texel (*x, *y) of the Lab subsample's cell (sx, sy) of w: one texel of each
- * stride x stride cell, at an offset hashed from the cell (the same on every call),
- * within the material. A regular grid (the cell's first texel) aliases with
- * periodic patterns: on generated tiles at 64x64 (stride 4) it measured CIELab 2.242
- * where the whole material's error was 2.314. */
+/* The texel (*x, *y) of the Lab subsample's cell (sx, sy) of w (btf_sample.h). */
 static void btf__lab_texel(const btf__writer *w, int sx, int sy, int *x, int *y)
 {
-    unsigned h = (unsigned)sx * 73856093u ^ (unsigned)sy * 19349663u;
-    h ^= h >> 13, h *= 0x5bd1e995u, h ^= h >> 15;
-    unsigned s = (unsigned)w->stride;
-    *x = sx * w->stride + (int)(h % s), *y = sy * w->stride + (int)(h / s % s);
-    *x = *x < w->W ? *x : w->W - 1, *y = *y < w->H ? *y : w->H - 1;
+    btf_sample_texel(w->stride, w->W, w->H, sx, sy, x, y);
 }
 
 /* Keeps block b's samples at the Lab subsample (A's columns: view, light, channel). */
@@ -487,16 +480,6 @@ static btf_result btf__write_weights(btf__writer *w, const char *tmp, int j, lon
     free(buf);
     *bytes = r == BTF_OK ? (long long)nb : -1;
     return r;
-}
-
-
-/* Texel stride of the Lab subsample: smallest s with ceil(W/s)*ceil(H/s) <= max. */
-static int btf__lab_stride(int W, int H, int max_texels)
-{
-    int s = 1;
-    while ((long)((W + s - 1) / s) * ((H + s - 1) / s) > max_texels)
-        s++;
-    return s;
 }
 
 
@@ -879,7 +862,7 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
     if (r != BTF_OK)
         return r;
     btf__writer w;
-    int stride = btf__lab_stride(src->width, src->height, o.lab_max_texels > 0 ? o.lab_max_texels : 256);
+    int stride = btf_sample_stride(src->width, src->height, o.lab_max_texels > 0 ? o.lab_max_texels : 256);
     r = btf__writer_init(&w, src, bl, po.components, o.bits, stride, err);
     w.chan = &c;
     w.linear = o.linear != 0;

@@ -40,6 +40,10 @@ typedef struct btf_lod_options {
     int png_only;     /* with residual: 1 = every texture file a PNG; 0 = each the smaller of PNG and lossless WebP */
     int thumbnail;    /* > 0: out_dir gets thumbnail.png of at most this many pixels a side, decoded from the new
                        * package before it is renamed into place (btf_package_thumbnail); 0 = none */
+    const btf *source; /* NULL, or the package's source (its size and directions; the caller's, read during the
+                        * call): a lossy component's coarse levels then take the coarsest quality at which each
+                        * level's CIELab stays at or below level 0's (doc/package-format.md section 10.7);
+                        * NULL: the quality of its level 0 */
 } btf_lod_options;
 
 /* Summary of btf_lod_build (optional). Plain value. */
