@@ -47,8 +47,9 @@ void btf_progress_end(btf_progress *p)
 }
 
 /* One chunk's entry; cumulative = bytes of chunks 0..i. */
-static cJSON *btf__json_chunk(const btf_chunk_info *c, int i, long long cumulative)
+static cJSON *btf__json_chunk(const btf_package *p, int i, long long cumulative)
 {
+    const btf_chunk_info *c = &p->chunk[i];
     cJSON *j = cJSON_CreateObject();
     cJSON_AddNumberToObject(j, "index", i);
     cJSON_AddNumberToObject(j, "component", c->component);
@@ -56,7 +57,8 @@ static cJSON *btf__json_chunk(const btf_chunk_info *c, int i, long long cumulati
     cJSON_AddNumberToObject(j, "bytes", (double)c->bytes);
     cJSON_AddNumberToObject(j, "cumulative", (double)cumulative);
     cJSON_AddNumberToObject(j, "rmse", c->rmse);
-    cJSON_AddNumberToObject(j, "rmse_float", c->rmse_float);
+    if (p->version != 4) /* version 4's manifest leaves it out */
+        cJSON_AddNumberToObject(j, "rmse_float", c->rmse_float);
     cJSON_AddNumberToObject(j, "lab", c->lab);
     cJSON_AddNumberToObject(j, "psnr", c->psnr);
     cJSON_AddNumberToObject(j, "delta_e76", c->delta_e76);
@@ -75,7 +77,7 @@ cJSON *btf_json_package(const char *cmd, const char *dir)
     long long total = 0;
     for (int i = 0; i < p->n_chunks; i++) {
         total += p->chunk[i].bytes;
-        cJSON_AddItemToArray(list, btf__json_chunk(&p->chunk[i], i, total));
+        cJSON_AddItemToArray(list, btf__json_chunk(p, i, total));
     }
     cJSON_AddStringToObject(o, "path", dir);
     cJSON_AddNumberToObject(o, "bytes", (double)total);

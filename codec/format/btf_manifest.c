@@ -712,7 +712,8 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
         cJSON_AddItemToObject(c, "psnr", btf__num(p, ci->psnr));
     if (!btf_package_has_levels(p))
         cJSON_AddItemToObject(c, "delta_e76", btf__num(p, ci->delta_e76));
-    cJSON_AddItemToObject(c, "rmse_float", btf__num(p, ci->rmse_float));
+    if (p->version != 4) /* version 4 leaves out what rmse, the other chunks and the source say */
+        cJSON_AddItemToObject(c, "rmse_float", btf__num(p, ci->rmse_float));
     if (!btf__header_ranges(p)) {
         cJSON_AddItemToObject(c, "tex_range", btf__ranges_json(ci->tex_range, p->blocks->n_blocks));
         cJSON_AddItemToObject(c, "wt_range", btf__ranges_json(ci->wt_range, p->blocks->n_blocks));
@@ -720,7 +721,8 @@ static cJSON *btf__print_chunk(const btf_package *p, int id)
     if (btf_package_has_levels(p)) {
         cJSON_AddNumberToObject(c, "level", ci->level);
         cJSON_AddItemToObject(c, "contrib", btf__num(p, ci->contrib));
-        cJSON_AddItemToObject(c, "rmse_full", btf__num(p, ci->rmse_full));
+        if (p->version != 4)
+            cJSON_AddItemToObject(c, "rmse_full", btf__num(p, ci->rmse_full));
     }
     if (ci->has_pred) {
         cJSON *pr = cJSON_AddArrayToObject(c, "predictor");
