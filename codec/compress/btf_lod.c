@@ -42,8 +42,6 @@ typedef struct btf__lod {
     int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
     int *quality;    /* [a] version 4 from a version-3 source whose level 0 is a lossy WebP or AVIF: that file's
                       * level (the source's "rd" record), which the coarse levels start from; -1: lossless levels */
-    int *shift;      /* [l] the steps down the lossy ladder from quality[a] that level l's lossy files take
-                      * (btf__match_levels; 0 without a source) */
     const btf *src;  /* btf_lod_options.source: the package's source, or NULL (the caller's) */
     uint8_t **exact; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's atlas codes before lossy coding */
     int *codec;      /* [a] with quality[a] >= 0: level 0's encoding (BTF_LOSSY_WEBP or BTF_LOSSY_AVIF) */
@@ -79,7 +77,7 @@ static void btf__lod_free(btf__lod *s)
         free(s->lossy[i]);
     for (int i = 0; s->exact && i < s->C * s->nl; i++)
         free(s->exact[i]);
-    free(s->lossy), free(s->lossy_n), free(s->quality), free(s->codec), free(s->exact), free(s->shift);
+    free(s->lossy), free(s->lossy_n), free(s->quality), free(s->codec), free(s->exact);
     free(s->lev), free(s->atlas), free(s->contrib), free(s->tbytes), free(s->wbytes), free(s->order);
     for (int a = 0; s->w8q && a < s->C; a++)
         free(s->w8q[a]);
@@ -153,27 +151,26 @@ static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
     btf__dequant_level(s, a, l);
 }
 
-/* Level l of component a (its exact codes) coded as a lossy file of codec[a] at quality[a] taken
- * `shift` steps down the ladder (kept in s->lossy), and its atlas and texels replaced by the
- * decode, which is what a reader gets. */
-static btf_result btf__lossy_level(btf__lod *s, int a, int l, int shift, btf_error *err)
+/* Component a's level-0 quality as a position on its codec's lossy ladder (the first
+ * rung at or above it). */
+static int btf__ladder_top(const btf__lod *s, int a)
+{
+    int i = 0;
+    while (i < BTF_LOSSY_LADDER - 1 && btf_lossy_ladder(s->codec[a], i) < s->quality[a])
+        i++;
+    return i;
+}
+
+/* Level l of component a (its exact codes) coded as a lossy file of codec[a] at quality q
+ * into *file (malloc'd, *n bytes) and decoded into px (the level's atlas size). */
+static btf_result btf__lossy_code(const btf__lod *s, int a, int l, int q, uint8_t **file, size_t *n, uint8_t *px,
+                                  btf_error *err)
 {
     const btf_package *p = s->p;
     int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
-    size_t k = (size_t)a * s->nl + l;
-    uint8_t *px = s->atlas[k];
-    int i = 0, q = s->quality[a];
-    while (i < BTF_LOSSY_LADDER - 1 && btf_lossy_ladder(s->codec[a], i) < q)
-        i++;
-    q = shift > 0 ? btf_lossy_ladder(s->codec[a], i - shift) : q; /* the ladder stops at its coarsest */
-    memcpy(px, s->exact[k], (size_t)aw * ah * s->ch);
-    free(s->lossy[k]);
-    s->lossy[k] = NULL;
-    btf_result r = btf_lossy_encode(s->codec[a], px, aw, ah, q, &s->lossy[k], &s->lossy_n[k], err);
+    btf_result r = btf_lossy_encode(s->codec[a], s->exact[(size_t)a * s->nl + l], aw, ah, q, file, n, err);
     if (r == BTF_OK)
-        r = btf_lossy_decode(s->lossy[k], s->lossy_n[k], "lod: lossy level", aw, ah, px, err);
-    if (r == BTF_OK)
-        btf__dequant_level(s, a, l);
+        r = btf_lossy_decode(*file, *n, "lod: lossy level", aw, ah, px, err);
     return r;
 }
 
@@ -212,13 +209,128 @@ static btf_result btf__make_levels(btf__lod *s, btf_error *err)
     return ok ? BTF_OK : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (levels)");
 }
 
-/* Level l's lossy files, every lossy component `shift` steps down its ladder. */
-static btf_result btf__code_level(btf__lod *s, int l, int shift, btf_error *err)
+/* Per block b, the energy of component a's weights over the block's views (every
+ * light and channel): what a unit of texture error costs the reconstruction there. */
+static void btf__wsum(const btf__lod *s, int a, double *wsum)
 {
+    const btf_package *p = s->p;
+    int V = p->views.n_dirs, L = p->lights.n_dirs;
+    memset(wsum, 0, (size_t)s->nb * sizeof(double));
+    for (int v = 0; v < V; v++)
+        for (size_t k = 0; k < (size_t)L * 3; k++) {
+            double x = p->wt[a][(size_t)v * L * 3 + k];
+            wsum[p->blocks->block_of_view[v]] += x * x;
+        }
+}
+
+/* One coarse level's lossy candidates: every lossy component at every rung of its ladder
+ * up to its level-0 quality. Owned by btf__match_level, for one level. */
+typedef struct btf__steps {
+    uint8_t **file; /* [a*BTF_LOSSY_LADDER+i] the level coded at rung i (NULL above the top or lossless) */
+    size_t *n;      /* its bytes */
+    double *noise;  /* the squared error it adds to the reconstruction (texture error x weight energy) */
+    int *pick;      /* [a] the rung chosen */
+} btf__steps;
+
+static void btf__steps_free(btf__steps *st, int C)
+{
+    for (int i = 0; st->file && i < C * BTF_LOSSY_LADDER; i++)
+        free(st->file[i]);
+    free(st->file), free(st->n), free(st->noise), free(st->pick);
+}
+
+/* Component a's candidates at level l: each rung's file, bytes and noise. */
+static btf_result btf__steps_of(const btf__lod *s, int a, int l, btf__steps *st, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int w = s->W >> l, h = s->H >> l, aw = p->atlas_cols * w;
+    size_t npx = (size_t)aw * p->atlas_rows * h;
+    uint8_t *px = malloc(npx);
+    double *wsum = malloc((size_t)s->nb * sizeof(double));
+    if (!px || !wsum) {
+        free(px), free(wsum);
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (lossy levels)");
+    }
+    btf__wsum(s, a, wsum);
+    const uint8_t *ex = s->exact[(size_t)a * s->nl + l];
     btf_result r = BTF_OK;
-    for (int a = 0; r == BTF_OK && a < s->C; a++)
-        if (s->quality[a] >= 0)
-            r = btf__lossy_level(s, a, l, shift, err);
+    for (int i = 0; r == BTF_OK && i <= btf__ladder_top(s, a); i++) {
+        size_t k = (size_t)a * BTF_LOSSY_LADDER + i;
+        r = btf__lossy_code(s, a, l, btf_lossy_ladder(s->codec[a], i), &st->file[k], &st->n[k], px, err);
+        for (int b = 0; r == BTF_OK && b < s->nb; b++) {
+            const float *rg = p->chunk[a].tex_range + 2 * b;
+            int x0 = (b % p->atlas_cols) * w, y0 = (b / p->atlas_cols) * h;
+            double e = 0.0;
+            for (int y = 0; y < h; y++)
+                for (int x = 0; x < w; x++) {
+                    size_t o = (size_t)(y0 + y) * aw + (size_t)(x0 + x);
+                    double d = (double)btf_package_dequant(rg, px[o]) - btf_package_dequant(rg, ex[o]);
+                    e += d * d;
+                }
+            st->noise[k] += e * wsum[b];
+        }
+    }
+    free(px), free(wsum);
+    return r;
+}
+
+/* Every lossy component's candidates at level l (components on OpenMP's threads). */
+static btf_result btf__steps_make(const btf__lod *s, int l, btf__steps *st, btf_error *err)
+{
+    size_t n = (size_t)s->C * BTF_LOSSY_LADDER;
+    st->file = calloc(n, sizeof *st->file), st->n = calloc(n, sizeof(size_t));
+    st->noise = calloc(n, sizeof(double)), st->pick = calloc((size_t)s->C, sizeof(int));
+    if (!st->file || !st->n || !st->noise || !st->pick)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (lossy levels)");
+    btf_result r = BTF_OK;
+#pragma omp parallel for schedule(dynamic)
+    for (int a = 0; a < s->C; a++) {
+        btf_error e1 = {{0}};
+        btf_result ra = s->quality[a] >= 0 ? btf__steps_of(s, a, l, st, &e1) : BTF_OK;
+#pragma omp critical(btf__lod_steps)
+        if (ra != BTF_OK && r == BTF_OK)
+            r = ra, *err = e1;
+    }
+    return r;
+}
+
+/* The rung of each lossy component that minimises bytes + lambda * noise (lambda < 0:
+ * its top, the level-0 quality). */
+static void btf__steps_pick(const btf__lod *s, btf__steps *st, double lambda)
+{
+    for (int a = 0; a < s->C; a++) {
+        if (s->quality[a] < 0)
+            continue;
+        int top = btf__ladder_top(s, a), best = top;
+        for (int i = 0; lambda >= 0.0 && i < top; i++) {
+            size_t k = (size_t)a * BTF_LOSSY_LADDER;
+            if ((double)st->n[k + i] + lambda * st->noise[k + i] < (double)st->n[k + best] + lambda * st->noise[k + best])
+                best = i;
+        }
+        st->pick[a] = best;
+    }
+}
+
+/* Level l as the picked rungs give it: each lossy component's file kept in s->lossy, its
+ * decode the level's atlas and texels. */
+static btf_result btf__steps_apply(btf__lod *s, int l, const btf__steps *st, btf_error *err)
+{
+    const btf_package *p = s->p;
+    int aw = p->atlas_cols * (s->W >> l), ah = p->atlas_rows * (s->H >> l);
+    btf_result r = BTF_OK;
+    for (int a = 0; r == BTF_OK && a < s->C; a++) {
+        if (s->quality[a] < 0)
+            continue;
+        size_t k = (size_t)a * s->nl + l, f = (size_t)a * BTF_LOSSY_LADDER + st->pick[a];
+        free(s->lossy[k]);
+        s->lossy[k] = malloc(st->n[f]), s->lossy_n[k] = st->n[f];
+        if (!s->lossy[k])
+            return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (lossy levels)");
+        memcpy(s->lossy[k], st->file[f], st->n[f]);
+        r = btf_lossy_decode(st->file[f], st->n[f], "lod: lossy level", aw, ah, s->atlas[k], err);
+        if (r == BTF_OK)
+            btf__dequant_level(s, a, l);
+    }
     return r;
 }
 
@@ -233,23 +345,92 @@ static double btf__level_lab(btf__lod *s, const btf_lod_probe *pr, int l)
     return lab;
 }
 
-/* The lossy files of every coarse level. With a source, level l takes the largest
- * shift down the ladder (the same for each of its lossy components) whose CIELab
- * against the source box-filtered to l, on l's texel subsample, stays at or below
- * level 0's (package-format.md section 10.7): a coarse texel averages its block's
- * errors, so at the level-0 quality a coarse level is more accurate than level 0
- * (generated tiles at 128x128: 1.80, 1.41, 1.00 against 2.32), which a view that
- * shows it does not need. The search bisects, the error rising with the shift. */
+static int btf__cmp_double(const void *x, const void *y)
+{
+    double a = *(const double *)x, b = *(const double *)y;
+    return a < b ? -1 : a > b;
+}
+
+/* The multipliers at which some component's best rung changes (the slopes between its
+ * rungs), ascending, into *out (malloc'd); their count, -1 out of memory. */
+static int btf__steps_slopes(const btf__lod *s, const btf__steps *st, double **out)
+{
+    double *x = malloc((size_t)s->C * BTF_LOSSY_LADDER * BTF_LOSSY_LADDER * sizeof(double));
+    int n = 0;
+    for (int a = 0; x && a < s->C; a++)
+        for (int i = 0; s->quality[a] >= 0 && i <= btf__ladder_top(s, a); i++)
+            for (int j = i + 1; j <= btf__ladder_top(s, a); j++) {
+                size_t k = (size_t)a * BTF_LOSSY_LADDER;
+                double db = (double)st->n[k + j] - (double)st->n[k + i], dn = st->noise[k + i] - st->noise[k + j];
+                if (db > 0.0 && dn > 0.0)
+                    x[n++] = db / dn;
+            }
+    if (x)
+        qsort(x, (size_t)n, sizeof(double), btf__cmp_double);
+    *out = x;
+    return x ? n : -1;
+}
+
+/* Level l's lossy files with a source: the least bytes whose CIELab on pr stays at or
+ * below target. Each lossy component is coded at every rung of its ladder up to its
+ * level-0 quality; for a multiplier lambda each takes the rung of least bytes + lambda
+ * x noise (its added squared error, which adds over components); the error falls as
+ * lambda grows, so a bisection over the multipliers where a choice changes finds the
+ * smallest that meets the target (the level-0 quality throughout when none does). */
+static btf_result btf__match_level(btf__lod *s, int l, const btf_lod_probe *pr, double target, btf_error *err)
+{
+    btf__steps st = {0};
+    double *lam = NULL;
+    btf_result r = btf__steps_make(s, l, &st, err);
+    int n = r == BTF_OK ? btf__steps_slopes(s, &st, &lam) : 0;
+    if (n < 0)
+        r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (lossy levels)");
+    int lo = 0, hi = n; /* hi = n: the top rungs (lambda < 0) */
+    while (r == BTF_OK && lo < hi) {
+        int mid = (lo + hi) / 2;
+        btf__steps_pick(s, &st, lam[mid]);
+        r = btf__steps_apply(s, l, &st, err);
+        double lab = r == BTF_OK ? btf__level_lab(s, pr, l) : -1.0;
+        if (lab >= 0.0 && lab <= target)
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    if (r == BTF_OK) {
+        btf__steps_pick(s, &st, lo < n ? lam[lo] : -1.0);
+        r = btf__steps_apply(s, l, &st, err);
+    }
+    free(lam);
+    btf__steps_free(&st, s->C);
+    return r;
+}
+
+/* Level l's lossy files without a source: every lossy component at its level-0 quality. */
+static btf_result btf__level_at_top(btf__lod *s, int l, btf_error *err)
+{
+    btf_result r = BTF_OK;
+    for (int a = 0; r == BTF_OK && a < s->C; a++) {
+        if (s->quality[a] < 0)
+            continue;
+        size_t k = (size_t)a * s->nl + l;
+        r = btf__lossy_code(s, a, l, s->quality[a], &s->lossy[k], &s->lossy_n[k], s->atlas[k], err);
+        if (r == BTF_OK)
+            btf__dequant_level(s, a, l);
+    }
+    return r;
+}
+
+/* The lossy files of every coarse level. With a source each level takes the least bytes
+ * at which its CIELab against the source box-filtered to it, on its texel subsample,
+ * stays at or below level 0's (btf__match_level; package-format.md section 10.7): a
+ * coarse texel averages its block's errors, so at the level-0 quality a coarse level is
+ * more accurate than level 0 (generated tiles at 128x128: 1.80, 1.41, 1.00 against
+ * 2.32), which a view that shows it does not need. */
 static btf_result btf__match_levels(btf__lod *s, btf_error *err)
 {
-    int any = 0, top = 0;
+    int any = 0;
     for (int a = 0; a < s->C; a++)
-        if (s->quality[a] >= 0) {
-            int i = 0;
-            while (i < BTF_LOSSY_LADDER - 1 && btf_lossy_ladder(s->codec[a], i) < s->quality[a])
-                i++;
-            any = 1, top = i > top ? i : top;
-        }
+        any |= s->quality[a] >= 0;
     btf_result r = BTF_OK;
     double target = -1.0;
     if (any && s->src) {
@@ -259,24 +440,15 @@ static btf_result btf__match_levels(btf__lod *s, btf_error *err)
         btf_lod_probe_free(&pr);
     }
     for (int l = 1; r == BTF_OK && any && l < s->nl; l++) {
-        int lo = 0, hi = target >= 0.0 ? top : 0, coded = -1;
-        btf_lod_probe pr = {0};
-        if (hi > 0)
-            r = btf_lod_probe_make(s->src, s->p, l, BTF__LOD_SAMPLE, &pr, err);
-        while (r == BTF_OK && lo < hi) {
-            int mid = (lo + hi + 1) / 2;
-            r = btf__code_level(s, l, mid, err);
-            coded = mid;
-            double lab = r == BTF_OK ? btf__level_lab(s, &pr, l) : -1.0;
-            if (lab >= 0.0 && lab <= target)
-                lo = mid;
-            else
-                hi = mid - 1;
+        if (target < 0.0) {
+            r = btf__level_at_top(s, l, err);
+            continue;
         }
+        btf_lod_probe pr;
+        r = btf_lod_probe_make(s->src, s->p, l, BTF__LOD_SAMPLE, &pr, err);
+        if (r == BTF_OK)
+            r = btf__match_level(s, l, &pr, target, err);
         btf_lod_probe_free(&pr);
-        if (r == BTF_OK && coded != lo)
-            r = btf__code_level(s, l, lo, err);
-        s->shift[l] = lo;
     }
     return r;
 }
@@ -288,14 +460,10 @@ static void btf__contribs(btf__lod *s)
     const btf_package *p = s->p;
     int V = p->views.n_dirs, L = p->lights.n_dirs;
     for (int a = 0; a < s->C; a++) {
-        double *wsum = calloc((size_t)s->nb, sizeof(double));
+        double *wsum = malloc((size_t)s->nb * sizeof(double));
         if (!wsum)
             return; /* contrib stays 0: the order degrades, nothing breaks */
-        for (int v = 0; v < V; v++)
-            for (size_t k = 0; k < (size_t)L * 3; k++) {
-                double x = p->wt[a][(size_t)v * L * 3 + k];
-                wsum[p->blocks->block_of_view[v]] += x * x;
-            }
+        btf__wsum(s, a, wsum);
         for (int l = 0; l < s->nl; l++) {
             size_t n = (size_t)(s->W >> l) * (s->H >> l);
             double e = 0.0;
@@ -1009,12 +1177,11 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->isres = calloc(n, 1), s->kind = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
     s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t)), s->exact = calloc(n, sizeof *s->exact);
-    s->shift = calloc((size_t)s->nl, sizeof(int));
     s->src = o ? o->source : NULL;
     s->prev_view = malloc((size_t)p->views.n_dirs * sizeof *s->prev_view);
     if (s->prev_view)
         btf_wtz_prev_views(p->blocks->block_of_view, p->views.n_dirs, s->prev_view);
-    if (!s->prev_view || !s->w8q || !s->w8webp || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n || !s->exact || !s->shift)
+    if (!s->prev_view || !s->w8q || !s->w8webp || !s->isres || !s->kind || !s->pred || !s->w16res || !s->lev || !s->atlas || !s->contrib || !s->tbytes || !s->wbytes || !s->order || !s->rmse_full || !s->w8bytes || !s->w8step || !s->quality || !s->codec || !s->lossy || !s->lossy_n || !s->exact)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory");
     btf__coarse_quality(s, in_dir);
     return BTF_OK;

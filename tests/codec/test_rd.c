@@ -2135,9 +2135,8 @@ static double decoded_level_lab(const btf_package *p, const btf *src, int l)
 
 /* Given the source, the coarse levels of lossy components are coded as coarsely as
  * keeps each level's error at or below level 0's (doc/package-format.md section
- * 10.7): every lossy coarse file is the level's exact codes encoded at the quality
- * of its level 0 taken the same number of ladder steps down for every component of
- * the level; measured apart (decoded_level_lab), no coarse level is less accurate
+ * 10.7): every lossy coarse file is the level's exact codes encoded at a rung of the
+ * ladder at or below its level 0's quality, some below it; measured apart (decoded_level_lab), no coarse level is less accurate
  * than level 0 beyond the subsample's error; level 0 is unchanged; and the package is
  * smaller than with the level-0 quality throughout (its entries without rmse_float and
  * rmse_full, as every version-4 manifest's). Tolerance 3%: the builder measures
@@ -2160,7 +2159,7 @@ Test(rd, coarse_levels_given_the_source_keep_level_0s_error)
     expect_same_values(a, m);
     int aw = m->atlas_cols * m->width, ah = m->atlas_rows * m->height, shifted = 0;
     for (int l = 1; l < 3; l++) {
-        int shift = -1; /* the level's one shift, from its first lossy file */
+        char rungs[128] = "";
         for (int j = 0; j < rr.n_comp; j++) {
             if (rr.tex_quality[j] < 0)
                 continue;
@@ -2191,12 +2190,10 @@ Test(rd, coarse_levels_given_the_source_keep_level_0s_error)
             free(f);
             cr_assert_geq(found, 0, "component %d level %d: not its exact codes at a ladder quality at or below "
                           "level 0's", j, l);
-            cr_assert(shift < 0 || found == shift || top - found == 0,
-                      "component %d level %d: %d steps down, another component %d", j, l, found, shift);
-            shift = shift < 0 ? found : shift;
+            shifted += found > 0;
+            snprintf(rungs + strlen(rungs), sizeof rungs - strlen(rungs), " %d", found);
         }
-        shifted += shift > 0;
-        cr_log_info("level %d: %d ladder steps below level 0's quality", l, shift);
+        cr_log_info("level %d: ladder steps below level 0's quality by component:%s", l, rungs);
     }
     cr_assert_geq(shifted, 1, "no coarse level was coded more coarsely: the test covers nothing");
     double e0 = decoded_level_lab(m, src, 0);
