@@ -3,7 +3,9 @@
 # (issue 36 item 3; doc/performance.md section 7, "Over lossy textures"): per
 # material, `btf compress` without levels (version 3, a lossy WebP texture where it
 # wins) and with `--levels 4` (version 4: a lossy component's coarse levels lossy at
-# its quality, package-format.md section 10.7), then both again with `--lossless`.
+# the coarsest quality that keeps each level's CIELab at or below level 0's,
+# package-format.md section 10.7), then both again with `--lossless`, and both
+# under the budget search (`--max-error LEVELS_SEARCH_ERROR`, default 2.4).
 # Prints bytes (chunk files + manifest), the levels' cost as a ratio over the same
 # mode without levels, the coarse levels' own bytes, and `btf eval`'s CIELab at
 # level 0 (the levels leave it unchanged). Tiles and knit at 128x128 (about 8 minutes
@@ -36,9 +38,10 @@ ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; }
 echo "# material mode: no levels B | --levels 4 B (coarse levels B) | ratio | Lab at level 0 without / with levels"
 for m in "${mats[@]}"; do
     IFS== read -r name src <<<"$m"
-    for mode in default lossless; do
+    for mode in default lossless search; do
         flags=()
         [[ $mode == lossless ]] && flags=(--lossless)
+        [[ $mode == search ]] && flags=(--max-error "${LEVELS_SEARCH_ERROR:-2.4}")
         echo "bench_lossylevels: $name $mode" >&2
         "$BTF" compress "$src" "$tmp/a" --no-thumbnail --quiet "${flags[@]}"
         "$BTF" compress "$src" "$tmp/b" --no-thumbnail --quiet --levels 4 "${flags[@]}"
