@@ -42,7 +42,7 @@ typedef struct btf__lod {
     int webp;        /* version 4 without btf_lod_options.png_only: each texture file the smaller of PNG and WebP */
     int *quality;    /* [a] version 4 from a version-3 source whose level 0 is a lossy WebP or AVIF: that file's
                       * level (the source's "rd" record), which the coarse levels start from; -1: lossless levels */
-    const btf *src;  /* btf_lod_options.source: the package's source, or NULL (the caller's) */
+    btf_views *src;  /* btf_lod_options.source: the package's source, or NULL (the caller's) */
     uint8_t **exact; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's atlas codes before lossy coding */
     int *codec;      /* [a] with quality[a] >= 0: level 0's encoding (BTF_LOSSY_WEBP or BTF_LOSSY_AVIF) */
     uint8_t **lossy; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's lossy file (its decode is
@@ -431,25 +431,16 @@ static btf_result btf__match_levels(btf__lod *s, btf_error *err)
     int any = 0;
     for (int a = 0; a < s->C; a++)
         any |= s->quality[a] >= 0;
-    btf_result r = BTF_OK;
-    double target = -1.0;
-    if (any && s->src) {
-        btf_lod_probe pr;
-        r = btf_lod_probe_make(s->src, s->p, 0, BTF__LOD_SAMPLE, &pr, err);
-        target = r == BTF_OK ? btf__level_lab(s, &pr, 0) : -1.0;
-        btf_lod_probe_free(&pr);
-    }
-    for (int l = 1; r == BTF_OK && any && l < s->nl; l++) {
-        if (target < 0.0) {
-            r = btf__level_at_top(s, l, err);
-            continue;
-        }
-        btf_lod_probe pr;
-        r = btf_lod_probe_make(s->src, s->p, l, BTF__LOD_SAMPLE, &pr, err);
-        if (r == BTF_OK)
-            r = btf__match_level(s, l, &pr, target, err);
-        btf_lod_probe_free(&pr);
-    }
+    btf_lod_probe *pr = any && s->src ? calloc((size_t)s->nl, sizeof *pr) : NULL;
+    if (any && s->src && !pr)
+        return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
+    btf_result r = pr ? btf_lod_probe_make(s->src, s->p, s->nl, BTF__LOD_SAMPLE, pr, err) : BTF_OK;
+    double target = pr && r == BTF_OK ? btf__level_lab(s, &pr[0], 0) : -1.0;
+    for (int l = 1; r == BTF_OK && any && l < s->nl; l++)
+        r = target < 0.0 ? btf__level_at_top(s, l, err) : btf__match_level(s, l, &pr[l], target, err);
+    if (pr)
+        btf_lod_probe_free(pr, s->nl);
+    free(pr);
     return r;
 }
 

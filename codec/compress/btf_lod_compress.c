@@ -49,7 +49,10 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
     lodc_name(&pkg, out, name, sizeof name);
     btf_lod_options lo = *lod;
     lo.thumbnail = pkg.thumbnail; /* the levelled package's, decoded from it */
-    lo.source = src; /* coarse qualities matched to level 0's error; NULL from a view source */
+    btf_views wrap;
+    if (src)
+        btf_views_wrap(src, &wrap);
+    lo.source = src ? &wrap : views; /* the coarse levels matched to level 0's error */
     pkg.thumbnail = 0;
     pkg.levels = 1; /* a lossy texture's rate weighed with its coarse levels */
     btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
@@ -95,7 +98,9 @@ static btf_result lodc_try(const btf *src, const btf_pca_options *pca, const btf
     btf_result r = btf_budget_compress(src, pca, &po, b, base, res, err);
     btf_lod_options lo = *lod;
     lo.thumbnail = thumbnail;
-    lo.source = src;
+    btf_views wrap;
+    btf_views_wrap(src, &wrap);
+    lo.source = &wrap;
     btf_lod_stats ls = {0};
     if (r == BTF_OK)
         r = btf_lod_build(base, lev, &lo, &ls, err);

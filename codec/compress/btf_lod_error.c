@@ -1,4 +1,4 @@
-/* btf_lod_error.c - a level's error against the source box-filtered to it (btf_lod_error.h). */
+/* btf_lod_error.c - each level's error against the source box-filtered to it (btf_lod_error.h). */
 #include "btf_lod_error.h"
 #include "btf_sample.h"
 
@@ -9,56 +9,75 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The source's mean over level texel (x, y)'s block for every (view, light, channel),
- * in linear light for a linear package (whose levels average radiance). */
-static void probe_ref(const btf *src, int linear, int f, int x, int y, float *row, float *out)
+/* Level pr->level's subsample and its buffers (the reference filled later). */
+static btf_result probe_alloc(const btf_package *p, int level, int max_texels, btf_lod_probe *out, btf_error *err)
 {
-    int V = src->views.n_dirs, L = src->lights.n_dirs;
-    size_t per = (size_t)V * L * 3;
-    memset(out, 0, per * sizeof(float));
-    for (int v = 0; v < V; v++)
-        for (int l = 0; l < L; l++) {
-            float *o = out + ((size_t)v * L + l) * 3;
-            for (int dy = 0; dy < f; dy++) {
-                btf_get_texels(src, v, l, (size_t)(y * f + dy) * src->width + (size_t)x * f, (size_t)f, row);
-                if (linear)
-                    btf_color_srgb_decode_n(row, (size_t)f * 3);
-                for (int i = 0; i < f; i++)
-                    o[0] += row[3 * i], o[1] += row[3 * i + 1], o[2] += row[3 * i + 2];
-            }
-            float s = 1.0f / (float)(f * f);
-            o[0] *= s, o[1] *= s, o[2] *= s;
-        }
-    if (linear)
-        btf_color_srgb_encode_n(out, per);
-}
-
-btf_result btf_lod_probe_make(const btf *src, const btf_package *p, int level, int max_texels, btf_lod_probe *out,
-                              btf_error *err)
-{
-    memset(out, 0, sizeof *out);
-    if (!src || src->width != p->width || src->height != p->height || !btf_dirset_equal(&src->views, &p->views) ||
-        !btf_dirset_equal(&src->lights, &p->lights) || level < 0 || level > 15)
-        return btf_fail(err, BTF_ERR_ARG, "lod: the source is not the package's size and directions");
     int f = 1 << level, w = p->width / f, h = p->height / f, s = btf_sample_stride(w, h, max_texels);
     int sw = (w + s - 1) / s, sh = (h + s - 1) / s;
     size_t per = (size_t)p->views.n_dirs * p->lights.n_dirs * 3, n = (size_t)sw * sh;
     out->level = level, out->w = w, out->h = h, out->n = (int)n;
     out->xy = malloc(2 * n * sizeof(int));
     out->ref = malloc(n * per * sizeof(float)), out->ref_lab = malloc(n * per * sizeof(float));
-    float *row = malloc((size_t)f * 3 * sizeof(float));
-    if (!out->xy || !out->ref || !out->ref_lab || !row) {
-        free(row), btf_lod_probe_free(out);
+    if (!out->xy || !out->ref || !out->ref_lab)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
-    }
     for (int sy = 0, i = 0; sy < sh; sy++)
-        for (int sx = 0; sx < sw; sx++, i++) {
+        for (int sx = 0; sx < sw; sx++, i++)
             btf_sample_texel(s, w, h, sx, sy, &out->xy[2 * i], &out->xy[2 * i + 1]);
-            probe_ref(src, p->linear, f, out->xy[2 * i], out->xy[2 * i + 1], row, out->ref + (size_t)i * per);
-            btf_metrics_lab(out->ref + (size_t)i * per, per / 3, out->ref_lab + (size_t)i * per);
-        }
-    free(row);
     return BTF_OK;
+}
+
+/* Adds view v's block means into pr's reference: cols is the view's planar columns
+ * (btf_views.h), in linear light for a linear package (whose levels average radiance). */
+static void probe_add_view(btf_lod_probe *pr, const btf_package *p, int v, const float *cols)
+{
+    int L = p->lights.n_dirs, W = p->width, f = 1 << pr->level;
+    size_t per = (size_t)p->views.n_dirs * L * 3, texels = (size_t)W * p->height;
+    float s = 1.0f / (float)(f * f);
+    for (int i = 0; i < pr->n; i++) {
+        int x0 = pr->xy[2 * i] * f, y0 = pr->xy[2 * i + 1] * f;
+        float *o = pr->ref + (size_t)i * per + (size_t)v * L * 3;
+        for (int k = 0; k < L * 3; k++) {
+            const float *plane = cols + (size_t)k * texels;
+            float sum = 0.0f;
+            for (int dy = 0; dy < f; dy++)
+                for (int dx = 0; dx < f; dx++)
+                    sum += plane[(size_t)(y0 + dy) * W + x0 + dx];
+            o[k] = sum * s;
+        }
+        if (p->linear)
+            btf_color_srgb_encode_n(o, (size_t)L * 3);
+    }
+}
+
+btf_result btf_lod_probe_make(btf_views *src, const btf_package *p, int n_levels, int max_texels, btf_lod_probe *out,
+                              btf_error *err)
+{
+    memset(out, 0, (size_t)n_levels * sizeof *out);
+    if (!src || src->width != p->width || src->height != p->height || !btf_dirset_equal(&src->views, &p->views) ||
+        !btf_dirset_equal(&src->lights, &p->lights) || n_levels < 1 || n_levels > 16)
+        return btf_fail(err, BTF_ERR_ARG, "lod: the source is not the package's size and directions");
+    btf_result r = BTF_OK;
+    for (int l = 0; r == BTF_OK && l < n_levels; l++)
+        r = probe_alloc(p, l, max_texels, &out[l], err);
+    size_t nc = btf_views_floats(src);
+    float *cols = r == BTF_OK ? malloc(nc * sizeof(float)) : NULL;
+    if (r == BTF_OK && !cols)
+        r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
+    for (int v = 0; r == BTF_OK && v < p->views.n_dirs; v++) {
+        r = btf_views_fill(src, v, cols, err);
+        if (r == BTF_OK && p->linear)
+            btf_color_srgb_decode_n(cols, nc);
+        for (int l = 0; r == BTF_OK && l < n_levels; l++)
+            probe_add_view(&out[l], p, v, cols);
+    }
+    free(cols);
+    size_t per = (size_t)p->views.n_dirs * p->lights.n_dirs * 3;
+    for (int l = 0; r == BTF_OK && l < n_levels; l++)
+        for (int i = 0; i < out[l].n; i++)
+            btf_metrics_lab(out[l].ref + (size_t)i * per, per / 3, out[l].ref_lab + (size_t)i * per);
+    if (r != BTF_OK)
+        btf_lod_probe_free(out, n_levels);
+    return r;
 }
 
 double btf_lod_probe_lab(const btf_lod_probe *pr, const btf_package *p, const float *const *tex)
@@ -90,8 +109,10 @@ double btf_lod_probe_lab(const btf_lod_probe *pr, const btf_package *p, const fl
     return test && tv ? m.lab_thesis : -1.0;
 }
 
-void btf_lod_probe_free(btf_lod_probe *pr)
+void btf_lod_probe_free(btf_lod_probe *pr, int n_levels)
 {
-    free(pr->xy), free(pr->ref), free(pr->ref_lab);
-    memset(pr, 0, sizeof *pr);
+    for (int l = 0; l < n_levels; l++) {
+        free(pr[l].xy), free(pr[l].ref), free(pr[l].ref_lab);
+        memset(&pr[l], 0, sizeof pr[l]);
+    }
 }

@@ -1,20 +1,21 @@
-/* btf_lod_error.h - the error of one spatial level of a package against its source
+/* btf_lod_error.h - the error of each spatial level of a package against its source
  * box-filtered to that level (doc/package-format.md section 10.7): CIELab over every
  * measured (view, light) pair at a texel subsample of the level (btf_sample.h), as
  * the compressor measures level 0.
  *
- *     btf_lod_probe pr;
- *     btf_lod_probe_make(src, p, 1, 256, &pr, &err);   // level 1's reference
- *     double lab = btf_lod_probe_lab(&pr, p, tex1);    // tex1[a]: component a at level 1
- *     btf_lod_probe_free(&pr);
+ *     btf_lod_probe pr[4];
+ *     btf_lod_probe_make(views, p, 4, 256, pr, &err);   // levels 0..3, one pass over the views
+ *     double lab = btf_lod_probe_lab(&pr[1], p, tex1);  // tex1[a]: component a at level 1
+ *     btf_lod_probe_free(pr, 4);
  */
 #ifndef BTF_LOD_ERROR_H
 #define BTF_LOD_ERROR_H
 
 #include "btf_package.h"
+#include "btf_views.h"
 
 /* One level's reference at its texel subsample; owned by its caller
- * (btf_lod_probe_free), alive while that level is measured. */
+ * (btf_lod_probe_free), alive while the levels are measured. */
 typedef struct btf_lod_probe {
     int level, w, h; /* the level and its texels per tile side (the package's >> level) */
     int n;           /* texels in the subsample */
@@ -23,15 +24,16 @@ typedef struct btf_lod_probe {
     float *ref_lab;  /* [n V L 3] CIELab of ref (btf_metrics_lab) */
 } btf_lod_probe;
 
-/* The reference of level `level` of package p (its sizes and direction sets; a
- * package without levels, whose chunk a is component a) from src, at most max_texels
- * texels. BTF_ERR_ARG when src is not p's size or directions. */
-btf_result btf_lod_probe_make(const btf *src, const btf_package *p, int level, int max_texels, btf_lod_probe *out,
+/* The references of levels 0..n_levels-1 (out[l]) of package p (its sizes and
+ * direction sets; a package without levels, whose chunk a is component a) from src,
+ * each at most max_texels texels, in one pass over src's views (btf_views_wrap for a
+ * BTF in memory). BTF_ERR_ARG when src is not p's size or directions. */
+btf_result btf_lod_probe_make(btf_views *src, const btf_package *p, int n_levels, int max_texels, btf_lod_probe *out,
                               btf_error *err);
 /* CIELab (btf_metrics.lab_thesis) of p's reconstruction from tex[a] (component a's
  * texels at the probe's level: n_blocks tiles of w x h, as btf_package.tex at level
  * 0) with p's weights, on the source's scale (btf_package_to_source). */
 double btf_lod_probe_lab(const btf_lod_probe *pr, const btf_package *p, const float *const *tex);
-void btf_lod_probe_free(btf_lod_probe *pr);
+void btf_lod_probe_free(btf_lod_probe *pr, int n_levels);
 
 #endif

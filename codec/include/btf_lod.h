@@ -22,6 +22,7 @@
 #define BTF_LOD_H
 
 #include "btf_package.h"
+#include "btf_views.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -40,10 +41,10 @@ typedef struct btf_lod_options {
     int png_only;     /* with residual: 1 = every texture file a PNG; 0 = each the smaller of PNG and lossless WebP */
     int thumbnail;    /* > 0: out_dir gets thumbnail.png of at most this many pixels a side, decoded from the new
                        * package before it is renamed into place (btf_package_thumbnail); 0 = none */
-    const btf *source; /* NULL, or the package's source (its size and directions; the caller's, read during the
-                        * call): a lossy component's coarse levels then take the coarsest quality at which each
-                        * level's CIELab stays at or below level 0's (doc/package-format.md section 10.7);
-                        * NULL: the quality of its level 0 */
+    btf_views *source; /* NULL, or the package's source (its size and directions; the caller's, read once,
+                        * view by view, during the call; btf_views_wrap for a BTF in memory): a lossy component's
+                        * coarse levels then take the fewest bytes at which each level's CIELab stays at or below
+                        * level 0's (doc/package-format.md section 10.7); NULL: the quality of its level 0 */
 } btf_lod_options;
 
 /* Summary of btf_lod_build (optional). Plain value. */
