@@ -63,7 +63,9 @@ typedef struct btf_package_options {
      * codec/image/btf_lossy.h); 0 = lossless textures only. */
     int lossy;
     /* 1: spatial levels will be added to the package (btf_lod_compress): with lossy, a
-     * lossy texture's rate is weighed with its coarse levels (BTF_RD_LOSSY_LEVELS). */
+     * lossy texture's rate is weighed with its coarse levels (BTF_RD_LOSSY_LEVELS, now
+     * 1: levels matched to level 0's error cost a lossy texture no more than a
+     * lossless one, doc/package-format.md section 10.7). */
     int levels;
     /* > 0: the package gets thumbnail.png (btf_package_thumbnail) of at most this many
      * pixels a side, written into the package before it is renamed into place; 0 =
