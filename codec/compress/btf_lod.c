@@ -151,12 +151,14 @@ static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
     btf__dequant_level(s, a, l);
 }
 
-/* Component a's level-0 quality as a position on its codec's lossy ladder (the first
- * rung at or above it). */
+/* Component a's level-0 quality (a WebP quality, or an AVIF quantiser, finer as it
+ * falls) as a position on its codec's lossy ladder, coarse to fine: the first rung at
+ * least as fine. */
 static int btf__ladder_top(const btf__lod *s, int a)
 {
-    int i = 0;
-    while (i < BTF_LOSSY_LADDER - 1 && btf_lossy_ladder(s->codec[a], i) < s->quality[a])
+    int i = 0, c = s->codec[a], rising = btf_lossy_ladder(c, 0) < btf_lossy_ladder(c, BTF_LOSSY_LADDER - 1);
+    while (i < BTF_LOSSY_LADDER - 1 && (rising ? btf_lossy_ladder(c, i) < s->quality[a]
+                                               : btf_lossy_ladder(c, i) > s->quality[a]))
         i++;
     return i;
 }

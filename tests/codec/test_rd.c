@@ -2143,11 +2143,11 @@ static double decoded_level_lab(const btf_package *p, const btf *src, int l)
  * 256 texels of each level (all of level 2's), which came within 0.5% of the whole
  * level 0 here (below); a rule 30% laxer than level 0's error made level 1 4.3% worse
  * than level 0. */
-Test(rd, coarse_levels_given_the_source_keep_level_0s_error)
+static void coarse_levels_matched(int codec)
 {
     lossy_levels t;
     btf_rd_result rr;
-    btf *src = lossy_with_levels(&t, 3, BTF_LOSSY_WEBP, &rr); /* t.lv: the level-0 quality throughout */
+    btf *src = lossy_with_levels(&t, 3, codec, &rr); /* t.lv: the level-0 quality throughout */
     char lm[600];
     snprintf(lm, sizeof lm, "%s/lm", t.tmp);
     btf_lod_options lo = {0};
@@ -2167,8 +2167,8 @@ Test(rd, coarse_levels_given_the_source_keep_level_0s_error)
                 continue;
             int im = level_chunk(m, j, l), top = 0, w = aw >> l, h = ah >> l;
             const uint8_t *exact = c->q8[level_chunk(c, j, l)];
-            while (btf_lossy_ladder(BTF_LOSSY_WEBP, top) < rr.tex_quality[j])
-                top++;
+            while (btf_lossy_ladder(codec, top) != rr.tex_quality[j]) /* the allocation's qualities are rungs */
+                cr_assert_lt(++top, BTF_LOSSY_LADDER, "component %d: quality %d off the ladder", j, rr.tex_quality[j]);
             char path[1024];
             uint8_t *f = NULL;
             snprintf(path, sizeof path, "%s/%s", lm, m->chunk[im].files[0]);
@@ -2183,8 +2183,8 @@ Test(rd, coarse_levels_given_the_source_keep_level_0s_error)
             for (int d = 0; d <= top && found < 0; d++) {
                 uint8_t *mine = NULL;
                 size_t k = 0;
-                cr_assert_eq(btf_lossy_encode(BTF_LOSSY_WEBP, exact, w, h,
-                                              btf_lossy_ladder(BTF_LOSSY_WEBP, top - d), &mine, &k, &err), BTF_OK);
+                cr_assert_eq(btf_lossy_encode(codec, exact, w, h, btf_lossy_ladder(codec, top - d), &mine, &k, &err),
+                             BTF_OK);
                 if (k == n && !memcmp(mine, f, n))
                     found = d;
                 free(mine);
@@ -2230,6 +2230,17 @@ Test(rd, coarse_levels_given_the_source_keep_level_0s_error)
     btf_rd_result_free(&rr);
     btf_free(src);
     cr_assert_eq(fx_rmtree(t.tmp), 0);
+}
+
+Test(rd, coarse_levels_given_the_source_keep_level_0s_error)
+{
+    coarse_levels_matched(BTF_LOSSY_WEBP);
+}
+
+/* The same with AVIF, whose ladder runs over quantisers, finer as they fall. */
+Test(rd, coarse_avif_levels_given_the_source_keep_level_0s_error)
+{
+    coarse_levels_matched(BTF_LOSSY_AVIF);
 }
 
 /* A written winner well under the budget, whose allocation expected to fill it (its
