@@ -102,8 +102,9 @@ static void compress_usage(FILE *f)
             "                   by rate-distortion (equal slope) for the error of the equal-noise\n"
             "                   steps, weights deflated (wt-JJ.z); a component's texture a lossy\n"
             "                   WebP of its full-range codes where that costs fewer bytes for its\n"
-            "                   error (8 bits, not with --png), its coarse levels too at the same\n"
-            "                   quality; its weights likewise a lossy WebP;\n"
+            "                   error (8 bits, not with --png), its coarse levels too, each in\n"
+            "                   the fewest bytes that keep the level's CIELab at or below level\n"
+            "                   0's; its weights likewise a lossy WebP;\n"
             "                   with --levels version 4;\n"
             "                   with --bits 16 steps down to 1/65535 of a block's range (PNG\n"
             "                   textures, no --levels)\n"
@@ -197,7 +198,7 @@ static int compress_parse(int argc, char **argv, compress_opts *o)
     }
     o->pkg.rd = !o->plain; /* rate-distortion steps unless asked otherwise */
     /* lossy textures where they win, unless asked otherwise (with levels, a lossy
-     * component's coarse levels get its quality: btf_lod_build) */
+     * component's coarse levels are matched to level 0's error: btf_lod_build) */
     o->pkg.lossy = o->pkg.rd && !o->lossless && o->pkg.bits == 8 && !o->pkg.png_only
                        ? (o->avif ? BTF_LOSSY_AVIF : BTF_LOSSY_WEBP)
                        : BTF_LOSSY_NONE;
