@@ -1171,6 +1171,10 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t)), s->exact = calloc(n, sizeof *s->exact);
     s->src = o ? o->source : NULL;
+    if (s->src && (s->src->width != s->W || s->src->height != s->H || !btf_dirset_equal(&s->src->views, &p->views) ||
+                   !btf_dirset_equal(&s->src->lights, &p->lights)))
+        return btf_fail(err, BTF_ERR_ARG, "lod: the source (%s, %dx%d) is not the package's size and directions (%dx%d)",
+                        s->src->name ? s->src->name : "?", s->src->width, s->src->height, s->W, s->H);
     s->prev_view = malloc((size_t)p->views.n_dirs * sizeof *s->prev_view);
     if (s->prev_view)
         btf_wtz_prev_views(p->blocks->block_of_view, p->views.n_dirs, s->prev_view);

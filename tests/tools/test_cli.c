@@ -437,6 +437,35 @@ Test(cli, lod_json_lists_the_levels)
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
+/* `btf lod --source`: a source of another size is refused with a clear message and
+ * nothing written; the package's own source builds the levels as `btf compress
+ * --levels` does (the same chunk files). */
+Test(cli, lod_source_is_checked_and_builds_as_compress)
+{
+    char dir[256], in[400], pkg[400], ref[400], out[4096];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    compress_small(dir, "v3", "3");
+    snprintf(in, sizeof in, "%s/v3", dir);
+    snprintf(pkg, sizeof pkg, "%s/lv", dir);
+    snprintf(ref, sizeof ref, "%s/cl", dir);
+    char *bad[] = {"lod", in, pkg, "--levels", "2", "--source", "gen:knit:8", "--quiet", NULL};
+    cr_assert_eq(run_captured(cmd_lod, 8, bad, 2, out, sizeof out), 1);
+    cr_assert(strstr(out, "not the package's size"), "stderr: %s", out);
+    cr_assert_lt(btf_fs_size(pkg), 0, "nothing written");
+    char *good[] = {"lod", in, pkg, "--levels", "2", "--source", "gen:knit:16", "--no-thumbnail", "--quiet", NULL};
+    cr_assert_eq(cmd_lod(9, good), 0);
+    char *cl[] = {"compress", "gen:knit:16", ref, "--k", "3", "--components", "4", "--name", "p", "--levels", "2",
+                  "--no-thumbnail", "--quiet", NULL};
+    cr_assert_eq(cmd_compress(13, cl), 0);
+    btf_package *a = fx_package(dir, "lv", 0), *b = fx_package(dir, "cl", 0);
+    cr_assert_eq(a->n_chunks, b->n_chunks);
+    for (int i = 0; i < a->n_chunks; i++)
+        for (int f = 0; f < a->chunk[i].n_files; f++)
+            cr_expect(fx_same_file(pkg, ref, a->chunk[i].files[f]), "%s differs", a->chunk[i].files[f]);
+    btf_package_free(a), btf_package_free(b);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
 /* Counts the callback's calls; stack value of the test. */
 typedef struct progress_count {
     int calls, last_done, total, ordered;
