@@ -8,8 +8,8 @@
 # under the budget search (`--max-error LEVELS_SEARCH_ERROR`, default 2.4).
 # Prints bytes (chunk files + manifest), the levels' cost as a ratio over the same
 # mode without levels, the coarse levels' own bytes, and `btf eval`'s CIELab at
-# level 0 (the levels leave it unchanged). Tiles and knit at 128x128 (about 8 minutes
-# on 2 cores), tiles at 256x256 unless LEVELS_LARGE=0 (about 15 minutes more), the
+# level 0 (the levels leave it unchanged). Tiles and knit at 128x128 (about 16 minutes
+# on 2 cores), tiles at 256x256 unless LEVELS_LARGE=0 (about 23 minutes more), the
 # thesis wool at 256x256 with LEVELS_LARGE=2 when ../shared has it.
 # Run by bench/run.sh (results: bench/results/lossylevels.txt); needs `make build`
 # and jq.
