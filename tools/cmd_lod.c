@@ -37,7 +37,7 @@ static void lod_usage(FILE *f)
                "  --png           with --residual: every texture a PNG (default: each the smaller\n"
                "                  of a PNG and a lossless WebP, doc/package-format.md section 4)\n"
                "  --source SRC    IN_PKG's source (anything `btf compress` reads): a lossy texture's\n"
-               "                  coarse levels then take the coarsest quality at which each\n"
+               "                  coarse levels then take the fewest bytes at which each\n"
                "                  level's CIELab against SRC box-filtered to it stays at or below\n"
                "                  level 0's, as `btf compress --levels` does (default: the\n"
                "                  quality of its level 0; doc/package-format.md section 10.7)\n"
