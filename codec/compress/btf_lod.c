@@ -256,7 +256,7 @@ static btf_result btf__steps_of(const btf__lod *s, int a, int l, btf__steps *st,
     btf__wsum(s, a, wsum);
     const uint8_t *ex = s->exact[(size_t)a * s->nl + l];
     btf_result r = BTF_OK;
-    for (int i = 0; r == BTF_OK && i <= btf__ladder_top(s, a); i++) {
+    for (int i = 0, top = btf__ladder_top(s, a); r == BTF_OK && i <= top; i++) {
         size_t k = (size_t)a * BTF_LOSSY_LADDER + i;
         r = btf__lossy_code(s, a, l, btf_lossy_ladder(s->codec[a], i), &st->file[k], &st->n[k], px, err);
         for (int b = 0; r == BTF_OK && b < s->nb; b++) {
@@ -313,8 +313,8 @@ static void btf__steps_pick(const btf__lod *s, btf__steps *st, double lambda)
     }
 }
 
-/* Level l as the picked rungs give it: each lossy component's file kept in s->lossy, its
- * decode the level's atlas and texels. */
+/* Level l as the picked rungs give it: each lossy component's decode the level's atlas
+ * and texels. */
 static btf_result btf__steps_apply(btf__lod *s, int l, const btf__steps *st, btf_error *err)
 {
     const btf_package *p = s->p;
@@ -324,16 +324,24 @@ static btf_result btf__steps_apply(btf__lod *s, int l, const btf__steps *st, btf
         if (s->quality[a] < 0)
             continue;
         size_t k = (size_t)a * s->nl + l, f = (size_t)a * BTF_LOSSY_LADDER + st->pick[a];
-        free(s->lossy[k]);
-        s->lossy[k] = malloc(st->n[f]), s->lossy_n[k] = st->n[f];
-        if (!s->lossy[k])
-            return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (lossy levels)");
-        memcpy(s->lossy[k], st->file[f], st->n[f]);
         r = btf_lossy_decode(st->file[f], st->n[f], "lod: lossy level", aw, ah, s->atlas[k], err);
         if (r == BTF_OK)
             btf__dequant_level(s, a, l);
     }
     return r;
+}
+
+/* The picked files move from st into s->lossy (level l), the level's files from then on. */
+static void btf__steps_keep(btf__lod *s, int l, btf__steps *st)
+{
+    for (int a = 0; a < s->C; a++) {
+        if (s->quality[a] < 0)
+            continue;
+        size_t k = (size_t)a * s->nl + l, f = (size_t)a * BTF_LOSSY_LADDER + st->pick[a];
+        free(s->lossy[k]);
+        s->lossy[k] = st->file[f], s->lossy_n[k] = st->n[f];
+        st->file[f] = NULL;
+    }
 }
 
 /* CIELab of level l as coded now, on pr (btf_lod_error.h). */
@@ -360,8 +368,8 @@ static int btf__steps_slopes(const btf__lod *s, const btf__steps *st, double **o
     double *x = malloc((size_t)s->C * BTF_LOSSY_LADDER * BTF_LOSSY_LADDER * sizeof(double));
     int n = 0;
     for (int a = 0; x && a < s->C; a++)
-        for (int i = 0; s->quality[a] >= 0 && i <= btf__ladder_top(s, a); i++)
-            for (int j = i + 1; j <= btf__ladder_top(s, a); j++) {
+        for (int i = 0, top = s->quality[a] >= 0 ? btf__ladder_top(s, a) : -1; i <= top; i++)
+            for (int j = i + 1; j <= top; j++) {
                 size_t k = (size_t)a * BTF_LOSSY_LADDER;
                 double db = (double)st->n[k + j] - (double)st->n[k + i], dn = st->noise[k + i] - st->noise[k + j];
                 if (db > 0.0 && dn > 0.0)
@@ -402,6 +410,8 @@ static btf_result btf__match_level(btf__lod *s, int l, const btf_lod_probe *pr, 
         btf__steps_pick(s, &st, lo < n ? lam[lo] : -1.0);
         r = btf__steps_apply(s, l, &st, err);
     }
+    if (r == BTF_OK)
+        btf__steps_keep(s, l, &st);
     free(lam);
     btf__steps_free(&st, s->C);
     return r;
@@ -1171,8 +1181,7 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t)), s->exact = calloc(n, sizeof *s->exact);
     s->src = o ? o->source : NULL;
-    if (s->src && (s->src->width != s->W || s->src->height != s->H || !btf_dirset_equal(&s->src->views, &p->views) ||
-                   !btf_dirset_equal(&s->src->lights, &p->lights)))
+    if (s->src && !btf_lod_probe_fits(s->src, p))
         return btf_fail(err, BTF_ERR_ARG, "lod: the source (%s, %dx%d) is not the package's size and directions (%dx%d)",
                         s->src->name ? s->src->name : "?", s->src->width, s->src->height, s->W, s->H);
     s->prev_view = malloc((size_t)p->views.n_dirs * sizeof *s->prev_view);

@@ -49,12 +49,17 @@ static void probe_add_view(btf_lod_probe *pr, const btf_package *p, int v, const
     }
 }
 
+int btf_lod_probe_fits(const btf_views *src, const btf_package *p)
+{
+    return src && src->width == p->width && src->height == p->height && btf_dirset_equal(&src->views, &p->views) &&
+           btf_dirset_equal(&src->lights, &p->lights);
+}
+
 btf_result btf_lod_probe_make(btf_views *src, const btf_package *p, int n_levels, int max_texels, btf_lod_probe *out,
                               btf_error *err)
 {
     memset(out, 0, (size_t)n_levels * sizeof *out);
-    if (!src || src->width != p->width || src->height != p->height || !btf_dirset_equal(&src->views, &p->views) ||
-        !btf_dirset_equal(&src->lights, &p->lights) || n_levels < 1 || n_levels > 16)
+    if (!btf_lod_probe_fits(src, p) || n_levels < 1 || n_levels > 16)
         return btf_fail(err, BTF_ERR_ARG, "lod: the source is not the package's size and directions");
     btf_result r = BTF_OK;
     for (int l = 0; r == BTF_OK && l < n_levels; l++)

@@ -24,6 +24,8 @@ typedef struct btf_lod_probe {
     float *ref_lab;  /* [n V L 3] CIELab of ref (btf_metrics_lab) */
 } btf_lod_probe;
 
+/* 1 when src has p's size and direction sets: what btf_lod_probe_make reads. */
+int btf_lod_probe_fits(const btf_views *src, const btf_package *p);
 /* The references of levels 0..n_levels-1 (out[l]) of package p (its sizes and
  * direction sets; a package without levels, whose chunk a is component a) from src,
  * each at most max_texels texels, in one pass over src's views (btf_views_wrap for a
