@@ -54,7 +54,7 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
         btf_views_wrap(src, &wrap);
     lo.source = src ? &wrap : views; /* the coarse levels matched to level 0's error */
     pkg.thumbnail = 0;
-    pkg.levels = 1; /* a lossy texture's rate weighed with its coarse levels */
+    pkg.levels = 1; /* levels follow (btf_package_options.levels) */
     btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
     if (r != BTF_OK)
         return r;

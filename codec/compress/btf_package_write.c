@@ -742,7 +742,7 @@ static btf_result btf__rd_quantise(btf__writer *w, btf_views *src, const btf_pca
     const btf_package_channel *c = w->chan;
     btf_rd_params par = {m,           w->acols,     w->arows,  noise,   c->rd_max_bytes, o->png_only,
                          c->rd_ladder, c->estimate ? c->tex_rate_scale : 0.0, c->rd_near, c->rd_tex_fix, w->bits,
-                         o->lossy,       o->levels ? BTF_RD_LOSSY_LEVELS : 0.0, o->lossy};
+                         o->lossy,       o->lossy};
     btf_rd_result rr, *keep = c->rd_out;
     btf_result r = btf_rd_allocate(&par, &rr, err);
     if (r != BTF_OK)

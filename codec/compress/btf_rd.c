@@ -733,14 +733,12 @@ static void btf__rd_free(btf__rd *r)
     free(r->sub_row), free(r->mt), free(r->mw), free(r->exact_t), free(r->exact_w), free(r->prev_view);
 }
 
-/* The factor par->tex_rate_fix and par->lossy_rate_scale put on the rate of texture
- * candidate i of component j. */
-static double btf__rd_rate_factor(const btf__rd *r, int j, int i)
+/* The factor par->tex_rate_fix puts on the rate of every texture candidate of
+ * component j. */
+static double btf__rd_rate_factor(const btf__rd *r, int j)
 {
-    double lossy = r->par->lossy_rate_scale > 0.0 && isfinite(r->par->lossy_rate_scale) ? r->par->lossy_rate_scale : 1.0;
     double f = r->par->tex_rate_fix ? r->par->tex_rate_fix[j] : 1.0;
-    f = f > 0.0 && isfinite(f) ? f : 1.0;
-    return f * (i >= BTF__RD_NT ? lossy : 1.0);
+    return f > 0.0 && isfinite(f) ? f : 1.0;
 }
 
 /* Those factors applied to the texture rates in use (the ladder keeps them as
@@ -750,7 +748,7 @@ static void btf__rd_fix_rates(btf__rd *r)
     for (int j = 0; j < r->C; j++)
         for (int i = 0; i < r->nt; i++) {
             long long *s = &r->rt[(size_t)j * r->nt + i];
-            double f = btf__rd_rate_factor(r, j, i);
+            double f = btf__rd_rate_factor(r, j);
             *s = *s < 0 || f == 1.0 ? *s : llround((double)*s * f);
         }
 }
@@ -779,7 +777,7 @@ static int btf__rd_refine(btf__rd *r, const int *it, const int *iw, btf_error *e
             if (btf__rd_lossy_candidate(r, (int)t, atlas, buf, eb, err) != BTF_OK)
                 n = -1;
             else
-                r->rt[t] = llround((double)r->rt[t] * btf__rd_rate_factor(r, j, it[j])), r->exact_t[t] = 1, n++;
+                r->rt[t] = llround((double)r->rt[t] * btf__rd_rate_factor(r, j)), r->exact_t[t] = 1, n++;
         }
         if (n >= 0 && iw[j] >= BTF__RD_NW && btf__rd_wt_interpolated(iw[j]) && !r->exact_w[w]) {
             n = btf__rd_wt_lossy_candidate(r, j, iw[j], q, err) != BTF_OK ? -1 : n + 1, r->exact_w[w] = 1;

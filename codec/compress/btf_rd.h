@@ -8,7 +8,7 @@
  * lossy, a component's texture may instead be a lossy WebP or AVIF of its full-range codes
  * (btf_rd_result.tex_quality), its error then estimated from that sample too.
  *
- *     btf_rd_params par = {model, cols, rows, 0.5f, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0, 0};  // equal-noise error, lossless WebP, every step measured
+ *     btf_rd_params par = {model, cols, rows, 0.5f, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0};  // equal-noise error, lossless WebP, every step measured
  *     btf_rd_result rr;
  *     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
  *         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers
@@ -51,17 +51,6 @@ typedef struct btf_rd_ladder {
     long long *rt, *rw;
 } btf_rd_ladder;
 
-/* Lossy rates under spatial levels (btf_package_options.levels): a lossy component's
- * coarse levels are lossy, each in the fewest bytes that keep the level as accurate as
- * level 0 (doc/package-format.md section 10.7): 0.15-0.21 of its level-0 bytes on
- * tiles at 128x128 and knit at 256x256, about what a lossless component's residual
- * levels cost (0.13-0.41); so a lossy texture counts
- * its level-0 bytes as they are. (At the level-0 quality throughout they cost
- * 0.45-0.55 of level 0 and the factor was (1 + 0.5) / (1 + 0.2) = 1.25: on the knit at
- * 128x128 the default compress with --levels 4 then took 1,575,567 B, all lossless,
- * against 1,514,351 B at 1.0, four components lossy.) */
-#define BTF_RD_LOSSY_LEVELS 1.0
-
 /* Inputs of one allocation; plain value, its pointers are borrowed for the call. */
 typedef struct btf_rd_params {
     const btf_pca_model *model; /* the float PCA of the package */
@@ -98,9 +87,6 @@ typedef struct btf_rd_params {
      * sample's decode (the blocks outside it: their rounding error plus the sample's
      * mean lossy error per texel) */
     int lossy;
-    /* > 0 (with lossy): every lossy candidate's rate counted this many times over,
-     * against the lossless steps' (BTF_RD_LOSSY_LEVELS when spatial levels follow) */
-    double lossy_rate_scale;
     /* 1 (not png_only): each component's weights may also be a lossy WebP of their
      * full-range 8-bit codes (btf_rd_wt_lossy) at one of the BTF_LOSSY_LADDER WebP
      * qualities, a candidate beside the weight steps chosen by the same lambda, its

@@ -62,10 +62,10 @@ typedef struct btf_package_options {
      * error than the lossless steps (doc/package-format.md sections 4.1 and 10.8;
      * codec/image/btf_lossy.h); 0 = lossless textures only. */
     int lossy;
-    /* 1: spatial levels will be added to the package (btf_lod_compress): with lossy, a
-     * lossy texture's rate is weighed with its coarse levels (BTF_RD_LOSSY_LEVELS, now
-     * 1: levels matched to level 0's error cost a lossy texture no more than a
-     * lossless one, doc/package-format.md section 10.7). */
+    /* 1: spatial levels will be added to the package (btf_lod_compress): the budget
+     * search, whose candidates' bytes leave the levels out, retries no runner-up.
+     * (A lossy texture's rate is counted as it is: its coarse levels, matched to level
+     * 0's error, cost no more than a lossless one's, doc/package-format.md section 10.7.) */
     int levels;
     /* > 0: the package gets thumbnail.png (btf_package_thumbnail) of at most this many
      * pixels a side, written into the package before it is renamed into place; 0 =

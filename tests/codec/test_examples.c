@@ -183,7 +183,7 @@ Test(examples, rd_and_wtz_headers)
     cr_assert_eq(btf_pca_compress(src, &o, NULL, NULL, &model, &err), BTF_OK, "%s", err.msg);
     int cols = (int)ceil(sqrt((double)model->blocks->n_blocks)), rows = (model->blocks->n_blocks + cols - 1) / cols;
     /* btf_rd.h */
-    btf_rd_params par = {model, cols, rows, 0.5f, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0.0, 0};  // equal-noise error, lossless WebP, every step measured
+    btf_rd_params par = {model, cols, rows, 0.5f, 0, 0, NULL, 0.0, NULL, NULL, 8, 0, 0};  // equal-noise error, lossless WebP, every step measured
     btf_rd_result rr;
     if (btf_rd_allocate(&par, &rr, &err) == BTF_OK) {
         float g = rr.tex_noise[0], h = rr.wt_noise[0];   // component 0's noise multipliers

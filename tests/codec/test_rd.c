@@ -269,7 +269,7 @@ static void allocate_near(const btf_pca_model *m, long long max_bytes, const btf
                           btf_rd_result *out)
 {
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, max_bytes, 0, NULL, 0.0, near, NULL, 8, lossy, 0.0, 0};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, max_bytes, 0, NULL, 0.0, near, NULL, 8, lossy, 0};
     btf_error err = {0};
     cr_assert_eq(btf_rd_allocate(&par, out, &err), BTF_OK, "%s", err.msg);
 }
@@ -384,7 +384,7 @@ Test(rd, texture_rates_are_scaled_by_a_fix)
     btf_error err = {0};
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
     btf_rd_ladder l = {0};
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, 0, 0, &l, 0.0, NULL, NULL, 8, 0, 0.0, 0};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 0.5f, 0, 0, &l, 0.0, NULL, NULL, 8, 0, 0};
     btf_rd_result eq, plain, ones, fixed;
     cr_assert_eq(btf_rd_allocate(&par, &eq, &err), BTF_OK, "%s", err.msg);
     cr_assert_eq(l.n_comp, 6, "the ladder is stored");
@@ -1683,7 +1683,7 @@ Test(rd, lossy_weights_where_they_win_and_the_error_as_predicted)
     cr_assert(added <= 1.02 * rr.d_rd && added >= 0.8 * rr.d_rd, "added error %.6g, predicted %.6g", added, rr.d_rd);
     /* the same model and target without lossy weights: more bytes */
     int nb = m->blocks->n_blocks, cols = (int)ceil(sqrt((double)nb));
-    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 2.0f, 0, 0, NULL, 0.0, NULL, NULL, 8, BTF_LOSSY_WEBP, 0.0, 0};
+    btf_rd_params par = {m, cols, (nb + cols - 1) / cols, 2.0f, 0, 0, NULL, 0.0, NULL, NULL, 8, BTF_LOSSY_WEBP, 0};
     btf_rd_result r0;
     cr_assert_eq(btf_rd_allocate(&par, &r0, &err), BTF_OK, "%s", err.msg);
     for (int j = 0; j < r0.n_comp; j++)
