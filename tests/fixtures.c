@@ -155,6 +155,20 @@ void fx_dirf(double theta_deg, double phi_deg, float v[3])
 
 /* ------------------------------------------------------------ materials and packages */
 
+btf *fx_convert(const btf *b, btf_storage st)
+{
+    btf *c = NULL;
+    btf_error err = {{0}};
+    cr_assert_eq(btf_create(b->width, b->height, &b->lights, &b->views, st, &c, &err), BTF_OK, "%s", err.msg);
+    for (int v = 0; v < b->views.n_dirs; v++)
+        for (int l = 0; l < b->lights.n_dirs; l++)
+            for (int y = 0; y < b->height; y++)
+                for (int x = 0; x < b->width; x++)
+                    for (int k = 0; k < 3; k++)
+                        btf_set(c, v, l, x, y, k, btf_get(b, v, l, x, y, k));
+    return c;
+}
+
 btf *fx_gen(btf_gen_kind kind, int size, const btf_dirset *d, btf_storage st)
 {
     btf_dirset dflt;

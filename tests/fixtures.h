@@ -99,6 +99,10 @@ btf *fx_gen(btf_gen_kind kind, int size, const btf_dirset *d, btf_storage st);
 /* fx_gen at 8 bits with lights = views = the n rings given (NULL: fx_dirs7). */
 btf *fx_material(btf_gen_kind kind, int size, const btf_ring *rings, int n);
 
+/* A copy of b with storage st, sample by sample through btf_get/btf_set (BTF_U8
+ * rounds as an 8-bit store does); the caller frees it. */
+btf *fx_convert(const btf *b, btf_storage st);
+
 /* btf_package_read of dir (or dir/sub when sub is not NULL), its first n_chunks
  * chunks (0: all); the test fails if it is refused. */
 btf_package *fx_package(const char *dir, const char *sub, int n_chunks);

@@ -38,19 +38,6 @@ static void fill_random_u8(btf *b, uint32_t seed)
         p[i] = next_byte(&seed);
 }
 
-/* A copy of b with another storage, sample by sample through btf_get/btf_set. */
-static btf *convert(const btf *b, btf_storage s)
-{
-    btf *c = make_btf(b->width, b->height, &b->lights, &b->views, s);
-    for (int v = 0; v < b->views.n_dirs; v++)
-        for (int l = 0; l < b->lights.n_dirs; l++)
-            for (int y = 0; y < b->height; y++)
-                for (int x = 0; x < b->width; x++)
-                    for (int k = 0; k < 3; k++)
-                        btf_set(c, v, l, x, y, k, btf_get(b, v, l, x, y, k));
-    return c;
-}
-
 static void one_pair(const float a[3], const float b[3], btf_metrics *m)
 {
     btf_metrics_acc acc = {0};
@@ -269,7 +256,7 @@ Test(metrics, identical_btfs_have_zero_error)
     for (int s = BTF_U8; s <= BTF_F32; s++) {
         btf *a = make_btf(8, 6, &d, &d, BTF_U8);
         fill_random_u8(a, 7);
-        btf *a2 = convert(a, (btf_storage)s), *b = convert(a, (btf_storage)s);
+        btf *a2 = fx_convert(a, (btf_storage)s), *b = fx_convert(a, (btf_storage)s);
         btf_metrics m;
         btf_error e = {0};
         cr_assert_eq(btf_compare(a2, b, NULL, &m, &e), BTF_OK, "%s", e.msg);
@@ -333,7 +320,7 @@ Test(metrics, u8_and_f32_storage_agree)
     btf *a8 = make_btf(5, 4, &d, &d, BTF_U8), *b8 = make_btf(5, 4, &d, &d, BTF_U8);
     fill_random_u8(a8, 11);
     fill_random_u8(b8, 12);
-    btf *af = convert(a8, BTF_F32), *bf = convert(b8, BTF_F32);
+    btf *af = fx_convert(a8, BTF_F32), *bf = fx_convert(b8, BTF_F32);
     btf_metrics m88, mff, m8f, mf8;
     cr_assert_eq(btf_compare(a8, b8, NULL, &m88, NULL), BTF_OK);
     cr_assert_eq(btf_compare(af, bf, NULL, &mff, NULL), BTF_OK);

@@ -217,19 +217,12 @@ Test(cli, compress_json_describes_the_package)
  * 8-bit image writer does). */
 static btf *prefix_decode(const btf_package *p, int n, int displayed)
 {
-    btf *rec = NULL, *u8 = NULL;
+    btf *rec = NULL;
     btf_error err = {{0}};
     cr_assert_eq(btf_package_reconstruct(p, n, &rec, &err), BTF_OK, "%s", err.msg);
     if (!displayed)
         return rec;
-    cr_assert_eq(btf_create(rec->width, rec->height, &rec->lights, &rec->views, BTF_U8, &u8, &err), BTF_OK, "%s",
-                 err.msg);
-    for (int v = 0; v < rec->views.n_dirs; v++)
-        for (int l = 0; l < rec->lights.n_dirs; l++)
-            for (int y = 0; y < rec->height; y++)
-                for (int x = 0; x < rec->width; x++)
-                    for (int c = 0; c < 3; c++)
-                        btf_set(u8, v, l, x, y, c, btf_get(rec, v, l, x, y, c));
+    btf *u8 = fx_convert(rec, BTF_U8);
     btf_free(rec);
     return u8;
 }
