@@ -152,13 +152,13 @@ static void btf__quant_level(btf__lod *s, int a, int l, const float *ex)
 }
 
 /* Component a's level-0 quality (a WebP quality, or an AVIF quantiser, finer as it
- * falls) as a position on its codec's lossy ladder, coarse to fine: the first rung at
- * least as fine. */
+ * falls) as a position on its codec's fine ladder (btf_lossy_fine), coarse to fine:
+ * the first rung at least as fine. */
 static int btf__ladder_top(const btf__lod *s, int a)
 {
-    int i = 0, c = s->codec[a], rising = btf_lossy_ladder(c, 0) < btf_lossy_ladder(c, BTF_LOSSY_LADDER - 1);
-    while (i < BTF_LOSSY_LADDER - 1 && (rising ? btf_lossy_ladder(c, i) < s->quality[a]
-                                               : btf_lossy_ladder(c, i) > s->quality[a]))
+    int i = 0, c = s->codec[a], rising = btf_lossy_fine(c, 0) < btf_lossy_fine(c, BTF_LOSSY_FINE - 1);
+    while (i < BTF_LOSSY_FINE - 1 && (rising ? btf_lossy_fine(c, i) < s->quality[a]
+                                               : btf_lossy_fine(c, i) > s->quality[a]))
         i++;
     return i;
 }
@@ -225,10 +225,10 @@ static void btf__wsum(const btf__lod *s, int a, double *wsum)
         }
 }
 
-/* One coarse level's lossy candidates: every lossy component at every rung of its ladder
- * up to its level-0 quality. Owned by btf__match_level, for one level. */
+/* One coarse level's lossy candidates: every lossy component at every rung of its fine
+ * ladder up to its level-0 quality. Owned by btf__match_level, for one level. */
 typedef struct btf__steps {
-    uint8_t **file; /* [a*BTF_LOSSY_LADDER+i] the level coded at rung i (NULL above the top or lossless) */
+    uint8_t **file; /* [a*BTF_LOSSY_FINE+i] the level coded at rung i (NULL above the top or lossless) */
     size_t *n;      /* its bytes */
     double *noise;  /* the squared error it adds to the reconstruction (texture error x weight energy) */
     int *pick;      /* [a] the rung chosen */
@@ -236,7 +236,7 @@ typedef struct btf__steps {
 
 static void btf__steps_free(btf__steps *st, int C)
 {
-    for (int i = 0; st->file && i < C * BTF_LOSSY_LADDER; i++)
+    for (int i = 0; st->file && i < C * BTF_LOSSY_FINE; i++)
         free(st->file[i]);
     free(st->file), free(st->n), free(st->noise), free(st->pick);
 }
@@ -257,8 +257,8 @@ static btf_result btf__steps_of(const btf__lod *s, int a, int l, btf__steps *st,
     const uint8_t *ex = s->exact[(size_t)a * s->nl + l];
     btf_result r = BTF_OK;
     for (int i = 0, top = btf__ladder_top(s, a); r == BTF_OK && i <= top; i++) {
-        size_t k = (size_t)a * BTF_LOSSY_LADDER + i;
-        r = btf__lossy_code(s, a, l, btf_lossy_ladder(s->codec[a], i), &st->file[k], &st->n[k], px, err);
+        size_t k = (size_t)a * BTF_LOSSY_FINE + i;
+        r = btf__lossy_code(s, a, l, btf_lossy_fine(s->codec[a], i), &st->file[k], &st->n[k], px, err);
         for (int b = 0; r == BTF_OK && b < s->nb; b++) {
             const float *rg = p->chunk[a].tex_range + 2 * b;
             int x0 = (b % p->atlas_cols) * w, y0 = (b / p->atlas_cols) * h;
@@ -279,7 +279,7 @@ static btf_result btf__steps_of(const btf__lod *s, int a, int l, btf__steps *st,
 /* Every lossy component's candidates at level l (components on OpenMP's threads). */
 static btf_result btf__steps_make(const btf__lod *s, int l, btf__steps *st, btf_error *err)
 {
-    size_t n = (size_t)s->C * BTF_LOSSY_LADDER;
+    size_t n = (size_t)s->C * BTF_LOSSY_FINE;
     st->file = calloc(n, sizeof *st->file), st->n = calloc(n, sizeof(size_t));
     st->noise = calloc(n, sizeof(double)), st->pick = calloc((size_t)s->C, sizeof(int));
     if (!st->file || !st->n || !st->noise || !st->pick)
@@ -305,7 +305,7 @@ static void btf__steps_pick(const btf__lod *s, btf__steps *st, double lambda)
             continue;
         int top = btf__ladder_top(s, a), best = top;
         for (int i = 0; lambda >= 0.0 && i < top; i++) {
-            size_t k = (size_t)a * BTF_LOSSY_LADDER;
+            size_t k = (size_t)a * BTF_LOSSY_FINE;
             if ((double)st->n[k + i] + lambda * st->noise[k + i] < (double)st->n[k + best] + lambda * st->noise[k + best])
                 best = i;
         }
@@ -323,7 +323,7 @@ static btf_result btf__steps_apply(btf__lod *s, int l, const btf__steps *st, btf
     for (int a = 0; r == BTF_OK && a < s->C; a++) {
         if (s->quality[a] < 0)
             continue;
-        size_t k = (size_t)a * s->nl + l, f = (size_t)a * BTF_LOSSY_LADDER + st->pick[a];
+        size_t k = (size_t)a * s->nl + l, f = (size_t)a * BTF_LOSSY_FINE + st->pick[a];
         r = btf_lossy_decode(st->file[f], st->n[f], "lod: lossy level", aw, ah, s->atlas[k], err);
         if (r == BTF_OK)
             btf__dequant_level(s, a, l);
@@ -337,7 +337,7 @@ static void btf__steps_keep(btf__lod *s, int l, btf__steps *st)
     for (int a = 0; a < s->C; a++) {
         if (s->quality[a] < 0)
             continue;
-        size_t k = (size_t)a * s->nl + l, f = (size_t)a * BTF_LOSSY_LADDER + st->pick[a];
+        size_t k = (size_t)a * s->nl + l, f = (size_t)a * BTF_LOSSY_FINE + st->pick[a];
         free(s->lossy[k]);
         s->lossy[k] = st->file[f], s->lossy_n[k] = st->n[f];
         st->file[f] = NULL;
@@ -365,12 +365,12 @@ static int btf__cmp_double(const void *x, const void *y)
  * rungs), ascending, into *out (malloc'd); their count, -1 out of memory. */
 static int btf__steps_slopes(const btf__lod *s, const btf__steps *st, double **out)
 {
-    double *x = malloc((size_t)s->C * BTF_LOSSY_LADDER * BTF_LOSSY_LADDER * sizeof(double));
+    double *x = malloc((size_t)s->C * BTF_LOSSY_FINE * BTF_LOSSY_FINE * sizeof(double));
     int n = 0;
     for (int a = 0; x && a < s->C; a++)
         for (int i = 0, top = s->quality[a] >= 0 ? btf__ladder_top(s, a) : -1; i <= top; i++)
             for (int j = i + 1; j <= top; j++) {
-                size_t k = (size_t)a * BTF_LOSSY_LADDER;
+                size_t k = (size_t)a * BTF_LOSSY_FINE;
                 double db = (double)st->n[k + j] - (double)st->n[k + i], dn = st->noise[k + i] - st->noise[k + j];
                 if (db > 0.0 && dn > 0.0)
                     x[n++] = db / dn;
@@ -382,7 +382,7 @@ static int btf__steps_slopes(const btf__lod *s, const btf__steps *st, double **o
 }
 
 /* Level l's lossy files with a source: the least bytes whose CIELab on pr stays at or
- * below target. Each lossy component is coded at every rung of its ladder up to its
+ * below target. Each lossy component is coded at every rung of its fine ladder up to its
  * level-0 quality; for a multiplier lambda each takes the rung of least bytes + lambda
  * x noise (its added squared error, which adds over components); the error falls as
  * lambda grows, so a bisection over the multipliers where a choice changes finds the

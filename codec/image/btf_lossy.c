@@ -9,6 +9,12 @@
  * 4 about quality 100's error, 56 about quality 0's; section 11, "AVIF"). */
 static const int btf__webp_ladder[BTF_LOSSY_LADDER] = {0, 10, 20, 35, 50, 60, 70, 78, 85, 90, 94, 97, 100};
 static const int btf__avif_ladder[BTF_LOSSY_LADDER] = {56, 48, 42, 36, 31, 27, 23, 19, 16, 13, 10, 7, 4};
+/* The same with more rungs where a coarse spatial level lands (WebP qualities 2-20 on
+ * generated tiles at 128x128, where quality 0 to 10 doubled a file's bytes). */
+static const int btf__webp_fine[BTF_LOSSY_FINE] = {0,  2,  4,  6,  8,  10, 13, 16, 20, 25, 30,
+                                                   35, 42, 50, 60, 70, 78, 85, 90, 94, 97, 100};
+static const int btf__avif_fine[BTF_LOSSY_FINE] = {63, 61, 59, 57, 56, 54, 52, 50, 48, 45, 42,
+                                                   39, 36, 31, 27, 23, 19, 16, 13, 10, 7,  4};
 
 int btf_lossy_codec_of(const uint8_t *data, size_t n)
 {
@@ -34,6 +40,12 @@ int btf_lossy_ladder(int codec, int i)
 {
     i = i < 0 ? 0 : i >= BTF_LOSSY_LADDER ? BTF_LOSSY_LADDER - 1 : i;
     return codec == BTF_LOSSY_AVIF ? btf__avif_ladder[i] : btf__webp_ladder[i];
+}
+
+int btf_lossy_fine(int codec, int i)
+{
+    i = i < 0 ? 0 : i >= BTF_LOSSY_FINE ? BTF_LOSSY_FINE - 1 : i;
+    return codec == BTF_LOSSY_AVIF ? btf__avif_fine[i] : btf__webp_fine[i];
 }
 
 btf_result btf_lossy_encode(int codec, const uint8_t *grey, int w, int h, int level, uint8_t **out, size_t *n,

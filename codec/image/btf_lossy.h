@@ -22,6 +22,7 @@ extern "C" {
 #define BTF_LOSSY_WEBP 1 /* level: libwebp quality 0..100 */
 #define BTF_LOSSY_AVIF 2 /* level: AV1 quantiser 0..63 (0 finest) */
 #define BTF_LOSSY_LADDER 13
+#define BTF_LOSSY_FINE 22 /* rungs of the fine ladder (btf_lossy_fine) */
 
 /* The encoding of the file whose first n bytes these are: BTF_LOSSY_WEBP for a lossy
  * WebP, BTF_LOSSY_AVIF for an AVIF, else BTF_LOSSY_NONE (a PNG or lossless WebP). */
@@ -34,6 +35,10 @@ const char *btf_lossy_name(int codec);
 int btf_lossy_max_level(int codec);
 /* Level i (0 coarsest .. BTF_LOSSY_LADDER - 1 finest) of codec's ladder. */
 int btf_lossy_ladder(int codec, int i);
+/* Rung i (0 coarsest .. BTF_LOSSY_FINE - 1 finest) of codec's fine ladder: every rung of
+ * btf_lossy_ladder and more between its coarsest ones, and below them for AVIF (the
+ * coarse spatial levels' choice, doc/package-format.md section 10.7). */
+int btf_lossy_fine(int codec, int i);
 /* w x h grey bytes as a file of codec at level (btf_webp_encode_grey_lossy,
  * btf_avif_encode_grey) into *out (malloc'd, *n bytes). */
 btf_result btf_lossy_encode(int codec, const uint8_t *grey, int w, int h, int level, uint8_t **out, size_t *n,

@@ -2136,8 +2136,9 @@ static double decoded_level_lab(const btf_package *p, const btf *src, int l)
 /* Given the source, the coarse levels of lossy components are coded as coarsely as
  * keeps each level's error at or below level 0's (doc/package-format.md section
  * 10.7): every lossy coarse file is the level's exact codes encoded at a rung of the
- * ladder at or below its level 0's quality, some below it; measured apart (decoded_level_lab), no coarse level is less accurate
- * than level 0 beyond the subsample's error; level 0 is unchanged; and the package is
+ * fine ladder (btf_lossy_fine) at or below its level 0's quality, some below it;
+ * measured apart (decoded_level_lab), no coarse level is less accurate than level 0
+ * beyond the subsample's error; level 0 is unchanged; and the package is
  * smaller than with the level-0 quality throughout (its entries without rmse_float and
  * rmse_full, as every version-4 manifest's). Tolerance 3%: the builder measures
  * 256 texels of each level (all of level 2's), which came within 0.5% of the whole
@@ -2167,35 +2168,36 @@ static void coarse_levels_matched(int codec)
                 continue;
             int im = level_chunk(m, j, l), top = 0, w = aw >> l, h = ah >> l;
             const uint8_t *exact = c->q8[level_chunk(c, j, l)];
-            while (btf_lossy_ladder(codec, top) != rr.tex_quality[j]) /* the allocation's qualities are rungs */
-                cr_assert_lt(++top, BTF_LOSSY_LADDER, "component %d: quality %d off the ladder", j, rr.tex_quality[j]);
+            while (btf_lossy_fine(codec, top) != rr.tex_quality[j]) /* the allocation's qualities are rungs */
+                cr_assert_lt(++top, BTF_LOSSY_FINE, "component %d: quality %d off the fine ladder", j, rr.tex_quality[j]);
             char path[1024];
             uint8_t *f = NULL;
             snprintf(path, sizeof path, "%s/%s", lm, m->chunk[im].files[0]);
             size_t n = maybe_file(path, &f);
             cr_assert_not_null(f, "%s", path);
-            if (!btf_lossy_codec_of(f, n)) { /* kept lossless: the level's exact codes */
-                cr_assert_eq(memcmp(m->q8[im], exact, (size_t)w * h), 0, "component %d level %d", j, l);
-                free(f);
-                continue;
-            }
-            int found = -1;
+            /* a lossless file (smaller than the lossy one it replaced) holds that file's decode */
+            int lossless = !btf_lossy_codec_of(f, n), found = -1;
+            uint8_t *back = malloc((size_t)w * h);
+            cr_assert_not_null(back);
             for (int d = 0; d <= top && found < 0; d++) {
                 uint8_t *mine = NULL;
                 size_t k = 0;
-                cr_assert_eq(btf_lossy_encode(codec, exact, w, h, btf_lossy_ladder(codec, top - d), &mine, &k, &err),
+                cr_assert_eq(btf_lossy_encode(codec, exact, w, h, btf_lossy_fine(codec, top - d), &mine, &k, &err),
                              BTF_OK);
-                if (k == n && !memcmp(mine, f, n))
+                if (lossless) {
+                    cr_assert_eq(btf_lossy_decode(mine, k, "mine", w, h, back, &err), BTF_OK, "%s", err.msg);
+                    found = memcmp(back, m->q8[im], (size_t)w * h) ? -1 : d;
+                } else if (k == n && !memcmp(mine, f, n))
                     found = d;
                 free(mine);
             }
-            free(f);
-            cr_assert_geq(found, 0, "component %d level %d: not its exact codes at a ladder quality at or below "
-                          "level 0's", j, l);
+            free(f), free(back);
+            cr_assert_geq(found, 0, "component %d level %d: not its exact codes at a fine-ladder quality at or "
+                          "below level 0's%s", j, l, lossless ? " (a lossless file of its decode)" : "");
             shifted += found > 0;
             snprintf(rungs + strlen(rungs), sizeof rungs - strlen(rungs), " %d", found);
         }
-        cr_log_info("level %d: ladder steps below level 0's quality by component:%s", l, rungs);
+        cr_log_info("level %d: fine-ladder steps below level 0's quality by component:%s", l, rungs);
     }
     cr_assert_geq(shifted, 1, "no coarse level was coded more coarsely: the test covers nothing");
     double e0 = decoded_level_lab(m, src, 0);
