@@ -155,3 +155,29 @@ btf_result btf_source_open_views(const char *spec, const btf_source_args *a, btf
         out->name = spec;
     return r;
 }
+
+btf_result btf_source_open(const char *cmd, const char *spec, const btf_source_args *a, int whole,
+                           btf_source_input *in, btf_error *err)
+{
+    memset(in, 0, sizeof *in);
+    btf_result r = whole ? BTF_ERR_UNSUPPORTED : btf_source_open_views(spec, a, &in->views, err);
+    if (r == BTF_ERR_UNSUPPORTED)
+        r = btf_source_load_args(cmd, spec, a, &in->whole, err);
+    if (in->whole)
+        btf_views_wrap(in->whole, &in->views);
+    return r;
+}
+
+void btf_source_warn_views(const char *cmd, const char *spec, const btf_source_input *in)
+{
+    const btf_views *v = &in->views;
+    if (!in->whole)
+        btf_source_warn(cmd, spec, v->n_filled, v->views.n_dirs * v->lights.n_dirs, &v->report);
+}
+
+void btf_source_close(btf_source_input *in)
+{
+    btf_views_close(&in->views);
+    btf_free(in->whole);
+    memset(in, 0, sizeof *in);
+}

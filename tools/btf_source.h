@@ -40,6 +40,24 @@ btf_result btf_source_load_args(const char *cmd, const char *spec, const btf_sou
  * directory, a `.btf` file or gen:... BTF_ERR_UNSUPPORTED for what is only read
  * whole (a thesis package; --downsample of a .btf or gen:): load it instead. */
 btf_result btf_source_open_views(const char *spec, const btf_source_args *a, btf_views *out, btf_error *err);
+/* An input as a command reads it: view by view where it can (codec/include/btf_views.h),
+ * else whole. Owned by the command, from btf_source_open to btf_source_close. */
+typedef struct btf_source_input {
+    btf *whole;      /* the BTF loaded whole, or NULL: read as views */
+    btf_views views; /* the view source, or a wrap of whole */
+} btf_source_input;
+
+/* Opens spec as btf_source_open_views does unless whole (a command that reads it
+ * several times) or it is only read whole (a thesis package, --downsample of a .btf):
+ * then loads it (btf_source_load_args, its warnings under cmd) and wraps it, so that
+ * in->views serves either way. */
+btf_result btf_source_open(const char *cmd, const char *spec, const btf_source_args *a, int whole,
+                           btf_source_input *in, btf_error *err);
+/* After a command read in->views: the warnings of a source read as views (images
+ * interpolated, clipped highlights); a loaded one warned when it loaded. */
+void btf_source_warn_views(const char *cmd, const char *spec, const btf_source_input *in);
+/* Releases what btf_source_open opened (nothing after a failed open). */
+void btf_source_close(btf_source_input *in);
 /* The warnings of a source once read: images interpolated, clipped highlights
  * (samples at 255: a count, the share and the worst file, when some image has at
  * least BTF_LOAD_CLIPPED_SHARE of them). */

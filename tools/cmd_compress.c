@@ -288,41 +288,24 @@ static btf_result compress_run(const btf *src, btf_views *views, compress_opts *
     return r;
 }
 
-/* The input: read view by view (one block of views in memory, doc/input-formats.md
- * section 5) unless a budget compresses it several times or it is only read whole;
- * then loaded. 0 ok, 1 failure (printed). */
-static int compress_open(compress_opts *o, btf **src, btf_views *views)
-{
-    btf_error err = {0};
-    btf_result r = BTF_ERR_UNSUPPORTED;
-    *src = NULL;
-    memset(views, 0, sizeof *views);
-    if (o->budget.max_bytes <= 0 && o->budget.max_error <= 0 && !o->in_memory)
-        r = btf_source_open_views(o->in, &o->src, views, &err);
-    if (r == BTF_ERR_UNSUPPORTED)
-        r = btf_source_load_args("compress", o->in, &o->src, src, &err);
-    if (r != BTF_OK)
-        fprintf(stderr, "btf compress: %s\n", err.msg);
-    return r != BTF_OK;
-}
-
-/* The command once its options are parsed; the exit code. */
+/* The command once its options are parsed; the exit code. The input is read view by
+ * view (one block of views in memory, doc/input-formats.md section 5) unless a budget
+ * compresses it several times, --in-memory asks, or it is only read whole. */
 static int compress_main(void *opts)
 {
     compress_opts *o = opts;
     btf_error err = {0};
-    btf *src = NULL;
-    btf_views views;
+    btf_source_input in;
     double t0 = btf_seconds();
-    if (compress_open(o, &src, &views))
-        return 1;
+    int whole = o->budget.max_bytes > 0 || o->budget.max_error > 0 || o->in_memory;
+    btf_result r = btf_source_open("compress", o->in, &o->src, whole, &in, &err);
     double t1 = btf_seconds();
     btf_compress_stats st = {0};
-    btf_result r = compress_run(src, &views, o, &st, &err);
-    if (!src && r == BTF_OK)
-        btf_source_warn("compress", o->in, views.n_filled, views.views.n_dirs * views.lights.n_dirs, &views.report);
-    btf_views_close(&views);
-    btf_free(src);
+    if (r == BTF_OK)
+        r = compress_run(in.whole, &in.views, o, &st, &err);
+    if (r == BTF_OK)
+        btf_source_warn_views("compress", o->in, &in);
+    btf_source_close(&in);
     if (r != BTF_OK) {
         fprintf(stderr, "btf compress: %s\n", err.msg);
         return 1;

@@ -243,9 +243,6 @@ static int up_to_date(const library_opts *o, const library_job *j)
 static int build_one(const library_opts *o, const library_job *j)
 {
     btf_error err = {0};
-    btf_load_options lo = {0};
-    lo.downsample = o->downsample;
-    btf *src = NULL;
     char out[BTF_FS_PATH_MAX], stamp[6000], path[BTF_FS_PATH_MAX];
     snprintf(out, sizeof out, "%s/%s", o->out, j->name);
     btf_package_options pkg = o->pkg;
@@ -253,25 +250,17 @@ static int build_one(const library_opts *o, const library_job *j)
     btf_source_args sa = {.downsample = o->downsample, .sampling = o->sampling};
     btf_lod_options lod = {0};
     lod.levels = o->levels;
-    btf_views views;
+    btf_source_input in;
+    btf_budget_result res;
     int budget = o->budget.max_bytes > 0 || o->budget.max_error > 0; /* compresses several times: loaded whole */
-    btf_result r = budget ? BTF_ERR_UNSUPPORTED : btf_source_open_views(j->spec, &sa, &views, &err);
-    if (r == BTF_OK) /* one block of views in memory */
-        r = btf_lod_compress_views(&views, &o->pca, &pkg, &lod, out, NULL, &err);
-    if (!budget)
-        btf_views_close(&views);
-    btf_dirset set;
-    if (r == BTF_ERR_UNSUPPORTED && o->sampling) /* read only whole (a thesis package) */
-        r = btf_source_sampling(o->sampling, &set, &err) == BTF_OK ? BTF_ERR_UNSUPPORTED : BTF_ERR_FORMAT;
-    lo.sampling = o->sampling ? &set : NULL;
-    if (r == BTF_ERR_UNSUPPORTED) {
-        btf_budget_result res;
-        r = btf_source_load(j->spec, &lo, &src, &err);
-        if (r == BTF_OK)
-            r = budget ? btf_lod_budget_compress(src, &o->pca, &pkg, &o->budget, &lod, out, &res, &err)
-                       : btf_lod_compress(src, &o->pca, &pkg, &lod, out, NULL, &err);
-    }
-    btf_free(src);
+    btf_result r = btf_source_open("library build", j->spec, &sa, budget, &in, &err);
+    if (r == BTF_OK) /* views: one block of views in memory */
+        r = budget     ? btf_lod_budget_compress(in.whole, &o->pca, &pkg, &o->budget, &lod, out, &res, &err)
+            : in.whole ? btf_lod_compress(in.whole, &o->pca, &pkg, &lod, out, NULL, &err)
+                       : btf_lod_compress_views(&in.views, &o->pca, &pkg, &lod, out, NULL, &err);
+    if (r == BTF_OK)
+        btf_source_warn_views("library build", j->spec, &in);
+    btf_source_close(&in);
     stamp_path(o, j, path, sizeof path);
     if (r == BTF_OK && stamp_text(o, j, stamp, sizeof stamp) == 0)
         r = btf_fs_write_atomic(path, stamp, strlen(stamp), &err);

@@ -103,20 +103,13 @@ static int lod_main(void *opts)
     lod_opts *o = opts;
     btf_lod_stats st = {0};
     btf_error err = {0};
-    btf *src = NULL;
-    btf_views views = {0};
+    btf_source_input in = {0};
     btf_source_args sa = {0};
-    btf_result r = o->source ? btf_source_open_views(o->source, &sa, &views, &err) : BTF_OK;
-    if (r == BTF_ERR_UNSUPPORTED) /* read only whole (a thesis package) */
-        r = btf_source_load_args("lod", o->source, &sa, &src, &err);
-    if (src)
-        btf_views_wrap(src, &views);
-    o->lod.source = o->source && r == BTF_OK ? &views : NULL;
+    btf_result r = o->source ? btf_source_open("lod", o->source, &sa, 0, &in, &err) : BTF_OK;
+    o->lod.source = o->source && r == BTF_OK ? &in.views : NULL;
     if (r == BTF_OK)
         r = btf_lod_build(o->in, o->out, &o->lod, &st, &err);
-    if (o->source && !src)
-        btf_views_close(&views);
-    btf_free(src);
+    btf_source_close(&in);
     if (r != BTF_OK) {
         fprintf(stderr, "btf lod: %s\n", err.msg);
         return 1;
