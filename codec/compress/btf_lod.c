@@ -27,7 +27,6 @@
 /* ---------------------------------------------------------------- builder */
 
 #define BTF__LOD_PATH 8400 /* a file path in the output's temporary directory */
-#define BTF__LOD_SAMPLE 256 /* texels of a level's error subsample (as the compressor's for level 0) */
 
 /* State of one btf_lod_build call. Index a = position of the component in the v1
  * chunk order; [a * nl + l] = its level l. */
@@ -43,6 +42,7 @@ typedef struct btf__lod {
     int *quality;    /* [a] version 4 from a version-3 source whose level 0 is a lossy WebP or AVIF: that file's
                       * level (the source's "rd" record), which the coarse levels start from; -1: lossless levels */
     btf_views *src;  /* btf_lod_options.source: the package's source, or NULL (the caller's) */
+    const btf_lod_gather *gather; /* btf_lod_options.gather: src's references, or NULL (the caller's) */
     uint8_t **exact; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's atlas codes before lossy coding */
     int *codec;      /* [a] with quality[a] >= 0: level 0's encoding (BTF_LOSSY_WEBP or BTF_LOSSY_AVIF) */
     uint8_t **lossy; /* [a*nl+l] l >= 1 with quality[a] >= 0: the level's lossy file (its decode is
@@ -87,7 +87,7 @@ static void btf__lod_free(btf__lod *s)
     btf_package_free(s->p);
 }
 
-static int btf__default_levels(int W, int H, int want)
+int btf_lod_levels(int W, int H, int want)
 {
     int nl = 1;
     while (nl < BTF_LOD_MAX_LEVELS && (want > 0 ? nl < want : nl < 4 && (W >> nl) >= 8 && (H >> nl) >= 8) &&
@@ -432,7 +432,16 @@ static btf_result btf__level_at_top(btf__lod *s, int l, btf_error *err)
     return r;
 }
 
-/* The lossy files of every coarse level. With a source each level takes the least bytes
+/* 1 when the caller gathered the source's references for exactly these levels. */
+static int btf__gathered(const btf__lod *s)
+{
+    const btf_lod_gather *g = s->gather;
+    return s->src && g && btf_lod_gather_done(g) && g->n_levels == s->nl && g->width == s->W && g->height == s->H &&
+           g->linear == s->p->linear && g->n_views == s->p->views.n_dirs && g->n_lights == s->p->lights.n_dirs;
+}
+
+/* The lossy files of every coarse level. With a source (its references gathered by the
+ * caller, else read here in one pass) each level takes the least bytes
  * at which its CIELab against the source box-filtered to it, on its texel subsample,
  * stays at or below level 0's (btf__match_level; package-format.md section 10.7): a
  * coarse texel averages its block's errors, so at the level-0 quality a coarse level is
@@ -443,13 +452,15 @@ static btf_result btf__match_levels(btf__lod *s, btf_error *err)
     int any = 0;
     for (int a = 0; a < s->C; a++)
         any |= s->quality[a] >= 0;
-    btf_lod_probe *pr = any && s->src ? calloc((size_t)s->nl, sizeof *pr) : NULL;
-    if (any && s->src && !pr)
+    const btf_lod_probe *ready = any && btf__gathered(s) ? s->gather->pr : NULL;
+    btf_lod_probe *pr = any && s->src && !ready ? calloc((size_t)s->nl, sizeof *pr) : NULL;
+    if (any && s->src && !ready && !pr)
         return btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
-    btf_result r = pr ? btf_lod_probe_make(s->src, s->p, s->nl, BTF__LOD_SAMPLE, pr, err) : BTF_OK;
-    double target = pr && r == BTF_OK ? btf__level_lab(s, &pr[0], 0) : -1.0;
+    btf_result r = pr ? btf_lod_probe_make(s->src, s->p, s->nl, BTF_LOD_ERROR_SAMPLE, pr, err) : BTF_OK;
+    ready = ready ? ready : pr;
+    double target = ready && r == BTF_OK ? btf__level_lab(s, &ready[0], 0) : -1.0;
     for (int l = 1; r == BTF_OK && any && l < s->nl; l++)
-        r = target < 0.0 ? btf__level_at_top(s, l, err) : btf__match_level(s, l, &pr[l], target, err);
+        r = target < 0.0 ? btf__level_at_top(s, l, err) : btf__match_level(s, l, &ready[l], target, err);
     if (pr)
         btf_lod_probe_free(pr, s->nl);
     free(pr);
@@ -1162,7 +1173,7 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->thr = o && o->threshold > 0.0 ? o->threshold : BTF_LOD_THRESHOLD;
     if (o && (o->levels < 0 || o->levels > BTF_LOD_MAX_LEVELS))
         return btf_fail(err, BTF_ERR_ARG, "lod: %d levels (1..%d)", o->levels, BTF_LOD_MAX_LEVELS);
-    s->nl = btf__default_levels(s->W, s->H, o ? o->levels : 0);
+    s->nl = btf_lod_levels(s->W, s->H, o ? o->levels : 0);
     if (o && o->levels > s->nl)
         return btf_fail(err, BTF_ERR_ARG, "lod: %d levels do not divide %dx%d texels (at most %d)", o->levels, s->W,
                         s->H, s->nl);
@@ -1180,7 +1191,7 @@ static btf_result btf__lod_setup(btf__lod *s, const char *in_dir, const btf_lod_
     s->isres = calloc(n, 1), s->kind = calloc(n, 1), s->w16res = calloc((size_t)s->C, 1), s->pred = calloc(n, sizeof *s->pred);
     s->quality = calloc((size_t)s->C, sizeof(int)), s->codec = calloc((size_t)s->C, sizeof(int)), s->lossy = calloc(n, sizeof *s->lossy);
     s->lossy_n = calloc(n, sizeof(size_t)), s->exact = calloc(n, sizeof *s->exact);
-    s->src = o ? o->source : NULL;
+    s->src = o ? o->source : NULL, s->gather = o ? o->gather : NULL;
     if (s->src && !btf_lod_probe_fits(s->src, p))
         return btf_fail(err, BTF_ERR_ARG, "lod: the source (%s, %dx%d) is not the package's size and directions (%dx%d)",
                         s->src->name ? s->src->name : "?", s->src->width, s->src->height, s->W, s->H);

@@ -3,6 +3,7 @@
  * btf_lod_build into OUT. */
 #include "btf_lod.h"
 #include "btf_budget.h"
+#include "btf_lod_error.h"
 #include "btf_manifest.h"
 
 #include "btf_fs.h"
@@ -39,6 +40,30 @@ static btf_result build_v1(const btf *src, btf_views *views, const btf_pca_optio
                : btf_package_compress_views(views, pca, pkg, out, st, err);
 }
 
+/* A view source that passes each view it reads on to a gathering of the level
+ * references (btf_lod_error.h), so that the level builder need not read the source
+ * again. Lives on build_v2's stack, for one compression. */
+typedef struct lodc_tee {
+    btf_views *inner;   /* the caller's source */
+    btf_lod_gather *g;  /* build_v2's */
+} lodc_tee;
+
+static btf_result lodc_tee_fill(btf_views *s, int view, float *cols, btf_error *err)
+{
+    lodc_tee *t = s->impl;
+    btf_result r = btf_views_fill(t->inner, view, cols, err);
+    return r == BTF_OK ? btf_lod_gather_add(t->g, view, cols, err) : r;
+}
+
+/* out: views reading through t (inner's size, directions and name; nothing to close). */
+static void lodc_tee_open(lodc_tee *t, btf_views *out)
+{
+    memset(out, 0, sizeof *out);
+    out->width = t->inner->width, out->height = t->inner->height;
+    out->lights = t->inner->lights, out->views = t->inner->views, out->name = t->inner->name;
+    out->fill = lodc_tee_fill, out->impl = t;
+}
+
 /* Versions 2 and 4: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
 static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_options *pca, btf_package_options pkg,
                            const btf_lod_options *lod, const char *out, btf_compress_stats *st, btf_error *err)
@@ -55,11 +80,21 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
     lo.source = src ? &wrap : views; /* the coarse levels matched to level 0's error */
     pkg.thumbnail = 0;
     pkg.levels = 1; /* levels follow (btf_package_options.levels) */
-    btf_result r = build_v1(src, views, pca, &pkg, tmp, st, err);
-    if (r != BTF_OK)
-        return r;
+    /* a view source: its level references gathered as the compression reads it */
+    btf_lod_gather g = {0};
+    lodc_tee tee = {views, &g};
+    btf_views teed;
+    int n_levels = views ? btf_lod_levels(views->width, views->height, lod->levels) : 0;
+    btf_result r = views ? btf_lod_gather_begin(views, pkg.linear, n_levels, BTF_LOD_ERROR_SAMPLE, &g, err) : BTF_OK;
+    if (views && r == BTF_OK)
+        lodc_tee_open(&tee, &teed);
+    if (r == BTF_OK)
+        r = build_v1(src, views ? &teed : NULL, pca, &pkg, tmp, st, err);
+    lo.gather = &g; /* used when complete */
     btf_lod_stats ls = {0};
-    r = btf_lod_build(tmp, out, &lo, &ls, err);
+    if (r == BTF_OK)
+        r = btf_lod_build(tmp, out, &lo, &ls, err);
+    btf_lod_gather_free(&g);
     btf_fs_rmtree(tmp, NULL);
     if (st)
         st->bytes = ls.bytes, st->n_chunks = ls.n_chunks;

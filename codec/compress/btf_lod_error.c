@@ -9,12 +9,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Level pr->level's subsample and its buffers (the reference filled later). */
-static btf_result probe_alloc(const btf_package *p, int level, int max_texels, btf_lod_probe *out, btf_error *err)
+/* Level `level`'s subsample and its buffers, for g's sizes (the reference filled later). */
+static btf_result probe_alloc(const btf_lod_gather *g, int level, int max_texels, btf_lod_probe *out, btf_error *err)
 {
-    int f = 1 << level, w = p->width / f, h = p->height / f, s = btf_sample_stride(w, h, max_texels);
+    int f = 1 << level, w = g->width / f, h = g->height / f, s = btf_sample_stride(w, h, max_texels);
     int sw = (w + s - 1) / s, sh = (h + s - 1) / s;
-    size_t per = (size_t)p->views.n_dirs * p->lights.n_dirs * 3, n = (size_t)sw * sh;
+    size_t per = (size_t)g->n_views * g->n_lights * 3, n = (size_t)sw * sh;
     out->level = level, out->w = w, out->h = h, out->n = (int)n;
     out->xy = malloc(2 * n * sizeof(int));
     out->ref = malloc(n * per * sizeof(float)), out->ref_lab = malloc(n * per * sizeof(float));
@@ -28,10 +28,10 @@ static btf_result probe_alloc(const btf_package *p, int level, int max_texels, b
 
 /* Adds view v's block means into pr's reference: cols is the view's planar columns
  * (btf_views.h), in linear light for a linear package (whose levels average radiance). */
-static void probe_add_view(btf_lod_probe *pr, const btf_package *p, int v, const float *cols)
+static void probe_add_view(btf_lod_probe *pr, const btf_lod_gather *g, int v, const float *cols)
 {
-    int L = p->lights.n_dirs, W = p->width, f = 1 << pr->level;
-    size_t per = (size_t)p->views.n_dirs * L * 3, texels = (size_t)W * p->height;
+    int L = g->n_lights, W = g->width, f = 1 << pr->level;
+    size_t per = (size_t)g->n_views * L * 3, texels = (size_t)W * g->height;
     float s = 1.0f / (float)(f * f);
     for (int i = 0; i < pr->n; i++) {
         int x0 = pr->xy[2 * i] * f, y0 = pr->xy[2 * i + 1] * f;
@@ -44,9 +44,65 @@ static void probe_add_view(btf_lod_probe *pr, const btf_package *p, int v, const
                     sum += plane[(size_t)(y0 + dy) * W + x0 + dx];
             o[k] = sum * s;
         }
-        if (p->linear)
+        if (g->linear)
             btf_color_srgb_encode_n(o, (size_t)L * 3);
     }
+}
+
+btf_result btf_lod_gather_begin(const btf_views *src, int linear, int n_levels, int max_texels, btf_lod_gather *g,
+                                btf_error *err)
+{
+    memset(g, 0, sizeof *g);
+    if (n_levels < 1 || n_levels > 16 || src->width % (1 << (n_levels - 1)) || src->height % (1 << (n_levels - 1)))
+        return btf_fail(err, BTF_ERR_ARG, "lod: %d levels of %dx%d texels", n_levels, src->width, src->height);
+    g->n_levels = n_levels, g->linear = linear, g->width = src->width, g->height = src->height;
+    g->n_views = src->views.n_dirs, g->n_lights = src->lights.n_dirs;
+    g->pr = calloc((size_t)n_levels, sizeof *g->pr), g->seen = calloc((size_t)g->n_views, 1);
+    g->lin = linear ? malloc(btf_views_floats(src) * sizeof(float)) : NULL;
+    btf_result r = g->pr && g->seen && (g->lin || !linear) ? BTF_OK
+                                                            : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
+    for (int l = 0; r == BTF_OK && l < n_levels; l++)
+        r = probe_alloc(g, l, max_texels, &g->pr[l], err);
+    if (r != BTF_OK)
+        btf_lod_gather_free(g);
+    return r;
+}
+
+btf_result btf_lod_gather_add(btf_lod_gather *g, int v, const float *cols, btf_error *err)
+{
+    if (v < 0 || v >= g->n_views)
+        return btf_fail(err, BTF_ERR_ARG, "lod: view %d of %d", v, g->n_views);
+    if (g->seen[v])
+        return BTF_OK;
+    if (g->linear) {
+        size_t nc = (size_t)3 * g->n_lights * g->width * g->height;
+        memcpy(g->lin, cols, nc * sizeof(float));
+        btf_color_srgb_decode_n(g->lin, nc);
+        cols = g->lin;
+    }
+    for (int l = 0; l < g->n_levels; l++)
+        probe_add_view(&g->pr[l], g, v, cols);
+    g->seen[v] = 1;
+    if (++g->n_seen < g->n_views)
+        return BTF_OK;
+    size_t per = (size_t)g->n_views * g->n_lights * 3;
+    for (int l = 0; l < g->n_levels; l++)
+        for (int i = 0; i < g->pr[l].n; i++)
+            btf_metrics_lab(g->pr[l].ref + (size_t)i * per, per / 3, g->pr[l].ref_lab + (size_t)i * per);
+    return BTF_OK;
+}
+
+int btf_lod_gather_done(const btf_lod_gather *g)
+{
+    return g->pr && g->n_seen == g->n_views;
+}
+
+void btf_lod_gather_free(btf_lod_gather *g)
+{
+    if (g->pr)
+        btf_lod_probe_free(g->pr, g->n_levels);
+    free(g->pr), free(g->seen), free(g->lin);
+    memset(g, 0, sizeof *g);
 }
 
 int btf_lod_probe_fits(const btf_views *src, const btf_package *p)
@@ -61,27 +117,22 @@ btf_result btf_lod_probe_make(btf_views *src, const btf_package *p, int n_levels
     memset(out, 0, (size_t)n_levels * sizeof *out);
     if (!btf_lod_probe_fits(src, p) || n_levels < 1 || n_levels > 16)
         return btf_fail(err, BTF_ERR_ARG, "lod: the source is not the package's size and directions");
-    btf_result r = BTF_OK;
-    for (int l = 0; r == BTF_OK && l < n_levels; l++)
-        r = probe_alloc(p, l, max_texels, &out[l], err);
-    size_t nc = btf_views_floats(src);
-    float *cols = r == BTF_OK ? malloc(nc * sizeof(float)) : NULL;
+    btf_lod_gather g;
+    btf_result r = btf_lod_gather_begin(src, p->linear, n_levels, max_texels, &g, err);
+    float *cols = r == BTF_OK ? malloc(btf_views_floats(src) * sizeof(float)) : NULL;
     if (r == BTF_OK && !cols)
         r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
     for (int v = 0; r == BTF_OK && v < p->views.n_dirs; v++) {
         r = btf_views_fill(src, v, cols, err);
-        if (r == BTF_OK && p->linear)
-            btf_color_srgb_decode_n(cols, nc);
-        for (int l = 0; r == BTF_OK && l < n_levels; l++)
-            probe_add_view(&out[l], p, v, cols);
+        if (r == BTF_OK)
+            r = btf_lod_gather_add(&g, v, cols, err);
     }
     free(cols);
-    size_t per = (size_t)p->views.n_dirs * p->lights.n_dirs * 3;
-    for (int l = 0; r == BTF_OK && l < n_levels; l++)
-        for (int i = 0; i < out[l].n; i++)
-            btf_metrics_lab(out[l].ref + (size_t)i * per, per / 3, out[l].ref_lab + (size_t)i * per);
-    if (r != BTF_OK)
-        btf_lod_probe_free(out, n_levels);
+    if (r == BTF_OK) { /* the references move to out */
+        memcpy(out, g.pr, (size_t)n_levels * sizeof *out);
+        memset(g.pr, 0, (size_t)n_levels * sizeof *out);
+    }
+    btf_lod_gather_free(&g);
     return r;
 }
 

@@ -24,6 +24,39 @@ typedef struct btf_lod_probe {
     float *ref_lab;  /* [n V L 3] CIELab of ref (btf_metrics_lab) */
 } btf_lod_probe;
 
+#define BTF_LOD_ERROR_SAMPLE 256 /* texels of a level's subsample (as the compressor's for level 0) */
+
+/* The references of btf_lod_probe_make gathered from views its caller reads itself,
+ * each view counted once whenever it comes (btf_lod_compress_views: during the
+ * compression's own pass, so the source is not read again). Owned by the caller, from
+ * btf_lod_gather_begin to btf_lod_gather_free.
+ *
+ *     btf_lod_gather g;
+ *     btf_lod_gather_begin(views, linear, 4, BTF_LOD_ERROR_SAMPLE, &g, &err);
+ *     ... btf_lod_gather_add(&g, v, cols, &err) after each btf_views_fill ...
+ *     if (btf_lod_gather_done(&g)) ... g.pr[l] as btf_lod_probe_make's out[l] ...
+ *     btf_lod_gather_free(&g);
+ */
+typedef struct btf_lod_gather {
+    btf_lod_probe *pr; /* [n_levels] the references, complete once every view is added */
+    int n_levels, linear, width, height, n_views, n_lights;
+    int n_seen;          /* views added */
+    unsigned char *seen; /* [n_views] 1 once added */
+    float *lin;          /* linear packages: the view in linear light (scratch) */
+} btf_lod_gather;
+
+/* Starts gathering the references of levels 0..n_levels-1 of a package of src's size
+ * and direction sets (linear: the package holds linear light, whose levels average
+ * radiance), each at most max_texels texels. */
+btf_result btf_lod_gather_begin(const btf_views *src, int linear, int n_levels, int max_texels, btf_lod_gather *g,
+                                btf_error *err);
+/* Adds view v's columns (as btf_views_fill writes them; not modified) to every level's
+ * reference, unless v was added before; the last view also computes their CIELab. */
+btf_result btf_lod_gather_add(btf_lod_gather *g, int v, const float *cols, btf_error *err);
+/* 1 once every view was added (the references are then complete). */
+int btf_lod_gather_done(const btf_lod_gather *g);
+void btf_lod_gather_free(btf_lod_gather *g);
+
 /* 1 when src has p's size and direction sets: what btf_lod_probe_make reads. */
 int btf_lod_probe_fits(const btf_views *src, const btf_package *p);
 /* The references of levels 0..n_levels-1 (out[l]) of package p (its sizes and

@@ -45,7 +45,15 @@ typedef struct btf_lod_options {
                         * view by view, during the call; btf_views_wrap for a BTF in memory): a lossy component's
                         * coarse levels then take the fewest bytes at which each level's CIELab stays at or below
                         * level 0's (doc/package-format.md section 10.7); NULL: the quality of its level 0 */
+    const struct btf_lod_gather *gather; /* NULL, or source's references already gathered for exactly the levels
+                                          * built (btf_lod_compress_views, during its compression's pass over
+                                          * source): then source is not read; one that is not complete or not for
+                                          * these levels is ignored */
 } btf_lod_options;
+
+/* The levels btf_lod_build makes of a W x H package when asked for want (0: the default
+ * of btf_lod_options.levels). */
+int btf_lod_levels(int W, int H, int want);
 
 /* Summary of btf_lod_build (optional). Plain value. */
 typedef struct btf_lod_stats {

@@ -15,6 +15,7 @@
 #include "fixtures.h"
 #include "btf_input.h"
 #include "btf_lossy.h"
+#include "btf_lod.h"
 
 /* Every file of package a equals the same file of package b (and b has no other). */
 static void expect_same_package(const char *a, const char *b, const char *what)
@@ -307,4 +308,70 @@ Test(views, saturated_images_are_counted_and_named)
     btf_views_close(&s);
     btf_free(b), btf_free(m);
     fx_rmtree(dir);
+}
+
+/* A view source that counts its fills (over a wrapped BTF). Lives on the test's stack. */
+typedef struct counted_views {
+    btf_views inner; /* btf_views_wrap of the material */
+    int fills;
+} counted_views;
+
+static btf_result counted_fill(btf_views *s, int view, float *cols, btf_error *err)
+{
+    counted_views *c = s->impl;
+    c->fills++;
+    return btf_views_fill(&c->inner, view, cols, err);
+}
+
+static void counted_open(const btf *m, counted_views *c, btf_views *out)
+{
+    memset(c, 0, sizeof *c);
+    btf_views_wrap(m, &c->inner);
+    *out = c->inner;
+    out->fill = counted_fill, out->close = NULL, out->impl = c;
+}
+
+/* With levels matched to level 0's error (doc/package-format.md section 10.7) a view
+ * source is read as often as without levels: the level references are gathered during
+ * the compression's own pass (btf_lod_error.h), not by a pass of their own; and the
+ * package equals the in-memory one, whose references come from that separate pass. */
+Test(views, levels_gather_their_references_in_the_compressions_pass)
+{
+    char dir[256], a[300], b[300], c[300];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(a, sizeof a, "%s/plain", dir), snprintf(b, sizeof b, "%s/views", dir), snprintf(c, sizeof c, "%s/mem", dir);
+    static const btf_ring rings[3] = {{0.0f, 1, 0.0f}, {30.0f, 6, 0.0f}, {60.0f, 8, 10.0f}};
+    btf *m = fx_material(BTF_GEN_TILES, 64, rings, 3); /* where lossy textures win (test_rd.c) */
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 4;
+    btf_package_options ko = {0};
+    ko.name = "m", ko.rd = 1, ko.lossy = BTF_LOSSY_WEBP;
+    btf_lod_options none = {0}, lo = {0};
+    lo.levels = 3;
+    btf_error err = {0};
+    counted_views cv;
+    btf_views s;
+    counted_open(m, &cv, &s);
+    cr_assert_eq(btf_lod_compress_views(&s, &po, &ko, &none, a, NULL, &err), BTF_OK, "%s", err.msg);
+    int without = cv.fills;
+    counted_open(m, &cv, &s);
+    cr_assert_eq(btf_lod_compress_views(&s, &po, &ko, &lo, b, NULL, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(cv.fills, without, "levels read the source %d times, the compression alone %d", cv.fills, without);
+    cr_expect_geq(without, m->views.n_dirs);
+    cr_assert_eq(btf_lod_compress(m, &po, &ko, &lo, c, NULL, &err), BTF_OK, "%s", err.msg);
+    expect_same_package(b, c, "levels, streamed and in memory");
+    btf_package *p = fx_package(b, NULL, 0);
+    int lossy = 0;
+    for (int i = 0; i < p->n_chunks; i++) { /* the matching ran: some coarse file is lossy */
+        char path[600], *f = NULL;
+        size_t n = 0;
+        snprintf(path, sizeof path, "%s/%s", b, p->chunk[i].files[0]);
+        cr_assert_eq(btf_fs_read(path, 1 << 26, &f, &n, NULL), BTF_OK, "%s", path);
+        lossy += p->chunk[i].level > 0 && btf_lossy_codec_of((const uint8_t *)f, n) != BTF_LOSSY_NONE;
+        free(f);
+    }
+    cr_expect_gt(lossy, 0, "no coarse level is lossy: nothing was matched");
+    btf_package_free(p);
+    btf_free(m);
+    cr_assert_eq(fx_rmtree(dir), 0);
 }
