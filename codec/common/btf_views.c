@@ -74,6 +74,17 @@ void btf_views_wrap(const btf *b, btf_views *out)
     out->impl = (void *)b;
 }
 
+void btf_views_over(const btf_views *inner,
+                    btf_result (*fill)(btf_views *s, int view, float *cols, btf_error *err), void *impl,
+                    btf_views *out)
+{
+    memset(out, 0, sizeof *out);
+    out->width = inner->width, out->height = inner->height;
+    out->lights = inner->lights, out->views = inner->views;
+    out->name = inner->name;
+    out->fill = fill, out->impl = impl;
+}
+
 btf_result btf_views_load(btf_views *s, int u8, btf **out, btf_error *err)
 {
     *out = NULL;

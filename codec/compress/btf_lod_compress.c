@@ -55,15 +55,6 @@ static btf_result lodc_tee_fill(btf_views *s, int view, float *cols, btf_error *
     return r == BTF_OK ? btf_lod_gather_add(t->g, view, cols, err) : r;
 }
 
-/* out: views reading through t (inner's size, directions and name; nothing to close). */
-static void lodc_tee_open(lodc_tee *t, btf_views *out)
-{
-    memset(out, 0, sizeof *out);
-    out->width = t->inner->width, out->height = t->inner->height;
-    out->lights = t->inner->lights, out->views = t->inner->views, out->name = t->inner->name;
-    out->fill = lodc_tee_fill, out->impl = t;
-}
-
 /* Versions 2 and 4: compress into OUT.tmp-PID-v1 (a writer's temporary name), add levels into OUT. */
 static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_options *pca, btf_package_options pkg,
                            const btf_lod_options *lod, const char *out, btf_compress_stats *st, btf_error *err)
@@ -80,16 +71,18 @@ static btf_result build_v2(const btf *src, btf_views *views, const btf_pca_optio
     lo.source = src ? &wrap : views; /* the coarse levels matched to level 0's error */
     pkg.thumbnail = 0;
     pkg.levels = 1; /* levels follow (btf_package_options.levels) */
-    /* a view source: its level references gathered as the compression reads it */
+    /* a view source, where lossy textures may need matching: its level references
+     * gathered as the compression reads it */
     btf_lod_gather g = {0};
     lodc_tee tee = {views, &g};
     btf_views teed;
-    int n_levels = views ? btf_lod_levels(views->width, views->height, lod->levels) : 0;
-    btf_result r = views ? btf_lod_gather_begin(views, pkg.linear, n_levels, BTF_LOD_ERROR_SAMPLE, &g, err) : BTF_OK;
-    if (views && r == BTF_OK)
-        lodc_tee_open(&tee, &teed);
+    int gather = views && pkg.rd && pkg.lossy;
+    int n_levels = gather ? btf_lod_levels(views->width, views->height, lod->levels) : 0;
+    btf_result r = gather ? btf_lod_gather_begin(views, pkg.linear, n_levels, BTF_LOD_ERROR_SAMPLE, &g, err) : BTF_OK;
+    if (gather && r == BTF_OK)
+        btf_views_over(views, lodc_tee_fill, &tee, &teed);
     if (r == BTF_OK)
-        r = build_v1(src, views ? &teed : NULL, pca, &pkg, tmp, st, err);
+        r = build_v1(src, gather ? &teed : views, pca, &pkg, tmp, st, err);
     lo.gather = &g; /* used when complete */
     btf_lod_stats ls = {0};
     if (r == BTF_OK)

@@ -40,16 +40,10 @@ static btf_result btf__fill_linear(btf_views *s, int view, float *cols, btf_erro
     return r;
 }
 
-/* out: src seen as linear light (btf__fill_linear); lives no longer than src, which
- * keeps its own counts (n_filled, report) and is closed by its owner. */
+/* out: src seen as linear light (btf__fill_linear); lives no longer than src. */
 static void btf__views_linear(btf_views *src, btf_views *out)
 {
-    memset(out, 0, sizeof *out);
-    out->width = src->width, out->height = src->height;
-    out->lights = src->lights, out->views = src->views;
-    out->name = src->name;
-    out->fill = btf__fill_linear;
-    out->impl = src;
+    btf_views_over(src, btf__fill_linear, src, out);
 }
 
 /* ---------------------------------------------------------------- writer state */

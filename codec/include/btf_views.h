@@ -61,6 +61,12 @@ void btf_views_close(btf_views *s);
 
 /* A view source over b (not copied; b must outlive it). */
 void btf_views_wrap(const btf *b, btf_views *out);
+/* A view source with inner's size, direction sets and name whose views fill gives
+ * (impl its state): a filter or observer of inner's views. inner keeps its own counts
+ * (n_filled, report) and is closed by its owner; out has nothing to close. */
+void btf_views_over(const btf_views *inner,
+                    btf_result (*fill)(btf_views *s, int view, float *cols, btf_error *err), void *impl,
+                    btf_views *out);
 
 /* Opens an image directory (the loaders' options: sampling, fill_missing,
  * downsample; storage must be 0 or BTF_U8) or a `.btf` file (storage 0 = float,

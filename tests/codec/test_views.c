@@ -327,8 +327,7 @@ static void counted_open(const btf *m, counted_views *c, btf_views *out)
 {
     memset(c, 0, sizeof *c);
     btf_views_wrap(m, &c->inner);
-    *out = c->inner;
-    out->fill = counted_fill, out->close = NULL, out->impl = c;
+    btf_views_over(&c->inner, counted_fill, c, out);
 }
 
 /* With levels matched to level 0's error (doc/package-format.md section 10.7) a view
