@@ -230,11 +230,17 @@ static void compress_report(const char *out)
     if (p->linear)
         printf("linear light: rmse and rmse_float on the linear 0..255 scale, lab after encoding to sRGB\n");
     printf("chunk component      bytes   cumulative    rmse  rmse_float    lab\n");
+    /* "-" where the manifest records no value: rmse_float in version 4, lab with levels */
+    int has_float = p->version != 4, has_lab = !btf_package_has_levels(p);
     for (int i = 0; i < p->n_chunks; i++) {
         const btf_chunk_info *c = &p->chunk[i];
+        char fl[32] = "-", lab[32] = "-";
         total += c->bytes;
-        printf("%5d %9d %10lld %12lld %7.3f %11.3f %6.3f\n", i, c->component, c->bytes, total, c->rmse,
-               c->rmse_float, c->lab);
+        if (has_float)
+            snprintf(fl, sizeof fl, "%.3f", c->rmse_float);
+        if (has_lab)
+            snprintf(lab, sizeof lab, "%.3f", c->lab);
+        printf("%5d %9d %10lld %12lld %7.3f %11s %6s\n", i, c->component, c->bytes, total, c->rmse, fl, lab);
     }
     btf_package_free(p);
 }

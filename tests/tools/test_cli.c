@@ -459,6 +459,27 @@ Test(cli, lod_source_is_checked_and_builds_as_compress)
     cr_assert_eq(fx_rmtree(dir), 0);
 }
 
+/* The compress report prints "-" for what the manifest does not record (rmse_float in
+ * version 4, lab with levels), a number for what it does. */
+Test(cli, compress_report_marks_values_the_manifest_lacks)
+{
+    char dir[256], a[400], b[400], out[16384];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(a, sizeof a, "%s/a", dir), snprintf(b, sizeof b, "%s/b", dir);
+    char *v3[] = {"compress", "gen:knit:16", a, "--k", "3", "--components", "4", "--no-thumbnail", NULL};
+    char *v4[] = {"compress", "gen:knit:16", b, "--k", "3", "--components", "4", "--levels", "2", "--no-thumbnail", NULL};
+    cr_assert_eq(run_captured(cmd_compress, 8, v3, 1, out, sizeof out), 0);
+    const char *row = strstr(out, "\n    0 ");
+    cr_assert_not_null(row, "%s", out);
+    cr_assert_null(strstr(out, " -"), "version 3 records every value: %s", out);
+    cr_assert_eq(run_captured(cmd_compress, 10, v4, 1, out, sizeof out), 0);
+    row = strstr(out, "\n    0 ");
+    cr_assert_not_null(row, "%s", out);
+    const char *eol = strchr(row + 1, '\n');
+    cr_assert(eol && eol - row > 8 && !strncmp(eol - 8, "-      -", 8), "version 4 row: %.*s", (int)(eol ? eol - row : 40), row);
+    cr_assert_eq(fx_rmtree(dir), 0);
+}
+
 /* Counts the callback's calls; stack value of the test. */
 typedef struct progress_count {
     int calls, last_done, total, ordered;
