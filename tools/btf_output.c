@@ -46,9 +46,11 @@ void btf_progress_end(btf_progress *p)
     p->width = 0;
 }
 
-/* One chunk's entry; cumulative = bytes of chunks 0..i. */
+/* One chunk's entry; cumulative = bytes of chunks 0..i. lab and delta_e76 are null in a
+ * package with levels, whose manifest records neither (the text report prints "-"). */
 static cJSON *btf__json_chunk(const btf_package *p, int i, long long cumulative)
 {
+    int has_lab = !btf_package_has_levels(p);
     const btf_chunk_info *c = &p->chunk[i];
     cJSON *j = cJSON_CreateObject();
     cJSON_AddNumberToObject(j, "index", i);
@@ -59,9 +61,9 @@ static cJSON *btf__json_chunk(const btf_package *p, int i, long long cumulative)
     cJSON_AddNumberToObject(j, "rmse", c->rmse);
     if (p->version != 4) /* version 4's manifest leaves it out */
         cJSON_AddNumberToObject(j, "rmse_float", c->rmse_float);
-    cJSON_AddNumberToObject(j, "lab", c->lab);
+    cJSON_AddItemToObject(j, "lab", has_lab ? cJSON_CreateNumber(c->lab) : cJSON_CreateNull());
     cJSON_AddNumberToObject(j, "psnr", c->psnr);
-    cJSON_AddNumberToObject(j, "delta_e76", c->delta_e76);
+    cJSON_AddItemToObject(j, "delta_e76", has_lab ? cJSON_CreateNumber(c->delta_e76) : cJSON_CreateNull());
     return j;
 }
 

@@ -132,7 +132,8 @@ static void compress_usage(FILE *f)
             "                   path (OUT), bytes (all chunk files), chunks, seconds_load,\n"
             "                   seconds_pca, seconds_write, and chunk: one entry per chunk in\n"
             "                   stream order {index, component, level, bytes, cumulative, rmse,\n"
-            "                   rmse_float, lab, psnr, delta_e76} (errors after chunks 0..index)\n");
+            "                   rmse_float, lab, psnr, delta_e76} (errors after chunks 0..index;\n"
+            "                   with --levels rmse_float is left out, lab and delta_e76 are null)\n");
     btf_args_exit_codes(f);
 }
 

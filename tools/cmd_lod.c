@@ -48,7 +48,7 @@ static void lod_usage(FILE *f)
                "                  first_chunk_bytes, and chunk: one entry per chunk in stream order\n"
                "                  {index, component, level, bytes, cumulative, rmse, rmse_float,\n"
                "                  lab, psnr, delta_e76} as the manifest records them (rmse_float\n"
-               "                  not in version 4)\n",
+               "                  not in version 4; lab and delta_e76 null: levels record neither)\n",
             BTF_LOD_MAX_LEVELS, BTF_LOD_THRESHOLD);
     btf_args_exit_codes(f);
 }
