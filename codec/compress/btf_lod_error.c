@@ -49,8 +49,10 @@ static void probe_add_view(btf_lod_probe *pr, const btf_lod_gather *g, int v, co
     }
 }
 
-btf_result btf_lod_gather_begin(const btf_views *src, int linear, int n_levels, int max_texels, btf_lod_gather *g,
-                                btf_error *err)
+/* btf_lod_gather_begin; with lin_buffer 0 no buffer for a linear source's copy (the
+ * caller hands gather_add views already in linear light). */
+static btf_result gather_begin(const btf_views *src, int linear, int n_levels, int max_texels, int lin_buffer,
+                               btf_lod_gather *g, btf_error *err)
 {
     memset(g, 0, sizeof *g);
     if (n_levels < 1 || n_levels > 16 || src->width % (1 << (n_levels - 1)) || src->height % (1 << (n_levels - 1)))
@@ -58,8 +60,8 @@ btf_result btf_lod_gather_begin(const btf_views *src, int linear, int n_levels, 
     g->n_levels = n_levels, g->linear = linear, g->width = src->width, g->height = src->height;
     g->n_views = src->views.n_dirs, g->n_lights = src->lights.n_dirs;
     g->pr = calloc((size_t)n_levels, sizeof *g->pr), g->seen = calloc((size_t)g->n_views, 1);
-    g->lin = linear ? malloc(btf_views_floats(src) * sizeof(float)) : NULL;
-    btf_result r = g->pr && g->seen && (g->lin || !linear) ? BTF_OK
+    g->lin = linear && lin_buffer ? malloc(btf_views_floats(src) * sizeof(float)) : NULL;
+    btf_result r = g->pr && g->seen && (g->lin || !linear || !lin_buffer) ? BTF_OK
                                                             : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
     for (int l = 0; r == BTF_OK && l < n_levels; l++)
         r = probe_alloc(g, l, max_texels, &g->pr[l], err);
@@ -68,13 +70,20 @@ btf_result btf_lod_gather_begin(const btf_views *src, int linear, int n_levels, 
     return r;
 }
 
-btf_result btf_lod_gather_add(btf_lod_gather *g, int v, const float *cols, btf_error *err)
+btf_result btf_lod_gather_begin(const btf_views *src, int linear, int n_levels, int max_texels, btf_lod_gather *g,
+                                btf_error *err)
+{
+    return gather_begin(src, linear, n_levels, max_texels, 1, g, err);
+}
+
+/* btf_lod_gather_add; with decoded 1 a linear source's cols are already in linear light. */
+static btf_result gather_add(btf_lod_gather *g, int v, const float *cols, int decoded, btf_error *err)
 {
     if (v < 0 || v >= g->n_views)
         return btf_fail(err, BTF_ERR_ARG, "lod: view %d of %d", v, g->n_views);
     if (g->seen[v])
         return BTF_OK;
-    if (g->linear) {
+    if (g->linear && !decoded) {
         size_t nc = (size_t)3 * g->n_lights * g->width * g->height;
         memcpy(g->lin, cols, nc * sizeof(float));
         btf_color_srgb_decode_n(g->lin, nc);
@@ -90,6 +99,11 @@ btf_result btf_lod_gather_add(btf_lod_gather *g, int v, const float *cols, btf_e
         for (int i = 0; i < g->pr[l].n; i++)
             btf_metrics_lab(g->pr[l].ref + (size_t)i * per, per / 3, g->pr[l].ref_lab + (size_t)i * per);
     return BTF_OK;
+}
+
+btf_result btf_lod_gather_add(btf_lod_gather *g, int v, const float *cols, btf_error *err)
+{
+    return gather_add(g, v, cols, 0, err);
 }
 
 int btf_lod_gather_done(const btf_lod_gather *g)
@@ -117,15 +131,18 @@ btf_result btf_lod_probe_make(btf_views *src, const btf_package *p, int n_levels
     memset(out, 0, (size_t)n_levels * sizeof *out);
     if (!btf_lod_probe_fits(src, p) || n_levels < 1 || n_levels > 16)
         return btf_fail(err, BTF_ERR_ARG, "lod: the source is not the package's size and directions");
-    btf_lod_gather g;
-    btf_result r = btf_lod_gather_begin(src, p->linear, n_levels, max_texels, &g, err);
-    float *cols = r == BTF_OK ? malloc(btf_views_floats(src) * sizeof(float)) : NULL;
+    btf_lod_gather g; /* one view buffer: a linear view is decoded in place */
+    btf_result r = gather_begin(src, p->linear, n_levels, max_texels, 0, &g, err);
+    size_t nc = btf_views_floats(src);
+    float *cols = r == BTF_OK ? malloc(nc * sizeof(float)) : NULL;
     if (r == BTF_OK && !cols)
         r = btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
     for (int v = 0; r == BTF_OK && v < p->views.n_dirs; v++) {
         r = btf_views_fill(src, v, cols, err);
+        if (r == BTF_OK && p->linear)
+            btf_color_srgb_decode_n(cols, nc);
         if (r == BTF_OK)
-            r = btf_lod_gather_add(&g, v, cols, err);
+            r = gather_add(&g, v, cols, 1, err);
     }
     free(cols);
     if (r == BTF_OK) { /* the references move to out */
