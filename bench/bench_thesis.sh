@@ -6,7 +6,9 @@
 # and its ratio to E; 0.5 asked) and at its error (`--max-error E`: our bytes, and
 # their ratio to B; 0.2 asked), each error by `btf eval` against the source, each
 # search's CPU (user + system) over a `--plain` compress of the same material in the
-# same run (3 asked). Every error is of the decode in floats (the thesis format's too);
+# same run (3 asked), and over one compress of the model each search chose (its k,
+# component count and centring given, its bytes as the budget: what the answer costs
+# to compress once, the search's own overhead apart). Every error is of the decode in floats (the thesis format's too);
 # beside it the same at its bytes as a page's 8-bit canvas shows both (`btf eval
 # --displayed`), and for a source imported from a thesis package the error of that
 # package's own reconstruction in floats against the source, its bytes: the floor no
@@ -45,9 +47,20 @@ lab_shown() { lab "$1" "$2" --displayed; }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; }
 # CPU seconds of `btf ARGS...` (user + system).
 cpu_of() { { /usr/bin/time -f "%U %S" "$BTF" "$@" >/dev/null; } 2>&1 | tail -1 | awk '{ printf "%.1f", $1 + $2 }'; }
+# answer_cpu SRC PKG: CPU seconds of one compress of SRC with PKG's model (k, component
+# count, centring) at PKG's bytes: the search's answer without the search. Prints the
+# seconds and the candidates that compress measured (1, or more where a byte budget
+# measures the model again at the chunks it keeps: cli.md section 4.3, step 3).
+answer_cpu() {
+    local m=$2/manifest.json t
+    t=$(cpu_of compress "$1" "$2-answer" --k "$(jq -r .k "$m")" --components "$(jq -r .components "$m")" \
+        --center "$(jq -r '.center // "none"' "$m")" --max-bytes "$(package_bytes "$2")" --no-thumbnail --quiet)
+    echo "$t $(jq -r '.budget.candidates | length' "$2-answer/manifest.json")"
+    rm -rf "$2-answer"
+}
 
 met_bytes=0 met_error=0 n=0
-echo "# material | thesis format: bytes, CIELab | ours at its bytes: CIELab (x its), k | ours at its error: bytes (x its), CIELab, k | search CPU over --plain: at its bytes, at its error | as displayed (8-bit): thesis format, ours at its bytes (x) | the source's rounding floor"
+echo "# material | thesis format: bytes, CIELab | ours at its bytes: CIELab (x its), k | ours at its error: bytes (x its), CIELab, k | search CPU over --plain: at its bytes, at its error | one compress of the answer's model over --plain, the search over it | as displayed (8-bit): thesis format, ours at its bytes (x) | the source's rounding floor"
 for spec in "${mats[@]}"; do
     name=${spec%%=*} src=${spec#*=}
     echo "bench_thesis: $name" >&2
@@ -64,9 +77,11 @@ for spec in "${mats[@]}"; do
     rm -rf "$tmp/$name-plain"
     bc=$(cpu_of compress "$src" "$tmp/$name-b" --max-bytes "$tb" --no-thumbnail --quiet)
     bl=$(lab "$src" "$tmp/$name-b") bd=$(lab_shown "$src" "$tmp/$name-b") bk=$(jq -r .k "$tmp/$name-b/manifest.json")
+    read -r ba ban < <(answer_cpu "$src" "$tmp/$name-b")
     rm -rf "$tmp/$name-b"
     ec=$(cpu_of compress "$src" "$tmp/$name-e" --max-error "$tl" --no-thumbnail --quiet)
     eb=$(package_bytes "$tmp/$name-e") el=$(lab "$src" "$tmp/$name-e") ek=$(jq -r .k "$tmp/$name-e/manifest.json")
+    read -r ea ean < <(answer_cpu "$src" "$tmp/$name-e")
     rm -rf "$tmp/$name-e"
     rb=$(ratio "$bl" "$tl") re=$(ratio "$eb" "$tb")
     echo "thesis_${name}_thesis_bytes $tb B"
@@ -83,7 +98,13 @@ for spec in "${mats[@]}"; do
     echo "thesis_${name}_plain_cpu_s $pc s"
     echo "thesis_${name}_equal_bytes_cpu_over_plain $(ratio "$bc" "$pc") x"
     echo "thesis_${name}_equal_error_cpu_over_plain $(ratio "$ec" "$pc") x"
-    echo "# $name | $tb B, $tl | $bl (${rb}x), k $bk | $eb B (${re}x), $el, k $ek | $(ratio "$bc" "$pc")x, $(ratio "$ec" "$pc")x (--plain $pc s) | displayed: $td, $bd ($(ratio "$bd" "$td")x) | floor $floor"
+    echo "thesis_${name}_equal_bytes_answer_cpu_over_plain $(ratio "$ba" "$pc") x"
+    echo "thesis_${name}_equal_bytes_answer_candidates $ban count"
+    echo "thesis_${name}_equal_error_answer_candidates $ean count"
+    echo "thesis_${name}_equal_bytes_cpu_over_answer $(ratio "$bc" "$ba") x"
+    echo "thesis_${name}_equal_error_answer_cpu_over_plain $(ratio "$ea" "$pc") x"
+    echo "thesis_${name}_equal_error_cpu_over_answer $(ratio "$ec" "$ea") x"
+    echo "# $name | $tb B, $tl | $bl (${rb}x), k $bk | $eb B (${re}x), $el, k $ek | $(ratio "$bc" "$pc")x, $(ratio "$ec" "$pc")x (--plain $pc s) | answer once over --plain: $(ratio "$ba" "$pc")x, $(ratio "$ea" "$pc")x; search over it: $(ratio "$bc" "$ba")x, $(ratio "$ec" "$ea")x | displayed: $td, $bd ($(ratio "$bd" "$td")x) | floor $floor"
     n=$((n + 1))
     awk -v r="$rb" 'BEGIN { exit !(r <= 0.5) }' && met_bytes=$((met_bytes + 1))
     # a fifth of the bytes counts where btf eval also finds the error met (the search
