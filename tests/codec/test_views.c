@@ -16,6 +16,7 @@
 #include "btf_input.h"
 #include "btf_lossy.h"
 #include "btf_lod.h"
+#include "btf_lod_error.h"
 
 /* Every file of package a equals the same file of package b (and b has no other). */
 static void expect_same_package(const char *a, const char *b, const char *what)
@@ -373,4 +374,64 @@ Test(views, levels_gather_their_references_in_the_compressions_pass)
     btf_package_free(p);
     btf_free(m);
     cr_assert_eq(fx_rmtree(dir), 0);
+}
+
+/* The sRGB transfer written out here (IEC 61966-2-1), apart from btf_color's. */
+static double srgb_to_linear(double v) { return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4); }
+static double linear_to_srgb(double v) { return v <= 0.0031308 ? v * 12.92 : 1.055 * pow(v, 1.0 / 2.4) - 0.055; }
+
+/* A linear package's level references (btf_lod_error.h) are the source's means in
+ * linear light, encoded back to sRGB: the probe, which decodes each view in place,
+ * and the gathering, which decodes a copy and leaves the caller's view as it was,
+ * give the same references, and both the means this test computes itself. */
+Test(views, linear_level_references_are_means_in_linear_light)
+{
+    btf *m = small_material();
+    btf_views s;
+    btf_views_wrap(m, &s);
+    btf_package pkg = {0}; /* what the probe reads of a package: size, directions, linear */
+    pkg.width = m->width, pkg.height = m->height, pkg.lights = m->lights, pkg.views = m->views, pkg.linear = 1;
+    btf_error err = {0};
+    btf_lod_probe pr[2];
+    cr_assert_eq(btf_lod_probe_make(&s, &pkg, 2, 16, pr, &err), BTF_OK, "%s", err.msg);
+    btf_lod_gather g;
+    cr_assert_eq(btf_lod_gather_begin(&s, 1, 2, 16, &g, &err), BTF_OK, "%s", err.msg);
+    size_t nf = btf_views_floats(&s), texels = (size_t)m->width * m->height;
+    int V = m->views.n_dirs, L = m->lights.n_dirs;
+    float *cols = malloc(nf * sizeof(float)), *copy = malloc(nf * sizeof(float));
+    cr_assert(cols && copy);
+    double worst = 0.0;
+    for (int v = 0; v < V; v++) {
+        cr_assert_eq(btf_views_fill(&s, v, cols, &err), BTF_OK, "%s", err.msg);
+        memcpy(copy, cols, nf * sizeof(float));
+        cr_assert_eq(btf_lod_gather_add(&g, v, cols, &err), BTF_OK, "%s", err.msg);
+        cr_assert_eq(memcmp(copy, cols, nf * sizeof(float)), 0, "view %d: the gathering changed the caller's view", v);
+        for (int l = 0; l < 2; l++)
+            for (int i = 0; i < pr[l].n; i++)
+                for (int k = 0; k < L * 3; k++) {
+                    int f = 1 << l, x0 = pr[l].xy[2 * i] * f, y0 = pr[l].xy[2 * i + 1] * f;
+                    double sum = 0.0;
+                    for (int dy = 0; dy < f; dy++)
+                        for (int dx = 0; dx < f; dx++)
+                            sum += srgb_to_linear(cols[(size_t)k * texels + (size_t)(y0 + dy) * m->width + x0 + dx]);
+                    double want = linear_to_srgb(sum / (f * f));
+                    float got = pr[l].ref[((size_t)i * V + v) * L * 3 + k];
+                    worst = fmax(worst, fabs(got - want));
+                }
+    }
+    cr_assert(btf_lod_gather_done(&g));
+    /* float sums of at most 4 samples and the float transfer functions: a few ulps */
+    cr_log_info("largest difference from the means in linear light: %g", worst);
+    cr_expect_lt(worst, 2e-6, "references %g from the means in linear light", worst);
+    for (int l = 0; l < 2; l++) {
+        cr_assert_eq(pr[l].n, g.pr[l].n);
+        size_t n = (size_t)pr[l].n * V * L * 3;
+        cr_expect_eq(memcmp(pr[l].ref, g.pr[l].ref, n * sizeof(float)), 0, "level %d: probe and gathering differ", l);
+        cr_expect_eq(memcmp(pr[l].ref_lab, g.pr[l].ref_lab, n * sizeof(float)), 0, "level %d: CIELab differs", l);
+    }
+    free(cols), free(copy);
+    btf_lod_gather_free(&g);
+    btf_lod_probe_free(pr, 2);
+    btf_views_close(&s);
+    btf_free(m);
 }
