@@ -46,11 +46,17 @@ void btf_progress_end(btf_progress *p)
     p->width = 0;
 }
 
-/* One chunk's entry; cumulative = bytes of chunks 0..i. lab and delta_e76 are null in a
- * package with levels, whose manifest records neither (the text report prints "-"). */
+void btf_output_recorded(const btf_package *p, int *rmse_float, int *lab)
+{
+    *rmse_float = p->version != 4, *lab = !btf_package_has_levels(p);
+}
+
+/* One chunk's entry; cumulative = bytes of chunks 0..i; null or absent where the
+ * manifest records no value (btf_output_recorded). */
 static cJSON *btf__json_chunk(const btf_package *p, int i, long long cumulative)
 {
-    int has_lab = !btf_package_has_levels(p);
+    int has_float, has_lab;
+    btf_output_recorded(p, &has_float, &has_lab);
     const btf_chunk_info *c = &p->chunk[i];
     cJSON *j = cJSON_CreateObject();
     cJSON_AddNumberToObject(j, "index", i);
@@ -59,7 +65,7 @@ static cJSON *btf__json_chunk(const btf_package *p, int i, long long cumulative)
     cJSON_AddNumberToObject(j, "bytes", (double)c->bytes);
     cJSON_AddNumberToObject(j, "cumulative", (double)cumulative);
     cJSON_AddNumberToObject(j, "rmse", c->rmse);
-    if (p->version != 4) /* version 4's manifest leaves it out */
+    if (has_float)
         cJSON_AddNumberToObject(j, "rmse_float", c->rmse_float);
     cJSON_AddItemToObject(j, "lab", has_lab ? cJSON_CreateNumber(c->lab) : cJSON_CreateNull());
     cJSON_AddNumberToObject(j, "psnr", c->psnr);

@@ -35,6 +35,9 @@ void btf_progress_format(char *buf, size_t n, const char *what, const char *unit
                          double elapsed);
 
 
+/* Which per-chunk values p's manifest records (the reports print "-" or null for the
+ * others): rmse_float, not in version 4; lab and delta_e76, not with levels. */
+void btf_output_recorded(const btf_package *p, int *rmse_float, int *lab);
 /* {"path": dir, "bytes", "chunks", "chunk": [{index, component, level, bytes,
  * cumulative, rmse, rmse_float, lab, psnr, delta_e76}]} of the package dir as
  * its manifest records it; NULL (message printed for cmd) when it cannot be read. */

@@ -231,8 +231,8 @@ static void compress_report(const char *out)
     if (p->linear)
         printf("linear light: rmse and rmse_float on the linear 0..255 scale, lab after encoding to sRGB\n");
     printf("chunk component      bytes   cumulative    rmse  rmse_float    lab\n");
-    /* "-" where the manifest records no value: rmse_float in version 4, lab with levels */
-    int has_float = p->version != 4, has_lab = !btf_package_has_levels(p);
+    int has_float, has_lab; /* "-" where the manifest records no value */
+    btf_output_recorded(p, &has_float, &has_lab);
     for (int i = 0; i < p->n_chunks; i++) {
         const btf_chunk_info *c = &p->chunk[i];
         char fl[32] = "-", lab[32] = "-";

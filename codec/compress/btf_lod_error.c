@@ -60,8 +60,9 @@ static btf_result gather_begin(const btf_views *src, int linear, int n_levels, i
     g->n_levels = n_levels, g->linear = linear, g->width = src->width, g->height = src->height;
     g->n_views = src->views.n_dirs, g->n_lights = src->lights.n_dirs;
     g->pr = calloc((size_t)n_levels, sizeof *g->pr), g->seen = calloc((size_t)g->n_views, 1);
-    g->lin = linear && lin_buffer ? malloc(btf_views_floats(src) * sizeof(float)) : NULL;
-    btf_result r = g->pr && g->seen && (g->lin || !linear || !lin_buffer) ? BTF_OK
+    int copy = linear && lin_buffer;
+    g->lin = copy ? malloc(btf_views_floats(src) * sizeof(float)) : NULL;
+    btf_result r = g->pr && g->seen && (g->lin || !copy) ? BTF_OK
                                                             : btf_fail(err, BTF_ERR_NOMEM, "lod: out of memory (level error)");
     for (int l = 0; r == BTF_OK && l < n_levels; l++)
         r = probe_alloc(g, l, max_texels, &g->pr[l], err);
