@@ -41,7 +41,7 @@ static void compress_usage(FILE *f)
     fprintf(f,
             "usage: btf compress IN OUT [--k K] [--components C] [--bits 8|16]\n"
             "                           [--grouping consecutive|spatial] [--center none|row]\n"
-            "                           [--clipped fit|keep]\n"
+            "                           [--clipped fit|keep] [--rounding cut|keep]\n"
             "                           [--method auto|gram|randomized|svd] [--downsample F]\n"
             "                           [--name NAME] [--levels N] [--sampling S] [--fill-missing]\n"
             "                           [--max-bytes N | --max-error E] [--full-search] [--plain] [--lossless] [--avif]\n"
@@ -65,6 +65,10 @@ static void compress_usage(FILE *f)
             "  --clipped M      fit: a sample stored at 0 or 255 may lie beyond it in the model\n"
             "                   (what a clipped capture or import hides; the display clips again)\n"
             "                   (default); keep: fitted as stored, as the thesis method does\n"
+            "  --rounding M     cut: a block's components stop where what they leave is within\n"
+            "                   4x the 8-bit rounding of its samples (default; not with --linear\n"
+            "                   or --bits 16, which keep every component);\n"
+            "                   keep: every component, as the thesis method does\n"
             "  --method M       PCA route (default auto: Gram up to 2048 columns, else randomized)\n"
             "  --downsample F   box-filter the input by F on load\n"
             "  --sampling S     direction set of an image-directory input: ubo2003, dome151 or a\n"
@@ -138,7 +142,7 @@ static void compress_usage(FILE *f)
 }
 
 static const btf_args_spec compress_spec = {
-    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c clipped:K levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A lossless!O avif!V png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
+    "compress", "k:k components:C method:m downsample:d bits:b grouping:g center:c clipped:K rounding:U levels:l residual!D name:n sampling:s fill-missing!F max-bytes:B max-error:E full-search!S rd!R plain!A lossless!O avif!V png!P tex-noise:X linear!L in-memory!M no-thumbnail!T quiet!q json!j",
     compress_usage, 2};
 
 /* One option or positional of `btf compress` (btf_args_fn). */
@@ -147,6 +151,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     static const char *const groupings[] = {"consecutive", "spatial"};
     static const char *const centers[] = {"none", "row"};
     static const char *const clipped[] = {"fit", "keep"};
+    static const char *const rounding[] = {"cut", "keep"};
     compress_opts *o = ctx;
     btf_args_pca_dst pca = {&o->pca.k,      &o->pca.components,     &o->src.downsample,
                             &o->pca.method, BTF_PACKAGE_MAX_CHUNKS, &o->budget};
@@ -159,6 +164,7 @@ static int compress_option(void *ctx, const btf_args *a, int c, const char *v)
     case 'g': rc = btf_args_enum(a, v, groupings, 2, &e), o->pca.grouping = (btf_grouping)(e + 1); break;
     case 'c': rc = btf_args_enum(a, v, centers, 2, &e), o->pca.center = (btf_center)(e + 1); break;
     case 'K': rc = btf_args_enum(a, v, clipped, 2, &e), o->pca.clipped = (btf_clipped)(e + 1); break;
+    case 'U': rc = btf_args_enum(a, v, rounding, 2, &e), o->pca.rounding = (btf_rounding)(e + 1); break;
     case 'l': rc = btf_args_int(a, v, 1, BTF_LOD_MAX_LEVELS, &o->lod.levels); break;
     case 'D': o->lod.residual = 1; break;
     case 'n': o->name = v; break;

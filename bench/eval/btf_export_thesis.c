@@ -150,6 +150,7 @@ btf_result btf_export_thesis_model(const btf *src, const btf_export_options *opt
     po.k = o.k, po.components = o.components, po.method = o.method;
     po.grouping = BTF_GROUP_CONSECUTIVE, po.center = BTF_CENTER_ROW;
     po.clipped = BTF_CLIPPED_KEEP; /* the thesis method fits the samples as stored */
+    po.rounding = BTF_ROUNDING_KEEP; /* and keeps every component */
     btf_pca_model *m = NULL;
     if ((r = btf_pca_compress(src, &po, NULL, NULL, &m, err)) != BTF_OK)
         return r;

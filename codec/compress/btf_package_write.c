@@ -845,6 +845,9 @@ btf_result btf_package_compress_views_with(btf_views *src, const btf_pca_options
     if (r != BTF_OK)
         return r;
     btf_pca_options po = btf_pca_resolve(pca);
+    /* unless asked: the rounding is the sRGB bytes', and 16 bits keep it (a full-rank round trip) */
+    if ((!pca || pca->rounding == BTF_ROUNDING_DEFAULT) && (o.linear || o.bits == 16))
+        po.rounding = BTF_ROUNDING_KEEP;
     r = btf_pca_check_views(src, &po, err);
     if (r != BTF_OK)
         return r;

@@ -31,6 +31,8 @@ btf_pca_options btf_pca_resolve(const btf_pca_options *opt)
         o.grouping = BTF_GROUP_CONSECUTIVE;
     if (o.center == BTF_CENTER_DEFAULT)
         o.center = BTF_CENTER_NONE;
+    if (o.rounding == BTF_ROUNDING_DEFAULT)
+        o.rounding = BTF_ROUNDING_CUT;
     return o;
 }
 
@@ -357,10 +359,11 @@ btf_result btf_pca_block_compute(const float *A, int rows, int cols, int C, btf_
     return r;
 }
 
-/* Out again as the PCA of A within the orthonormal basis V (cols x p): the
- * Rayleigh-Ritz step, components in descending order. */
-static btf_result btf__block_ritz(const float *A, int rows, int cols, int C, btf_center center, const float *V,
-                                  btf_pca_block *out, btf_error *err)
+/* Out again (C components, the first n found, the rest zero) as the PCA of A within
+ * the orthonormal basis V (cols x (n less the mean)): the Rayleigh-Ritz step,
+ * components in descending order. */
+static btf_result btf__block_ritz(const float *A, int rows, int cols, int C, int n, btf_center center,
+                                  const float *V, btf_pca_block *out, btf_error *err)
 {
     btf__op op;
     int off, found = 0;
@@ -368,7 +371,7 @@ static btf_result btf__block_ritz(const float *A, int rows, int cols, int C, btf
     btf_result r = btf__block_start(A, rows, cols, C, center, out, &op, &off, err);
     if (r != BTF_OK)
         return r;
-    int p = C - off;
+    int p = n - off;
     float *Y = malloc((size_t)rows * p * sizeof(float)), *G = malloc((size_t)p * p * sizeof(float));
     float *Q = malloc((size_t)p * p * sizeof(float)), *R = malloc((size_t)cols * p * sizeof(float));
     float *ev = malloc((size_t)p * sizeof(float)), *tmp = malloc((size_t)p * sizeof(float));
@@ -483,13 +486,13 @@ static btf_result btf__clip_steps(float *A, int rows, int cols, int p, int centr
     return r;
 }
 
-/* Fits out (A's PCA) again with A's clipped samples free to lie beyond their end of
- * the range (doc/package-format.md section 10.2), then puts them back: A is
- * unchanged, out->energy is A's. */
-static btf_result btf__clip_fit(float *A, int rows, int cols, const btf_pca_options *o, btf_pca_block *out,
-                                btf_error *err)
+/* Fits out's first `found` components (A's PCA) again with A's clipped samples free to lie
+ * beyond their end of the range (doc/package-format.md section 10.2), then puts them
+ * back: A is unchanged, out->energy is A's. */
+static btf_result btf__clip_fit(float *A, int rows, int cols, const btf_pca_options *o, int found,
+                                btf_pca_block *out, btf_error *err)
 {
-    int off = o->center == BTF_CENTER_ROW, p = o->components - off;
+    int off = o->center == BTF_CENTER_ROW, p = found - off;
     size_t n = (size_t)rows * cols;
     if (o->clipped == BTF_CLIPPED_KEEP || p < 1)
         return BTF_OK;
@@ -508,7 +511,7 @@ static btf_result btf__clip_fit(float *A, int rows, int cols, const btf_pca_opti
     memcpy(V, out->w + (size_t)off * cols, (size_t)cols * p * sizeof(float));
     r = btf__clip_steps(A, rows, cols, p, off, &c, V, err);
     if (r == BTF_OK)
-        r = btf__block_ritz(A, rows, cols, o->components, o->center, V, out, err);
+        r = btf__block_ritz(A, rows, cols, o->components, found, o->center, V, out, err);
     free(V);
     double e = out->energy;
     for (size_t q = 0; q < c.n; q++) {
@@ -521,6 +524,100 @@ static btf_result btf__clip_fit(float *A, int rows, int cols, const btf_pca_opti
         out->energy = e;
     btf__clipped_free(&c);
     return r;
+}
+
+/* ---------------------------------------------------------------- the source's rounding */
+
+/* Per count n = 1..C of blk's components, into beyond[n - 1]: the squared misfit of
+ * the clipped samples c whose model of n components lies beyond their end of the
+ * range, which the clipped fit frees (btf__clip_fill), so no rank is needed for it. */
+static void btf__clipped_beyond(const float *A, const btf__clipped *c, const btf_pca_block *blk, double *beyond)
+{
+    int C = blk->n_comp;
+    memset(beyond, 0, (size_t)C * sizeof(double));
+    for (size_t q = 0; q < c->n; q++) {
+        size_t i = c->at[q];
+        int row = (int)(i % (size_t)blk->rows), col = (int)(i / (size_t)blk->rows);
+        double v = 0.0;
+        for (int j = 0; j < C; j++) {
+            v += (double)blk->t[(size_t)j * blk->rows + row] * blk->w[(size_t)j * blk->cols + col];
+            if (c->high[q] ? v > 1.0 : v < 0.0)
+                beyond[j] += (v - A[i]) * (v - A[i]);
+        }
+    }
+}
+
+/* The fewest of blk's components that leave at most BTF_PCA_ROUNDING_FLOOR times the
+ * 8-bit rounding noise of its samples, less what the clipped fit frees (beyond, or
+ * NULL); blk->n_comp when none do. What component j removes: sigma_j^2, or for the
+ * row mean (centred, component 0) cols x |mean|^2: the centred columns are
+ * orthogonal to it. */
+static int btf__rounding_rank(const btf_pca_block *blk, btf_center center, const double *beyond)
+{
+    double floor = BTF_PCA_ROUNDING_FLOOR * (double)blk->rows * (double)blk->cols / (12.0 * 255.0 * 255.0);
+    double left = blk->energy;
+    for (int j = 0; j < blk->n_comp; j++) {
+        double s = blk->sigma[j];
+        if (center == BTF_CENTER_ROW && j == 0)
+            s = cblas_snrm2(blk->rows, blk->t, 1), s = s * s * blk->cols;
+        else
+            s *= s;
+        left -= s;
+        if (left - (beyond ? beyond[j] : 0.0) <= floor)
+            return j + 1;
+    }
+    return blk->n_comp;
+}
+
+/* Components n.. of blk set to zero (as a rank-deficient block's are). */
+static void btf__block_cut(btf_pca_block *blk, int n)
+{
+    for (int j = n; j < blk->n_comp; j++) {
+        memset(blk->t + (size_t)j * blk->rows, 0, (size_t)blk->rows * sizeof(float));
+        memset(blk->w + (size_t)j * blk->cols, 0, (size_t)blk->cols * sizeof(float));
+        blk->sigma[j] = 0.0f;
+    }
+}
+
+/* With BTF_ROUNDING_CUT, blk's components past the source's rounding
+ * (btf__rounding_rank, the clipped samples counted as the clipped fit will see them)
+ * set to zero; *found: the components left. */
+static btf_result btf__rounding_cut(const float *A, int rows, int cols, const btf_pca_options *o, btf_pca_block *blk,
+                                    int *found, btf_error *err)
+{
+    *found = blk->n_comp;
+    if (o->rounding != BTF_ROUNDING_CUT)
+        return BTF_OK;
+    size_t n = (size_t)rows * cols, count = o->clipped == BTF_CLIPPED_KEEP ? 0 : btf__count_at_ends(A, n);
+    btf__clipped c = {0};
+    double *beyond = NULL;
+    btf_result r = BTF_OK;
+    if (count > 0 && (double)count >= (double)n * BTF_PCA_CLIPPED_MIN_SHARE) {
+        r = btf__clipped_find(A, n, count, &c, err);
+        beyond = r == BTF_OK ? malloc((size_t)blk->n_comp * sizeof(double)) : NULL;
+        if (r == BTF_OK && !beyond)
+            r = btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (clipped samples)");
+        if (r == BTF_OK)
+            btf__clipped_beyond(A, &c, blk, beyond);
+    }
+    if (r == BTF_OK)
+        btf__block_cut(blk, *found = btf__rounding_rank(blk, o->center, beyond));
+    free(beyond);
+    btf__clipped_free(&c);
+    return r;
+}
+
+int btf_pca_model_rank(const btf_pca_model *m)
+{
+    int most = 0;
+    for (int b = 0; m && m->block && b < m->blocks->n_blocks; b++) {
+        const btf_pca_block *blk = &m->block[b];
+        int n = blk->n_comp;
+        while (n > 0 && blk->sigma[n - 1] == 0.0f)
+            n--;
+        most = n > most ? n : most;
+    }
+    return most;
 }
 
 /* ---------------------------------------------------------------- whole BTF */
@@ -568,6 +665,8 @@ static btf_result btf__check_sizes(int V, int L, long rows, const btf_pca_option
         return btf_fail(err, BTF_ERR_ARG, "unknown grouping %d", (int)o.grouping);
     if (o.center != BTF_CENTER_NONE && o.center != BTF_CENTER_ROW)
         return btf_fail(err, BTF_ERR_ARG, "unknown centring %d", (int)o.center);
+    if (o.rounding != BTF_ROUNDING_CUT && o.rounding != BTF_ROUNDING_KEEP)
+        return btf_fail(err, BTF_ERR_ARG, "unknown rounding rule %d", (int)o.rounding);
     if (o.method < BTF_PCA_AUTO || o.method > BTF_PCA_SVD)
         return btf_fail(err, BTF_ERR_ARG, "unknown PCA method %d", (int)o.method);
     return BTF_OK;
@@ -635,8 +734,11 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
         cols = 3 * src->lights.n_dirs * (m->blocks->start[b + 1] - m->blocks->start[b]);
         if (r == BTF_OK)
             r = btf_pca_block_compute(A, rows, cols, o.components, o.method, o.center, &m->block[b], err);
+        int found = o.components;
         if (r == BTF_OK)
-            r = btf__clip_fit(A, rows, cols, &o, &m->block[b], err);
+            r = btf__rounding_cut(A, rows, cols, &o, &m->block[b], &found, err);
+        if (r == BTF_OK)
+            r = btf__clip_fit(A, rows, cols, &o, found, &m->block[b], err);
         if (r == BTF_OK && fn)
             r = fn(ctx, b, A, &m->block[b], err);
         if (r == BTF_OK && o.progress)

@@ -52,6 +52,20 @@ typedef enum btf_clipped {
  * have 0.19-0.96%. */
 #define BTF_PCA_CLIPPED_MIN_SHARE 2e-3
 
+typedef enum btf_rounding {
+    BTF_ROUNDING_DEFAULT = 0, /* = BTF_ROUNDING_CUT */
+    BTF_ROUNDING_CUT,         /* components past the source's 8-bit rounding are zero */
+    BTF_ROUNDING_KEEP         /* every component fitted, the rounding's too (the thesis method) */
+} btf_rounding;
+
+/* A block's components stop where what they leave, |A - T W^T|^2, is within this
+ * many times the 8-bit rounding noise of its samples (rows x cols x (1/255)^2 / 12):
+ * the ones after it fit the rounding of the stored bytes, which no display shows
+ * (doc/package-format.md section 10.2). The thesis's corduroy at 64x64, k 3: its
+ * blocks leave 1.5-2.0x that after 8 components (their published rank), 25-73x
+ * after 7; the wool 2.9-3.2x and 34-38x; generated tiles 13x after 64. */
+#define BTF_PCA_ROUNDING_FLOOR 4.0
+
 /* Options; zero means default. Plain value. */
 typedef struct btf_pca_options {
     int k;                  /* views per block, 1..n_views; 0 = 3 */
@@ -60,6 +74,7 @@ typedef struct btf_pca_options {
     btf_pca_method method;
     btf_center center;
     btf_clipped clipped;
+    btf_rounding rounding;  /* default: the package writer keeps every component of linear and 16-bit packages */
     /* Optional: called after each block with blocks done and the total (progress
      * display); NULL = none. progress_ctx is passed through, owned by the caller. */
     void (*progress)(void *ctx, int done, int total);
@@ -122,6 +137,9 @@ btf_result btf_pca_block_fill(btf_views *src, const btf_blocks *bl, int b, float
 btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, btf_pca_block_fn fn, void *ctx,
                                   btf_pca_model **out, btf_error *err);
 void btf_pca_model_free(btf_pca_model *m);
+/* The most components any block of m holds that are not zero (rank-deficient or past
+ * the source's rounding, BTF_ROUNDING_CUT): at most m->n_comp. */
+int btf_pca_model_rank(const btf_pca_model *m);
 /* Float reconstruction of one sample from the first n components (n <= n_comp). */
 float btf_pca_model_value(const btf_pca_model *m, int view, int light, int x, int y, int c, int n);
 

@@ -666,3 +666,65 @@ Test(budget, a_best_keeping_fewer_chunks_is_measured_at_that_count_where_samples
     btf_free(src);
     fx_rmtree(dir);
 }
+
+/* The tiles as a rank-4 model of them stored as bytes (clamped to 0..1): what a
+ * published low-rank reconstruction is. */
+static btf *rank4_bytes(void)
+{
+    btf *t = material(), *out = NULL;
+    btf_pca_options po = {0};
+    po.k = 3, po.components = 4, po.rounding = BTF_ROUNDING_KEEP;
+    btf_pca_model *m = NULL;
+    btf_error err = {0};
+    cr_assert_eq(btf_pca_compress(t, &po, NULL, NULL, &m, &err), BTF_OK, "%s", err.msg);
+    cr_assert_eq(btf_create(t->width, t->height, &t->lights, &t->views, BTF_F32, &out, &err), BTF_OK, "%s", err.msg);
+    for (int v = 0; v < t->views.n_dirs; v++)
+        for (int l = 0; l < t->lights.n_dirs; l++)
+            for (int y = 0; y < t->height; y++)
+                for (int x = 0; x < t->width; x++)
+                    for (int c = 0; c < 3; c++) {
+                        float s = btf_pca_model_value(m, v, l, x, y, c, 4);
+                        s = s < 0.0f ? 0.0f : s > 1.0f ? 1.0f : s;
+                        ((float *)out->data)[btf_index(out, v, l, x, y, c)] = roundf(s * 255.0f) / 255.0f;
+                    }
+    btf_pca_model_free(m), btf_free(t);
+    return out;
+}
+
+/* A candidate whose blocks hold fewer components than it was given (the rest fit only
+ * the source's rounding: btf_pca_options.rounding) keeps no more chunks than they hold,
+ * is not grown although a budget that holds everything keeps every chunk it has, and is
+ * not compressed again at its count; with every component kept the search grows it. */
+Test(budget, a_candidate_cut_at_the_source_rounding_is_neither_grown_nor_shrunk)
+{
+    char dir[64], out[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    btf *src = rank4_bytes();
+    btf_budget b = {0};
+    b.max_bytes = 50000000, b.k[0] = 3, b.n_k = 1; /* holds any package of this material */
+    btf_package_options opt = {0};
+    opt.rd = 1; /* the CLI's default: the search reads each candidate's model */
+    btf_budget_result res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, NULL, &opt, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    for (int i = 0; i < res.n_candidates; i++) {
+        const btf_budget_choice *c = &res.candidate[i];
+        log_candidate(&res, i);
+        /* uncentred the 4 terms; centred the mean and 4 more */
+        cr_expect_leq(c->n_chunks, c->center == BTF_CENTER_ROW ? 5 : 4, "candidate %d keeps %d chunks", i,
+                      c->n_chunks);
+        cr_expect_eq(c->components, BTF_BUDGET_COMPONENTS, "candidate %d: %d components (grown or shrunk)", i,
+                     c->components);
+    }
+    cr_expect_eq(res.n_candidates, 2, "k 3 and its centred retry only");
+    btf_pca_options keep = {0};
+    keep.rounding = BTF_ROUNDING_KEEP;
+    cr_assert_eq(btf_budget_compress(src, &keep, &opt, &b, out, &res, &err), BTF_OK, "%s", err.msg);
+    int grown = 0;
+    for (int i = 0; i < res.n_candidates; i++)
+        grown |= res.candidate[i].components > BTF_BUDGET_COMPONENTS;
+    cr_expect(grown, "with every component kept, a candidate keeping all 16 chunks is grown");
+    btf_free(src);
+    fx_rmtree(dir);
+}

@@ -176,6 +176,10 @@ Test(cli, bad_option_exits_2_and_every_help_lists_exit_codes)
     cr_assert_eq(run_captured(cmd_lod, 4, dangling, 2, out, sizeof out), 2);
     char *flag_value[] = {"eval", "a", "b", "--json=yes", NULL};
     cr_assert_eq(run_captured(cmd_eval, 4, flag_value, 2, out, sizeof out), 2);
+    /* an enum names its choices: --rounding cut|keep */
+    char *rounding[] = {"compress", "in", "out", "--rounding", "some", NULL};
+    cr_assert_eq(run_captured(cmd_compress, 5, rounding, 2, out, sizeof out), 2);
+    cr_assert(strstr(out, "cut") && strstr(out, "keep"), "%s", out);
 }
 
 Test(cli, compress_json_describes_the_package)
