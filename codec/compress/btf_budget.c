@@ -49,6 +49,11 @@
  * at most this many trials, from half the equal-noise winner's bytes up to them
  * (the last step about 3% of them) */
 #define BTF__BUDGET_FIT_TRIALS 5
+/* ... and the bisection goes on past three misses while the last missed the target by
+ * at most this factor: the thesis corduroy at 64x64 (k 3 centred, its 8 components,
+ * CIELab 0.4073) missed at 280, 327 and 350 KB, the last at 0.4146, 1.8% over, where
+ * the equal-noise steps took 385 KB (doc/performance.md section 3) */
+#define BTF__BUDGET_FIT_NEAR 1.03
 
 /* The candidate k values, within 1..views: the budget's in its order, else the
  * default walk's: 9 (or the largest of the others below it), then the larger ones
@@ -717,7 +722,8 @@ static btf_result btf__budget_shrink(btf__search *s, btf_error *err)
  * the truncation and the quantisation traded at one slope), the budget bisected for
  * the fewest bytes whose best prefix still meets the target; a trial that does takes
  * the best's place, and s->fit_bytes keeps its budget for the final write. Three
- * misses from the top (no win by 1/16 of the bytes) end it. Only the winning trial
+ * misses from the top (no win by 1/16 of the bytes) end it, unless the last came
+ * within BTF__BUDGET_FIT_NEAR of the target. Only the winning trial
  * stays in the record. On the generated tiles 3621 at 64x64 under the thesis
  * format's error the equal-noise steps took 92.5 KB at k 41 with 16 components,
  * fitted steps of the same model 66 KB (doc/performance.md section 3). Not on a
@@ -731,14 +737,16 @@ static btf_result btf__budget_fit_error(btf__search *s, btf_error *err)
     const btf_budget_choice b = s->rs.candidate[s->best];
     const int first = s->rs.n_candidates;
     long long hi = b.bytes, lo = hi / 2, won = 0;
+    int near = 0; /* the last trial missed by at most BTF__BUDGET_FIT_NEAR */
     btf_result r = BTF_OK;
     for (int t = 0; r == BTF_OK && t < BTF__BUDGET_FIT_TRIALS && first + t < BTF_BUDGET_MAX_CANDIDATES - 2 &&
-                    (won || t < 3);
+                    (won || t < 3 || near);
          t++) {
         int i = first + t, was = s->best;
         s->fit_bytes = lo + (hi - lo) / 2;
         s->rs.candidate[i] = (btf_budget_choice){.k = b.k, .components = b.components, .rd_fit = 1, .center = b.center};
         r = btf__budget_eval(s, i, 1, 1.0, err);
+        near = s->rs.candidate[i].n_chunks > 0 && s->rs.candidate[i].lab <= BTF__BUDGET_FIT_NEAR * s->b->max_error;
         if (s->best != was)
             won = s->fit_bytes, hi = s->fit_bytes;
         else
