@@ -433,6 +433,18 @@ static btf_result btf__clipped_find(const float *A, size_t n, size_t count, btf_
     return BTF_OK;
 }
 
+/* The samples of A (n floats) the clipped fit frees, into c: none (c->n 0) when the
+ * rule keeps them or fewer than BTF_PCA_CLIPPED_MIN_SHARE of them lie at an end.
+ * Freed with btf__clipped_free. */
+static btf_result btf__clipped_of(const float *A, size_t n, btf_clipped rule, btf__clipped *c, btf_error *err)
+{
+    memset(c, 0, sizeof *c);
+    size_t count = rule == BTF_CLIPPED_KEEP ? 0 : btf__count_at_ends(A, n);
+    if (count == 0 || (double)count < (double)n * BTF_PCA_CLIPPED_MIN_SHARE)
+        return BTF_OK;
+    return btf__clipped_find(A, n, count, c, err);
+}
+
 /* Moves each clipped sample to the model's value (m + Y V^T, p terms) where that lies
  * beyond its end of the range, else back onto the end. */
 static void btf__clip_fill(float *A, int rows, int cols, const btf__clipped *c, const float *m, const float *Y,
@@ -486,43 +498,33 @@ static btf_result btf__clip_steps(float *A, int rows, int cols, int p, int centr
     return r;
 }
 
-/* Fits out's first `found` components (A's PCA) again with A's clipped samples free to lie
- * beyond their end of the range (doc/package-format.md section 10.2), then puts them
- * back: A is unchanged, out->energy is A's. */
+/* Fits out's first `found` components (A's PCA) again with A's clipped samples c
+ * (btf__clipped_of) free to lie beyond their end of the range
+ * (doc/package-format.md section 10.2), then puts them back: A is unchanged,
+ * out->energy is A's. */
 static btf_result btf__clip_fit(float *A, int rows, int cols, const btf_pca_options *o, int found,
-                                btf_pca_block *out, btf_error *err)
+                                const btf__clipped *c, btf_pca_block *out, btf_error *err)
 {
     int off = o->center == BTF_CENTER_ROW, p = found - off;
-    size_t n = (size_t)rows * cols;
-    if (o->clipped == BTF_CLIPPED_KEEP || p < 1)
+    if (c->n == 0 || p < 1)
         return BTF_OK;
-    size_t count = btf__count_at_ends(A, n);
-    if (count == 0 || (double)count < (double)n * BTF_PCA_CLIPPED_MIN_SHARE)
-        return BTF_OK;
-    btf__clipped c;
-    btf_result r = btf__clipped_find(A, n, count, &c, err);
-    if (r != BTF_OK)
-        return r;
     float *V = malloc((size_t)cols * p * sizeof(float));
-    if (!V) {
-        btf__clipped_free(&c);
+    if (!V)
         return btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (clipped samples)");
-    }
     memcpy(V, out->w + (size_t)off * cols, (size_t)cols * p * sizeof(float));
-    r = btf__clip_steps(A, rows, cols, p, off, &c, V, err);
+    btf_result r = btf__clip_steps(A, rows, cols, p, off, c, V, err);
     if (r == BTF_OK)
         r = btf__block_ritz(A, rows, cols, o->components, found, o->center, V, out, err);
     free(V);
     double e = out->energy;
-    for (size_t q = 0; q < c.n; q++) {
-        size_t i = c.at[q];
+    for (size_t q = 0; q < c->n; q++) {
+        size_t i = c->at[q];
         e -= (double)A[i] * A[i];
-        A[i] = c.high[q] ? 1.0f : 0.0f;
+        A[i] = c->high[q] ? 1.0f : 0.0f;
         e += (double)A[i] * A[i];
     }
     if (r == BTF_OK)
         out->energy = e;
-    btf__clipped_free(&c);
     return r;
 }
 
@@ -580,31 +582,22 @@ static void btf__block_cut(btf_pca_block *blk, int n)
 }
 
 /* With BTF_ROUNDING_CUT, blk's components past the source's rounding
- * (btf__rounding_rank, the clipped samples counted as the clipped fit will see them)
- * set to zero; *found: the components left. */
-static btf_result btf__rounding_cut(const float *A, int rows, int cols, const btf_pca_options *o, btf_pca_block *blk,
-                                    int *found, btf_error *err)
+ * (btf__rounding_rank, the clipped samples c of A counted as the clipped fit will see
+ * them) set to zero; *found: the components left. */
+static btf_result btf__rounding_cut(const float *A, const btf__clipped *c, const btf_pca_options *o,
+                                    btf_pca_block *blk, int *found, btf_error *err)
 {
     *found = blk->n_comp;
     if (o->rounding != BTF_ROUNDING_CUT)
         return BTF_OK;
-    size_t n = (size_t)rows * cols, count = o->clipped == BTF_CLIPPED_KEEP ? 0 : btf__count_at_ends(A, n);
-    btf__clipped c = {0};
-    double *beyond = NULL;
-    btf_result r = BTF_OK;
-    if (count > 0 && (double)count >= (double)n * BTF_PCA_CLIPPED_MIN_SHARE) {
-        r = btf__clipped_find(A, n, count, &c, err);
-        beyond = r == BTF_OK ? malloc((size_t)blk->n_comp * sizeof(double)) : NULL;
-        if (r == BTF_OK && !beyond)
-            r = btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (clipped samples)");
-        if (r == BTF_OK)
-            btf__clipped_beyond(A, &c, blk, beyond);
-    }
-    if (r == BTF_OK)
-        btf__block_cut(blk, *found = btf__rounding_rank(blk, o->center, beyond));
+    double *beyond = c->n ? malloc((size_t)blk->n_comp * sizeof(double)) : NULL;
+    if (c->n && !beyond)
+        return btf_fail(err, BTF_ERR_NOMEM, "PCA: out of memory (clipped samples)");
+    if (beyond)
+        btf__clipped_beyond(A, c, blk, beyond);
+    btf__block_cut(blk, *found = btf__rounding_rank(blk, o->center, beyond));
     free(beyond);
-    btf__clipped_free(&c);
-    return r;
+    return BTF_OK;
 }
 
 int btf_pca_model_rank(const btf_pca_model *m)
@@ -735,10 +728,14 @@ btf_result btf_pca_compress_views(btf_views *src, const btf_pca_options *opt, bt
         if (r == BTF_OK)
             r = btf_pca_block_compute(A, rows, cols, o.components, o.method, o.center, &m->block[b], err);
         int found = o.components;
+        btf__clipped c = {0}; /* found once: the rounding cut counts them, the fit frees them */
         if (r == BTF_OK)
-            r = btf__rounding_cut(A, rows, cols, &o, &m->block[b], &found, err);
+            r = btf__clipped_of(A, (size_t)rows * cols, o.clipped, &c, err);
         if (r == BTF_OK)
-            r = btf__clip_fit(A, rows, cols, &o, found, &m->block[b], err);
+            r = btf__rounding_cut(A, &c, &o, &m->block[b], &found, err);
+        if (r == BTF_OK)
+            r = btf__clip_fit(A, rows, cols, &o, found, &c, &m->block[b], err);
+        btf__clipped_free(&c);
         if (r == BTF_OK && fn)
             r = fn(ctx, b, A, &m->block[b], err);
         if (r == BTF_OK && o.progress)
