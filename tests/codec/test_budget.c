@@ -780,3 +780,46 @@ Test(budget, a_larger_k_far_behind_under_a_byte_budget_is_not_grown)
     cr_expect_gt(near, 0, "the default walks leave larger ks within reach");
     fx_rmtree(dir);
 }
+
+/* Under an error target the walk does not measure a larger k whose blocks are unions
+ * of the best's (consecutive views, a multiple of its k) when that best keeps every
+ * component it has and misses the target by more than 15%: each larger block's PCA fits
+ * each of the best's blocks no better with as many components, so it would miss by
+ * more and be neither chosen nor grown. The premise checked on a search of k 9 and 27
+ * alone: k 27 has the larger error. */
+Test(budget, a_larger_k_is_not_measured_when_the_best_misses_far)
+{
+    char dir[64], out[128];
+    cr_assert(fx_tmpdir(dir, sizeof dir));
+    snprintf(out, sizeof out, "%s/p", dir);
+    static const btf_ring r[4] = {{0.0f, 1, 0.0f}, {25.0f, 8, 0.0f}, {50.0f, 15, 0.0f}, {70.0f, 30, 0.0f}};
+    btf *src = fx_material(BTF_GEN_KNIT, 16, r, 4); /* the default ks: 9, 27, 54, 5, 3, 1 */
+    static const btf_pca_options keep = {.clipped = BTF_CLIPPED_KEEP, .rounding = BTF_ROUNDING_KEEP};
+    cr_assert_eq(src->views.n_dirs, 54);
+    btf_budget e = {0};
+    e.max_error = 0.3, e.k[0] = 9, e.k[1] = 27, e.n_k = 2, e.max_components = BTF_BUDGET_COMPONENTS;
+    btf_budget_result all, res;
+    btf_error err = {0};
+    cr_assert_eq(btf_budget_compress(src, &keep, NULL, &e, out, &all, &err), BTF_OK, "%s", err.msg);
+    const btf_budget_choice *k9 = NULL, *k27 = NULL;
+    for (int i = 0; i < all.n_candidates; i++) {
+        log_candidate(&all, i);
+        const btf_budget_choice *c = &all.candidate[i];
+        if (c->center != BTF_CENTER_ROW && c->components == BTF_BUDGET_COMPONENTS)
+            k9 = c->k == 9 && !k9 ? c : k9, k27 = c->k == 27 && !k27 ? c : k27;
+    }
+    cr_assert(k9 && k27, "the search measures k 9 and 27");
+    cr_assert_eq(k9->n_chunks, k9->components, "k 9 keeps every component");
+    cr_assert_gt(k9->lab, 1.15 * e.max_error, "k 9 misses 0.4 by more than 15%%: CIELab %.4f", k9->lab);
+    cr_expect_gt(k27->lab, k9->lab, "k 27 fits worse: CIELab %.4f against %.4f", k27->lab, k9->lab);
+    e.n_k = 0, e.max_components = 0; /* the default walk */
+    cr_assert_eq(btf_budget_compress(src, &keep, NULL, &e, out, &res, &err), BTF_OK, "%s", err.msg);
+    cr_expect_eq(res.candidate[0].k, 9);
+    for (int i = 0; i < res.n_candidates; i++) {
+        log_candidate(&res, i);
+        cr_expect_leq(res.candidate[i].k, 9, "candidate %d: k %d measured", i, res.candidate[i].k);
+    }
+    cr_expect(res.met, "a smaller k meets 0.4: CIELab %.4f", res.lab);
+    btf_free(src);
+    fx_rmtree(dir);
+}
