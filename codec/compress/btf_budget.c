@@ -688,13 +688,12 @@ static btf_result btf__budget_grown(btf__search *s, int c, int *i, btf_error *er
 }
 
 /* Under an error target, 1 when candidate c (not the best) misses it keeping every
- * component it has, in fewer bytes than the best takes: with more components it may
- * meet it in fewer bytes than the best needs. */
+ * component it has (btf__budget_short, any reach), in fewer bytes than the best takes:
+ * with more components it may meet it in fewer bytes than the best needs. */
 static int btf__budget_cheaper(const btf__search *s, int c)
 {
-    const btf_budget_choice *x = &s->rs.candidate[c];
-    return s->b->max_error > 0 && s->best >= 0 && s->best != c && s->all_kept[c] && s->b->max_components <= 0 &&
-           x->lab > s->b->max_error && x->bytes < s->rs.candidate[s->best].bytes;
+    return s->b->max_error > 0 && s->best >= 0 && s->best != c && btf__budget_short(s, c, HUGE_VAL) &&
+           s->rs.candidate[c].bytes < s->rs.candidate[s->best].bytes;
 }
 
 /* Under an error target, 1 when candidate c (missing it) may meet it with more

@@ -754,16 +754,13 @@ Test(budget, a_larger_k_far_behind_under_a_byte_budget_is_not_grown)
         btf_budget_result res;
         cr_assert_eq(btf_budget_compress(src, &keep, NULL, &b, out, &res, &err), BTF_OK, "%s", err.msg);
         const btf_budget_choice *c = res.candidate;
-        int best = 0;
-        for (int i = 0; i < res.n_candidates; i++) {
+        for (int i = 0; i < res.n_candidates; i++)
             log_candidate(&res, i);
-            if (c[i].center == BTF_CENTER_ROW)
-                break; /* the walk's candidates end */
-            if (i > 0 && c[i].k == c[i - 1].k) { /* a growth */
-                best = grown_beats(&b, &c[i], &c[i - 1], &c[best]) ? i : best;
-                continue;
-            }
-            int lost = !beats(&b, &c[i], &c[best]), kept = c[i].n_chunks == c[i].components;
+        for (int i = 1; i < res.n_candidates && c[i].center != BTF_CENTER_ROW; i++) { /* the walk's candidates */
+            if (c[i].k == c[i - 1].k)
+                continue; /* a growth */
+            int best = walk_best(&b, &res, i); /* before candidate i */
+            int lost = walk_best(&b, &res, i + 1) != i, kept = c[i].n_chunks == c[i].components;
             if (c[i].k > c[0].k && lost && kept) {
                 int in_reach = c[i].lab * 0.7 < c[best].lab;
                 int grown = i + 1 < res.n_candidates && c[i + 1].k == c[i].k && c[i + 1].components > c[i].components;
@@ -771,7 +768,6 @@ Test(budget, a_larger_k_far_behind_under_a_byte_budget_is_not_grown)
                              c[i].k, c[i].lab, c[best].lab, grown);
                 far += !in_reach, near += in_reach;
             }
-            best = lost && i > 0 ? best : i;
         }
         btf_free(src);
     }
@@ -848,14 +844,13 @@ Test(budget, a_cheaper_candidate_missing_the_error_target_is_grown)
     const btf_budget_choice *c = res.candidate;
     for (int i = 0; i < res.n_candidates; i++)
         log_candidate(&res, i);
-    int best = 0, cheaper = 0, grown = 0;
+    int grown = 0;
     double rl = 0.88, rb = 1.45;
     for (int i = 1; i < res.n_candidates && c[i].center != BTF_CENTER_ROW; i++) {
         int growth = c[i].k == c[i - 1].k && c[i].components > c[i - 1].components;
-        if (growth ? grown_beats(&e, &c[i], &c[i - 1], &c[best]) : beats(&e, &c[i], &c[best])) {
-            best = i;
-            continue;
-        }
+        int best = walk_best(&e, &res, i); /* before candidate i */
+        if (walk_best(&e, &res, i + 1) == i)
+            continue; /* it took the best's place */
         if (growth && c[i].lab > 0.99 * c[i - 1].lab)
             continue; /* more components did not help: the growth ends */
         if (growth)
@@ -868,7 +863,7 @@ Test(budget, a_cheaper_candidate_missing_the_error_target_is_grown)
         cr_expect_eq(next_grown, worth && c[i].components < BTF_BUDGET_MAX_COMPONENTS,
                      "candidate %d (k %d, %d components, CIELab %.4f, %lld bytes; the best %lld): grown %d", i, c[i].k,
                      c[i].components, c[i].lab, c[i].bytes, c[best].bytes, next_grown);
-        cheaper += worth, grown += next_grown;
+        grown += next_grown;
     }
     cr_expect_gt(grown, 0, "k 27 misses the target in fewer bytes than k 9 and is grown");
     cr_expect(res.met && res.k == 27 && res.bytes < c[0].bytes, "k 27 grown meets CIELab %.2f in fewer bytes than k 9: "
